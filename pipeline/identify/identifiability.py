@@ -1,0 +1,85 @@
+"""Which parameters a campaign can identify: pivoted QR of the column-scaled Jacobian.
+
+The columns of the identification Jacobian are scaled to unit norm (Hollerbach & Wampler),
+so the test does not depend on units.  Pivoted QR orders the columns by how much new
+information each adds; a column whose remaining norm |R_kk| falls below
+``RANK_TOL`` is a (numerically) linear combination of the columns before it and is
+fixed at its nominal value.  Seed 000 does the same by dropping small pivots (its eq. 57).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+RANK_TOL = 1e-3  # smallest remaining norm of a kept unit-norm column (noise gain ≤ 1000×)
+ZERO_TOL = 1e-12  # a column this small (relative to the largest) has no effect at all
+
+
+@dataclass(frozen=True)
+class Identifiability:
+    """Outcome of the rank test: free/fixed parameters and why each fixed one is fixed."""
+
+    free: np.ndarray  # bool mask over parameters
+    reasons: dict[int, str]  # parameter index -> reason it is fixed
+    pivots: np.ndarray  # |R_kk| / |R_00| in pivot order
+    order: np.ndarray  # pivot order (parameter indices)
+
+
+def analyse(J: np.ndarray, names: list[str], fixed: np.ndarray | None = None,
+            priority: np.ndarray | None = None, tol: float = RANK_TOL) -> Identifiability:
+    """Rank-revealing analysis of J (m, p).
+
+    `fixed` marks parameters fixed by the user.  `priority` (int, lower first) decides
+    which member of a dependent group is kept: columns are pivoted level by level, each
+    level against what the earlier levels already span (e.g. D-H terms before Hayati's β).
+    Columns are unit-norm, so `tol` is the smallest remaining norm a kept column may have.
+    """
+    m, p = J.shape
+    fixed = np.zeros(p, bool) if fixed is None else np.asarray(fixed, bool)
+    priority = np.zeros(p, int) if priority is None else np.asarray(priority, int)
+    norms = np.linalg.norm(J, axis=0)
+    biggest = norms.max() if p else 1.0
+    reasons: dict[int, str] = {int(i): "fixed by the user" for i in np.flatnonzero(fixed)}
+    zero = (norms <= ZERO_TOL * biggest) & ~fixed
+    for i in np.flatnonzero(zero):
+        reasons[int(i)] = "no effect on any measurement (zero Jacobian column)"
+    safe = np.where(norms > 0, norms, 1.0)
+    Js = J / safe
+    basis = np.zeros((m, 0))
+    free = np.zeros(p, bool)
+    order: list[int] = []
+    pivots: list[float] = []
+    dropped: list[int] = []
+    for level in np.unique(priority):
+        cand = np.flatnonzero((priority == level) & ~fixed & ~zero)
+        if cand.size == 0:
+            continue
+        rest = Js[:, cand] - basis @ (basis.T @ Js[:, cand])
+        Q, R, piv = scipy.linalg.qr(rest, mode="economic", pivoting=True)
+        diag = np.abs(np.diag(R))
+        k = int(np.sum(diag > tol)) if diag.size else 0
+        # pivoted QR has non-increasing |R_kk|: the first k columns are the kept ones
+        kept = cand[piv[:k]]
+        free[kept] = True
+        basis = np.hstack([basis, Q[:, :k]])
+        order += [int(i) for i in cand[piv]]
+        pivots += [float(d) for d in diag] + [0.0] * (cand.size - diag.size)
+        dropped += [int(i) for i in cand[piv[k:]]]
+    for i in dropped:
+        reasons[i] = "dependent: " + combination(J, names, i, free)
+    return Identifiability(free=free, reasons=reasons, pivots=np.array(pivots), order=np.array(order, int))
+
+
+def combination(J: np.ndarray, names: list[str], i: int, free: np.ndarray, top: int = 3) -> str:
+    """Express column i as a combination of the free columns (unit-norm scaled), naming the
+    largest contributors, e.g. ``J1.theta_offset ≈ +1.00·base.rz``."""
+    norms = np.linalg.norm(J, axis=0)
+    norms[norms == 0] = 1.0
+    F = np.flatnonzero(free)
+    coef, *_ = np.linalg.lstsq(J[:, F] / norms[F], J[:, i] / norms[i], rcond=None)
+    best = np.argsort(-np.abs(coef))[:top]
+    terms = " ".join(f"{coef[b]:+.2f}·{names[F[b]]}" for b in best if abs(coef[b]) > 1e-3)
+    return f"{names[i]} ≈ {terms or '0'}"

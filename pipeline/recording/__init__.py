@@ -1,0 +1,1 @@
+"""The recording format: MCAP, JSON messages with JSON Schemas, metadata for models and fixtures."""

@@ -1,0 +1,88 @@
+"""Writing recordings: `RecordingWriter` wraps `mcap.writer.Writer` with robocal's channels."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+from mcap.writer import CompressionType, Writer
+
+from pipeline import __version__
+from pipeline.recording.schemas import CHANNELS, schema_bytes, schema_title
+
+PROFILE = "robocal"
+
+
+def _default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.integer):
+        return int(o)
+    if isinstance(o, np.floating):
+        return float(o)
+    raise TypeError(f"cannot encode {type(o).__name__}")
+
+
+def encode(msg: dict) -> bytes:
+    """Compact JSON (numpy arrays become lists)."""
+    return json.dumps(msg, separators=(",", ":"), default=_default, allow_nan=False).encode()
+
+
+class RecordingWriter:
+    """MCAP writer with one JSON-Schema channel per robocal topic.
+
+    Chunks are closed every `chunk_size` bytes; call `flush_chunk()` to force one out (the
+    acquisition does so every second so a killed process loses at most that much).
+    """
+
+    def __init__(self, out: str | Path | IO[bytes], chunk_size: int = 1 << 20,
+                 compression: CompressionType = CompressionType.ZSTD):
+        self._own = not hasattr(out, "write")
+        self._f = open(out, "wb") if self._own else out
+        self._w = Writer(self._f, chunk_size=chunk_size, compression=compression)
+        self._w.start(profile=PROFILE, library=f"robocal/{__version__}")
+        self._channels: dict[str, int] = {}
+        self._seq: dict[str, int] = {}
+        self._closed = False
+
+    def channel(self, topic: str) -> int:
+        if topic not in self._channels:
+            stem = CHANNELS[topic]
+            sid = self._w.register_schema(name=schema_title(stem), encoding="jsonschema", data=schema_bytes(stem))
+            self._channels[topic] = self._w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+            self._seq[topic] = 0
+        return self._channels[topic]
+
+    def write(self, topic: str, msg: dict, log_time_ns: int | None = None) -> None:
+        """Write one message; `log_time` defaults to the message's `timestamp_ns`."""
+        cid = self.channel(topic)
+        t = int(msg["timestamp_ns"] if log_time_ns is None else log_time_ns)
+        self._seq[topic] += 1
+        self._w.add_message(cid, log_time=t, data=encode(msg), publish_time=int(msg["timestamp_ns"]),
+                            sequence=self._seq[topic])
+
+    def metadata(self, name: str, value: dict | str) -> None:
+        """A metadata record; dicts are stored as {'json': <compact JSON>}."""
+        data = {"json": value if isinstance(value, str) else json.dumps(value, separators=(",", ":"), default=_default)}
+        self._w.add_metadata(name, data)
+
+    def flush_chunk(self) -> None:
+        """Close the open chunk and push it to the OS, so it survives a crash."""
+        self._w.flush()
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self._w.finish()
+            if self._own:
+                self._f.close()
+            else:
+                self._f.flush()
+
+    def __enter__(self) -> "RecordingWriter":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -51,3 +51,6 @@ class MeasurementModel(Protocol):
     def points(self, x: np.ndarray, data: Table) -> tuple[np.ndarray, np.ndarray]:
         """Predicted 3-D points the user cares about (tool tip, scanned point…) at each
         measurement, (n,3) m, and their Jacobian wrt x, (n,3,n_params)."""
+
+    def describe(self, x: np.ndarray) -> dict:
+        """The model file (JSON, `schemas/robot_model.schema.json`) for parameter vector x."""

@@ -86,3 +86,28 @@ class RecordingWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def joint_state_messages(t_ns: np.ndarray, q: np.ndarray, names: list[str] | tuple[str, ...],
+                         batch: int = 250) -> list[dict]:
+    """Split an encoder stream into batched `/robot/joint_state` message bodies."""
+    out = []
+    for s in range(0, t_ns.size, batch):
+        t = t_ns[s:s + batch]
+        out.append({"timestamp_ns": int(t[0]), "timestamps_ns": t.tolist(), "joint_names": list(names),
+                    "positions": q[s:s + batch].tolist()})
+    return out
+
+
+def write_campaign(path: str | Path, metadata: dict[str, dict], stream: tuple[np.ndarray, np.ndarray, list[str]],
+                   events: list[tuple[str, dict]], batch: int = 250) -> None:
+    """Write a whole campaign: metadata, the batched encoder stream and the measurement
+    events, all messages in log-time order."""
+    t_ns, q, names = stream
+    msgs = [("/robot/joint_state", m) for m in joint_state_messages(t_ns, q, names, batch)] + list(events)
+    msgs.sort(key=lambda tm: tm[1]["timestamp_ns"])
+    with RecordingWriter(path) as w:
+        for name, value in metadata.items():
+            w.metadata(name, value)
+        for topic, m in msgs:
+            w.write(topic, m)

@@ -15,6 +15,7 @@ from pipeline.models import serial_arm
 from pipeline.models.serial_arm import Joint, LinkMass, SerialArm
 
 SYSTEM = "arc-welder"
+MEASUREMENT_CHANNEL = "/touch/contact"
 MM, DEG = 1e-3, np.pi / 180
 
 # (theta_offset, alpha, d, a, beta) in deg/mm: seed 000 Table 2 as given in the issue
@@ -110,3 +111,36 @@ class TouchModel:
 
     def points(self, x: np.ndarray, data: Table) -> tuple[np.ndarray, np.ndarray]:
         return serial_arm.tip_jacobian(x, data["joint_positions"])
+
+    def describe(self, x: np.ndarray) -> dict:
+        """Robot model JSON of parameter vector x (same schema as the nominal)."""
+        return self.arm.with_vector(x).to_dict()
+
+
+# ----- recordings ------------------------------------------------------------------------
+def contact_messages(sim, names: list[str] | None = None) -> list[tuple[str, dict]]:
+    """`/touch/contact` message bodies of a simulated campaign."""
+    axes = "xyz"
+    return [("/touch/contact", {"timestamp_ns": int(t), "joint_positions": q, "face": f, "axis": axes[a],
+                                "coordinate": float(c)})
+            for t, q, f, a, c in zip(sim.contact_t_ns, sim.contact_q.tolist(), sim.contact_face,
+                                     sim.contact_axis, sim.contact_coordinate)]
+
+
+def load(rec) -> tuple[TouchModel, dict[str, np.ndarray]]:
+    """Measurement model and measurement table of an arc-welder recording."""
+    from pipeline.errors import RobocalError
+    from pipeline.ingest.streams import contacts
+    from pipeline.models.jig import Jig
+    from pipeline.recording.schemas import META_FIXTURE, META_ROBOT
+
+    try:
+        arm = SerialArm.from_dict(rec.meta(META_ROBOT))
+        Jig.from_dict(rec.meta(META_FIXTURE))  # a recording must carry its fixture
+    except (KeyError, ValueError, TypeError) as e:
+        raise RobocalError(f"{rec.path}: robot model or fixture metadata is malformed ({e})") from None
+    table = contacts(rec)
+    if table["joint_positions"].shape[1] != arm.n_joints:
+        raise RobocalError(f"{rec.path}: channel /touch/contact: contacts have {table['joint_positions'].shape[1]} "
+                           f"joint values, the robot model has {arm.n_joints} joints")
+    return TouchModel(arm), table

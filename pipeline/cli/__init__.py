@@ -1,0 +1,40 @@
+"""The `robocal` command line (typer).  Errors in the user's input become one line and exit 2."""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+from rich.console import Console
+
+app = typer.Typer(name="robocal", help="Log-centric robot calibration: record, calibrate, inspect.",
+                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
+simulate_app = typer.Typer(help="Simulate a calibration campaign of a reference system into an MCAP recording.",
+                           no_args_is_help=True)
+app.add_typer(simulate_app, name="simulate")
+
+err = Console(stderr=True)
+
+
+def load_commands() -> None:
+    """Import every module of this package: each registers its commands on `app`/`simulate_app`."""
+    import importlib
+    import pkgutil
+
+    import pipeline.cli as pkg
+
+    for m in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
+        importlib.import_module(f"pipeline.cli.{m.name}")
+
+
+def main() -> None:
+    """Console-script entry point."""
+    from pipeline.errors import RobocalError
+
+    load_commands()
+
+    try:
+        app()
+    except RobocalError as e:
+        err.print(f"[bold red]robocal: error:[/] {e}", highlight=False, soft_wrap=True)
+        sys.exit(2)

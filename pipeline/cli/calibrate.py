@@ -1,0 +1,35 @@
+"""`robocal calibrate`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from pipeline.cli import app, err
+
+
+@app.command("calibrate")
+def calibrate_cmd(
+    recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
+    out: Path = typer.Option(..., "--out", help="Output folder for results.json and model.json."),
+    loss: str = typer.Option("linear", "--loss", help="Loss: linear, huber or soft_l1."),
+    folds: int = typer.Option(5, "--folds", min=2, help="Folds of the held-out cross-validation."),
+) -> None:
+    """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
+    from pipeline.calibrate import calibrate, summary_rows
+    from pipeline.identify.least_squares import FitOptions
+
+    with err.status(f"calibrating {recording}…"):
+        doc = calibrate(recording, out, FitOptions(loss=loss), k_folds=folds)
+    for w in doc["warnings"]:
+        err.print(f"[yellow]warning:[/] {w}", highlight=False)
+    t = Table(title=f"robocal calibrate — {recording.name}")
+    t.add_column("figure")
+    t.add_column("value", justify="right")
+    for k, v in summary_rows(doc):
+        t.add_row(k, v)
+    Console().print(t)
+    print(f"results: {out / 'results.json'}\nmodel:   {out / 'model.json'}")

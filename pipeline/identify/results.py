@@ -1,0 +1,53 @@
+"""results.json: the machine-readable figures of an identification (SI units)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline import __version__
+from pipeline.identify.least_squares import Fit
+
+
+def parameter_table(fit: Fit) -> list[dict]:
+    """One row per parameter: name, nominal, estimate, std, unit, identifiable, reason."""
+    rows = []
+    for i, name in enumerate(fit.names):
+        row = {"name": name, "nominal": float(fit.nominal[i]), "estimate": float(fit.x[i]),
+               "std": float(fit.std[i]), "unit": fit.units[i], "identifiable": bool(fit.free[i])}
+        if not fit.free[i]:
+            row["reason"] = fit.identifiability.reasons.get(i, "")
+        rows.append(row)
+    return rows
+
+
+def results_document(system: str, fit: Fit, holdout: np.ndarray, tip_sigma: np.ndarray, *,
+                     elapsed_s: float, source: dict, warnings: list[str], k_folds: int) -> dict:
+    """Gather the figures of one calibration run."""
+    return {
+        "system": system,
+        "robocal_version": __version__,
+        "source": source,
+        "n_measurements": int(fit.residuals_after.shape[0]),
+        "residual_dim": int(fit.residuals_after.shape[1]),
+        "rms_before_m": fit.rms_before,
+        "rms_after_m": fit.rms_after,
+        "max_abs_after_m": float(np.max(np.abs(fit.residuals_after))),
+        "holdout_rms_m": float(np.sqrt(np.nanmean(holdout**2))),
+        "holdout_folds": k_folds,
+        "sigma_m": fit.sigma,
+        "n_parameters": len(fit.names),
+        "n_identifiable": int(fit.free.sum()),
+        "elapsed_s": elapsed_s,
+        "solve_time_s": fit.elapsed_s,
+        "function_evaluations": fit.nfev,
+        "predicted_point_accuracy": {
+            "rms_1sigma_m": float(np.sqrt(np.mean(tip_sigma**2))),
+            "max_1sigma_m": float(np.max(tip_sigma)),
+            "note": ("3-D 1σ error of the calibrated model's point (tool tip) at the measured "
+                     "configurations, from the parameter covariance. Each measurement may fix fewer "
+                     "than 3 coordinates (a touch fixes one), so this 3-D figure, not the residual "
+                     "RMS, is the accuracy a user gets."),
+        },
+        "parameters": parameter_table(fit),
+        "warnings": warnings,
+    }

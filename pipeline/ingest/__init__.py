@@ -1,0 +1,1 @@
+"""Ingest: decoded recording messages → numpy columns / Arrow tables."""

@@ -1,0 +1,94 @@
+"""Decode robocal channels into numpy columns, checking every record on the way.
+
+Each extractor raises `RobocalError` naming file, channel and record (message index on
+its channel) for a missing field, a wrong shape, or a NaN/inf value.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.errors import RobocalError, where
+from pipeline.recording.reader import Recording
+
+JOINT_STATE = "/robot/joint_state"
+TOUCH_CONTACT = "/touch/contact"
+
+
+@dataclass(frozen=True)
+class JointStream:
+    """The encoder stream: sample times (ns since epoch), positions (T, n_joints) rad."""
+
+    t_ns: np.ndarray
+    q: np.ndarray
+    names: tuple[str, ...]
+    message_index: np.ndarray  # (T,) message each sample came from
+
+    def __len__(self) -> int:
+        return self.t_ns.size
+
+
+def _field(rec: Recording, topic: str, i: int, msg: dict, key: str):
+    if key not in msg:
+        raise RobocalError(f"{where(rec.path, topic, i)}: field {key!r} missing")
+    return msg[key]
+
+
+def _finite(rec: Recording, topic: str, i: int, key: str, a: np.ndarray) -> None:
+    if not np.all(np.isfinite(a)):
+        raise RobocalError(f"{where(rec.path, topic, i)}: field {key!r} has NaN or inf")
+
+
+def joint_stream(rec: Recording) -> JointStream:
+    """Concatenate the batched `/robot/joint_state` messages (one numpy call per message)."""
+    msgs = rec.require(JOINT_STATE)
+    names = tuple(_field(rec, JOINT_STATE, 0, msgs[0], "joint_names"))
+    ts, qs, idx = [], [], []
+    for i, m in enumerate(msgs):
+        t = np.asarray(_field(rec, JOINT_STATE, i, m, "timestamps_ns"), dtype=np.int64)
+        try:
+            q = np.asarray(_field(rec, JOINT_STATE, i, m, "positions"), dtype=float)
+        except ValueError:
+            raise RobocalError(f"{where(rec.path, JOINT_STATE, i)}: 'positions' rows differ in length") from None
+        if q.ndim != 2 or q.shape != (t.size, len(names)):
+            raise RobocalError(f"{where(rec.path, JOINT_STATE, i)}: 'positions' has shape {q.shape}, "
+                               f"expected ({t.size}, {len(names)})")
+        if tuple(m.get("joint_names", names)) != names:
+            raise RobocalError(f"{where(rec.path, JOINT_STATE, i)}: joint_names change within the recording")
+        _finite(rec, JOINT_STATE, i, "positions", q)
+        ts.append(t)
+        qs.append(q)
+        idx.append(np.full(t.size, i))
+    return JointStream(t_ns=np.concatenate(ts), q=np.concatenate(qs), names=names,
+                       message_index=np.concatenate(idx))
+
+
+def contacts(rec: Recording) -> dict[str, np.ndarray]:
+    """`/touch/contact` as columns: timestamp_ns, joint_positions (n, n_joints), face, axis (0/1/2),
+    coordinate (m), record (message index)."""
+    msgs = rec.require(TOUCH_CONTACT)
+    axis_of = {"x": 0, "y": 1, "z": 2}
+    n = len(msgs)
+    q0 = _field(rec, TOUCH_CONTACT, 0, msgs[0], "joint_positions")
+    out = {"timestamp_ns": np.empty(n, np.int64), "joint_positions": np.empty((n, len(q0))),
+           "face": np.empty(n, object), "axis": np.empty(n, np.int64), "coordinate": np.empty(n),
+           "record": np.arange(n)}
+    for i, m in enumerate(msgs):
+        q = np.asarray(_field(rec, TOUCH_CONTACT, i, m, "joint_positions"), dtype=float)
+        if q.shape != (len(q0),):
+            raise RobocalError(f"{where(rec.path, TOUCH_CONTACT, i)}: joint_positions has {q.size} values, expected {len(q0)}")
+        _finite(rec, TOUCH_CONTACT, i, "joint_positions", q)
+        ax = _field(rec, TOUCH_CONTACT, i, m, "axis")
+        if ax not in axis_of:
+            raise RobocalError(f"{where(rec.path, TOUCH_CONTACT, i)}: axis {ax!r} is not x, y or z")
+        c = _field(rec, TOUCH_CONTACT, i, m, "coordinate")
+        if not isinstance(c, (int, float)) or not np.isfinite(c):
+            raise RobocalError(f"{where(rec.path, TOUCH_CONTACT, i)}: coordinate {c!r} is not a finite number")
+        out["timestamp_ns"][i] = int(_field(rec, TOUCH_CONTACT, i, m, "timestamp_ns"))
+        out["joint_positions"][i] = q
+        out["face"][i] = str(_field(rec, TOUCH_CONTACT, i, m, "face"))
+        out["axis"][i] = axis_of[ax]
+        out["coordinate"][i] = float(c)
+    return out

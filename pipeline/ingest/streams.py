@@ -6,9 +6,12 @@ its channel) for a missing field, a wrong shape, or a NaN/inf value.
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.json as pa_json
 
 from pipeline.errors import RobocalError, where
 from pipeline.recording.reader import Recording
@@ -42,7 +45,48 @@ def _finite(rec: Recording, topic: str, i: int, key: str, a: np.ndarray) -> None
 
 
 def joint_stream(rec: Recording) -> JointStream:
-    """Concatenate the batched `/robot/joint_state` messages (one numpy call per message)."""
+    """Concatenate the batched `/robot/joint_state` messages.
+
+    Fast path: all message bodies are parsed by pyarrow's (multi-threaded) JSON reader in
+    one call and flattened without Python loops.  If that path finds anything irregular
+    (a parse error, ragged rows, NaN, changing joint names), the slow path checks message by
+    message and names the first bad record.
+    """
+    raw = rec.messages.raw.get(JOINT_STATE) or rec.require(JOINT_STATE)
+    try:
+        fast = _joint_stream_arrow(raw)
+    except (pa.ArrowInvalid, ValueError, KeyError):
+        fast = None
+    if fast is not None:
+        return fast
+    return _joint_stream_checked(rec)
+
+
+def _joint_stream_arrow(raw: list[bytes]) -> JointStream | None:
+    table = pa_json.read_json(io.BytesIO(b"\n".join(raw)),
+                              read_options=pa_json.ReadOptions(block_size=max(1 << 20, 2 * max(map(len, raw)))))
+    names_col = table.column("joint_names").combine_chunks()
+    names = tuple(names_col[0].as_py())
+    nj = len(names)
+    if len(set(map(tuple, names_col.to_pylist()))) != 1:
+        return None
+    t_col = table.column("timestamps_ns").combine_chunks()
+    pos = table.column("positions").combine_chunks()
+    rows = pos.flatten()
+    t = t_col.flatten().to_numpy()
+    counts_t = np.diff(t_col.offsets.to_numpy())
+    counts_q = np.diff(pos.offsets.to_numpy())
+    row_len = np.diff(rows.offsets.to_numpy())
+    if not (np.array_equal(counts_t, counts_q) and np.all(row_len == nj)):
+        return None
+    q = rows.flatten().to_numpy(zero_copy_only=False).reshape(-1, nj)
+    if not np.all(np.isfinite(q)):
+        return None
+    return JointStream(t_ns=t.astype(np.int64, copy=False), q=q, names=names,
+                       message_index=np.repeat(np.arange(counts_t.size), counts_t))
+
+
+def _joint_stream_checked(rec: Recording) -> JointStream:
     msgs = rec.require(JOINT_STATE)
     names = tuple(_field(rec, JOINT_STATE, 0, msgs[0], "joint_names"))
     ts, qs, idx = [], [], []
@@ -50,8 +94,8 @@ def joint_stream(rec: Recording) -> JointStream:
         t = np.asarray(_field(rec, JOINT_STATE, i, m, "timestamps_ns"), dtype=np.int64)
         try:
             q = np.asarray(_field(rec, JOINT_STATE, i, m, "positions"), dtype=float)
-        except ValueError:
-            raise RobocalError(f"{where(rec.path, JOINT_STATE, i)}: 'positions' rows differ in length") from None
+        except (ValueError, TypeError):
+            raise RobocalError(f"{where(rec.path, JOINT_STATE, i)}: 'positions' rows differ in length or are not numbers") from None
         if q.ndim != 2 or q.shape != (t.size, len(names)):
             raise RobocalError(f"{where(rec.path, JOINT_STATE, i)}: 'positions' has shape {q.shape}, "
                                f"expected ({t.size}, {len(names)})")

@@ -44,16 +44,18 @@ def solve(x: np.ndarray, p_t: np.ndarray, R_t: np.ndarray, seeds: np.ndarray, lo
     P = np.repeat(p_t, S, axis=0)
     Rt = np.repeat(R_t, S, axis=0)
     lam = 1e-4
-    for _ in range(iters):
-        e = _pose_error(x, q, P, Rt)
-        J = pose_jacobian(x, q)
+    active = np.arange(N * S)
+    for _ in range(iters):  # damped Gauss–Newton, only on rows not yet converged
+        qa = q[active]
+        e = _pose_error(x, qa, P[active], Rt[active])
+        J = pose_jacobian(x, qa)
         J[:, 3:] *= 0.3
         JtJ = np.einsum("nik,nil->nkl", J, J) + lam * np.eye(nj)
         step = np.linalg.solve(JtJ, np.einsum("nik,ni->nk", J, e)[..., None])[..., 0]
         step = np.clip(step, -0.3, 0.3)
-        q = q - step
-        q = (q + np.pi) % (2 * np.pi) - np.pi
-        if np.all(np.abs(step) < tol):
+        q[active] = (qa - step + np.pi) % (2 * np.pi) - np.pi
+        active = active[np.max(np.abs(step), axis=1) >= tol]
+        if active.size == 0:
             break
     err = np.linalg.norm(_pose_error(x, q, P, Rt), axis=1)
     good = (err < 1e-9) & np.all((q >= lower) & (q <= upper), axis=1)

@@ -36,8 +36,8 @@ def detect(rec: Recording) -> ModuleType:
     if name in SYSTEMS:
         return SYSTEMS[name]
     for mod in SYSTEMS.values():
-        if rec.messages.get(mod.MEASUREMENT_CHANNEL):
+        if rec.messages.raw.get(mod.MEASUREMENT_CHANNEL):
             return mod
-    have = ", ".join(sorted(t for t, m in rec.messages.items() if m)) or "none"
+    have = ", ".join(sorted(t for t, m in rec.messages.raw.items() if m)) or "none"
     want = ", ".join(sorted(m.MEASUREMENT_CHANNEL for m in SYSTEMS.values()))
     raise RobocalError(f"{rec.path}: no measurement channel found (looked for {want}; present: {have})")

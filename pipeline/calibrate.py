@@ -37,6 +37,8 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     doc = results_document(system.SYSTEM, f, holdout, tip_sigma, elapsed_s=time.perf_counter() - t0,
                            source={"path": str(path), "sha256": file_sha256(path)}, warnings=list(rec.warnings),
                            k_folds=k_folds)
+    if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures
+        doc.update(model.extra_metrics(f.nominal, f.x, table))
     out.mkdir(parents=True, exist_ok=True)
     (out / "results.json").write_text(json.dumps(doc, indent=2) + "\n")
     (out / "model.json").write_text(json.dumps(model.describe(f.x), indent=2) + "\n")

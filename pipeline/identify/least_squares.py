@@ -69,7 +69,12 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
     """Identify the model's parameters from `data` (see module docstring)."""
     t0 = time.perf_counter()
     names = model.parameter_names()
-    x0 = model.nominal() if options.x0 is None else np.asarray(options.x0, float)
+    if options.x0 is not None:
+        x0 = np.asarray(options.x0, float)
+    elif hasattr(model, "initial_guess"):  # optional hook: a data-dependent start (e.g. a closed-form registration)
+        x0 = np.asarray(model.initial_guess(data), float)
+    else:
+        x0 = model.nominal()
     unknown = set(options.fixed) - set(names)
     if unknown:
         raise ValueError(f"cannot fix unknown parameters: {sorted(unknown)}")

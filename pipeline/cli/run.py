@@ -1,0 +1,158 @@
+"""`robocal run` and one command per stage (`robocal ingest`, `validate`, `identify`, `observe`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from pipeline.cli import app, err
+
+
+def _log(line: str) -> None:
+    name, _, rest = line.partition(": ")
+    colour = "green" if rest.startswith("cached") else "cyan"
+    err.print(f"[bold]{name}[/]: [{colour}]{rest}[/]", highlight=False)
+
+
+def _summary(run_dir: Path) -> None:
+    from pipeline.stages.artefacts import read_json
+
+    p = run_dir / "results.json"
+    if not p.is_file():
+        return
+    doc = read_json(p)
+    s = doc["summary"]
+    mm = lambda v: "—" if v is None else f"{v * 1e3:.4f} mm"  # noqa: E731
+    t = Table(title=f"robocal run — {run_dir}")
+    t.add_column("figure")
+    t.add_column("value", justify="right")
+    rows = [("system", s.get("system", "—")), ("status", s.get("status", "—")),
+            ("measurements used / recorded", f"{s.get('n_used', '—')} / {s.get('n_measurements', '—')}"),
+            ("RMS before", mm(s.get("rms_before_m"))), ("RMS after", mm(s.get("rms_after_m"))),
+            ("held-out RMS", mm(s.get("holdout_rms_m"))),
+            ("predicted point accuracy (1σ RMS)", mm(s.get("predicted_point_sigma_rms_m"))),
+            ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
+    for k, v in rows:
+        t.add_row(k, str(v))
+    Console(stderr=True).print(t)
+    for w in doc.get("warnings", []):
+        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+
+
+def _params(loss: str | None, f_scale: float | None, reject: float | None, folds: int | None,
+            outlier_flag: float | None = None, gap_factor: float | None = None) -> dict[str, dict]:
+    p: dict[str, dict] = {"identify": {}, "validate": {}}
+    if loss is not None:
+        p["identify"]["loss"] = loss
+    if f_scale is not None:
+        p["identify"]["f_scale_m"] = f_scale
+    if reject is not None:
+        p["identify"]["outlier_threshold"] = reject
+    if folds is not None:
+        p["identify"]["folds"] = folds
+    if outlier_flag is not None:
+        p["validate"]["outlier_threshold"] = outlier_flag
+    if gap_factor is not None:
+        p["validate"]["gap_factor"] = gap_factor
+    return p
+
+
+LOSS = typer.Option(None, "--loss", help="identify: loss linear, huber or soft_l1 (default linear).")
+F_SCALE = typer.Option(None, "--f-scale", help="identify: robust-loss scale, m (default 1e-4).")
+REJECT = typer.Option(None, "--reject", help="identify: reject measurements beyond this many robust σ (MAD); 0 = off (default 5).")
+FOLDS = typer.Option(None, "--folds", min=2, help="identify: folds of the held-out cross-validation (default 5).")
+FORCE = typer.Option(False, "--force", help="Run even if cached.")
+
+
+@app.command("run")
+def run_cmd(
+    recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
+    out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
+    loss: Optional[str] = LOSS, f_scale: Optional[float] = F_SCALE, reject: Optional[float] = REJECT,
+    folds: Optional[int] = FOLDS,
+    flag: Optional[float] = typer.Option(None, "--flag-outliers", help="validate: flag residuals beyond this many robust σ (default 6)."),
+    gap_factor: Optional[float] = typer.Option(None, "--gap-factor", help="validate: a gap is this many sample periods (default 5)."),
+    force: bool = FORCE,
+) -> None:
+    """Run every stage (ingest, validate, identify, observe, then diagnose and report when
+    available); stages whose inputs and parameters did not change are cached."""
+    import time
+
+    from pipeline.stages.runner import run_pipeline
+
+    t0 = time.perf_counter()
+    try:
+        outs = run_pipeline(recording, out, _params(loss, f_scale, reject, folds, flag, gap_factor), force=force, log=_log)
+    finally:
+        _summary(out)
+    n_cached = sum(o.cached for o in outs)
+    what = "nothing to do: every stage cached" if n_cached == len(outs) else f"{len(outs) - n_cached} stage(s) ran"
+    err.print(f"{what} ({time.perf_counter() - t0:.2f} s); results: {out / 'results.json'}")
+
+
+def _stage_cmd(name: str, doc: str):
+    def cmd(out: Path, params: dict, force: bool, recording: Path | None = None) -> None:
+        from pipeline.stages.runner import run_stage
+
+        run_stage(out, name, params, recording=recording, force=force, log=_log)
+        _summary(out)
+    cmd.__doc__ = doc
+    return cmd
+
+
+@app.command("ingest")
+def ingest_cmd(recording: Path = typer.Argument(..., help="Recording (MCAP)."),
+               out: Path = typer.Option(..., "--out", help="Run folder."), force: bool = FORCE) -> None:
+    """MCAP → Parquet under DIR/ingest/ (encoder stream, channel tables, measurements with motion context)."""
+    from pipeline.errors import RobocalError
+    from pipeline.stages.runner import run_stage
+
+    if not recording.is_file():
+        raise RobocalError(f"{recording}: no such file")
+    out.mkdir(parents=True, exist_ok=True)
+    run_stage(out, "ingest", {}, recording=recording, force=force, log=_log)
+
+
+@app.command("validate")
+def validate_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after `robocal ingest`)."),
+                 flag: Optional[float] = typer.Option(None, "--flag-outliers", help="Robust σ beyond which a residual is flagged (default 6)."),
+                 gap_factor: Optional[float] = typer.Option(None, "--gap-factor", help="Sample periods that make a gap (default 5)."),
+                 force: bool = FORCE) -> None:
+    """Named checks (schema, time, duplicates, NaN/inf, joint limits, faces, outliers) → DIR/validate/."""
+    from pipeline.stages.artefacts import read_json
+    from pipeline.stages.runner import StageFailed, run_stage
+
+    try:
+        run_stage(out, "validate", _params(None, None, None, None, flag, gap_factor)["validate"], force=force, log=_log)
+    finally:
+        p = out / "validate" / "validate.json"
+        if p.is_file():
+            colour = {"pass": "green", "warn": "yellow", "fail": "red"}
+            for c in read_json(p)["checks"]:
+                if c["status"] != "pass":
+                    err.print(f"[{colour[c['status']]}]{c['status']}[/] {c['name']}: {c['message']}", highlight=False, soft_wrap=True)
+    _ = StageFailed
+
+
+@app.command("identify")
+def identify_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after `robocal validate`)."),
+                 loss: Optional[str] = LOSS, f_scale: Optional[float] = F_SCALE, reject: Optional[float] = REJECT,
+                 folds: Optional[int] = FOLDS, force: bool = FORCE) -> None:
+    """Identify the model → DIR/identify/ (fit.json, residuals.parquet, history.json, model.json)."""
+    from pipeline.stages.runner import run_stage
+
+    run_stage(out, "identify", _params(loss, f_scale, reject, folds)["identify"], force=force, log=_log)
+    _summary(out)
+
+
+@app.command("observe")
+def observe_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after `robocal identify`)."),
+                force: bool = FORCE) -> None:
+    """Observability → DIR/observe/observe.json (singular values, O1..O5, correlations, predicted accuracy)."""
+    from pipeline.stages.runner import run_stage
+
+    run_stage(out, "observe", {}, force=force, log=_log)

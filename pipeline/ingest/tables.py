@@ -1,0 +1,63 @@
+"""Arrow tables of a recording: raw channel tables and the measurement table with motion context."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pyarrow as pa
+
+from pipeline.ingest.context import motion_context
+from pipeline.ingest.streams import JointStream
+
+
+def channel_table(messages: list[dict], log_times: list[int] | None = None) -> pa.Table:
+    """One row per message with its raw fields (pyarrow's type inference), plus `record`
+    (message index on the channel) and `log_time_ns`.  Lenient: a field whose values pyarrow
+    cannot type consistently is stored as JSON text, so a bad record still reaches validation."""
+    fields = list(dict.fromkeys(k for m in messages for k in m))
+    cols: dict[str, pa.Array] = {"record": pa.array(np.arange(len(messages), dtype=np.int64))}
+    if log_times is not None:
+        cols["log_time_ns"] = pa.array(np.asarray(log_times, np.int64))
+    for f in fields:
+        values = [m.get(f) for m in messages]
+        try:
+            cols[f] = pa.array(values, from_pandas=False)
+        except (pa.ArrowInvalid, pa.ArrowTypeError, OverflowError):
+            cols[f] = pa.array([None if v is None else json.dumps(v) for v in values], pa.string())
+    return pa.table(cols)
+
+
+def encoder_table(stream: JointStream) -> dict[str, np.ndarray]:
+    """`t_ns`, `q_<joint>` (rad) and `record` (the joint_state message of each sample)."""
+    out = {"t_ns": stream.t_ns.astype(np.int64), "record": stream.message_index.astype(np.int64)}
+    for j, name in enumerate(stream.names):
+        out[f"q_{name}"] = stream.q[:, j]
+    return out
+
+
+def measurement_table(table: dict[str, np.ndarray], stream: JointStream | None,
+                      time_column: str = "timestamp_ns", window_s: float = 0.02) -> dict[str, np.ndarray]:
+    """The system's measurement table (from `system.load`) joined with the motion context
+    of each measurement: `v_<joint>` (rad/s), `dir_<joint>` (−1/0/+1), `time_since_start_s`."""
+    n = len(next(iter(table.values())))
+    out = dict(table)
+    out.setdefault("record", np.arange(n, dtype=np.int64))
+    if stream is None or time_column not in table or len(stream) < 2:
+        return out
+    ctx = motion_context(stream, np.asarray(table[time_column], np.int64), window_s)
+    for j, name in enumerate(stream.names):
+        out[f"v_{name}"] = ctx["joint_velocity"][:, j]
+    for j, name in enumerate(stream.names):
+        out[f"dir_{name}"] = ctx["last_motion_sign"][:, j].astype(np.int8)
+    out["time_since_start_s"] = ctx["time_since_start_s"]
+    return out
+
+
+MODEL_EXCLUDE_PREFIXES = ("v_", "dir_")
+
+
+def model_columns(table: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The columns of a measurement table that came from the system (motion context removed)."""
+    return {k: v for k, v in table.items()
+            if not k.startswith(MODEL_EXCLUDE_PREFIXES) and k != "time_since_start_s"}

@@ -1,0 +1,1 @@
+"""Observability of a calibration campaign: singular values, indices O1..O5, correlations."""

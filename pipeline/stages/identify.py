@@ -1,0 +1,95 @@
+"""Stage identify: nonlinear least squares (optionally robust loss) with outlier rejection
+and k-fold held-out residuals.  Writes fit.json, residuals.parquet, history.json, model.json."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.identify.least_squares import FitOptions, cross_validate, point_accuracy
+from pipeline.identify.model import take
+from pipeline.identify.outliers import fit_rejecting
+from pipeline.identify.results import parameter_table
+from pipeline.ingest.tables import model_columns
+from pipeline.stages.artefacts import read_json, write_json, write_table
+from pipeline.stages.ingest import load_system, read_measurements
+
+NAME = "identify"
+
+
+def group_column(system, table: dict) -> np.ndarray:
+    """Label of each measurement for per-group plots: the system's GROUP_COLUMN, else `face`,
+    else the first string column, else the channel name."""
+    n = len(table["record"])
+    for c in (getattr(system, "GROUP_COLUMN", None), "face"):
+        if c and c in table:
+            return np.asarray(table[c]).astype(str).astype(object)
+    for c, v in table.items():
+        if np.asarray(v).dtype == object:
+            return np.asarray(v).astype(str).astype(object)
+    return np.full(n, system.MEASUREMENT_CHANNEL, dtype=object)
+
+
+def options_of(params: dict) -> FitOptions:
+    return FitOptions(loss=str(params.get("loss", "linear")), f_scale=float(params.get("f_scale_m", 1e-4)))
+
+
+def run(run_dir: Path, params: dict) -> dict:
+    run_dir = Path(run_dir)
+    out = run_dir / NAME
+    system, model, _ = load_system(run_dir)
+    table = read_measurements(run_dir)
+    data = model_columns(table)
+    opts = options_of(params)
+    rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
+    f = rf.fit
+    kept_data = take(data, rf.kept)
+    folds = int(params.get("folds", 5))
+    holdout_kept = cross_validate(model, kept_data, k=folds, seed=int(params.get("seed", 0)), options=opts)
+    tip_sigma = point_accuracy(model, f, kept_data)
+
+    n, k = len(table["record"]), model.residual_dim
+    before = model.residuals(f.nominal, data).reshape(n, k)
+    after = model.residuals(f.x, data).reshape(n, k)
+    holdout = np.full((n, k), np.nan)
+    holdout[rf.kept] = holdout_kept
+    res = {"record": table["record"].astype(np.int64), "group": group_column(system, table),
+           "used": rf.kept}
+    if "timestamp_ns" in table:
+        res["timestamp_ns"] = table["timestamp_ns"].astype(np.int64)
+    for j in range(k):
+        res[f"before_{j}"] = before[:, j]
+        res[f"after_{j}"] = after[:, j]
+        res[f"holdout_{j}"] = holdout[:, j]
+    write_table(out / "residuals.parquet", res)
+
+    rms = lambda a: float(np.sqrt(np.nanmean(a**2)))  # noqa: E731
+    free = f.free
+    doc = {
+        "system": system.SYSTEM,
+        "names": f.names, "units": f.units,
+        "nominal": f.nominal, "x": f.x, "std": f.std, "free": free,
+        "reasons": {f.names[i]: r for i, r in sorted(f.identifiability.reasons.items())},
+        "sigma_m": f.sigma, "cov": f.cov,
+        "rejected_records": [r["record"] for r in rf.rejected], "rejected": rf.rejected,
+        "loss": opts.loss, "f_scale_m": opts.f_scale, "outlier_threshold": float(params.get("outlier_threshold", 5.0)),
+        "n_measurements": n, "n_used": int(rf.kept.sum()), "residual_dim": k,
+        "rms_before_m": rms(before[rf.kept]), "rms_after_m": f.rms_after,
+        "holdout_rms_m": rms(holdout_kept), "holdout_folds": folds,
+        "max_abs_after_m": float(np.max(np.abs(f.residuals_after))),
+        "n_parameters": len(f.names), "n_identifiable": int(free.sum()), "function_evaluations": f.nfev,
+        "predicted_point_sigma_rms_m": float(np.sqrt(np.mean(tip_sigma**2))),
+        "parameters": parameter_table(f),
+    }
+    write_json(out / "fit.json", doc)
+    write_json(out / "history.json", {"cost_rms_m": f.history})
+    write_json(out / "model.json", model.describe(f.x))
+    keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
+            "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
+            "loss", "function_evaluations", "predicted_point_sigma_rms_m")
+    return {k_: doc[k_] for k_ in keys}
+
+
+def read_fit(run_dir: Path) -> dict:
+    return read_json(Path(run_dir) / NAME / "fit.json")

@@ -1,0 +1,57 @@
+"""DIR/results.json: the machine-readable figures of every stage of a run (SI units)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pipeline import __version__
+from pipeline.stages.registry import STAGES
+
+HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
+            "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m")
+
+
+def _consistent(run_dir: Path, docs: dict[str, dict], doc: dict) -> bool:
+    """A stage.json belongs to this run if each input key is the current key of that stage."""
+    for dep, key in doc.get("inputs", {}).items():
+        if dep == "recording_sha256":
+            continue
+        if dep not in docs or docs[dep].get("key") != key:
+            return False
+    return True
+
+
+def gather(run_dir: Path) -> dict:
+    from pipeline.stages.runner import read_stage
+
+    docs: dict[str, dict] = {}
+    for s in STAGES:
+        d = read_stage(run_dir, s.name)
+        if d is not None and _consistent(run_dir, docs, d):
+            docs[s.name] = d
+    summary: dict = {}
+    for d in docs.values():
+        for k in HEADLINE:
+            if k in d.get("summary", {}):
+                summary[k] = d["summary"][k]
+    status = "pass"
+    for d in docs.values():
+        st = d.get("summary", {}).get("status")
+        if st == "fail":
+            status = "fail"
+        elif st == "warn" and status == "pass":
+            status = "warn"
+    summary["status"] = status
+    ingest = docs.get("ingest", {}).get("summary", {})
+    warnings = list(ingest.get("warnings", []))
+    for c in docs.get("validate", {}).get("summary", {}).get("checks", []):
+        if c["status"] != "pass":
+            warnings.append(f"validate {c['name']} ({c['status']}): {c['message']}")
+    return {
+        "robocal_version": __version__,
+        "source": ingest.get("source", {}),
+        "summary": summary,
+        "warnings": warnings,
+        "stages": {n: {"key": d["key"], "params": d.get("params", {}), "summary": d.get("summary", {})}
+                   for n, d in docs.items()},
+    }

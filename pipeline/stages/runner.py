@@ -1,0 +1,189 @@
+"""Run stages with content-hash caching.
+
+A stage's key is the SHA-256 of (stage name, its parameters, the robocal version, and the
+keys of the stages it requires — for ingest, the SHA-256 of the recording).  A stage whose
+``stage.json`` has the same key and whose recorded outputs are all present and unchanged is
+*cached*: nothing is run.  Changing a parameter changes that stage's key and, through the
+chain, the keys of every stage after it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import inspect
+import json
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+from typing import Any, Callable
+
+from pipeline import __version__
+from pipeline.errors import RobocalError
+from pipeline.stages.artefacts import dumps, read_json, sha256_file, write_json
+from pipeline.stages.registry import BY_NAME, STAGES, Stage
+
+STAGE_FILE = "stage.json"
+
+
+class StageFailed(RobocalError):
+    """A stage reported `status: fail` (e.g. a validation check); the run stops."""
+
+
+@dataclass
+class Outcome:
+    stage: str
+    cached: bool
+    elapsed_s: float
+    key: str
+    summary: dict
+
+
+def stage_key(name: str, params: dict, inputs: dict[str, str], version: str = __version__) -> str:
+    """SHA-256 over the canonical JSON of what determines a stage's output."""
+    doc = {"stage": name, "params": params, "inputs": inputs, "robocal_version": version}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def load_module(stage: Stage) -> ModuleType | None:
+    """The stage's module, or None for an optional stage whose module does not exist (yet)."""
+    try:
+        return importlib.import_module(stage.module)
+    except ModuleNotFoundError as e:
+        if stage.optional and e.name is not None and stage.module.startswith(e.name):
+            return None
+        raise
+
+
+def available_stages() -> list[Stage]:
+    return [s for s in STAGES if not s.optional or load_module(s) is not None]
+
+
+def read_stage(run_dir: Path, name: str) -> dict | None:
+    p = Path(run_dir) / name / STAGE_FILE
+    if not p.is_file():
+        return None
+    try:
+        return read_json(p)
+    except ValueError:
+        return None
+
+
+def _outputs(run_dir: Path, name: str, summary: dict) -> dict[str, str]:
+    """Every file the stage wrote (its folder and any extra `outputs`), path → SHA-256."""
+    run_dir = Path(run_dir)
+    files = [p for p in sorted((run_dir / name).rglob("*")) if p.is_file() and p.name != STAGE_FILE]
+    files += [run_dir / o for o in summary.get("outputs", []) if (run_dir / o).is_file()]
+    return {p.relative_to(run_dir).as_posix(): sha256_file(p) for p in files}
+
+
+def is_fresh(run_dir: Path, doc: dict | None, key: str) -> bool:
+    """The stage.json matches `key` and its outputs are present and unchanged."""
+    if not doc or doc.get("key") != key:
+        return False
+    for rel, digest in doc.get("outputs", {}).items():
+        p = Path(run_dir) / rel
+        if not p.is_file() or sha256_file(p) != digest:
+            return False
+    return True
+
+
+def _call(fn: Callable, run_dir: Path, params: dict) -> Any:
+    """`run(run_dir, params)`; a stage whose `run` takes keyword parameters gets them as such."""
+    sig = inspect.signature(fn)
+    if "params" in sig.parameters or len(sig.parameters) == 2 and not any(
+            p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
+        return fn(run_dir, params)
+    accepts_all = any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values())
+    kwargs = {k: v for k, v in params.items() if accepts_all or k in sig.parameters}
+    return fn(run_dir, **kwargs)
+
+
+def input_keys(run_dir: Path, stage: Stage, recording: Path | None = None) -> dict[str, str]:
+    """Keys of the stages `stage` requires (or the recording's hash for ingest)."""
+    if not stage.requires:
+        if recording is None:
+            raise RobocalError(f"stage {stage.name} needs a recording")
+        return {"recording_sha256": sha256_file(recording)}
+    keys = {}
+    for dep in stage.requires:
+        spec = BY_NAME[dep]
+        doc = read_stage(run_dir, dep)
+        if doc is None:
+            if spec.optional and load_module(spec) is None:
+                continue
+            raise RobocalError(f"{run_dir}: stage {dep!r} has not been run (run `robocal {dep}` or `robocal run` first)")
+        if doc.get("summary", {}).get("status") == "fail":
+            raise StageFailed(f"{run_dir}: stage {dep!r} failed: {doc['summary'].get('reason', '')}")
+        keys[dep] = doc["key"]
+    return keys
+
+
+def run_stage(run_dir: Path, name: str, params: dict | None = None, recording: Path | None = None,
+              force: bool = False, log: Callable[[str], None] | None = None) -> Outcome:
+    """Run one stage unless it is cached.  Raises StageFailed when its summary says fail."""
+    stage = BY_NAME[name]
+    run_dir = Path(run_dir)
+    mod = load_module(stage)
+    if mod is None:
+        raise RobocalError(f"stage {name!r} is not available (module {stage.module} missing)")
+    p = {**stage.defaults, **(params or {})}
+    if recording is None and not stage.requires:
+        prev = read_stage(run_dir, name)
+        if prev is None:
+            raise RobocalError(f"{run_dir}: stage {name} needs a recording")
+        recording = Path(prev["params"]["recording"])
+    inputs = input_keys(run_dir, stage, recording)
+    key = stage_key(name, p, inputs)
+    prev = read_stage(run_dir, name)
+    if not force and is_fresh(run_dir, prev, key):
+        out = Outcome(name, True, 0.0, key, prev.get("summary", {}))
+    else:
+        t0 = time.perf_counter()
+        shutil.rmtree(run_dir / name, ignore_errors=True)
+        (run_dir / name).mkdir(parents=True)
+        call_params = dict(p)
+        if recording is not None:
+            call_params["recording"] = str(Path(recording).resolve())
+        summary = _call(mod.run, run_dir, call_params) or {}
+        elapsed = time.perf_counter() - t0
+        doc = {"stage": name, "key": key, "params": {**p, **({"recording": call_params["recording"]}
+                                                              if "recording" in call_params else {})},
+               "inputs": inputs, "elapsed_s": elapsed, "robocal_version": __version__,
+               "summary": summary, "outputs": _outputs(run_dir, name, summary)}
+        (run_dir / name / STAGE_FILE).write_text(dumps(doc))
+        out = Outcome(name, False, elapsed, key, summary)
+    if log:
+        log(f"{name}: " + ("cached" if out.cached else f"ran in {out.elapsed_s:.2f} s") + f" (key {key[:12]})")
+    write_results(run_dir)
+    if out.summary.get("status") == "fail":
+        raise StageFailed(f"{name} failed: {out.summary.get('reason', 'see ' + str(run_dir / name))}")
+    return out
+
+
+def run_pipeline(recording: Path, run_dir: Path, params: dict[str, dict] | None = None,
+                 stages: list[str] | None = None, force: bool = False,
+                 log: Callable[[str], None] | None = None) -> list[Outcome]:
+    """Every available stage in order (or `stages`), each cached when nothing changed."""
+    recording, run_dir = Path(recording), Path(run_dir)
+    if not recording.is_file():
+        raise RobocalError(f"{recording}: no such file")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    params = params or {}
+    names = stages or [s.name for s in available_stages()]
+    outcomes = []
+    for name in names:
+        outcomes.append(run_stage(run_dir, name, params.get(name), recording if name == "ingest" else None,
+                                  force=force, log=log))
+    return outcomes
+
+
+def write_results(run_dir: Path) -> dict:
+    """DIR/results.json: the summaries of every stage run so far, plus the headline figures."""
+    from pipeline.stages.results import gather
+
+    doc = gather(run_dir)
+    write_json(Path(run_dir) / "results.json", doc)
+    return doc

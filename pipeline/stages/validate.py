@@ -1,0 +1,151 @@
+"""Stage validate: run the named checks of `pipeline.validate.checks` on a recording and its
+ingested tables; write `validate/validate.json`.  Any fail makes the stage (and run) fail."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.ingest.streams import JOINT_STATE
+from pipeline.recording.reader import read_recording
+from pipeline.recording.schemas import CHANNELS, META_FIXTURE, META_ROBOT, validator
+from pipeline.stages.artefacts import read_table, write_json
+from pipeline.stages.ingest import NAME as INGEST, recording_info
+from pipeline.validate import checks as C
+
+NAME = "validate"
+
+
+def _raw(rec, topic: str) -> list:
+    raw = getattr(rec.messages, "raw", None)
+    return raw[topic] if raw is not None else rec.messages[topic]
+
+
+def _limits(rec, system) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
+    if hasattr(system, "joint_limits"):
+        return system.joint_limits(rec)
+    try:
+        from pipeline.models.serial_arm import SerialArm
+
+        arm = SerialArm.from_dict(rec.metadata[META_ROBOT])
+        return arm.lower, arm.upper, [j.name for j in arm.joints]
+    except Exception:  # noqa: BLE001 — a model that is not a serial arm has no limits here
+        return None
+
+
+def _stream_times(messages: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    ts, rec = [], []
+    for i, m in enumerate(messages):
+        t = m.get("timestamps_ns")
+        if isinstance(t, list):
+            try:
+                a = np.asarray(t, np.int64)
+            except (ValueError, TypeError, OverflowError):
+                continue
+            ts.append(a)
+            rec.append(np.full(a.size, i))
+    if not ts:
+        return np.zeros(0, np.int64), np.zeros(0, int)
+    return np.concatenate(ts), np.concatenate(rec)
+
+
+def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
+    from pipeline.systems.registry import SYSTEMS
+
+    info = recording_info(run_dir)
+    rec = read_recording(info["source"]["path"])
+    system = SYSTEMS[info["system"]]
+    mchan = info["measurement_channel"]
+    out: list[C.Check] = []
+    topics = [t for t in sorted(rec.messages.raw if hasattr(rec.messages, "raw") else rec.messages) if _raw(rec, t)]
+    decoded: dict[str, list[dict]] = {}
+    for topic in topics:
+        try:
+            decoded[topic] = rec.messages[topic]
+        except Exception as e:  # noqa: BLE001 — a message that is not JSON: fail naming it
+            out.append(C.Check("decode", C.FAIL, str(e), topic, []))
+    for topic, msgs in decoded.items():
+        stem = CHANNELS.get(topic)
+        out.append(C.check_schema(topic, msgs, validator(stem) if stem else None))
+        out.append(C.check_finite(topic, msgs))
+    # time
+    span = None
+    if JOINT_STATE in decoded:
+        t, r = _stream_times(decoded[JOINT_STATE])
+        out += C.check_stream_time(JOINT_STATE, t, r, float(params.get("gap_factor", 5.0)))
+        if t.size:
+            span = (int(t.min()), int(t.max()))
+    mpath = Path(run_dir) / INGEST / "measurements.parquet"
+    table = read_table(mpath) if mpath.is_file() else None
+    if mchan in decoded:
+        msgs = decoded[mchan]
+        if table is not None and "timestamp_ns" in table:
+            t_m, rec_m = table["timestamp_ns"], table["record"]
+        else:
+            ok = [(i, m["timestamp_ns"]) for i, m in enumerate(msgs) if isinstance(m.get("timestamp_ns"), int)]
+            rec_m = np.array([i for i, _ in ok], int)
+            t_m = np.array([t for _, t in ok], np.int64)
+        for c in C.check_event_time(mchan, t_m, span):
+            out.append(c if not c.records else C.Check(c.name, c.status, c.message, c.channel,
+                                                       [int(rec_m[i]) for i in c.records]))
+        out.append(C.check_duplicates(mchan, _raw(rec, mchan), None))
+        if table is not None and "timestamp_ns" in table:
+            dup_t = C.check_duplicates(mchan, [], None)
+            _, first = np.unique(np.asarray(t_m, np.int64), return_index=True)
+            rows = sorted(set(range(len(t_m))) - set(first.tolist()))
+            if rows:
+                dup_t = C.make("duplicates", mchan, [int(rec_m[i]) for i in rows], C.WARN, "",
+                               "repeat an earlier measurement's timestamp")
+                out.append(dup_t)
+    for topic in decoded:
+        if topic != mchan:
+            out.append(C.check_duplicates(topic, _raw(rec, topic)))
+    # joint limits
+    lim = _limits(rec, system)
+    if lim is not None and table is not None and "joint_positions" in table:
+        lo, hi, names = lim
+        out.append(C.check_joint_limits(mchan, table["joint_positions"], table["record"], lo, hi, names))
+        epath = Path(run_dir) / INGEST / "encoder.parquet"
+        if epath.is_file():
+            enc = read_table(epath)
+            q = np.stack([enc[f"q_{n}"] for n in names if f"q_{n}" in enc], axis=1)
+            if q.shape[1] == len(names):
+                out.append(C.check_joint_limits(JOINT_STATE, q, enc["record"], lo, hi, names))
+    # touch-jig faces
+    fixture = rec.metadata.get(META_FIXTURE, {})
+    if table is not None and fixture.get("kind") == "touch_jig" and {"face", "axis", "coordinate"} <= set(table):
+        faces = {f["id"]: ("xyz".index(f["axis"]), float(f["coordinate"])) for f in fixture.get("faces", [])}
+        out.append(C.check_face_coordinates(mchan, table["face"], table["axis"], table["coordinate"],
+                                            table["record"], faces))
+    # ingest could not build the tables for a reason no check named: fail with it
+    if info.get("errors") and not any(c.status == C.FAIL for c in out):
+        out.append(C.Check("ingest", C.FAIL, info["errors"][0], mchan, []))
+    # gross outliers after a first robust fit (only on data that passed everything else)
+    if table is not None and not any(c.status == C.FAIL for c in out):
+        from pipeline.identify.least_squares import FitOptions, fit
+        from pipeline.ingest.tables import model_columns
+        from pipeline.stages.ingest import load_system
+
+        _, model, _ = load_system(run_dir)
+        f = fit(model, model_columns(table), FitOptions(loss="soft_l1", f_scale=float(params.get("outlier_f_scale_m", 1e-4))))
+        out.append(C.check_outliers(mchan, f.residuals_after, table["record"], float(params.get("outlier_threshold", 6.0))))
+    return out
+
+
+def summarise(checks: list[C.Check]) -> dict:
+    status = C.FAIL if any(c.status == C.FAIL for c in checks) else (
+        C.WARN if any(c.status == C.WARN for c in checks) else C.PASS)
+    fails = [c for c in checks if c.status == C.FAIL]
+    doc = {"status": status, "checks": [c.to_dict() for c in checks],
+           "counts": {s: sum(c.status == s for c in checks) for s in (C.PASS, C.WARN, C.FAIL)}}
+    if fails:
+        doc["reason"] = f"validation check {fails[0].name} failed: {fails[0].message}"
+    return doc
+
+
+def run(run_dir: Path, params: dict) -> dict:
+    checks = run_checks(Path(run_dir), params)
+    doc = summarise(checks)
+    write_json(Path(run_dir) / NAME / "validate.json", {"checks": doc["checks"], "status": doc["status"]})
+    return doc

@@ -1,0 +1,1 @@
+"""Named checks of a recording and its measurement table (pure functions)."""

@@ -1,0 +1,95 @@
+"""Reading a run directory: the artefacts of the stages before the report (docs/pipeline-artefacts.md).
+
+`load_run` is the only function here that touches files; it returns a `RunArtefacts` of plain
+numpy arrays and dicts that the pure figure functions take.  Optional artefacts (observe,
+validate, diagnose, the encoder stream) are None when their stage has not run.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.errors import RobocalError
+
+STAGES = ("ingest", "validate", "identify", "observe", "diagnose")
+
+
+@dataclass
+class RunArtefacts:
+    """Everything the report and the rerun recording are drawn from (SI units)."""
+
+    run_dir: Path
+    fit: dict  # identify/fit.json
+    residuals: dict[str, np.ndarray]  # identify/residuals.parquet as columns
+    history: list[float]  # identify/history.json
+    model: dict | None = None  # identify/model.json (calibrated model)
+    recording: dict = field(default_factory=dict)  # ingest/recording.json
+    measurements: dict[str, np.ndarray] | None = None  # ingest/measurements.parquet
+    encoder: dict[str, np.ndarray] | None = None  # ingest/encoder.parquet
+    validate: dict | None = None  # validate/validate.json
+    observe: dict | None = None  # observe/observe.json
+    diagnosis: dict | None = None  # diagnose/diagnosis.json (or DIR/diagnosis.json)
+    stages: dict[str, dict] = field(default_factory=dict)  # <stage>/stage.json
+
+    @property
+    def system(self) -> str:
+        return str(self.recording.get("system", "unknown"))
+
+    @property
+    def residual_dim(self) -> int:
+        return len(residual_components(self.residuals, "after"))
+
+
+def residual_components(res: dict[str, np.ndarray], kind: str) -> list[str]:
+    """Column names `<kind>_<k>` in k order (kind: before, after, holdout)."""
+    cols = [c for c in res if c.startswith(kind + "_") and c[len(kind) + 1:].isdigit()]
+    return sorted(cols, key=lambda c: int(c[len(kind) + 1:]))
+
+
+def residual_matrix(res: dict[str, np.ndarray], kind: str) -> np.ndarray:
+    """(n, k) residuals of one kind, m."""
+    cols = residual_components(res, kind)
+    if not cols:
+        return np.zeros((len(res.get("record", [])), 0))
+    return np.column_stack([np.asarray(res[c], float) for c in cols])
+
+
+def _json(path: Path) -> dict | list | None:
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text())
+    except ValueError as e:
+        raise RobocalError(f"{path}: not valid JSON ({e})") from None
+
+
+def _parquet(path: Path) -> dict[str, np.ndarray] | None:
+    if not path.is_file():
+        return None
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(path)
+    return {name: t.column(name).to_numpy(zero_copy_only=False) for name in t.column_names}
+
+
+def load_run(run_dir: str | Path) -> RunArtefacts:
+    """Read the artefacts of `run_dir`; identify's fit and residuals are required."""
+    d = Path(run_dir)
+    fit = _json(d / "identify" / "fit.json")
+    res = _parquet(d / "identify" / "residuals.parquet")
+    if fit is None or res is None:
+        raise RobocalError(f"{d}: no identify/fit.json and identify/residuals.parquet (run `robocal identify` first)")
+    diagnosis = _json(d / "diagnose" / "diagnosis.json")
+    if diagnosis is None:
+        diagnosis = _json(d / "diagnosis.json")
+    stages = {s: doc for s in STAGES if (doc := _json(d / s / "stage.json")) is not None}
+    return RunArtefacts(
+        run_dir=d, fit=fit, residuals=res, history=list(_json(d / "identify" / "history.json") or []),
+        model=_json(d / "identify" / "model.json"), recording=_json(d / "ingest" / "recording.json") or {},
+        measurements=_parquet(d / "ingest" / "measurements.parquet"),
+        encoder=_parquet(d / "ingest" / "encoder.parquet"), validate=_json(d / "validate" / "validate.json"),
+        observe=_json(d / "observe" / "observe.json"), diagnosis=diagnosis, stages=stages)

@@ -1,0 +1,155 @@
+"""Generic reading of diagnosis.json (issue 7) for the report: plots found in the document, plus
+added-variable plots against each finding's located variable.
+
+The report does not depend on the diagnosis's exact layout.  `find_plots` takes any object in the
+document that carries an ``x`` array and one or more arrays of the same length (a plot), e.g.::
+
+    {"title": "...", "x_label": "time since start (s)", "x": [...],
+     "before_m": [...], "after_m": [...]}          # or "series": {"before_m": [...], ...}
+
+Series whose name ends in ``_m`` are lengths (shown in mm).  For a finding whose ``location``
+names a column of ingest/measurements.parquet (``time_since_start_s``, ``q_J2``, ``v_J1``,
+``dir_J3``, a joint name …), `located_plots` draws the geometric fit's residuals against it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class PlotSpec:
+    """One x-vs-series plot in SI units (series names keep their `_m` suffix)."""
+
+    title: str
+    x_label: str
+    x: np.ndarray
+    series: dict[str, np.ndarray] = field(default_factory=dict)
+    y_label: str = ""
+
+    @property
+    def lengths(self) -> bool:
+        return all(k.endswith("_m") for k in self.series)
+
+
+def _numeric(v: Any, n: int | None = None) -> np.ndarray | None:
+    if not isinstance(v, list) or not v or (n is not None and len(v) != n):
+        return None
+    try:
+        a = np.asarray(v, float)
+    except (TypeError, ValueError):
+        return None
+    return a if a.ndim == 1 else None
+
+
+def _as_plot(d: dict, title: str) -> PlotSpec | None:
+    x = _numeric(d.get("x"))
+    if x is None:
+        return None
+    src = d.get("series") if isinstance(d.get("series"), dict) else d
+    series = {k: a for k, v in src.items() if k not in ("x",) and (a := _numeric(v, x.size)) is not None}
+    if not series:
+        return None
+    return PlotSpec(title=str(d.get("title") or title), x_label=str(d.get("x_label") or d.get("variable") or "x"),
+                    x=x, series=series, y_label=str(d.get("y_label") or ""))
+
+
+def find_plots(doc: Any, title: str = "diagnosis", depth: int = 0) -> list[PlotSpec]:
+    """Every plot-shaped object in the diagnosis document (depth-first, document order)."""
+    if depth > 6:
+        return []
+    out: list[PlotSpec] = []
+    if isinstance(doc, dict):
+        p = _as_plot(doc, title)
+        if p is not None:
+            return [p]
+        label = str(doc.get("effect") or doc.get("name") or title)
+        for k, v in doc.items():
+            out += find_plots(v, label if k in ("plot", "plots") else f"{label}: {k}", depth + 1)
+    elif isinstance(doc, list):
+        for v in doc:
+            out += find_plots(v, title, depth + 1)
+    return out
+
+
+def _location_column(location: Any, columns: list[str]) -> str | None:
+    cands: list[str] = []
+    if isinstance(location, dict):
+        cands += [str(v) for k, v in location.items() if k in ("variable", "column", "joint", "name")]
+    elif location is not None:
+        cands.append(str(location))
+    for c in cands:
+        for form in (c, f"q_{c}"):
+            if form in columns:
+                return form
+    return None
+
+
+def located_plots(doc: dict, measurements: dict[str, np.ndarray] | None, residuals: dict[str, np.ndarray]
+                  ) -> list[PlotSpec]:
+    """Residuals of the geometric fit against each finding's located variable (added-variable view)."""
+    if not measurements or "record" not in measurements:
+        return []
+    cols = list(measurements)
+    pos = {int(r): i for i, r in enumerate(measurements["record"])}
+    idx = np.array([pos.get(int(r), -1) for r in residuals["record"]])
+    ok = idx >= 0
+    out = []
+    for f in doc.get("findings", []) or []:
+        if not isinstance(f, dict):
+            continue
+        col = _location_column(f.get("location"), cols) or _location_column(f.get("variable"), cols)
+        if col is None or "after_0" not in residuals:
+            continue
+        x = np.asarray(measurements[col], float)[idx[ok]]
+        if col.startswith("q_"):
+            x, label = np.degrees(x), f"{col[2:]} (deg)"
+        else:
+            label = col
+        out.append(PlotSpec(title=f"{f.get('effect', 'finding')}: residuals of the geometric fit against {label}",
+                            x_label=label, x=x,
+                            series={"geometric fit residual_m": np.asarray(residuals["after_0"], float)[ok]}))
+    return out
+
+
+def finding_rows(doc: dict) -> list[dict[str, str]]:
+    """Display rows of the accepted findings (effect, location, parameters, evidence)."""
+    rows = []
+    for f in doc.get("findings", []) or []:
+        if not isinstance(f, dict):
+            continue
+        params = []
+        for p in f.get("parameters", []) or []:
+            if isinstance(p, dict):
+                v, s, u = p.get("value"), p.get("std"), p.get("unit", "")
+                params.append(f"{p.get('name', '?')} = {_fmt(v, u)}" + (f" ± {_fmt(s, u)}" if s is not None else ""))
+        ev = f.get("evidence", {}) or {}
+        rows.append({"effect": str(f.get("effect", f.get("name", "?"))), "location": _loc(f.get("location")),
+                     "parameters": "; ".join(params),
+                     "evidence": "; ".join(f"{k} = {_fmt(v, 'm' if k.endswith('_m') else '')}"
+                                           for k, v in ev.items()) if isinstance(ev, dict) else str(ev),
+                     "absorbed_fraction": _fmt(f.get("absorbed_fraction"), "")})
+    return rows
+
+
+def _loc(v: Any) -> str:
+    if isinstance(v, dict):
+        return ", ".join(f"{k}: {x}" for k, x in v.items())
+    return "" if v is None else str(v)
+
+
+def _fmt(v: Any, unit: str) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        if unit == "m":
+            return f"{v * 1e3:.4g} mm"
+        if unit == "rad":
+            return f"{np.degrees(v):.4g} deg"
+        return f"{v:.4g}" + (f" {unit}" if unit else "")
+    if isinstance(v, list):
+        return "[" + ", ".join(_fmt(x, unit) for x in v) + "]"
+    return str(v)

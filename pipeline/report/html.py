@@ -1,0 +1,261 @@
+"""report.html: one self-contained page (inline CSS and SVG, no script, no network).
+
+`render` is pure: run artefacts (+ version and parameters) in, an HTML string out.
+"""
+
+from __future__ import annotations
+
+from html import escape
+from typing import Any
+
+import numpy as np
+
+from pipeline.report import diagnosis as dg
+from pipeline.report import figures as fg
+from pipeline.report import plots
+
+CSS = """
+:root { --ink:#1d2330; --muted:#5b6475; --line:#dde1e8; --bg:#f6f7f9; --ok:#2e7d32; --warn:#b26a00; --fail:#c62828; }
+* { box-sizing: border-box; }
+body { margin:0; font:14px/1.45 system-ui,-apple-system,"Segoe UI",Roboto,sans-serif; color:var(--ink); background:var(--bg); }
+header { background:#1d2330; color:#fff; padding:18px 32px; }
+header h1 { margin:0; font-size:22px; font-weight:600; }
+header p { margin:4px 0 0; color:#c5cad6; }
+nav { padding:8px 32px; background:#fff; border-bottom:1px solid var(--line); position:sticky; top:0; }
+nav a { margin-right:14px; color:#33508a; text-decoration:none; font-size:13px; }
+main { max-width:1180px; margin:0 auto; padding:8px 32px 48px; }
+section { background:#fff; border:1px solid var(--line); border-radius:8px; padding:16px 20px; margin:18px 0; }
+h2 { margin:0 0 10px; font-size:18px; }
+h3 { margin:16px 0 6px; font-size:15px; }
+.cards { display:grid; grid-template-columns:repeat(auto-fill,minmax(170px,1fr)); gap:10px; }
+.card { border:1px solid var(--line); border-radius:6px; padding:10px 12px; }
+.card .v { font-size:20px; font-weight:600; }
+.card .k { color:var(--muted); font-size:12px; }
+table { border-collapse:collapse; width:100%; font-size:13px; }
+th, td { border-bottom:1px solid var(--line); padding:4px 8px; text-align:left; vertical-align:top; }
+th { background:#f0f2f5; font-weight:600; }
+td.n { text-align:right; font-variant-numeric:tabular-nums; white-space:nowrap; }
+tr.fixed td { color:var(--muted); }
+.badge { display:inline-block; padding:1px 8px; border-radius:10px; font-size:12px; color:#fff; }
+.pass { background:var(--ok); } .warn { background:var(--warn); } .fail { background:var(--fail); }
+figure { margin:10px 0 16px; } figure svg { max-width:100%; height:auto; }
+figcaption { color:var(--muted); font-size:12px; }
+code { background:#f0f2f5; padding:1px 4px; border-radius:3px; font-size:12px; }
+.note { color:var(--muted); font-size:12px; }
+ul.warnings li { color:var(--warn); }
+"""
+
+
+def _mm(v: float | None, digits: int = 4) -> str:
+    return "–" if v is None else f"{v * 1e3:.{digits}f} mm"
+
+
+def _num(v: float | None, digits: int = 4) -> str:
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "–"
+    return f"{v:.{digits}f}"
+
+
+def _table(head: list[str], rows: list[list[str]], numeric: set[int] = frozenset(), row_class=None) -> str:
+    th = "".join(f"<th>{escape(h)}</th>" for h in head)
+    body = []
+    for i, r in enumerate(rows):
+        cls = f' class="{row_class(i)}"' if row_class and row_class(i) else ""
+        tds = "".join(f'<td class="n">{c}</td>' if j in numeric else f"<td>{c}</td>" for j, c in enumerate(r))
+        body.append(f"<tr{cls}>{tds}</tr>")
+    return f"<table><thead><tr>{th}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+
+
+def _figure(svg: str, caption: str, fig_id: str) -> str:
+    return f'<figure id="{fig_id}" class="plot">{svg}<figcaption>{escape(caption)}</figcaption></figure>'
+
+
+def _section(sid: str, title: str, body: str) -> str:
+    return f'<section id="{sid}"><h2>{escape(title)}</h2>{body}</section>'
+
+
+def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
+    cards = [("RMS before", _mm(s["rms_before_m"])), ("RMS after", _mm(s["rms_after_m"])),
+             ("held-out RMS", _mm(s["holdout_rms_m"])),
+             ("parameters identified", f"{s['n_identifiable']} / {s['n_parameters']}"),
+             ("measurements", f"{s['n_measurements']}" + (f" ({s['n_rejected']} rejected)" if s["n_rejected"] else "")),
+             ("max |residual| after", _mm(s["max_abs_after_m"]))]
+    if "predicted_point_sigma_rms_m" in s:
+        cards.append(("predicted point accuracy (1σ RMS)", _mm(s["predicted_point_sigma_rms_m"])))
+    if s.get("sigma_m") is not None:
+        cards.append(("residual σ", _mm(s["sigma_m"])))
+    html = '<div class="cards">' + "".join(
+        f'<div class="card"><div class="v">{escape(v)}</div><div class="k">{escape(k)}</div></div>' for k, v in cards
+    ) + "</div>"
+    html += (f'<p class="note">System <b>{escape(s["system"])}</b>; loss <code>{escape(str(s["loss"]))}</code>; '
+             f'{s["solver_evaluations"]} solver evaluations. Held-out: each measurement predicted by a fit without it '
+             f"(cross-validation).</p>")
+    if warnings:
+        html += "<h3>Warnings</h3><ul class=\"warnings\">" + "".join(f"<li>{escape(w)}</li>" for w in warnings) + "</ul>"
+    return _section("summary", "Summary", html)
+
+
+def residual_section(art, series: fg.ResidualSeries) -> str:
+    rows = [[escape(r["group"]), str(r["n"]), _mm(r["rms_before_m"]), _mm(r["rms_after_m"]),
+             _mm(r["rms_holdout_m"])] for r in fg.group_table(art)]
+    html = _table(["face / channel", "n", "RMS before", "RMS after", "RMS held out"], rows, {1, 2, 3, 4})
+    html += _figure(plots.residuals_by_group(series), "Residuals per face/channel before and after calibration "
+                    "(mm); held out = predicted by a fit that did not see the measurement.", "fig-residuals-group")
+    html += _figure(plots.residuals_vs_time(series), "Residuals against time since the first measurement (mm): "
+                    "structure here means drift.", "fig-residuals-time")
+    if series.joints:
+        html += _figure(plots.residuals_vs_joints(series), "Residuals after calibration against each joint angle "
+                        "(mm vs deg): structure here means an effect the model leaves out.", "fig-residuals-joints")
+    return _section("residuals", "Residuals", html)
+
+
+def parameter_section(fit: dict) -> str:
+    rows = fg.parameter_rows(fit)
+    body = [[f"<code>{escape(r['name'])}</code>", escape(r["unit"]), _num(r["nominal"]), _num(r["estimate"]),
+             _num(r["change"]), _num(r["std"]), "yes" if r["free"] else "fixed", escape(r["reason"])] for r in rows]
+    html = ('<p class="note">Lengths in mm, angles in deg. σ: 1σ standard deviation from the covariance '
+            "(residual σ²·(JᵀJ)⁻¹). Fixed parameters stay at their nominal value; the reason says why.</p>")
+    html += _table(["parameter", "unit", "nominal", "estimate", "change", "σ", "identified", "reason"], body,
+                   {2, 3, 4, 5}, row_class=lambda i: "" if rows[i]["free"] else "fixed")
+    return _section("parameters", "Parameters", html)
+
+
+def observability_section(art) -> str:
+    html = ""
+    obs = art.observe or {}
+    s = fg.singular_values(art)
+    idx = [(k, obs[k]) for k in ("O1", "O2", "O3", "O4", "O5") if k in obs]
+    if idx:
+        html += _table(["index", "value"], [[k, f"{v:.4g}"] for k, v in idx], {1})
+    if s is not None and s.size:
+        html += _figure(plots.singular_values(s), "Singular values of the column-scaled identification Jacobian: "
+                        "a small last value means a weakly observed combination.", "fig-singular")
+    deps = obs.get("dependencies") or {}
+    if deps:
+        html += "<h3>Dependent (not identifiable) combinations</h3>" + _table(
+            ["parameter", "combination"], [[f"<code>{escape(str(k))}</code>", escape(str(v))] for k, v in deps.items()])
+    c = fg.correlation(art)
+    if c is not None:
+        names, mat = c
+        html += _figure(plots.correlation(names, mat), "Correlation matrix of the identified parameters.",
+                        "fig-correlation")
+        top = fg.strongest_correlations(names, mat)
+        html += "<h3>Strongest correlations</h3>" + _table(
+            ["parameter", "parameter", "correlation"],
+            [[f"<code>{escape(a)}</code>", f"<code>{escape(b)}</code>", f"{v:+.3f}"] for a, b, v in top], {2})
+    sig = obs.get("predicted_point_sigma_m")
+    if sig:
+        html += _figure(plots.point_sigma(np.zeros(len(sig)), np.asarray(sig, float)),
+                        "Predicted 3-D 1σ accuracy of the calibrated model's point at the measured poses (mm).",
+                        "fig-point-sigma")
+    if not html:
+        html = '<p class="note">The observe stage has not run for this directory.</p>'
+    return _section("observability", "Observability", html)
+
+
+def solver_section(history: list[float]) -> str:
+    if not history:
+        return _section("solver", "Solver", '<p class="note">No solver history recorded.</p>')
+    return _section("solver", "Solver", _figure(plots.solver_history(history), "RMS residual at each evaluation "
+                                                "of the nonlinear least-squares solver (mm).", "fig-solver"))
+
+
+def validation_section(val: dict | None) -> str:
+    if not val:
+        return _section("validation", "Validation", '<p class="note">The validate stage has not run.</p>')
+    rows = []
+    for ch in val.get("checks", []):
+        st = str(ch.get("status", "?"))
+        recs = ch.get("records", []) or []
+        shown = ", ".join(str(r) for r in recs[:20]) + (f" … ({len(recs)} in all)" if len(recs) > 20 else "")
+        rows.append([escape(str(ch.get("name", "?"))), f'<span class="badge {escape(st)}">{escape(st)}</span>',
+                     escape(str(ch.get("message", ""))), escape(shown)])
+    return _section("validation", "Validation", _table(["check", "status", "message", "records"], rows))
+
+
+def diagnosis_section(art) -> str:
+    doc = art.diagnosis
+    if not isinstance(doc, dict):
+        return ""
+    html = ""
+    rows = dg.finding_rows(doc)
+    if rows:
+        html += "<h3>Findings</h3>" + _table(["effect", "location", "parameters", "evidence", "absorbed fraction"],
+                                             [[escape(r[k]) for k in ("effect", "location", "parameters", "evidence",
+                                                                      "absorbed_fraction")] for r in rows])
+    else:
+        html += '<p class="note">No finding: no left-out effect was detected.</p>'
+    b, a = doc.get("holdout_rms_before_m"), doc.get("holdout_rms_after_m")
+    if isinstance(b, (int, float)) and isinstance(a, (int, float)):
+        html += _figure(plots.bars(["before", "after"], [b * 1e3, a * 1e3], "held-out RMS (mm)",
+                                   "held-out RMS: geometry only vs with the findings"),
+                        f"Held-out RMS before {b * 1e3:.4f} mm, after modelling the findings {a * 1e3:.4f} mm.",
+                        "fig-diagnosis-improvement")
+    specs = dg.find_plots(doc) or dg.located_plots(doc, art.measurements, art.residuals)
+    for i, p in enumerate(specs):
+        scale = 1e3 if p.lengths else 1.0
+        series = {k[:-2] if k.endswith("_m") else k: v for k, v in p.series.items()}
+        y_label = p.y_label or ("residual (mm)" if p.lengths else "value")
+        html += _figure(plots.xy_series(p.x, series, p.x_label, y_label, p.title, y_scale=scale), p.title,
+                        f"fig-diagnosis-{i}")
+    ni = doc.get("not_identifiable") or []
+    if ni:
+        html += "<h3>Not identifiable with this campaign</h3>" + _table(
+            ["effect", "absorbed by", "what to change"],
+            [[escape(str(e.get("effect", "?"))), escape(str(e.get("absorbed_by", e.get("absorbs", "")))),
+              escape(str(e.get("advice", e.get("remedy", ""))))] for e in ni if isinstance(e, dict)])
+    un = doc.get("unexplained")
+    if un not in (None, False, {}):
+        html += "<h3>Unexplained structure</h3>" + (
+            f"<p>{escape(dg._loc(un))}</p>" if not isinstance(un, bool) else "<p>yes</p>")
+    return _section("diagnosis", "Diagnosis", html)
+
+
+def provenance_section(prov: dict[str, Any], rrd_name: str | None) -> str:
+    rows = [["input file", escape(str(prov.get("input_path") or "–"))],
+            ["input sha256", f"<code>{escape(str(prov.get('input_sha256') or '–'))}</code>"],
+            ["robocal version", escape(prov["robocal_version"])]]
+    rows += [[f"metadata: {escape(k)}", escape(str(v))] for k, v in prov.get("metadata", {}).items()]
+    html = _table(["item", "value"], rows)
+    st = [[escape(s), f"<code>{escape(str(d.get('key') or ''))}</code>",
+           f"<code>{escape(_json(d.get('params', {})))}</code>", _num(d.get("elapsed_s"), 3),
+           escape(str(d.get("robocal_version") or ""))] for s, d in prov.get("stages", {}).items()]
+    st.append(["report", "", f"<code>{escape(_json(prov.get('report_params', {})))}</code>", "", ""])
+    html += "<h3>Stages</h3>" + _table(["stage", "key", "parameters", "time (s)", "version"], st, {3})
+    if rrd_name:
+        html += (f'<p class="note">3-D view of this run: <code>{escape(rrd_name)}</code> beside this file; open it '
+                 f"with <code>robocal view DIR</code> (rerun viewer).</p>")
+    return _section("provenance", "Provenance", html)
+
+
+def _json(v: Any) -> str:
+    import json
+
+    return json.dumps(v, sort_keys=True, default=str)
+
+
+def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "run.rrd") -> str:
+    """The whole report page."""
+    s = fg.summary(art)
+    series = fg.residual_series(art)
+    prov = fg.provenance(art, version, params)
+    warnings = list(prov["warnings"])
+    if art.validate:
+        warnings += [f"{c.get('name')}: {c.get('message')}" for c in art.validate.get("checks", [])
+                     if c.get("status") == "warn"]
+    sections = [summary_section(s, warnings), residual_section(art, series), parameter_section(art.fit),
+                observability_section(art), solver_section(art.history), validation_section(art.validate),
+                diagnosis_section(art), provenance_section(prov, rrd_name)]
+    titles = [("summary", "Summary"), ("residuals", "Residuals"), ("parameters", "Parameters"),
+              ("observability", "Observability"), ("solver", "Solver"), ("validation", "Validation")]
+    if art.diagnosis is not None:
+        titles.append(("diagnosis", "Diagnosis"))
+    titles.append(("provenance", "Provenance"))
+    nav = "".join(f'<a href="#{i}">{escape(t)}</a>' for i, t in titles)
+    src = prov.get("input_path") or "recording"
+    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+            f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+            f"<title>robocal report — {escape(s['system'])}</title><style>{CSS}</style></head><body>"
+            f"<header><h1>robocal calibration report — {escape(s['system'])}</h1>"
+            f"<p>{escape(str(src))} · robocal {escape(version)}</p></header><nav>{nav}</nav>"
+            f"<main>{''.join(sections)}</main></body></html>\n")

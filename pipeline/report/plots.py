@@ -1,0 +1,201 @@
+"""Plots of the report as inline SVG strings (matplotlib, object API: no pyplot, no display).
+
+Each function takes figure data (SI) and returns one ``<svg>…</svg>`` string in display units
+(mm, deg).  Output is deterministic: no date in the metadata and a fixed id salt.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from matplotlib import rc_context
+from matplotlib.figure import Figure
+
+from pipeline.report.figures import ResidualSeries
+
+MM = 1e3
+DEG = 180.0 / np.pi
+RC = {"svg.fonttype": "none", "svg.hashsalt": "robocal", "font.size": 9, "axes.titlesize": 10,
+      "axes.spines.top": False, "axes.spines.right": False, "axes.grid": True, "grid.alpha": 0.3,
+      "legend.fontsize": 8, "legend.frameon": False}
+COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+          "#bcbd22", "#17becf"]
+
+
+def _svg(fig: Figure) -> str:
+    buf = io.StringIO()
+    with rc_context(RC):
+        fig.savefig(buf, format="svg", metadata={"Date": None}, bbox_inches="tight")
+    s = buf.getvalue()
+    return s[s.index("<svg"):]
+
+
+def _fig(w: float, h: float, nrows: int = 1, ncols: int = 1, **kw) -> tuple[Figure, np.ndarray]:
+    with rc_context(RC):
+        fig = Figure(figsize=(w, h), layout="constrained")
+        axes = fig.subplots(nrows, ncols, squeeze=False, **kw)
+    return fig, axes
+
+
+def group_colors(groups: Sequence[str]) -> dict[str, str]:
+    return {g: COLORS[i % len(COLORS)] for i, g in enumerate(sorted(set(groups)))}
+
+
+def residuals_by_group(s: ResidualSeries) -> str:
+    """Strip plot per face/channel: residuals before, after and held out (mm)."""
+    groups = sorted(set(s.group))
+    with rc_context(RC):
+        fig, ax = _fig(9.5, 3.2, 1, 2)
+        rng = np.random.default_rng(0)
+        for a, (title, sets) in zip(ax[0], [("before calibration", [("before", s.before, "#d62728")]),
+                                            ("after calibration", [("after", s.after, "#2ca02c"),
+                                                                   ("held out", s.holdout, "#ff7f0e")])]):
+            for gi, g in enumerate(groups):
+                m = s.group == g
+                for si, (label, y, c) in enumerate(sets):
+                    yy = y[m] * MM
+                    ok = np.isfinite(yy)
+                    off = (si - (len(sets) - 1) / 2) * 0.25
+                    a.scatter(gi + off + rng.uniform(-0.08, 0.08, ok.sum()), yy[ok], s=10, color=c, alpha=0.75,
+                              label=label if gi == 0 else None, linewidths=0)
+            a.axhline(0, color="k", lw=0.6)
+            a.set_xticks(range(len(groups)), groups, rotation=30, ha="right")
+            a.set_title(title)
+            a.set_ylabel("residual (mm)")
+            a.legend(loc="upper right")
+    return _svg(fig)
+
+
+def residuals_vs_time(s: ResidualSeries) -> str:
+    """Residuals against time since the first measurement, per face/channel: before; after and held out."""
+    colors = group_colors(s.group)
+    with rc_context(RC):
+        fig, ax = _fig(9.5, 4.6, 2, 1, sharex=True)
+        for g, c in colors.items():
+            m = s.group == g
+            ax[0, 0].scatter(s.t_s[m], s.before[m] * MM, s=12, color=c, label=g, linewidths=0)
+            ax[1, 0].scatter(s.t_s[m], s.after[m] * MM, s=12, color=c, linewidths=0)
+            ax[1, 0].scatter(s.t_s[m], s.holdout[m] * MM, s=14, facecolors="none", edgecolors=c, linewidths=0.7)
+        ax[0, 0].set_title("before calibration")
+        ax[1, 0].set_title("after calibration (filled) and held out (hollow)")
+        for a in ax[:, 0]:
+            a.axhline(0, color="k", lw=0.6)
+            a.set_ylabel("residual (mm)")
+        ax[1, 0].set_xlabel("time since first measurement (s)")
+        ax[0, 0].legend(loc="center left", bbox_to_anchor=(1.0, 0.0), title="face / channel")
+    return _svg(fig)
+
+
+def residuals_vs_joints(s: ResidualSeries) -> str:
+    """Residuals after calibration (filled) and held out (hollow) against each joint angle (deg)."""
+    joints = list(s.joints)
+    colors = group_colors(s.group)
+    ncols = 3 if len(joints) > 4 else max(len(joints), 1)
+    nrows = max(int(np.ceil(len(joints) / ncols)), 1)
+    with rc_context(RC):
+        fig, ax = _fig(9.5, 2.5 * nrows + 0.4, nrows, ncols, sharey=True)
+        for i, a in enumerate(ax.ravel()):
+            if i >= len(joints):
+                a.set_visible(False)
+                continue
+            q = s.joints[joints[i]] * DEG
+            for g, c in colors.items():
+                m = s.group == g
+                a.scatter(q[m], s.after[m] * MM, s=10, color=c, label=g if i == 0 else None, linewidths=0)
+                a.scatter(q[m], s.holdout[m] * MM, s=12, facecolors="none", edgecolors=c, linewidths=0.6)
+            a.axhline(0, color="k", lw=0.6)
+            a.set_xlabel(f"{joints[i]} (deg)")
+            if i % ncols == 0:
+                a.set_ylabel("residual after (mm)")
+        if joints:
+            fig.legend(loc="outside right center", title="face / channel")
+    return _svg(fig)
+
+
+def singular_values(s: np.ndarray) -> str:
+    """Singular values of the scaled identification Jacobian (log scale)."""
+    with rc_context(RC):
+        fig, ax = _fig(6.0, 3.0)
+        a = ax[0, 0]
+        k = np.arange(1, s.size + 1)
+        a.bar(k, s, color="#1f77b4", width=0.7)
+        a.set_yscale("log")
+        a.set_xlabel("index")
+        a.set_ylabel("singular value (scaled Jacobian)")
+        if s.size and s[-1] > 0:
+            a.set_title(f"condition number {s[0] / s[-1]:.3g}")
+    return _svg(fig)
+
+
+def correlation(names: list[str], c: np.ndarray) -> str:
+    """Parameter correlation matrix (free parameters), −1…1."""
+    n = len(names)
+    size = min(max(4.0, 0.22 * n + 2.0), 10.0)
+    with rc_context(RC | {"axes.grid": False}):
+        fig, ax = _fig(size + 1.0, size)
+        a = ax[0, 0]
+        im = a.imshow(c, cmap="RdBu_r", vmin=-1, vmax=1, interpolation="nearest")
+        fs = 7 if n <= 30 else 5
+        a.set_xticks(range(n), names, rotation=90, fontsize=fs)
+        a.set_yticks(range(n), names, fontsize=fs)
+        fig.colorbar(im, ax=a, shrink=0.8, label="correlation")
+    return _svg(fig)
+
+
+def solver_history(history: Sequence[float]) -> str:
+    """Cost (RMS, mm) of each solver evaluation."""
+    with rc_context(RC):
+        fig, ax = _fig(6.0, 2.8)
+        a = ax[0, 0]
+        h = np.asarray(history, float) * MM
+        a.plot(np.arange(h.size), h, marker="o", ms=3, color="#5a5ac8")
+        if h.size and np.all(h > 0):
+            a.set_yscale("log")
+        a.set_xlabel("evaluation")
+        a.set_ylabel("RMS residual (mm)")
+    return _svg(fig)
+
+
+def point_sigma(t_s: np.ndarray, sigma_m: np.ndarray) -> str:
+    """Predicted 3-D 1σ accuracy of the calibrated model's point at each measurement (mm)."""
+    with rc_context(RC):
+        fig, ax = _fig(6.0, 2.8)
+        a = ax[0, 0]
+        a.hist(np.asarray(sigma_m, float) * MM, bins=20, color="#17becf")
+        a.set_xlabel("predicted point accuracy, 1σ (mm)")
+        a.set_ylabel("measurements")
+    return _svg(fig)
+
+
+def xy_series(x: np.ndarray, series: Mapping[str, np.ndarray], x_label: str, y_label: str,
+              title: str = "", y_scale: float = 1.0) -> str:
+    """Generic scatter of several named series against one variable (diagnosis plots)."""
+    with rc_context(RC):
+        fig, ax = _fig(6.4, 3.0)
+        a = ax[0, 0]
+        palette = ["#d62728", "#2ca02c", "#1f77b4", "#ff7f0e", "#9467bd"]
+        x = np.asarray(x, float)
+        for i, (name, y) in enumerate(series.items()):
+            a.scatter(x, np.asarray(y, float) * y_scale, s=10, color=palette[i % len(palette)], label=name,
+                      alpha=0.8, linewidths=0)
+        a.axhline(0, color="k", lw=0.6)
+        a.set_xlabel(x_label)
+        a.set_ylabel(y_label)
+        if title:
+            a.set_title(title)
+        a.legend()
+    return _svg(fig)
+
+
+def bars(labels: Sequence[str], values: Sequence[float], y_label: str, title: str = "") -> str:
+    """Simple bar chart (e.g. held-out RMS before/after the diagnosis)."""
+    with rc_context(RC):
+        fig, ax = _fig(4.0, 2.6)
+        a = ax[0, 0]
+        a.bar(list(labels), list(values), color=["#d62728", "#2ca02c", "#1f77b4"][: len(labels)], width=0.55)
+        a.set_ylabel(y_label)
+        if title:
+            a.set_title(title)
+    return _svg(fig)

@@ -1,0 +1,50 @@
+"""The report stage: DIR/report.html and DIR/run.rrd from the artefacts of the stages before it.
+
+``run(run_dir, params) -> dict`` is called by the pipeline (`robocal run`, `robocal report`);
+it returns the report's machine-readable figures for results.json.
+
+Parameters (all optional): ``rrd`` (bool, default True: write run.rrd), ``html`` (bool, default
+True), ``recording`` (path of the source MCAP, used only when the artefacts alone cannot rebuild
+the measurement model for the 3-D scene).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+from pipeline import __version__
+from pipeline.report.artefacts import load_run
+from pipeline.report.figures import results_figures
+from pipeline.report.html import render
+
+REPORT_HTML = "report.html"
+RUN_RRD = "run.rrd"
+
+
+def run(run_dir: Path, params: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Write DIR/report.html and DIR/run.rrd; return the figures (SI) for results.json."""
+    t0 = time.perf_counter()
+    run_dir = Path(run_dir)
+    params = dict(params or {})
+    art = load_run(run_dir)
+    figures = results_figures(art)
+    out: dict[str, Any] = {**figures, "files": {}}
+    shown = {k: v for k, v in params.items() if k != "recording"}
+    if params.get("html", True):
+        html_path = run_dir / REPORT_HTML
+        html_path.write_text(render(art, __version__, shown, RUN_RRD if params.get("rrd", True) else None),
+                             encoding="utf-8")
+        out["files"]["html"] = REPORT_HTML
+    if params.get("rrd", True):
+        from pipeline.visualize.rrd import write_rrd
+
+        info = write_rrd(art, run_dir / RUN_RRD, figures, params)
+        out["files"]["rrd"] = RUN_RRD
+        out["rrd_entities"] = info["entities"]
+        out["rrd_system_hook"] = info["system_hook"]
+        if info["warnings"]:
+            out["warnings"] = info["warnings"]
+    out["elapsed_s"] = time.perf_counter() - t0
+    return out

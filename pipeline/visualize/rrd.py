@@ -1,0 +1,240 @@
+"""DIR/run.rrd: the run as a rerun recording (rerun-sdk 0.41).
+
+Entities (lengths m unless the name says mm; times on the recording's own ``time`` timeline, ns
+since the Unix epoch; the solver on the ``iteration`` sequence):
+
+- ``world/…`` the jig frame {W}: system geometry from the per-system hook (arc welder: jig
+  blocks and faces), ``world/tips/nominal`` and ``world/tips/calibrated`` (the model's 3-D
+  points at every measurement), ``world/residuals/…`` residual vectors, ``world/robot/poses``
+  (the calibrated arm at a few measurement poses) and ``world/robot/live`` (the arm following
+  the encoder stream on ``time``);
+- ``encoder/joints`` the encoder stream (rad, one series per joint) on ``time``;
+- ``residuals/<before|after|holdout>_mm/<group>`` residuals per face/channel on ``time``;
+- ``solver/rms_mm`` the cost (RMS) of each solver evaluation on ``iteration``;
+- ``summary`` a markdown text document of the headline figures.
+
+Per-system hooks: module ``pipeline.visualize.<system>`` (``-`` → ``_``) with
+``log_system(rec, model, table, x_before, x_after)``; called if present.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from pipeline.report.artefacts import RunArtefacts, residual_matrix
+from pipeline.visualize import scene
+from pipeline.visualize.source import align, model_and_table
+
+TIMELINE = "time"
+ITERATION = "iteration"
+NOMINAL_RGB = (220, 80, 60)
+CALIBRATED_RGB = (40, 160, 90)
+HOLDOUT_RGB = (230, 150, 30)
+ROBOT_RATE_HZ = 5.0
+APP_ID = "robocal"
+
+
+def _palette(n: int) -> list[tuple[int, int, int]]:
+    base = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
+            (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)]
+    return [base[i % len(base)] for i in range(n)]
+
+
+def _times(ns: np.ndarray) -> rr.TimeColumn:
+    return rr.TimeColumn(TIMELINE, timestamp=np.asarray(ns, np.int64).astype("datetime64[ns]"))
+
+
+def log_encoder(rec: rr.RecordingStream, encoder: dict[str, np.ndarray]) -> list[str]:
+    """The encoder stream on `time`: one entity `encoder/joints` with one scalar series per joint (rad)."""
+    t = np.asarray(encoder["t_ns"], np.int64)
+    joints = [c[2:] for c in encoder if c.startswith("q_")]
+    path = "encoder/joints"
+    rec.log(path, rr.SeriesLines(colors=_palette(len(joints)), names=[f"{n} (rad)" for n in joints]), static=True)
+    q = np.column_stack([np.asarray(encoder[f"q_{n}"], float) for n in joints])
+    rec.send_columns(path, indexes=[_times(t)], columns=rr.Scalars.columns(scalars=q))
+    return [path]
+
+
+def log_residual_series(rec: rr.RecordingStream, art: RunArtefacts) -> list[str]:
+    """Residuals (mm) per group and kind on `time`, one point per measurement and component."""
+    res = art.residuals
+    t = np.asarray(res["timestamp_ns"], np.int64)
+    groups = np.asarray(res.get("group", np.full(t.size, "all"))).astype(str)
+    paths = []
+    for kind in ("before", "after", "holdout"):
+        R = residual_matrix(res, kind) * 1e3
+        if R.shape[1] == 0:
+            continue
+        for g, rgb in zip(sorted(set(groups)), _palette(len(set(groups)))):
+            m = (groups == g) & np.all(np.isfinite(R), axis=1)
+            if not m.any():
+                continue
+            path = f"residuals/{kind}_mm/{g}"
+            k = R.shape[1]
+            names = [f"{g} {kind}"] if k == 1 else [f"{g} {kind} [{i}]" for i in range(k)]
+            rec.log(path, rr.SeriesPoints(colors=[rgb] * k, names=names, marker_sizes=[3.0] * k), static=True)
+            rec.send_columns(path, indexes=[_times(t[m])], columns=rr.Scalars.columns(scalars=R[m]))
+            paths.append(path)
+    return paths
+
+
+def log_solver(rec: rr.RecordingStream, history: list[float]) -> str:
+    """Cost (RMS, mm) of each solver evaluation on the `iteration` sequence."""
+    path = "solver/rms_mm"
+    rec.log(path, rr.SeriesLines(colors=[(90, 90, 200)], names=["RMS per evaluation (mm)"]), static=True)
+    if history:
+        rec.send_columns(path, indexes=[rr.TimeColumn(ITERATION, sequence=np.arange(len(history)))],
+                         columns=rr.Scalars.columns(scalars=np.asarray(history, float) * 1e3))
+    return path
+
+
+def log_points(rec: rr.RecordingStream, model, table: dict, x_before: np.ndarray, x_after: np.ndarray,
+               residual_after: np.ndarray | None = None) -> list[str]:
+    """The model's 3-D points at every measurement, nominal and calibrated; residual vectors when the
+    residual is itself a 3-D point difference (residual_dim 3)."""
+    p0, _ = model.points(x_before, table)
+    p1, _ = model.points(x_after, table)
+    labels = [f"#{int(r)}" for r in table.get("record", np.arange(len(p0)))]
+    rec.log("world/tips/nominal", rr.Points3D(p0, colors=[NOMINAL_RGB], radii=[0.002], labels=labels,
+                                               show_labels=False), static=True)
+    rec.log("world/tips/calibrated", rr.Points3D(p1, colors=[CALIBRATED_RGB], radii=[0.002], labels=labels,
+                                                  show_labels=False), static=True)
+    rec.log("world/tips/correction", rr.LineStrips3D(np.stack([p0, p1], axis=1), colors=[(120, 120, 120)],
+                                                      radii=[0.0004]), static=True)
+    paths = ["world/tips/nominal", "world/tips/calibrated", "world/tips/correction"]
+    if residual_after is not None and getattr(model, "residual_dim", 0) == 3 and len(residual_after) == len(p1):
+        rec.log("world/residuals/after_x100", rr.Arrows3D(origins=p1, vectors=-100 * residual_after,
+                                                          colors=[CALIBRATED_RGB]), static=True)
+        paths.append("world/residuals/after_x100")
+    # the measurement being made, on the recording's timeline
+    t = np.asarray(table.get("timestamp_ns", []), np.int64)
+    if t.size == len(p1):
+        for i in range(len(p1)):
+            rec.set_time(TIMELINE, timestamp=np.datetime64(int(t[i]), "ns"))
+            rec.log("world/tips/current", rr.Points3D(p1[i:i + 1], colors=[(250, 200, 0)], radii=[0.005],
+                                                     labels=[labels[i]]))
+        rec.reset_time()
+        paths.append("world/tips/current")
+    return paths
+
+
+def log_arm(rec: rr.RecordingStream, arm, x_after: np.ndarray, table: dict,
+            encoder: dict[str, np.ndarray] | None) -> list[str]:
+    """A serial arm as line strips: at a few measurement poses (static) and following the encoder
+    stream at `ROBOT_RATE_HZ` on `time`."""
+    q = np.asarray(table["joint_positions"], float)
+    pick = scene.pick_poses(len(q), 5)
+    lines = scene.arm_polylines(x_after, q[pick])
+    rec.log("world/robot/poses", rr.LineStrips3D(lines, colors=[(110, 110, 140)], radii=[0.004],
+                                                 labels=[f"pose #{int(table['record'][i])}" for i in pick]),
+            static=True)
+    paths = ["world/robot/poses"]
+    names = [j.name for j in arm.joints]
+    if encoder is not None and all(f"q_{n}" in encoder for n in names):
+        t = np.asarray(encoder["t_ns"], np.int64)
+        idx = scene.decimate(t, ROBOT_RATE_HZ)
+        qs = np.column_stack([np.asarray(encoder[f"q_{n}"], float)[idx] for n in names])
+        live = scene.arm_polylines(x_after, qs)
+        rec.log("world/robot/live", rr.LineStrips3D.from_fields(colors=[(60, 60, 200)], radii=[0.006]),
+                static=True)
+        rec.send_columns("world/robot/live", indexes=[_times(t[idx])],
+                         columns=rr.LineStrips3D.columns(strips=live).partition(np.ones(len(idx), int)))
+        paths.append("world/robot/live")
+    return paths
+
+
+def call_system_hook(rec: rr.RecordingStream, system: str, model, table: dict, x_before: np.ndarray,
+                     x_after: np.ndarray, art: RunArtefacts) -> str | None:
+    """Call `pipeline.visualize.<system>.log_system` if that module exists; returns its name."""
+    name = f"pipeline.visualize.{system.replace('-', '_')}"
+    try:
+        mod = importlib.import_module(name)
+    except ModuleNotFoundError as e:
+        if e.name == name:
+            return None
+        raise
+    hook = getattr(mod, "log_system", None)
+    if hook is None:
+        return None
+    kwargs: dict[str, Any] = {}
+    if "artefacts" in inspect.signature(hook).parameters:
+        kwargs["artefacts"] = art
+    hook(rec, model, table, x_before, x_after, **kwargs)
+    return name
+
+
+def summary_markdown(art: RunArtefacts, figures: dict[str, Any]) -> str:
+    """Headline figures as markdown for the `summary` text view."""
+    mm = lambda v: "n/a" if v is None else f"{v * 1e3:.4f} mm"  # noqa: E731
+    return "\n".join([
+        f"# robocal run — {art.system}", "",
+        f"- measurements: {figures.get('n_measurements')}",
+        f"- RMS before: {mm(figures.get('rms_before_m'))}",
+        f"- RMS after: {mm(figures.get('rms_after_m'))}",
+        f"- held-out RMS: {mm(figures.get('holdout_rms_m'))}",
+        f"- parameters identified / total: {figures.get('n_identifiable')} / {figures.get('n_parameters')}",
+        "", "Red: nominal model's points; green: calibrated. Arrows: residual vectors (after ×100).",
+        "The solver plot uses the `iteration` timeline (select it in the time panel).",
+    ])
+
+
+def blueprint(has_scene: bool) -> rrb.Blueprint:
+    """Layout: 3-D scene left; encoder, residuals and solver/summary right; time panel on `time`."""
+    right = rrb.Vertical(
+        rrb.TimeSeriesView(origin="/encoder", name="Encoder stream (rad)"),
+        rrb.TimeSeriesView(origin="/residuals", name="Residuals per face/channel (mm)"),
+        rrb.Tabs(rrb.TextDocumentView(origin="/summary", name="Summary"),
+                 rrb.TimeSeriesView(origin="/solver", name="Solver RMS per evaluation (mm), timeline: iteration")),
+    )
+    if has_scene:
+        body = rrb.Horizontal(rrb.Spatial3DView(origin="/world", name="Jig, robot and tool tips (m)"), right,
+                              column_shares=[3, 2])
+    else:
+        body = right
+    return rrb.Blueprint(body, rrb.TimePanel(timeline=TIMELINE), collapse_panels=False)
+
+
+def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
+              params: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Write `path` (run.rrd) from the run's artefacts; returns what was logged."""
+    path = Path(path)
+    sha = str(art.recording.get("sha256", ""))[:16] or "unknown"
+    rec = rr.RecordingStream(APP_ID, recording_id=f"robocal-{art.system}-{sha}", send_properties=False)
+    rec.set_log_time_enabled(False)
+    rec.set_log_tick_enabled(False)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rec.save(path, default_blueprint=None)
+    entities: list[str] = []
+    warnings: list[str] = []
+    rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    rec.log("summary", rr.TextDocument(summary_markdown(art, figures), media_type=rr.MediaType.MARKDOWN), static=True)
+    entities.append("summary")
+    if art.encoder is not None:
+        entities += log_encoder(rec, art.encoder)
+    entities += log_residual_series(rec, art)
+    entities.append(log_solver(rec, art.history))
+    hook = None
+    built = model_and_table(art, params)
+    if built is None:
+        warnings.append("no model/table could be rebuilt from the artefacts; 3-D scene left out")
+    else:
+        model, table = built
+        table = align(table, np.asarray(art.residuals["record"]))
+        x_before = np.asarray(art.fit["nominal"], float)
+        x_after = np.asarray(art.fit["x"], float)
+        entities += log_points(rec, model, table, x_before, x_after, residual_matrix(art.residuals, "after"))
+        arm = getattr(model, "arm", None)
+        if arm is not None and hasattr(arm, "joints") and "joint_positions" in table:
+            entities += log_arm(rec, arm, x_after, table, art.encoder)
+        hook = call_system_hook(rec, art.system, model, table, x_before, x_after, art)
+    rec.send_blueprint(blueprint(built is not None))
+    rec.flush()
+    rec.disconnect()
+    return {"path": str(path), "entities": entities, "system_hook": hook, "warnings": warnings}

@@ -28,6 +28,7 @@ six rod constraints by Newton from the simplified solution.  The tracker's refle
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -96,9 +97,16 @@ def split(beta: np.ndarray, extended: bool = False) -> tuple[np.ndarray, np.ndar
     return B[:, :9], (B[:, 9:] if extended else np.zeros((3, 3)))
 
 
+@lru_cache(maxsize=16)
+def _rz_cached(phi: tuple[float, ...]) -> np.ndarray:
+    R = rot("z", np.asarray(phi))
+    R.setflags(write=False)
+    return R
+
+
 def _rz(delta: Delta) -> np.ndarray:
     """(3, 3, 3) leg rotations Rz(φ_i): leg-local -> base."""
-    return rot("z", np.asarray(delta.phi))
+    return _rz_cached(tuple(delta.phi))
 
 
 # ----- simplified model (seed eqs. 4-11) -------------------------------------------------

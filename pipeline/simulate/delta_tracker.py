@@ -69,7 +69,7 @@ class Truth:
 
 def random_truth(rng: np.random.Generator, model: str = "simplified") -> Truth:
     """Errors of a well-built Delta: joints ±0.5 mm, actuator offsets 0.3°, links 0.3–0.5 mm;
-    `full` adds axis direction errors (0.1°) and unequal parallelogram rods (0.1 mm).
+    `full` adds axis direction errors (0.25°) and unequal parallelogram rods (0.2 mm).
     The tracker stands on the floor ~2 m from the robot, turned by ~35°."""
     if model not in TRUTH_MODELS:
         raise ValueError(f"unknown truth model {model!r} (use one of {TRUTH_MODELS})")
@@ -79,8 +79,8 @@ def random_truth(rng: np.random.Generator, model: str = "simplified") -> Truth:
     B[:, 4] = rng.normal(0, 0.3 * MM, 3)
     B[:, 5] = rng.normal(0, 0.5 * MM, 3)
     if model == "full":
-        B[:, 9:11] = rng.normal(0, 0.1 * DEG, (3, 2))
-        B[:, 11] = rng.normal(0, 0.1 * MM, 3)
+        B[:, 9:11] = rng.normal(0, 0.25 * DEG, (3, 2))
+        B[:, 11] = rng.normal(0, 0.2 * MM, 3)
     reg = np.array([1.6, -1.1, -1.4, 35 * DEG, 0, 0]) + np.concatenate(
         [rng.normal(0, 0.05, 3), rng.normal(0, [5 * DEG, 0.3 * DEG, 0.3 * DEG])])
     return Truth(beta=B.ravel(), registration=reg, h=H_NOMINAL, model=model)

@@ -36,7 +36,11 @@ VARIANTS = ("simplified", "extended")
 def registration_matrix(reg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """ᴬR_T (3, 3) and ᴬt_T (3,) m of registration parameters (x, y, z, rz, ry, rx)."""
     reg = np.asarray(reg, float)
-    return rot("z", reg[3]) @ rot("y", reg[4]) @ rot("x", reg[5]), reg[:3].copy()
+    cz, sz, cy, sy, cx, sx = np.cos(reg[3]), np.sin(reg[3]), np.cos(reg[4]), np.sin(reg[4]), np.cos(reg[5]), np.sin(reg[5])
+    R = np.array([[cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx],
+                  [sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx],
+                  [-sy, cy * sx, cy * cx]])
+    return R, reg[:3].copy()
 
 
 def register(p_a: np.ndarray, p_t: np.ndarray) -> np.ndarray:
@@ -57,18 +61,22 @@ def register(p_a: np.ndarray, p_t: np.ndarray) -> np.ndarray:
     return np.array([*(ca - R @ ct), rz, ry, rx])
 
 
-def _registration_jacobian(reg: np.ndarray, p_t: np.ndarray) -> np.ndarray:
-    """d(ᴬR_T p_t + ᴬt_T)/d(x, y, z, rz, ry, rx), (N, 3, 6)."""
+def _rotation_derivatives(reg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """dᴬR_T/drz, /dry, /drx (each 3×3) for ᴬR_T = Rz·Ry·Rx."""
     rz, ry, rx = reg[3:]
     Rz, Ry, Rx = rot("z", rz), rot("y", ry), rot("x", rx)
     dRz = np.array([[-np.sin(rz), -np.cos(rz), 0], [np.cos(rz), -np.sin(rz), 0], [0, 0, 0]])
     dRy = np.array([[-np.sin(ry), 0, np.cos(ry)], [0, 0, 0], [-np.cos(ry), 0, -np.sin(ry)]])
     dRx = np.array([[0, 0, 0], [0, -np.sin(rx), -np.cos(rx)], [0, np.cos(rx), -np.sin(rx)]])
-    n = p_t.shape[0]
-    J = np.zeros((n, 3, 6))
+    return dRz @ Ry @ Rx, Rz @ dRy @ Rx, Rz @ Ry @ dRx
+
+
+def _registration_jacobian(reg: np.ndarray, p_t: np.ndarray) -> np.ndarray:
+    """d(ᴬR_T p_t + ᴬt_T)/d(x, y, z, rz, ry, rx), (N, 3, 6)."""
+    J = np.zeros((p_t.shape[0], 3, 6))
     J[:, :, :3] = np.eye(3)
-    for k, M in enumerate((dRz @ Ry @ Rx, Rz @ dRy @ Rx, Rz @ Ry @ dRx)):
-        J[:, :, 3 + k] = p_t @ M.T
+    for k, dR in enumerate(_rotation_derivatives(reg)):
+        J[:, :, 3 + k] = p_t @ dR.T
     return J
 
 
@@ -177,18 +185,27 @@ class TrackerModel:
         return J
 
     def points(self, x: np.ndarray, data: Table) -> tuple[np.ndarray, np.ndarray]:
-        """Platform point P in {A} (n, 3) m and dP/dx (n, 3, P)."""
-        beta, _, h = self._split(x)
+        """Platform point P seen in the tracker (workcell) frame {T}, ᵀP = ᴬR_Tᵀ(ᴬP − ᴬt_T),
+        (n, 3) m, and dᵀP/dx (n, 3, P).  In {T} the prediction does not depend on the arbitrary
+        choice of origin of {A} (leg 1's base joint), so its covariance is the accuracy a user
+        gets when commanding positions in the workcell."""
+        beta, reg, _ = self._split(x)
         theta = np.atleast_2d(np.asarray(data["joint_positions"], float))
         J = np.zeros((theta.shape[0], 3, self.n_beta + 7))
         if self.extended:
-            p, R, _ = dm.full_forward(self.delta, beta, theta, extended=True)
-            J[:, :, : self.n_beta], _ = dm.full_jacobian(self.delta, beta, theta, p, R, np.zeros(3), True)
-            return p, J
-        b = self._simplified_beta(beta)
-        p, _ = dm.forward(self.delta, b, theta)
-        J[:, :, :27] = dm.forward_jacobian(self.delta, b, theta, p)
-        return p, J
+            p, Rp, _ = dm.full_forward(self.delta, beta, theta, extended=True)
+            J[:, :, : self.n_beta], _ = dm.full_jacobian(self.delta, beta, theta, p, Rp, np.zeros(3), True)
+        else:
+            b = self._simplified_beta(beta)
+            p, _ = dm.forward(self.delta, b, theta)
+            J[:, :, :27] = dm.forward_jacobian(self.delta, b, theta, p)
+        R, t = registration_matrix(reg)
+        rel = p - t
+        J = np.einsum("ji,njk->nik", R, J)  # Rᵀ · dP/dx
+        J[:, :, self.n_beta: self.n_beta + 3] = -R.T
+        for k, dR in enumerate(_rotation_derivatives(reg)):
+            J[:, :, self.n_beta + 3 + k] = rel @ dR  # (dR)ᵀ rel, row-wise
+        return rel @ R, J
 
     def initial_guess(self, data: Table) -> np.ndarray:
         """Nominal β' with the registration from the closed-form fit of the nominal-model

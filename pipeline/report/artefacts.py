@@ -43,6 +43,34 @@ class RunArtefacts:
     def residual_dim(self) -> int:
         return len(residual_components(self.residuals, "after"))
 
+    @property
+    def used(self) -> np.ndarray:
+        """Mask of the measurements the fit used (False: rejected as outliers)."""
+        n = len(self.residuals["record"])
+        u = self.residuals.get("used")
+        return np.ones(n, bool) if u is None else np.asarray(u, bool)
+
+    @property
+    def source(self) -> dict:
+        """{"path", "sha256"} of the input recording, from recording.json or the ingest stage."""
+        src = dict(self.recording.get("source") or {})
+        src.setdefault("sha256", self.recording.get("sha256"))
+        src.setdefault("path", self.recording.get("path") or self.stages.get("ingest", {}).get("params", {}).get("recording"))
+        return src
+
+    def joint_columns(self) -> dict[str, np.ndarray]:
+        """Joint angles (rad) of each measurement by joint name, from `q_<joint>` columns or a
+        `joint_positions` (n, n_joints) column; empty if the measurements carry no joints."""
+        meas = self.measurements or {}
+        out = {c[2:]: np.asarray(v, float) for c, v in meas.items() if c.startswith("q_")}
+        jp = meas.get("joint_positions")
+        if not out and jp is not None and np.ndim(jp) == 2:
+            names = list((self.recording.get("encoder") or {}).get("joints") or [])
+            if len(names) != jp.shape[1]:
+                names = [f"J{i + 1}" for i in range(jp.shape[1])]
+            out = {n: np.asarray(jp[:, i], float) for i, n in enumerate(names)}
+        return out
+
 
 def residual_components(res: dict[str, np.ndarray], kind: str) -> list[str]:
     """Column names `<kind>_<k>` in k order (kind: before, after, holdout)."""
@@ -73,7 +101,11 @@ def _parquet(path: Path) -> dict[str, np.ndarray] | None:
     import pyarrow.parquet as pq
 
     t = pq.read_table(path)
-    return {name: t.column(name).to_numpy(zero_copy_only=False) for name in t.column_names}
+    try:  # the pipeline's reader restores k-vector columns (e.g. joint_positions (n, 6))
+        from pipeline.stages.artefacts import from_arrow
+    except ImportError:
+        return {name: t.column(name).to_numpy(zero_copy_only=False) for name in t.column_names}
+    return from_arrow(t)
 
 
 def load_run(run_dir: str | Path) -> RunArtefacts:
@@ -87,8 +119,11 @@ def load_run(run_dir: str | Path) -> RunArtefacts:
     if diagnosis is None:
         diagnosis = _json(d / "diagnosis.json")
     stages = {s: doc for s in STAGES if (doc := _json(d / s / "stage.json")) is not None}
+    history = _json(d / "identify" / "history.json") or []
+    if isinstance(history, dict):  # {"cost_rms_m": [...]}
+        history = next((v for v in history.values() if isinstance(v, list)), [])
     return RunArtefacts(
-        run_dir=d, fit=fit, residuals=res, history=list(_json(d / "identify" / "history.json") or []),
+        run_dir=d, fit=fit, residuals=res, history=[float(h) for h in history],
         model=_json(d / "identify" / "model.json"), recording=_json(d / "ingest" / "recording.json") or {},
         measurements=_parquet(d / "ingest" / "measurements.parquet"),
         encoder=_parquet(d / "ingest" / "encoder.parquet"), validate=_json(d / "validate" / "validate.json"),

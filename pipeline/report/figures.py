@@ -32,18 +32,20 @@ def summary(art: RunArtefacts) -> dict[str, Any]:
     before, after, hold = (residual_matrix(res, k) for k in ("before", "after", "holdout"))
     fit = art.fit
     free = np.asarray(fit.get("free", []), bool)
+    u = art.used
     out: dict[str, Any] = {
         "system": art.system,
         "n_measurements": int(len(res["record"])),
+        "n_used": int(u.sum()),
         "residual_dim": int(after.shape[1]),
-        "rms_before_m": rms(before),
-        "rms_after_m": rms(after),
-        "holdout_rms_m": rms(hold),
-        "max_abs_after_m": float(np.nanmax(np.abs(after))) if after.size else None,
+        "rms_before_m": rms(before[u]),
+        "rms_after_m": rms(after[u]),
+        "holdout_rms_m": rms(hold[u]),
+        "max_abs_after_m": float(np.nanmax(np.abs(after[u]))) if after[u].size else None,
         "sigma_m": fit.get("sigma_m"),
         "n_parameters": int(len(fit.get("names", []))),
         "n_identifiable": int(free.sum()),
-        "n_rejected": int(len(fit.get("rejected_records", []) or [])),
+        "n_rejected": int(max(len(fit.get("rejected_records", []) or []), int((~u).sum()))),
         "loss": fit.get("loss", "linear"),
         "solver_evaluations": len(art.history),
     }
@@ -85,7 +87,7 @@ def group_table(art: RunArtefacts) -> list[dict[str, Any]]:
     mats = {k: residual_matrix(res, k) for k in ("before", "after", "holdout")}
     rows = []
     for g in sorted(set(groups)):
-        m = groups == g
+        m = (groups == g) & art.used
         rows.append({"group": g, "n": int(m.sum()),
                      **{f"rms_{k}_m": rms(v[m]) if v.shape[1] else None for k, v in mats.items()}})
     return rows
@@ -102,6 +104,7 @@ class ResidualSeries:
     holdout: np.ndarray
     joints: dict[str, np.ndarray]  # joint name -> (n·k,) rad
     component: np.ndarray  # (n·k,) int
+    used: np.ndarray  # (n·k,) bool: False for measurements rejected as outliers
 
 
 def residual_series(art: RunArtefacts) -> ResidualSeries:
@@ -121,23 +124,23 @@ def residual_series(art: RunArtefacts) -> ResidualSeries:
         pos = {int(r): i for i, r in enumerate(meas["record"])}
         idx = np.array([pos.get(int(r), -1) for r in res["record"]])
         ok = idx >= 0
-        for c in meas:
-            if c.startswith("q_"):
-                col = np.full(n, np.nan)
-                col[ok] = np.asarray(meas[c], float)[idx[ok]]
-                joints[c[2:]] = col
+        for name, v in art.joint_columns().items():
+            col = np.full(n, np.nan)
+            col[ok] = v[idx[ok]]
+            joints[name] = col
     groups = np.asarray(res.get("group", np.full(n, "all"))).astype(str)
     rep = lambda a: np.repeat(np.asarray(a), k)  # noqa: E731
     return ResidualSeries(group=rep(groups), t_s=rep(t_s), before=mats["before"].ravel(),
                           after=mats["after"].ravel(), holdout=mats["holdout"].ravel(),
-                          joints={j: rep(v) for j, v in joints.items()}, component=np.tile(np.arange(k), n))
+                          joints={j: rep(v) for j, v in joints.items()}, component=np.tile(np.arange(k), n),
+                          used=rep(art.used))
 
 
 def correlation(art: RunArtefacts) -> tuple[list[str], np.ndarray] | None:
     """Correlation matrix over the free parameters: observe's, else from fit.json's covariance."""
     fit = art.fit
     free = np.asarray(fit.get("free", []), bool)
-    names = [n for n, f in zip(fit.get("names", []), free) if f]
+    names = list((art.observe or {}).get("correlation_names") or [n for n, f in zip(fit.get("names", []), free) if f])
     c = (art.observe or {}).get("correlation")
     if c is not None:
         c = np.asarray(c, float)
@@ -174,8 +177,8 @@ def provenance(art: RunArtefacts, version: str, params: dict[str, Any]) -> dict[
     """Input file hash, robocal version, every stage's parameters and key."""
     rec = art.recording
     return {
-        "input_sha256": rec.get("sha256"),
-        "input_path": rec.get("path") or next(iter(art.stages.get("ingest", {}).get("inputs", []) or []), None),
+        "input_sha256": art.source.get("sha256"),
+        "input_path": art.source.get("path"),
         "robocal_version": version,
         "metadata": {k: v.get("name") if isinstance(v, dict) else v for k, v in (rec.get("metadata") or {}).items()},
         "stages": {s: {"params": d.get("params", {}), "key": d.get("key"), "elapsed_s": d.get("elapsed_s"),

@@ -27,7 +27,7 @@ COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e3
 def _svg(fig: Figure) -> str:
     buf = io.StringIO()
     with rc_context(RC):
-        fig.savefig(buf, format="svg", metadata={"Date": None}, bbox_inches="tight")
+        fig.savefig(buf, format="svg", metadata={"Date": None})
     s = buf.getvalue()
     return s[s.index("<svg"):]
 
@@ -78,6 +78,10 @@ def residuals_vs_time(s: ResidualSeries) -> str:
             ax[0, 0].scatter(s.t_s[m], s.before[m] * MM, s=12, color=c, label=g, linewidths=0)
             ax[1, 0].scatter(s.t_s[m], s.after[m] * MM, s=12, color=c, linewidths=0)
             ax[1, 0].scatter(s.t_s[m], s.holdout[m] * MM, s=14, facecolors="none", edgecolors=c, linewidths=0.7)
+        rej = ~s.used
+        if rej.any():
+            ax[1, 0].scatter(s.t_s[rej], s.after[rej] * MM, s=30, marker="x", color="k", label="rejected outlier")
+            ax[1, 0].legend(loc="upper right")
         ax[0, 0].set_title("before calibration")
         ax[1, 0].set_title("after calibration (filled) and held out (hollow)")
         for a in ax[:, 0]:

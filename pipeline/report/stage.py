@@ -46,5 +46,6 @@ def run(run_dir: Path, params: dict[str, Any] | None = None) -> dict[str, Any]:
         out["rrd_system_hook"] = info["system_hook"]
         if info["warnings"]:
             out["warnings"] = info["warnings"]
+    out["outputs"] = sorted(out["files"].values())  # files outside DIR/report/ (for the runner's cache)
     out["elapsed_s"] = time.perf_counter() - t0
     return out

@@ -2,9 +2,9 @@
 
 Tried in order: the system module's own ``from_ingest(recording_doc, measurements)`` if it has
 one; a builder here for systems whose ingest artefacts carry everything (arc-welder: robot
-model and fixture in the metadata, joints/axis/coordinate in measurements.parquet); finally
-re-reading the source recording (``params["recording"]``, recording.json ``path``, or the
-ingest stage's input) with the system's ``load``.
+model and fixture in the metadata, joints/axis/coordinate in measurements.parquet); the
+pipeline's own reader (``pipeline.stages.ingest.load_system``, which re-reads the source
+recording named in recording.json); finally ``params["recording"]`` with the system's ``load``.
 """
 
 from __future__ import annotations
@@ -26,7 +26,10 @@ def _arc_welder(recording: dict, meas: dict[str, np.ndarray]) -> tuple[Measureme
     from pipeline.systems.arc_welder import TouchModel
 
     arm = SerialArm.from_dict(recording["metadata"][META_ROBOT])
-    q = np.column_stack([np.asarray(meas[f"q_{j.name}"], float) for j in arm.joints])
+    if "joint_positions" in meas and np.ndim(meas["joint_positions"]) == 2:
+        q = np.asarray(meas["joint_positions"], float)
+    else:
+        q = np.column_stack([np.asarray(meas[f"q_{j.name}"], float) for j in arm.joints])
     axis = np.asarray(meas["axis"])
     if axis.dtype.kind in "OUS":
         axis = np.array(["xyz".index(str(a)) for a in axis])
@@ -41,8 +44,7 @@ BUILDERS: dict[str, Callable[[dict, dict], tuple[MeasurementModel, Table]]] = {"
 
 
 def _recording_path(art: RunArtefacts, params: dict[str, Any]) -> Path | None:
-    cands = [params.get("recording"), art.recording.get("path")]
-    cands += list(art.stages.get("ingest", {}).get("inputs", []) or [])
+    cands = [params.get("recording"), art.source.get("path")]
     for c in cands:
         if isinstance(c, str) and c.endswith(".mcap") and Path(c).is_file():
             return Path(c)
@@ -67,6 +69,15 @@ def model_and_table(art: RunArtefacts, params: dict[str, Any] | None = None
                 return builder(art.recording, art.measurements)
             except (KeyError, ValueError, TypeError, IndexError):
                 pass
+    if art.measurements is not None:
+        try:
+            from pipeline.ingest.tables import model_columns
+            from pipeline.stages.ingest import load_system
+
+            _, model, _ = load_system(art.run_dir)
+            return model, dict(model_columns(art.measurements))
+        except Exception:  # source recording moved, or an older pipeline: fall through
+            pass
     path = _recording_path(art, params)
     if path is not None and mod is not None:
         from pipeline.recording.reader import read_recording

@@ -1,0 +1,34 @@
+"""`robocal report DIR`: report.html and run.rrd of a run folder (cached like every stage)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from pipeline.cli import app, err
+
+
+@app.command("report")
+def report_cmd(
+    run_dir: Optional[Path] = typer.Argument(None, help="Run folder (after `robocal identify`/`observe`)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Run folder (same as the argument)."),
+    no_rrd: bool = typer.Option(False, "--no-rrd", help="Write report.html only, not run.rrd."),
+    force: bool = typer.Option(False, "--force", help="Run even if cached."),
+) -> None:
+    """Write DIR/report.html (self-contained, opens offline) and DIR/run.rrd (rerun; `robocal view DIR`)."""
+    from pipeline.errors import RobocalError
+    from pipeline.stages.runner import run_stage
+
+    d = run_dir or out
+    if d is None:
+        raise RobocalError("robocal report: give the run folder (robocal report DIR)")
+    if not d.is_dir():
+        raise RobocalError(f"{d}: no such run folder")
+    params = {"rrd": False} if no_rrd else {}
+    run_stage(d, "report", params, force=force,
+              log=lambda line: err.print(line, highlight=False))
+    print(f"report: {d / 'report.html'}")
+    if not no_rrd:
+        print(f"rerun:  {d / 'run.rrd'}  (robocal view {d})")

@@ -1,0 +1,48 @@
+"""`robocal view DIR`: open DIR/run.rrd in the rerun viewer (or print how to, without a display)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import typer
+
+from pipeline.cli import app, err
+
+
+def viewer_command(rrd: Path) -> list[str]:
+    """The command that opens `rrd` in the rerun viewer shipped with rerun-sdk."""
+    exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    return [exe, str(rrd)]
+
+
+def has_display() -> bool:
+    """A graphical session is available (always on macOS/Windows; DISPLAY or WAYLAND_DISPLAY on Linux)."""
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+@app.command("view")
+def view_cmd(
+    run_dir: Path = typer.Argument(..., help="Run folder with run.rrd (or the .rrd file itself)."),
+    print_only: bool = typer.Option(False, "--print", help="Print the path and viewer command instead of opening it."),
+) -> None:
+    """Open the run's rerun recording (3-D jig/robot/tool tips, encoder stream, residuals, solver)."""
+    from pipeline.errors import RobocalError
+
+    rrd = run_dir if run_dir.suffix == ".rrd" else run_dir / "run.rrd"
+    if not rrd.is_file():
+        raise RobocalError(f"{rrd}: no rerun recording (run `robocal report {run_dir}` first)")
+    cmd = viewer_command(rrd)
+    if print_only or not has_display():
+        if not print_only:
+            err.print("no display: not opening the viewer; run this where there is one:", highlight=False)
+        print(rrd)
+        print(" ".join(cmd))
+        return
+    subprocess.Popen(cmd, start_new_session=True)
+    err.print(f"opened {rrd} in the rerun viewer", highlight=False)

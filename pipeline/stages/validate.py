@@ -89,15 +89,9 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         for c in C.check_event_time(mchan, t_m, span):
             out.append(c if not c.records else C.Check(c.name, c.status, c.message, c.channel,
                                                        [int(rec_m[i]) for i in c.records]))
-        out.append(C.check_duplicates(mchan, _raw(rec, mchan), None))
-        if table is not None and "timestamp_ns" in table:
-            dup_t = C.check_duplicates(mchan, [], None)
-            _, first = np.unique(np.asarray(t_m, np.int64), return_index=True)
-            rows = sorted(set(range(len(t_m))) - set(first.tolist()))
-            if rows:
-                dup_t = C.make("duplicates", mchan, [int(rec_m[i]) for i in rows], C.WARN, "",
-                               "repeat an earlier measurement's timestamp")
-                out.append(dup_t)
+        t_msg = np.array([m["timestamp_ns"] if isinstance(m.get("timestamp_ns"), int) else -1 - i
+                          for i, m in enumerate(msgs)], np.int64)
+        out.append(C.check_duplicates(mchan, _raw(rec, mchan), t_msg))
     for topic in decoded:
         if topic != mchan:
             out.append(C.check_duplicates(topic, _raw(rec, topic)))

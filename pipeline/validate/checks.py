@@ -214,7 +214,10 @@ def robust_z(residuals: np.ndarray) -> np.ndarray:
     r = np.asarray(residuals, float)
     r = r[:, 0] if r.ndim == 2 and r.shape[1] == 1 else (np.linalg.norm(r, axis=1) if r.ndim == 2 else r)
     med = np.median(r)
-    mad = 1.4826 * np.median(np.abs(r - med))
+    dev = np.abs(r - med)
+    mad = 1.4826 * np.median(dev)
+    if mad == 0:  # more than half the residuals equal: fall back to the mean absolute deviation
+        mad = 1.2533 * np.mean(dev)
     if mad == 0:
         return np.zeros_like(r)
     return np.abs(r - med) / mad

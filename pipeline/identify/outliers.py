@@ -20,10 +20,10 @@ class RobustFit:
 
 
 def fit_rejecting(model: MeasurementModel, data: Table, options: FitOptions = FitOptions(),
-                  threshold: float = 5.0, max_rounds: int = 5, max_fraction: float = 0.2) -> RobustFit:
-    """Fit; reject rows whose robust z (see `robust_z`) exceeds `threshold`; refit on the
-    rest; repeat up to `max_rounds` times.  `threshold` ≤ 0 disables rejection.  At most
-    `max_fraction` of the rows are ever rejected (the worst ones)."""
+                  threshold: float = 5.0, max_rounds: int = 50, max_fraction: float = 0.2) -> RobustFit:
+    """Fit; if the worst row's robust z (see `robust_z`) exceeds `threshold`, reject it and
+    refit; repeat (one row per round, so a gross error does not drag good rows out with it).
+    `threshold` ≤ 0 disables rejection; at most `max_fraction` of the rows are rejected."""
     n = n_rows(data)
     kept = np.ones(n, bool)
     record = np.asarray(data.get("record", np.arange(n)))
@@ -35,8 +35,8 @@ def fit_rejecting(model: MeasurementModel, data: Table, options: FitOptions = Fi
         idx = np.flatnonzero(kept)
         z = robust_z(f.residuals_after)
         budget = int(max_fraction * n) - (n - kept.sum())
-        order = np.argsort(-z)
-        out = [i for i in order[:max(budget, 0)] if z[i] > threshold]
+        worst = int(np.argmax(z))
+        out = [worst] if budget > 0 and z[worst] > threshold else []
         if not out:
             break
         for i in out:

@@ -1,0 +1,131 @@
+"""The staged pipeline on the bundled recording: artefacts, caching, re-runs, reproducibility."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+
+from pipeline.identify.least_squares import FitOptions
+from pipeline.identify.outliers import fit_rejecting
+from pipeline.stages.artefacts import from_arrow, to_arrow
+from pipeline.stages.runner import run_pipeline
+from tests.pipeline_support import BUNDLED
+
+CORE = ["ingest", "validate", "identify", "observe"]
+
+
+@pytest.fixture(scope="session")
+def first_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("pipe") / "run"
+    run_pipeline(BUNDLED, out, stages=CORE)
+    return out
+
+
+def test_every_artefact_of_the_contract_is_written(first_run):
+    d = first_run
+    for f in ["ingest/encoder.parquet", "ingest/touch_contact.parquet", "ingest/measurements.parquet",
+              "ingest/recording.json", "validate/validate.json", "identify/fit.json", "identify/residuals.parquet",
+              "identify/history.json", "identify/model.json", "observe/observe.json", "results.json"]:
+        assert (d / f).is_file(), f
+    m = pq.read_table(d / "ingest/measurements.parquet")
+    assert {"record", "timestamp_ns", "joint_positions_0", "face", "axis", "coordinate", "v_J1", "dir_J6",
+            "time_since_start_s"} <= set(m.column_names)
+    assert m.num_rows == 100
+    enc = pq.read_table(d / "ingest/encoder.parquet")
+    assert enc.num_rows > 100_000 and np.all(np.diff(enc.column("t_ns").to_numpy()) > 0)
+    r = pq.read_table(d / "identify/residuals.parquet").to_pydict()
+    assert set(r["group"]) <= {"top1", "top2", "top3", "riser12", "riser23", "end_low", "end_high", "front", "back"}
+    fit = json.loads((d / "identify/fit.json").read_text())
+    after = np.asarray(r["after_0"])
+    assert np.isclose(np.sqrt(np.mean(after**2)), fit["rms_after_m"])
+    assert fit["rms_after_m"] < 5e-5 < fit["rms_before_m"] / 100
+    assert 3e-5 < fit["holdout_rms_m"] < 8e-5
+    n_free = sum(fit["free"])
+    assert np.asarray(fit["cov"]).shape == (n_free, n_free)
+    obs = json.loads((d / "observe/observe.json").read_text())
+    assert len(obs["singular_values"]) == n_free and len(obs["identifiable"]) == n_free
+    assert 0 < obs["O2"] <= 1 and np.isclose(obs["O4"], obs["O2"] * obs["O3"])
+    assert all(k in obs["dependencies"] for k, f in zip(fit["names"], fit["free"]) if not f)
+    assert np.allclose(np.diag(obs["correlation"]), 1)
+    res = json.loads((d / "results.json").read_text())
+    assert res["summary"]["status"] == "pass" and res["summary"]["n_identifiable"] == n_free
+    assert set(res["stages"]) == set(CORE)
+
+
+def test_second_run_is_cached_and_fast(first_run):
+    t0 = time.perf_counter()
+    outs = run_pipeline(BUNDLED, first_run, stages=CORE)
+    assert time.perf_counter() - t0 < 1.0
+    assert all(o.cached for o in outs)
+
+
+def test_changing_a_parameter_reruns_that_stage_and_the_later_ones(first_run, tmp_path):
+    d = tmp_path / "run"
+    shutil.copytree(first_run, d)
+    outs = run_pipeline(BUNDLED, d, {"identify": {"loss": "soft_l1"}}, stages=CORE)
+    assert [o.cached for o in outs] == [True, True, False, False]
+    assert json.loads((d / "identify/fit.json").read_text())["loss"] == "soft_l1"
+    # a deleted or altered output makes its stage run again
+    (d / "observe" / "observe.json").write_text("{}")
+    outs = run_pipeline(BUNDLED, d, {"identify": {"loss": "soft_l1"}}, stages=CORE)
+    assert [o.cached for o in outs] == [True, True, True, False]
+
+
+def test_outputs_are_bit_identical_across_runs(first_run, tmp_path):
+    d = tmp_path / "again"
+    run_pipeline(BUNDLED, d, stages=CORE)
+    files = sorted(p.relative_to(first_run) for p in first_run.rglob("*") if p.is_file() and p.name != "stage.json")
+    assert files == sorted(p.relative_to(d) for p in d.rglob("*") if p.is_file() and p.name != "stage.json")
+    for f in files:
+        assert (first_run / f).read_bytes() == (d / f).read_bytes(), f
+
+
+def test_outlier_rejection_names_the_record_and_restores_the_fit(first_run):
+    from pipeline.ingest.tables import model_columns
+    from pipeline.stages.ingest import load_system, read_measurements
+
+    _, model, _ = load_system(first_run)
+    data = model_columns(read_measurements(first_run))
+    data["coordinate"] = data["coordinate"].copy()
+    data["coordinate"][[13, 58]] += [0.003, -0.002]  # two gross errors (3 mm, 2 mm)
+    plain = fit_rejecting(model, data, FitOptions(), threshold=0)
+    robust = fit_rejecting(model, data, FitOptions(), threshold=5.0)
+    assert sorted(r["record"] for r in robust.rejected) == [13, 58]
+    assert robust.fit.rms_after < 5e-5 < plain.fit.rms_after
+    huber = fit_rejecting(model, data, FitOptions(loss="huber", f_scale=1e-4), threshold=0)
+    assert np.abs(huber.fit.x - robust.fit.x).max() < np.abs(plain.fit.x - robust.fit.x).max()
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 30), st.integers(1, 5), st.data())
+def test_measurement_tables_round_trip_through_arrow(n, k, data):
+    vec = data.draw(hnp.arrays(np.float64, (n, k), elements=st.floats(-1e3, 1e3)))
+    t = {"record": np.arange(n), "q": vec, "name_0": np.linspace(0, 1, n),
+         "face": np.array(data.draw(st.lists(st.text(max_size=5), min_size=n, max_size=n)), dtype=object),
+         "flag": data.draw(hnp.arrays(np.bool_, n))}
+    back = from_arrow(to_arrow(t))
+    assert set(back) == set(t)
+    assert np.array_equal(back["q"], vec) and back["q"].shape == (n, k)
+    assert list(back["face"]) == list(t["face"]) and np.array_equal(back["flag"], t["flag"])
+    assert np.array_equal(back["name_0"], t["name_0"])
+
+
+def test_cli_run_reports_every_stage_cached_on_the_second_run(first_run, tmp_path):
+    from tests.conftest import run_cli
+
+    d = tmp_path / "cli"
+    shutil.copytree(first_run, d)
+    p = run_cli("run", BUNDLED, "--out", d)
+    assert p.returncode == 0, p.stderr
+    for s in CORE:
+        assert f"{s}: cached" in p.stderr
+    assert "every stage cached" in p.stderr or "ran" in p.stderr

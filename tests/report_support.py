@@ -110,3 +110,37 @@ def make_run(recording: Path, out: Path, *, diagnosis: bool = False) -> Path:
             "plot": {"kind": "added_variable", "x_label": "time since start (s)", "x": t.tolist(),
                      "before_m": r.tolist(), "after_m": (0.8 * r).tolist()}}]}))
     return out
+
+
+# ----- one real pipeline run per test session (ingest → … → observe → report) ---------------
+import shutil  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+
+import pytest  # noqa: E402
+
+_RUN: dict = {}
+
+
+@pytest.fixture(scope="session")
+def report_run(tmp_path_factory) -> Path:
+    """A run folder produced by `robocal run` (real stages, report included) on a freshly simulated
+    40-contact arc-welder recording."""
+    if "dir" not in _RUN:
+        tmp = tmp_path_factory.mktemp("report")
+        rec = tmp / "arc40.mcap"
+        robocal = str(Path(sys.executable).parent / "robocal")
+        subprocess.run([robocal, "simulate", "arc-welder", "--out", str(rec), "--contacts", "40", "--seed", "5"],
+                       check=True, capture_output=True, timeout=300)
+        from pipeline.stages.runner import run_pipeline
+
+        run_pipeline(rec, tmp / "run")
+        _RUN["dir"] = tmp / "run"
+        _RUN["recording"] = rec
+    return _RUN["dir"]
+
+
+def copy_run(src: Path, dst: Path) -> Path:
+    """A copy of a run folder (to add artefacts without touching the shared one)."""
+    shutil.copytree(src, dst)
+    return dst

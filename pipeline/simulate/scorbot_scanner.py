@@ -1,0 +1,341 @@
+"""Simulator of seed 001's calibration campaign: the stripe is jogged onto rows of a printed
+grid of 30 mm squares on the floor, and the crossings of the stripe with its corners are
+picked in the image.
+
+For each pose the operator (who sees the true image, so the *true* model decides):
+  1. brings the scanner over the pattern: flange pose from a random aim point, stand-off
+     (the stripe lands in the middle 60 % of the image), tilt up to 20° and wrist roll;
+  2. jogs the arm (minimum-norm joint correction) until the laser stripe lies on the
+     nearest grid line — a row, a column or a diagonal of the pattern;
+  3. latches the encoders and picks `corners` crossings closest to the image centre.
+Error sources: robot repeatability (the flange is not exactly where the encoders say),
+target printing error (corners not exactly at their drawing coordinates) and image noise
+(0.2 px).  Only what a real system logs reaches the recording; the truth goes to TRUTH.json.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from pipeline.models import camera as cam
+from pipeline.models import serial_arm
+from pipeline.models.serial_arm import SerialArm
+from pipeline.models.transforms import rot
+
+EPOCH_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Error sources; `scale` multiplies all (0 turns every one off)."""
+
+    image_px: float = 0.2  # 1σ per pixel coordinate
+    repeatability_3sigma_m: float = 2e-4  # SCORBOT-ER VII: ±0.2 mm
+    print_sigma_m: float = 5e-5  # printed corner position, 1σ per in-plane axis
+    scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class Pattern:
+    """Printed grid of squares lying on the floor z = z0 of the base frame (m)."""
+
+    square_m: float = 0.030
+    cols: int = 14  # squares along x
+    rows: int = 10  # squares along y
+    origin: tuple[float, float, float] = (0.29, -0.15, 0.0)
+
+    def corners(self) -> np.ndarray:
+        """(rows+1)*(cols+1) corner coordinates (m, base frame), row-major."""
+        i, j = np.meshgrid(np.arange(self.cols + 1), np.arange(self.rows + 1))
+        o = np.asarray(self.origin)
+        return np.stack([o[0] + i.ravel() * self.square_m, o[1] + j.ravel() * self.square_m,
+                         np.full(i.size, o[2])], axis=1)
+
+    def ids(self) -> list[str]:
+        return [f"r{j}c{i}" for j in range(self.rows + 1) for i in range(self.cols + 1)]
+
+    def to_dict(self) -> dict:
+        return {"kind": "printed_grid", "name": "30 mm squares on the floor", "square_m": self.square_m,
+                "cols": self.cols, "rows": self.rows, "origin_m": list(self.origin),
+                "frame": "robot base; corner r{j}c{i} = origin + (i, j, 0) * square_m"}
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """How the campaign is run."""
+
+    poses: int = 5
+    corners: int = 5
+    seed: int = 0
+    stripe_samples: int = 48
+    rate_hz: float = 100.0
+    joint_speed_rad_s: float = 0.5
+    dwell_s: float = 1.0
+    max_tilt_rad: float = np.radians(20)
+    start_ns: int = EPOCH_NS
+
+
+@dataclass
+class Observation:
+    """One latched pose: what the system logs (+ what only the simulator knows)."""
+
+    q: np.ndarray  # (5,) encoder reading, rad
+    corner_idx: np.ndarray  # (M,) pattern corner indices
+    corner_px: np.ndarray  # (M,2) picked pixels
+    stripe_px: np.ndarray  # (S,2) stripe profile pixels
+    corner_true: np.ndarray  # (M,3) printed (true) corner positions
+
+
+@dataclass
+class SimResult:
+    stream_t_ns: np.ndarray
+    stream_q: np.ndarray
+    obs_t_ns: np.ndarray
+    observations: list[Observation]
+    corner_error_rms_m: float
+    attempts: int
+
+
+def _camera_pose(xa: np.ndarray, s: np.ndarray, q: np.ndarray, dT=None):
+    """Camera rotation (N,3,3) and centre (N,3) in {B} for joint angles q (N,5)."""
+    R_f, t_f = serial_arm.forward(xa, q)
+    if dT is not None:
+        dR, dt = dT
+        R_f, t_f = dR @ R_f, t_f + dt
+    R_he = cam.hand_eye_rotation(s[cam.I_W], s[cam.I_PHI], s[cam.I_PSI])
+    return R_f @ R_he, t_f + np.einsum("nij,j->ni", R_f, s[cam.I_TX:cam.I_TZ + 1])
+
+
+def _floor_line(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, z0: float):
+    """Laser plane ∩ floor: a point (N,3) and unit direction (N,3); NaN where parallel."""
+    n_c, d_c = cam.laser_plane(s)
+    n = R_c @ n_c  # (N,3) plane normal in {B}
+    d = d_c + np.einsum("ni,ni->n", n, C)
+    direc = np.cross(n, [0.0, 0.0, 1.0])
+    nd = np.linalg.norm(direc, axis=1, keepdims=True)
+    direc = direc / np.where(nd > 1e-9, nd, np.nan)
+    # point on the floor: minimise |p| subject to n·p = d, p_z = z0 (2-D in x,y)
+    nxy = n[:, :2]
+    rhs = d - n[:, 2] * z0
+    pxy = nxy * (rhs / np.sum(nxy**2, axis=1))[:, None]
+    return np.concatenate([pxy, np.full((len(C), 1), z0)], axis=1), direc
+
+
+def _project(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (N,2) of base-frame points X (N,3) seen by cameras (R_c, C); and depth z_C."""
+    p_c = np.einsum("nji,nj->ni", R_c, X - C)
+    return cam.project(s, p_c), p_c[:, 2]
+
+
+def _newton(fun, q0: np.ndarray, iters: int = 40, h: float = 1e-7) -> np.ndarray:
+    """Minimum-norm damped Newton on fun(q) = 0; `fun` maps a batch (B,d) to (B,m), so the
+    central-difference Jacobian is one call."""
+    q = q0.copy()
+    E = np.eye(q.size) * h
+    for _ in range(iters):
+        F = fun(np.vstack([q, q + E, q - E]))
+        r = F[0]
+        J = ((F[1:q.size + 1] - F[q.size + 1:]) / (2 * h)).T
+        step = np.clip(np.linalg.lstsq(J, r, rcond=None)[0], -0.2, 0.2)
+        q = q - step
+        if np.max(np.abs(step)) < 1e-12:
+            break
+    return q
+
+
+def _plan_pose(arm: SerialArm, xa: np.ndarray, s: np.ndarray, pattern: Pattern, campaign: Campaign,
+               rng: np.random.Generator, image_size: tuple[int, int]):
+    """One pose whose true stripe lies on a grid line with ≥ `corners` visible crossings, or None."""
+    W, H = image_size
+    P = pattern.corners()
+    z0 = pattern.origin[2]
+    sq = pattern.square_m
+    a_v = s[cam.I_SV] / s[cam.I_F]
+    # stand-off: stripe at a random image row in the middle 60 %, depth 0.12-0.70 m
+    vf = a_v * (rng.uniform(0.2, 0.8) * H - s[cam.I_V0])
+    den = np.tan(s[cam.I_TH]) + vf
+    if den <= 0:
+        return None
+    depth = s[cam.I_B] / den
+    if not 0.12 <= depth <= 0.70:
+        return None
+    lo_xy = P[:, :2].min(axis=0) + 0.06
+    hi_xy = P[:, :2].max(axis=0) - 0.06
+    aim = np.append(rng.uniform(lo_xy, hi_xy), z0)
+    tilt = rng.uniform(-campaign.max_tilt_rad, campaign.max_tilt_rad)
+    roll = rng.uniform(-np.pi / 2, np.pi / 2)
+    q1 = np.arctan2(aim[1], aim[0])
+    e_rad = np.array([np.cos(q1), np.sin(q1), 0.0])
+    axis = -np.cos(tilt) * np.array([0, 0, 1.0]) + np.sin(tilt) * e_rad  # optical axis, roughly the flange z
+    C_target = aim - depth * axis
+
+    def stage1(Q4: np.ndarray) -> np.ndarray:
+        Q = np.concatenate([Q4, np.full((len(Q4), 1), roll)], axis=1)
+        R_c, C = _camera_pose(xa, s, Q)
+        R_f, _ = serial_arm.forward(xa, Q)
+        return np.concatenate([C - C_target, (R_f[:, :, 2] @ e_rad - np.sin(tilt))[:, None]], axis=1)
+
+    q4 = _newton(stage1, np.array([q1, -0.4, 0.8, -0.4]))
+    if np.linalg.norm(stage1(q4[None])) > 1e-9:
+        return None
+    q = np.append(q4, roll)
+    # nearest grid line (rows, columns, diagonals) to the current stripe
+    R_c, C = _camera_pose(xa, s, q[None])
+    p0, dvec = _floor_line(R_c, C, s, z0)
+    if not np.all(np.isfinite(dvec)):
+        return None
+    ang = np.arctan2(dvec[0, 1], dvec[0, 0]) % np.pi
+    fams = np.array([0, np.pi / 4, np.pi / 2, 3 * np.pi / 4])
+    fam = int(np.argmin(np.abs(((ang - fams) + np.pi / 2) % np.pi - np.pi / 2)))
+    u = np.array([np.cos(fams[fam]), np.sin(fams[fam]), 0.0])
+    nrm = np.array([-u[1], u[0], 0.0])
+    spacing = sq * (np.sqrt(0.5) if fam in (1, 3) else 1.0)
+    o = np.asarray(pattern.origin)
+    # the stripe point seen at the image centre column
+    t_mid = np.dot(C[0] + depth * axis - p0[0], dvec[0])
+    mid = p0[0] + t_mid * dvec[0]
+    c = nrm @ o + np.round((nrm @ (mid - o)) / spacing) * spacing
+    foot = mid + (c - nrm @ mid) * nrm
+    A, B = foot - 0.05 * u, foot + 0.05 * u
+
+    n_c, d_c = cam.laser_plane(s)
+
+    def stage2(Q: np.ndarray) -> np.ndarray:
+        Rc, Cc = _camera_pose(xa, s, Q)
+        n = Rc @ n_c
+        return np.stack([np.sum(n * (A - Cc), axis=1) - d_c, np.sum(n * (B - Cc), axis=1) - d_c], axis=1)
+
+    q = _newton(stage2, q)
+    if np.max(np.abs(stage2(q[None]))) > 1e-10 or np.any(q < arm.lower) or np.any(q > arm.upper):
+        return None
+    on_line = np.abs((P - foot) @ nrm) < 1e-9
+    idx = np.flatnonzero(on_line)
+    if idx.size < campaign.corners:
+        return None
+    R_c, C = _camera_pose(xa, s, np.repeat(q[None], idx.size, axis=0))
+    px, z = _project(R_c, C, s, P[idx])
+    inside = (z > 0) & (px[:, 0] > 10) & (px[:, 0] < W - 11) & (px[:, 1] > 10) & (px[:, 1] < H - 11)
+    idx, px = idx[inside], px[inside]
+    if idx.size < campaign.corners:
+        return None
+    # M crossings closest to the image centre column
+    keep = np.argsort(np.abs(px[:, 0] - W / 2))[:campaign.corners]
+    return q, idx[np.sort(keep)]
+
+
+def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.ndarray, campaign: Campaign = Campaign(),
+             noise: Noise = Noise(), pattern: Pattern = Pattern(), image_size: tuple[int, int] = (640, 480),
+             max_attempts: int = 400) -> SimResult:
+    """Run the campaign (module docstring).  Raises RuntimeError if the truth cannot see
+    enough corners from reachable poses."""
+    rng = np.random.default_rng(campaign.seed)
+    s = np.asarray(scanner_truth, float)
+    xa = arm_truth.vector()
+    W, H = image_size
+    k = noise.scale
+    P_nom = pattern.corners()
+    P_true = P_nom.copy()
+    P_true[:, :2] += k * rng.normal(0, noise.print_sigma_m, (len(P_nom), 2))
+    obs: list[Observation] = []
+    attempts = 0
+    used_lines: list[frozenset] = []
+    while len(obs) < campaign.poses:
+        attempts += 1
+        if attempts > max_attempts:
+            raise RuntimeError(f"could only place {len(obs)} of {campaign.poses} poses with {campaign.corners} "
+                               f"visible corners")
+        plan = _plan_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
+        if plan is None:
+            continue
+        q, idx = plan
+        if frozenset(idx.tolist()) in used_lines:
+            continue
+        # repeatability: the flange is not exactly where the encoders say
+        sig = k * noise.repeatability_3sigma_m / 3
+        dR = rot("x", rng.normal(0, sig / 0.3)) @ rot("y", rng.normal(0, sig / 0.3)) @ rot("z", rng.normal(0, sig / 0.3))
+        dt = rng.normal(0, sig, 3)
+        R_c, C = _camera_pose(xa, s, q[None], (dR, dt))
+        p0, dvec = _floor_line(R_c, C, s, pattern.origin[2])
+        # the stripe point nearest each printed corner, seen through the actual camera
+        X = P_true[idx]
+        Y = p0 + ((X - p0) @ dvec[0])[:, None] * dvec
+        Rn, Cn = np.repeat(R_c, len(idx), 0), np.repeat(C, len(idx), 0)
+        px, _ = _project(Rn, Cn, s, Y)
+        px = px + k * rng.normal(0, noise.image_px, px.shape)
+        # stripe profile across the image
+        t_c = (X - p0) @ dvec[0]
+        ts = np.linspace(t_c.min() - 0.4, t_c.max() + 0.4, 4000)
+        Ys = p0 + ts[:, None] * dvec
+        Rs, Cs = np.repeat(R_c, ts.size, 0), np.repeat(C, ts.size, 0)
+        spx, zs = _project(Rs, Cs, s, Ys)
+        vis = (zs > 0) & (spx[:, 0] >= 0) & (spx[:, 0] <= W - 1) & (spx[:, 1] >= 0) & (spx[:, 1] <= H - 1)
+        spx = spx[vis]
+        if len(spx) >= 2:
+            spx = spx[np.linspace(0, len(spx) - 1, campaign.stripe_samples).round().astype(int)]
+            spx = spx + k * rng.normal(0, noise.image_px, spx.shape)
+        spx[:, 0] = np.clip(spx[:, 0], 0, W - 1)
+        spx[:, 1] = np.clip(spx[:, 1], 0, H - 1)
+        if np.any((px < 0) | (px > [W - 1, H - 1])):
+            continue
+        used_lines.append(frozenset(idx.tolist()))
+        obs.append(Observation(q=q, corner_idx=idx, corner_px=px, stripe_px=spx, corner_true=X))
+    t_ns, q_stream, t_obs = _timeline(np.array([o.q for o in obs]), campaign)
+    err = np.concatenate([o.corner_true - P_nom[o.corner_idx] for o in obs])
+    return SimResult(stream_t_ns=t_ns, stream_q=q_stream, obs_t_ns=t_obs, observations=obs,
+                     corner_error_rms_m=float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), attempts=attempts)
+
+
+def _timeline(Q: np.ndarray, c: Campaign):
+    """Encoder stream: home → each pose (cosine blend) → dwell; observation at mid-dwell."""
+    home = np.array([0.0, -0.4, 0.8, -0.4, 0.0])
+    starts, ends, durs, kinds = [], [], [], []
+    prev = home
+    for q in Q:
+        move = float(np.max(np.abs(q - prev))) / c.joint_speed_rad_s * 1.5 + 0.5
+        starts += [prev, q]
+        ends += [q, q]
+        durs += [move, c.dwell_s]
+        prev = q
+    starts, ends, durs = np.array(starts), np.array(ends), np.array(durs)
+    edges = np.concatenate([[0.0], np.cumsum(durs)])
+    T = np.arange(0.0, edges[-1], 1.0 / c.rate_hz)
+    seg = np.clip(np.searchsorted(edges, T, side="right") - 1, 0, len(durs) - 1)
+    u = np.clip((T - edges[seg]) / durs[seg], 0, 1)
+    w = 0.5 - 0.5 * np.cos(np.pi * u)
+    q = starts[seg] + w[:, None] * (ends[seg] - starts[seg])
+    t_obs = c.start_ns + np.round((edges[1::2][:len(Q)] + 0.5 * c.dwell_s) * 1e9).astype(np.int64)
+    return c.start_ns + np.round(T * 1e9).astype(np.int64), q, t_obs
+
+
+def stripe_messages(sim: SimResult, pattern: Pattern) -> list[tuple[str, dict]]:
+    """`/scanner/stripe` message bodies (drawing coordinates of the corners, never the truth)."""
+    P, ids = pattern.corners(), pattern.ids()
+    return [("/scanner/stripe", {"timestamp_ns": int(t), "joint_positions": o.q.tolist(),
+                                 "stripe_px": o.stripe_px.tolist(), "corner_px": o.corner_px.tolist(),
+                                 "corner_m": P[o.corner_idx].tolist(), "corner_ids": [ids[i] for i in o.corner_idx]})
+            for t, o in zip(sim.obs_t_ns, sim.observations)]
+
+
+def truth_document(arm_truth: SerialArm, scanner_truth: np.ndarray, noise: Noise, campaign: Campaign,
+                   sim: SimResult) -> dict:
+    """TRUTH.json (never written into the recording)."""
+    from pipeline.systems.scorbot_scanner import gauge_invariants
+    return {"system": "scorbot-scanner",
+            "scanner": {n: float(v) for n, v in zip(cam.SCANNER_NAMES, scanner_truth)},
+            "scanner_invariants": gauge_invariants(scanner_truth),
+            "arm": arm_truth.to_dict(), "noise": asdict(noise), "campaign": asdict(campaign),
+            "corner_print_error_rms_m": sim.corner_error_rms_m, "planning_attempts": sim.attempts}
+
+
+def simulate_in_memory(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.ndarray,
+                       campaign: Campaign = Campaign(), noise: Noise = Noise(), pattern: Pattern = Pattern()):
+    """The measurement table a recording of this campaign would load to (for tests/benchmarks)."""
+    sim = simulate(arm_nominal, arm_truth, scanner_truth, campaign, noise, pattern)
+    rows = [(i, o.q, px, pattern.corners()[j]) for i, o in enumerate(sim.observations)
+            for px, j in zip(o.corner_px, o.corner_idx)]
+    table = {"joint_positions": np.array([r[1] for r in rows]), "pixel": np.array([r[2] for r in rows]),
+             "corner": np.array([r[3] for r in rows]), "pose": np.array([r[0] for r in rows]),
+             "record": np.array([r[0] for r in rows])}
+    return sim, table

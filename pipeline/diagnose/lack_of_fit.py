@@ -1,0 +1,155 @@
+"""Lack-of-fit: does structure remain in the residuals that no accepted term explains, and where?
+
+For each variable v (each joint angle, time since start, approach speed) a smooth basis
+— Gaussian bumps φ_m(v) at K centres over v's range, mapped into the residual the way an
+error in that variable would act (a joint-angle error through the joint's Jacobian column, a
+time-dependent error per jig axis, a speed-dependent error along the face normal) — is
+projected against the current design A (free geometry + accepted effects) and tested with a
+grouped F test; Holm's correction across variables at family α.  The fitted smooth locates
+the structure: the interval of v where it exceeds half its peak.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.stats
+
+from pipeline.diagnose.select import orthonormal, project_out
+from pipeline.models import serial_arm
+
+
+@dataclass(frozen=True)
+class Variable:
+    """A candidate location of structure: name, unit, its values (n,), and the basis builder
+    ``basis(values) -> (n, K·c)`` of residual columns plus a grid map for locating."""
+
+    name: str
+    unit: str
+    values: np.ndarray
+    columns: np.ndarray  # (n, kb) residual columns
+    centres: np.ndarray  # (K,) centres of the bumps along v
+    width: float
+    gain: np.ndarray  # (n, c) how a unit error in v-space reaches each residual (c channels)
+    categorical: bool = False
+
+
+def rbf(v: np.ndarray, centres: np.ndarray, width: float) -> np.ndarray:
+    """Gaussian bumps (n, K)."""
+    return np.exp(-0.5 * ((np.asarray(v, float)[:, None] - centres[None]) / width) ** 2)
+
+
+def smooth_variable(name: str, unit: str, v: np.ndarray, gain: np.ndarray, K: int = 8) -> Variable | None:
+    """Variable with K bumps over the range of v; `gain` (n, c): residual per unit error, per channel."""
+    v = np.asarray(v, float)
+    lo, hi = float(np.min(v)), float(np.max(v))
+    if hi - lo <= 1e-12:
+        return None
+    centres = np.linspace(lo, hi, K)
+    width = (hi - lo) / (K - 1)
+    Phi = rbf(v, centres, width)
+    cols = (gain[:, :, None] * Phi[:, None, :]).reshape(v.size, -1)
+    return Variable(name, unit, v, cols, centres, width, gain)
+
+
+def touch_variables(x: np.ndarray, table, joint_names: list[str], speed: np.ndarray | None) -> list[Variable]:
+    """The variables of a touch campaign: each joint angle, time, approach speed.  (Per-face
+    structure is the library's `face_offset`, tested against the jig's machining tolerance.)"""
+    q = np.asarray(table["joint_positions"], float)
+    ax = np.asarray(table["axis"], int)
+    rows = np.arange(ax.size)
+    _, Jq = serial_arm.joint_jacobian(x, q)
+    out: list[Variable] = []
+    for j, name in enumerate(joint_names):
+        v = smooth_variable(f"q_{name}", "rad", q[:, j], Jq[rows, ax, j][:, None])
+        if v is not None:
+            out.append(v)
+    onehot_axis = np.eye(3)[ax]
+    v = smooth_variable("time_since_start_s", "s", table["time_since_start_s"], onehot_axis, K=6)
+    if v is not None:
+        out.append(v)
+    if speed is not None and np.ptp(speed) > 0.2 * np.max(np.abs(speed)):
+        v = smooth_variable("approach_speed_m_s", "m/s", speed, np.asarray(table["normal_sign"], float)[:, None], K=4)
+        if v is not None:
+            out.append(v)
+    return out
+
+
+@dataclass
+class LackOfFit:
+    """Outcome for one variable."""
+
+    variable: str
+    statistic: float
+    dof: tuple[int, int]
+    p_value: float
+    p_holm: float
+    significant: bool
+    region: tuple[float, float] | str
+    peak_m: float  # largest fitted residual structure, m
+
+
+def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int, alpha: float = 0.01) -> list[LackOfFit]:
+    """Grouped F test of each variable's smooth basis against design A, Holm across variables."""
+    QA = orthonormal(A)
+    res = project_out(r[:, None], QA)[:, 0]
+    rss = float(res @ res)
+    raw = []
+    for v in variables:
+        Bp = project_out(v.columns, QA)
+        Qb = orthonormal(Bp, 1e-6)
+        kb = Qb.shape[1]
+        if kb == 0 or dof_resid - kb < 2:
+            raw.append((v, np.nan, (0, 0), 1.0, None))
+            continue
+        gain = float(np.sum((Qb.T @ res) ** 2))
+        F = (gain / kb) / ((rss - gain) / (dof_resid - kb))
+        p = float(scipy.stats.f.sf(F, kb, dof_resid - kb))
+        raw.append((v, F, (kb, dof_resid - kb), p, Bp))
+    m = len(raw)
+    order = np.argsort([t[3] for t in raw])
+    p_holm = np.ones(m)
+    running = 0.0
+    stop = False
+    sig = np.zeros(m, bool)
+    for rank, i in enumerate(order):
+        running = max(running, min(1.0, raw[i][3] * (m - rank)))
+        p_holm[i] = running
+        if not stop and raw[i][3] <= alpha / (m - rank):
+            sig[i] = True
+        else:
+            stop = True
+    out = []
+    for i, (v, F, dof, p, Bp) in enumerate(raw):
+        region: tuple[float, float] | str = ""
+        peak = 0.0
+        if Bp is not None:
+            coef, *_ = np.linalg.lstsq(Bp, res, rcond=None)
+            fitted = Bp @ coef
+            peak = float(np.max(np.abs(fitted)))
+            region = locate(v, coef)
+        out.append(LackOfFit(v.name, float(F) if np.isfinite(F) else 0.0, dof, p, float(p_holm[i]), bool(sig[i]),
+                             region, peak))
+    return out
+
+
+def locate(v: Variable, coef: np.ndarray) -> tuple[float, float] | str:
+    """Where along v the fitted structure is largest: the interval above half its peak."""
+    if v.categorical:
+        labels = v.unit.split(",")
+        return labels[int(np.argmax(np.abs(coef)))]
+    c = v.gain.shape[1]
+    grid = np.linspace(v.centres[0], v.centres[-1], 200)
+    Phi = rbf(grid, v.centres, v.width)  # (G, K)
+    C = coef.reshape(c, -1)  # per channel
+    curve = np.sqrt(np.sum((Phi @ C.T) ** 2, axis=1))  # magnitude over channels
+    k = int(np.argmax(curve))
+    above = curve >= 0.5 * curve[k]
+    lo = k
+    while lo > 0 and above[lo - 1]:
+        lo -= 1
+    hi = k
+    while hi < grid.size - 1 and above[hi + 1]:
+        hi += 1
+    return float(grid[lo]), float(grid[hi])

@@ -1,0 +1,89 @@
+"""The diagnosis table: each measurement with what effects depend on, from the recording alone.
+
+Columns added to the system's measurement table (one row per measurement):
+``last_motion_sign`` (n, n_joints) in {−1, 0, +1}, ``approach_joint_velocity`` (n, n_joints)
+rad/s just before the measurement, ``time_since_start_s`` (n,), ``payload_kg`` (n,) from the
+campaign's payload schedule (or the robot model's payload), ``normal_sign`` (n,) of the
+touched face (from the fixture).  Nothing here reads anything but what a real controller logs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+ENCODER_COUNT_RAD = 2 * np.pi / 2**17
+
+
+def last_motion_sign(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, threshold_rad: float = 3 * ENCODER_COUNT_RAD,
+                     lookback_s: float = 60.0) -> np.ndarray:
+    """Sign of each joint's last motion before each time, (n, nj) in {−1, 0, +1}.
+
+    The last motion is found by looking back from the measurement for the latest sample at
+    which the joint was more than `threshold_rad` away from its value at the measurement; the
+    sign is that of (now − then).  Unlike a per-sample step test this also sees slow motions
+    (a joint creeping at less than one encoder count per sample during a search).
+    """
+    t_ns = np.asarray(t_ns, np.int64)
+    n, nj = t_ns.size, q.shape[1]
+    at = np.clip(np.searchsorted(t, t_ns, side="right") - 1, 0, t.size - 1)
+    out = np.zeros((n, nj))
+    w = int(max(1, np.ceil(lookback_s / max(np.median(np.diff(t[: min(t.size, 1000)])) * 1e-9, 1e-6))))
+    for i in range(n):  # ≤ a few hundred measurements; each a vectorised look-back window
+        lo = max(0, at[i] - w)
+        seg = q[lo:at[i] + 1]
+        d = seg[-1] - seg  # (len, nj): now minus then
+        far = np.abs(d) > threshold_rad
+        for j in range(nj):
+            k = np.flatnonzero(far[:, j])
+            if k.size:
+                out[i, j] = np.sign(d[k[-1], j])
+    return out
+
+
+def approach_velocity(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, lead_s: float = 0.004,
+                      span_s: float = 0.2) -> np.ndarray:
+    """Joint velocity (n, nj) rad/s over [t − lead − span, t − lead]: the approach just before
+    each measurement (the window ends before the arm stops after the latch)."""
+    t_ns = np.asarray(t_ns, np.int64)
+    ts = (t - t[0]) * 1e-9
+    tm = (t_ns - t[0]) * 1e-9
+    a, b = tm - lead_s - span_s, tm - lead_s
+    return np.stack([(np.interp(b, ts, q[:, j]) - np.interp(a, ts, q[:, j])) / span_s
+                     for j in range(q.shape[1])], axis=1)
+
+
+def payload_at(t_ns: np.ndarray, schedule: list[dict] | None, default_kg: float) -> np.ndarray:
+    """Payload (kg) at each time from a schedule [{t_ns, payload_kg}] (from that time on)."""
+    out = np.full(np.asarray(t_ns).size, float(default_kg))
+    for step in sorted(schedule or [], key=lambda s: s["t_ns"]):
+        out[np.asarray(t_ns) >= int(step["t_ns"])] = float(step["payload_kg"])
+    return out
+
+
+def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray, *, normal_sign_of: dict[str, int],
+                payload_schedule: list[dict] | None, default_payload_kg: float) -> dict:
+    """A copy of a touch table with the diagnosis columns (module docstring)."""
+    t_ns = np.asarray(table["timestamp_ns"], np.int64)
+    out = dict(table)
+    out["last_motion_sign"] = last_motion_sign(stream_t, stream_q, t_ns)
+    out["approach_joint_velocity"] = approach_velocity(stream_t, stream_q, t_ns)
+    out["time_since_start_s"] = (t_ns - stream_t[0]) * 1e-9
+    out["payload_kg"] = payload_at(t_ns, payload_schedule, default_payload_kg)
+    out["normal_sign"] = np.array([normal_sign_of[str(f)] for f in table["face"]], float)
+    return out
+
+
+def from_recording(rec):
+    """(TouchModel, diagnosis table, info) of an arc-welder recording."""
+    from pipeline.ingest.streams import joint_stream
+    from pipeline.models.jig import Jig
+    from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE
+    from pipeline.systems import arc_welder as aw
+
+    model, table = aw.load(rec)
+    jig = Jig.from_dict(rec.meta(META_FIXTURE))
+    campaign = rec.metadata.get(META_CAMPAIGN, {})
+    stream = joint_stream(rec)
+    tab = add_context(table, stream.t_ns, stream.q, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
+                      payload_schedule=campaign.get("payload_schedule"), default_payload_kg=model.arm.payload_kg)
+    return model, tab, {"jig_tolerance_m": jig.tolerance_m, "system": aw.SYSTEM}

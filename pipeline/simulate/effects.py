@@ -1,0 +1,239 @@
+"""Touch campaigns with concealed physics: library effects injected into the TRUE robot.
+
+Same controller as `pipeline.simulate.arc_welder` (nominal IK to an approach pose, search
+along the nominal face normal, contact decided by the true robot), but the true robot also
+has the effects of `pipeline.diagnose.effects` (compliance under gravity and payload,
+backlash, harmonics, scale, wrist coupling, thermal drift, trigger pretravel and latency, face
+offsets, and the out-of-library `bump`), and the campaign can vary what exposes them
+(payloads, search speeds, face order).  The recording carries only what a controller logs
+(and the payload schedule the integrator programmed); the injected effects go to TRUTH.json.
+
+The expensive part — IK of the approach poses — is `plan_targets`; `run` re-runs only the
+contact search, so a benchmark can reuse one target set over many seeds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from pipeline.diagnose import effects as fx
+from pipeline.diagnose.table import add_context, last_motion_sign
+from pipeline.models import ik, serial_arm
+from pipeline.models.jig import Jig
+from pipeline.models.serial_arm import SerialArm
+from pipeline.simulate.arc_welder import IK_SEEDS, Campaign, Noise, SimResult, _quantise, _targets, _timeline
+
+
+@dataclass(frozen=True)
+class Injected:
+    """An effect to inject: library name, location (or None when unique), parameter values (SI)."""
+
+    name: str
+    values: tuple[float, ...]
+    location: str | None = None
+
+    @property
+    def label(self) -> str:
+        return f"{self.name}@{self.location}" if self.location else self.name
+
+
+def parse_effect(spec: str) -> Injected:
+    """``NAME=VALUE[,VALUE…][@LOCATION]``, e.g. ``joint_compliance=4e-6@J2``, ``bump=3e-4@J2:0.6``."""
+    name, eq, rest = spec.partition("=")
+    if not eq or not name:
+        raise ValueError(f"effect {spec!r}: expected NAME=VALUE[@LOCATION]")
+    vals, _, loc = rest.partition("@")
+    try:
+        values = tuple(float(v) for v in vals.split(","))
+    except ValueError:
+        raise ValueError(f"effect {spec!r}: values must be numbers") from None
+    return Injected(name.strip(), values, loc.strip() or None)
+
+
+@dataclass(frozen=True)
+class Variations:
+    """What the campaign varies to expose effects (defaults: the plain campaign)."""
+
+    payloads_kg: tuple[float, ...] = ()  # cycled in blocks of `payload_block` contacts; () = robot model's payload
+    payload_block: int = 10
+    search_speeds_m_s: tuple[float, ...] = ()  # drawn per contact; () = campaign.search_speed_m_s
+    face_order: str = "shuffled"  # "shuffled" | "blocked" (all contacts of a face in one block)
+
+
+@dataclass
+class Targets:
+    """IK'd candidate targets in campaign order (more than needed: some miss the face)."""
+
+    faces: np.ndarray
+    q_a: np.ndarray
+    dq: np.ndarray  # rad per m of search travel
+    axis: np.ndarray
+    sign: np.ndarray
+
+
+def plan_targets(nominal: SerialArm, jig: Jig, campaign: Campaign, spare: float = 2.2) -> Targets:
+    """Approach poses of `spare`× the wanted contacts (the expensive IK), seeded by campaign.seed."""
+    rng = np.random.default_rng(campaign.seed)
+    xn = nominal.vector()
+    n_try = int(campaign.contacts * spare * 1.25) + 10
+    faces, P, R = _targets(jig, n_try, rng, campaign.approach_offset_m, campaign.max_tilt_rad)
+    q_a, ok = ik.solve(xn, P, R, IK_SEEDS, nominal.lower, nominal.upper, iters=40)
+    faces, q_a = faces[ok], q_a[ok]
+    normals = np.stack([jig.faces[f].normal for f in faces])
+    Jp = ik.pose_jacobian(xn, q_a)
+    twist = np.concatenate([-normals, np.zeros_like(normals)], axis=1)
+    dq = np.linalg.solve(Jp, twist[..., None])[..., 0]
+    axis = np.array([jig.faces[f].axis_index for f in faces], int)
+    sign = np.array([jig.faces[f].normal_sign for f in faces], float)
+    return Targets(faces, q_a, dq, axis, sign)
+
+
+@dataclass
+class EffectSim:
+    """A simulated campaign with effects: what the controller logged, and the truth kept apart."""
+
+    sim: SimResult
+    payload_schedule: list[dict]
+    search_speeds: np.ndarray  # (n,) m/s per contact
+    injected: list[Injected]
+    variations: Variations
+    face_errors_m: dict[str, float] = field(default_factory=dict)
+
+
+def _resolve(injected, arm, jig):
+    dummy = {"face": np.array([f.id for f in jig.faces])}
+    out = []
+    for e in injected:
+        eff = fx.effect_by_name(arm, dummy, e.name, e.location, jig.tolerance_m)
+        if len(e.values) != eff.k:
+            raise ValueError(f"effect {e.label}: {eff.k} value(s) expected ({', '.join(eff.parameters)})")
+        out.append((eff, np.array(e.values, float)))
+    return out
+
+
+def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campaign: Campaign = Campaign(),
+        noise: Noise = Noise(), injected: tuple[Injected, ...] | list[Injected] = (),
+        variations: Variations = Variations(), seed: int | None = None) -> EffectSim:
+    """Run the contact searches on planned targets with the effects in the true robot."""
+    rng = np.random.default_rng(campaign.seed + 7919 if seed is None else seed)
+    xt = truth.vector()
+    k = noise.scale
+    eff = _resolve(injected, truth, jig)
+    face_err = {f.id: float(k * rng.uniform(-noise.jig_error_m, noise.jig_error_m)) for f in jig.faces}
+    for e, th in eff:
+        if e.name == "face_offset":
+            face_err[e.location] += float(th[0])
+    latency = sum(float(th[0]) for e, th in eff if e.name == "trigger_latency")
+    joint_eff = [(e, th) for e, th in eff if e.where == "joint"]
+    tip_eff = [(e, th) for e, th in eff if e.where == "tip" and e.name != "trigger_latency"]
+
+    order = np.arange(targets.faces.size)
+    if variations.face_order == "blocked":
+        order = order[np.argsort(targets.faces, kind="stable")]
+    elif variations.face_order != "shuffled":
+        raise ValueError(f"face order {variations.face_order!r}: expected shuffled or blocked")
+    faces, q_a, dq = targets.faces[order], targets.q_a[order], targets.dq[order]
+    axis, sign = targets.axis[order], targets.sign[order]
+    m = faces.size
+    eps = rng.normal(0, k * noise.repeatability_3sigma_m / 3, (m, 3))
+    c_true = np.array([jig.faces[f].coordinate + face_err[jig.faces[f].id] for f in faces])
+    ids = np.array([jig.faces[f].id for f in faces])
+
+    def search(rows, extra_q, extra_tip):
+        """Newton on the search travel s until the (true) wire touches the true face."""
+        r = np.arange(rows.size)
+
+        def gap(s):
+            q = q_a[rows] + s[:, None] * dq[rows]
+            p = serial_arm.tip_position(xt, q + extra_q(q)) + eps[rows] + extra_tip
+            return sign[rows] * (p[r, axis[rows]] - c_true[rows])
+
+        s = np.zeros(rows.size)
+        g0 = gap(s)
+        for _ in range(8):
+            h = 1e-6
+            s = s - gap(s) / ((gap(s + h) - gap(s - h)) / (2 * h))
+        return s, g0, np.abs(gap(s))
+
+    # pass 1: which targets yield a contact (geometry only; the effects are far below the margins)
+    all_rows = np.arange(m)
+    s1, g0, res = search(all_rows, lambda q: 0.0, 0.0)
+    p1 = serial_arm.tip_position(xt, q_a + s1[:, None] * dq)
+    on_face = np.ones(m, bool)
+    for i, f in enumerate(faces):
+        fc = jig.faces[f]
+        a, b = fc.other_axes()
+        on_face[i] = (fc.extent[0][0] + 2e-3 <= p1[i, a] <= fc.extent[0][1] - 2e-3
+                      and fc.extent[1][0] + 2e-3 <= p1[i, b] <= fc.extent[1][1] - 2e-3)
+    good = (g0 > 0) & (s1 > 0) & (s1 < campaign.search_travel_m - 0.01) & on_face & (res < 1e-10)
+    keep = np.flatnonzero(good)[:campaign.contacts]
+    if keep.size < campaign.contacts:
+        raise RuntimeError(f"only {keep.size} of {campaign.contacts} targets touch the jig; plan more targets")
+    n = keep.size
+    speeds = (rng.choice(np.asarray(variations.search_speeds_m_s, float), n) if variations.search_speeds_m_s
+              else np.full(n, campaign.search_speed_m_s))
+    camp_v = replace(campaign, search_speed_m_s=speeds)  # _timeline divides the travel elementwise
+    # first timeline: contact times and the direction each joint last moved (the physical state)
+    t_ns, q_stream, t_c = _timeline(q_a[keep], dq[keep], s1[keep], camp_v, nominal.n_joints)
+    payload_schedule = []
+    payload = np.full(n, truth.payload_kg)
+    if variations.payloads_kg:
+        blk = np.arange(n) // max(variations.payload_block, 1)
+        payload = np.asarray(variations.payloads_kg, float)[blk % len(variations.payloads_kg)]
+    ctx = {"joint_positions": q_a[keep] + s1[keep, None] * dq[keep], "axis": axis[keep], "face": ids[keep],
+           "normal_sign": sign[keep], "payload_kg": payload, "time_since_start_s": (t_c - t_ns[0]) * 1e-9,
+           "last_motion_sign": last_motion_sign(t_ns, q_stream, t_c)}
+
+    def extra_q(q):
+        return fx.joint_offsets(joint_eff, truth, xt, {**ctx, "joint_positions": q}) if joint_eff else 0.0
+
+    extra_tip = np.zeros((n, 3))
+    for e, th in tip_eff:
+        extra_tip += np.einsum("nik,k->ni", e.basis(truth, xt, ctx), th)
+    # pass 2: the searches of the true robot with its effects; the latch comes `latency` late
+    s2, _, res2 = search(keep, extra_q, extra_tip)
+    s_latch = s2 + speeds * latency
+    quant = k > 0
+    q_latch = _quantise(q_a[keep] + s_latch[:, None] * dq[keep], noise.encoder_counts_per_rev, quant)
+    t_ns, q_stream, t_c = _timeline(q_a[keep], dq[keep], s_latch, camp_v, nominal.n_joints)
+    q_stream = _quantise(q_stream, noise.encoder_counts_per_rev, quant)
+    if variations.payloads_kg:
+        change = np.flatnonzero(np.r_[True, np.diff(payload) != 0])
+        payload_schedule = [{"t_ns": int(t_c[i] - int(campaign.dwell_s * 1e9) - 1), "payload_kg": float(payload[i])}
+                            for i in change]
+        payload_schedule[0]["t_ns"] = int(t_ns[0])
+    coord = np.array([jig.faces[f].coordinate for f in faces[keep]])
+    p_rec = serial_arm.tip_position(xt, q_latch)
+    injected_n = p_rec[np.arange(n), axis[keep]] - coord
+    sim = SimResult(stream_t_ns=t_ns, stream_q=q_stream, contact_t_ns=t_c, contact_q=q_latch,
+                    contact_face=list(ids[keep]), contact_axis=axis[keep], contact_coordinate=coord,
+                    injected_along_normal_m=injected_n, face_errors_m=face_err, dropped_targets=int(m - n))
+    return EffectSim(sim=sim, payload_schedule=payload_schedule, search_speeds=speeds, injected=list(injected),
+                     variations=variations, face_errors_m=face_err)
+
+
+def diagnosis_table(es: EffectSim, jig: Jig, default_payload_kg: float = 0.0) -> dict:
+    """The diagnosis table of a simulated campaign, built only from what the recording would hold."""
+    s = es.sim
+    table = {"timestamp_ns": s.contact_t_ns, "joint_positions": s.contact_q, "face": np.array(s.contact_face, object),
+             "axis": s.contact_axis, "coordinate": s.contact_coordinate, "record": np.arange(s.contact_t_ns.size)}
+    q_stream = s.stream_q
+    return add_context(table, s.stream_t_ns, q_stream, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
+                       payload_schedule=es.payload_schedule or None, default_payload_kg=default_payload_kg)
+
+
+def campaign_metadata(es: EffectSim, campaign: Campaign) -> dict:
+    """What the integrator programmed (goes into the recording's campaign metadata)."""
+    meta = {"search_speeds_m_s": sorted({float(v) for v in es.search_speeds}),
+            "face_order": es.variations.face_order}
+    if es.payload_schedule:
+        meta["payload_schedule"] = es.payload_schedule
+    return meta
+
+
+def truth_effects(es: EffectSim) -> dict:
+    """The injected effects and variations, for TRUTH.json only."""
+    return {"effects": [{"name": e.name, "location": e.location, "values": list(e.values)} for e in es.injected],
+            "variations": asdict(es.variations), "face_errors_m": es.face_errors_m}

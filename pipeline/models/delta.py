@@ -267,7 +267,7 @@ def full_forward(delta: Delta, beta: np.ndarray, theta: np.ndarray, extended: bo
         step = np.linalg.solve(G, -g[..., None])[..., 0]
         p = p + step[:, :3]
         R = Rotation.from_rotvec(step[:, 3:]).as_matrix() @ R
-        if np.max(np.abs(step)) < 1e-15:
+        if np.max(np.abs(step), initial=0.0) < 1e-13:  # m and rad: converged to round-off
             break
     RC = np.einsum("nij,kj->nki", R, Cf)
     g = np.sum((p[:, None, :] + RC - Ef) ** 2, axis=-1) - Lf**2

@@ -38,6 +38,10 @@ def analyse(J: np.ndarray, names: list[str], fixed: np.ndarray | None = None,
     Columns are unit-norm, so `tol` is the smallest remaining norm a kept column may have.
     """
     m, p = J.shape
+    if m > p:
+        # J = Q·R: R has J's column norms and linear dependencies, at p×p instead of m×p
+        J = scipy.linalg.qr(J, mode="r")[0][:p]
+        m = p
     fixed = np.zeros(p, bool) if fixed is None else np.asarray(fixed, bool)
     priority = np.zeros(p, int) if priority is None else np.asarray(priority, int)
     norms = np.linalg.norm(J, axis=0)

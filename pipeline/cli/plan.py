@@ -1,0 +1,84 @@
+"""`robocal plan SYSTEM`: choose M measurement poses out of N candidates (D-optimal)."""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+
+import typer
+
+from pipeline.cli import app, err
+
+
+def candidate_module(system: str):
+    """`pipeline.plan.<system module>` (e.g. pipeline.plan.arc_welder), which offers
+    `candidates(n, seed) -> (model, table)` and optionally `measured(n, seed)`."""
+    from pipeline.errors import RobocalError
+    from pipeline.systems.registry import SYSTEMS
+
+    if system not in SYSTEMS:
+        raise RobocalError(f"unknown system {system!r} (known: {', '.join(sorted(SYSTEMS))})")
+    name = SYSTEMS[system].__name__.rsplit(".", 1)[-1]
+    try:
+        return importlib.import_module(f"pipeline.plan.{name}")
+    except ModuleNotFoundError:
+        raise RobocalError(f"no pose candidates for system {system!r} yet (pipeline/plan/{name}.py)") from None
+
+
+@app.command("plan")
+def plan_cmd(
+    system: str = typer.Argument(..., help="System, e.g. arc-welder."),
+    candidates: int = typer.Option(1000, "--candidates", min=2, help="Number of candidate poses N."),
+    select_m: int = typer.Option(30, "--select", min=1, help="Number of poses M to keep."),
+    out: Path = typer.Option(..., "--out", help="Plan file to write (JSON)."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the candidate generation."),
+    check: int = typer.Option(0, "--check", min=0, help="Also compare, on a simulated campaign, the held-out RMS of "
+                                                        "the planned set with this many random sets (0 = skip)."),
+) -> None:
+    """D-optimal pose selection: greedy + Fedorov exchange with rank-1 (Sherman–Morrison) updates."""
+    import numpy as np
+
+    from pipeline.identify.model import take
+    from pipeline.plan.doptimal import logdet_info, scale
+    from pipeline.plan.select import compare, plan
+    from pipeline.stages.artefacts import write_json
+
+    mod = candidate_module(system)
+    with err.status(f"generating {candidates} candidates…"):
+        model, table = mod.candidates(candidates, seed)
+    p = plan(model, table, select_m)
+    s = p.selection
+    J = model.jacobian(model.nominal(), table)[:, :, p.free]
+    As, _ = scale(J)
+    rng = np.random.default_rng(seed)
+    rand = [logdet_info(As, rng.choice(len(As), select_m, replace=False)) for _ in range(20)]
+    rows = []
+    for i in s.index:
+        rows.append({"candidate": int(i), **{k: (v[i].tolist() if isinstance(v[i], np.ndarray) else
+                                                 (v[i].item() if hasattr(v[i], "item") else v[i]))
+                                             for k, v in table.items() if k not in ("record",)}})
+    doc = {"system": system, "n_candidates": len(As), "select": select_m, "seed": seed,
+           "criterion": "D-optimal: log det of the information matrix of the free parameters (scaled columns)",
+           "free_parameters": [n for n, f in zip(model.parameter_names(), p.free) if f],
+           "logdet": s.logdet, "greedy_logdet": s.greedy_logdet, "exchanges": s.exchanges,
+           "selection_s": s.elapsed_s, "random_logdet_median": float(np.median(rand)),
+           "observability": p.observability, "selected": rows}
+    if check:
+        if not hasattr(mod, "measured"):
+            err.print(f"[yellow]no simulator for {system}: --check skipped[/]")
+        else:
+            with err.status("simulating a measured campaign for the check…"):
+                mmodel, mt = mod.measured(candidates + 100, seed + 1)
+            n = len(mt["record"])
+            doc["check"] = compare(mmodel, take(mt, np.arange(n - 100)), take(mt, np.arange(n - 100, n)),
+                                   select_m, n_random=check, seed=seed)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json(out, doc)
+    err.print(f"selected {select_m} of {len(As)} candidates in {s.elapsed_s:.3f} s "
+              f"(log det {s.logdet:.2f}; greedy {s.greedy_logdet:.2f}; {s.exchanges} exchanges; "
+              f"median of 20 random sets {np.median(rand):.2f}); O1 {p.observability['O1']:.4f}")
+    if "check" in doc:
+        c = doc["check"]
+        err.print(f"held-out RMS: planned {c['planned_holdout_rms_m'] * 1e3:.4f} mm, random median "
+                  f"{c['random_median_m'] * 1e3:.4f} mm ({c['planned_rank_among_random']} of {check} random sets better)")
+    print(out)

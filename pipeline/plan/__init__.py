@@ -1,0 +1,1 @@
+"""Pose selection: D-optimal choice of M measurements out of N candidates."""

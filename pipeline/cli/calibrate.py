@@ -17,13 +17,15 @@ def calibrate_cmd(
     out: Path = typer.Option(..., "--out", help="Output folder for results.json and model.json."),
     loss: str = typer.Option("linear", "--loss", help="Loss: linear, huber or soft_l1."),
     folds: int = typer.Option(5, "--folds", min=2, help="Folds of the held-out cross-validation."),
+    rank_tol: float = typer.Option(1e-3, "--rank-tol", min=0.0,
+                                   help="Smallest remaining norm of a kept unit-norm Jacobian column (rank test)."),
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows
     from pipeline.identify.least_squares import FitOptions
 
     with err.status(f"calibrating {recording}…"):
-        doc = calibrate(recording, out, FitOptions(loss=loss), k_folds=folds)
+        doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds)
     for w in doc["warnings"]:
         err.print(f"[yellow]warning:[/] {w}", highlight=False)
     t = Table(title=f"robocal calibrate — {recording.name}")

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.errors import RobocalError
 from pipeline.identify.least_squares import FitOptions, cross_validate, fit, point_accuracy
 from pipeline.identify.results import results_document
 from pipeline.recording.reader import read_recording
@@ -24,19 +25,38 @@ def file_sha256(path: Path) -> str:
 
 
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
-              seed: int = 0) -> dict:
-    """Read, identify, cross-validate; write DIR/results.json and DIR/model.json."""
+              seed: int = 0, solver: str = "lm", joint_offsets: bool = False) -> dict:
+    """Read, identify, cross-validate; write DIR/results.json and DIR/model.json.
+
+    `solver`: 'lm' (least squares, default) or 'ga' (seed 001's genetic algorithm, for systems
+    whose model offers `batch_cost_fn`).  `joint_offsets`: also identify the arm's joint
+    offsets (systems whose model has a `joint_offsets` field)."""
     t0 = time.perf_counter()
     path, out = Path(path), Path(out)
     rec = read_recording(path)
     system = detect(rec)
     model, table = system.load(rec)
-    f = fit(model, table, options)
-    holdout = cross_validate(model, table, k=k_folds, seed=seed, options=options)
+    if joint_offsets:
+        if not hasattr(model, "joint_offsets"):
+            raise RobocalError(f"{path}: system {system.SYSTEM} does not support --joint-offsets")
+        import dataclasses
+        model = dataclasses.replace(model, joint_offsets=True)
+    if solver == "ga":
+        from pipeline.identify.genetic import cross_validate_ga, fit_ga
+        if not hasattr(model, "batch_cost_fn"):
+            raise RobocalError(f"{path}: system {system.SYSTEM} has no genetic-algorithm solver (use --solver lm)")
+        f = fit_ga(model, table)
+        holdout = cross_validate_ga(model, table, k=k_folds, seed=seed)
+    elif solver == "lm":
+        f = fit(model, table, options)
+        holdout = cross_validate(model, table, k=k_folds, seed=seed, options=options)
+    else:
+        raise RobocalError(f"unknown solver {solver!r} (expected lm or ga)")
     tip_sigma = point_accuracy(model, f, table)
     doc = results_document(system.SYSTEM, f, holdout, tip_sigma, elapsed_s=time.perf_counter() - t0,
                            source={"path": str(path), "sha256": file_sha256(path)}, warnings=list(rec.warnings),
                            k_folds=k_folds)
+    doc["solver"] = solver
     if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures
         doc.update(model.extra_metrics(f.nominal, f.x, table))
     out.mkdir(parents=True, exist_ok=True)

@@ -19,13 +19,16 @@ def calibrate_cmd(
     folds: int = typer.Option(5, "--folds", min=2, help="Folds of the held-out cross-validation."),
     rank_tol: float = typer.Option(1e-3, "--rank-tol", min=0.0,
                                    help="Smallest remaining norm of a kept unit-norm Jacobian column (rank test)."),
+    solver: str = typer.Option("lm", "--solver", help="lm (least squares, default) or ga (seed 001's genetic algorithm)."),
+    joint_offsets: bool = typer.Option(False, "--joint-offsets", help="Also identify the arm's joint offsets (scanner)."),
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows
     from pipeline.identify.least_squares import FitOptions
 
     with err.status(f"calibrating {recording}…"):
-        doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds)
+        doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,
+                        joint_offsets=joint_offsets)
     for w in doc["warnings"]:
         err.print(f"[yellow]warning:[/] {w}", highlight=False)
     t = Table(title=f"robocal calibrate — {recording.name}")

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import importlib.util
 import inspect
 import json
 import shutil
@@ -47,18 +48,23 @@ def stage_key(name: str, params: dict, inputs: dict[str, str], version: str = __
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
 
 
+def is_available(stage: Stage) -> bool:
+    """The stage's module exists (found without importing it: a cached run imports nothing heavy)."""
+    try:
+        return importlib.util.find_spec(stage.module) is not None
+    except ModuleNotFoundError:
+        return False
+
+
 def load_module(stage: Stage) -> ModuleType | None:
     """The stage's module, or None for an optional stage whose module does not exist (yet)."""
-    try:
-        return importlib.import_module(stage.module)
-    except ModuleNotFoundError as e:
-        if stage.optional and e.name is not None and stage.module.startswith(e.name):
-            return None
-        raise
+    if stage.optional and not is_available(stage):
+        return None
+    return importlib.import_module(stage.module)
 
 
 def available_stages() -> list[Stage]:
-    return [s for s in STAGES if not s.optional or load_module(s) is not None]
+    return [s for s in STAGES if not s.optional or is_available(s)]
 
 
 def read_stage(run_dir: Path, name: str) -> dict | None:
@@ -112,7 +118,7 @@ def input_keys(run_dir: Path, stage: Stage, recording: Path | None = None) -> di
         spec = BY_NAME[dep]
         doc = read_stage(run_dir, dep)
         if doc is None:
-            if spec.optional and load_module(spec) is None:
+            if spec.optional and not is_available(spec):
                 continue
             raise RobocalError(f"{run_dir}: stage {dep!r} has not been run (run `robocal {dep}` or `robocal run` first)")
         if doc.get("summary", {}).get("status") == "fail":
@@ -126,8 +132,7 @@ def run_stage(run_dir: Path, name: str, params: dict | None = None, recording: P
     """Run one stage unless it is cached.  Raises StageFailed when its summary says fail."""
     stage = BY_NAME[name]
     run_dir = Path(run_dir)
-    mod = load_module(stage)
-    if mod is None:
+    if not is_available(stage):
         raise RobocalError(f"stage {name!r} is not available (module {stage.module} missing)")
     p = {**stage.defaults, **(params or {})}
     if recording is None and not stage.requires:
@@ -141,6 +146,7 @@ def run_stage(run_dir: Path, name: str, params: dict | None = None, recording: P
     if not force and is_fresh(run_dir, prev, key):
         out = Outcome(name, True, 0.0, key, prev.get("summary", {}))
     else:
+        mod = load_module(stage)
         t0 = time.perf_counter()
         shutil.rmtree(run_dir / name, ignore_errors=True)
         (run_dir / name).mkdir(parents=True)

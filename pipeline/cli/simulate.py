@@ -19,6 +19,12 @@ def arc_welder_cmd(
     seed: int = typer.Option(0, "--seed", help="Random seed (targets, noise, random truth)."),
     noise_scale: float = typer.Option(1.0, "--noise-scale", min=0.0, help="Multiplies every error source; 0 turns all off."),
     random_errors: bool = typer.Option(False, "--random-errors", help="Draw a random truth of the paper's error size instead of Table 2's."),
+    effect: list[str] = typer.Option([], "--effect", help="Inject a library effect into the TRUE robot: NAME=VALUE[,VALUE][@LOCATION] "
+                                     "(repeatable), e.g. joint_compliance=5e-6@J2, backlash=1e-3@J3, trigger_latency=0.02."),
+    payloads: str = typer.Option("", "--payloads", help="Campaign variation: payloads (kg) cycled in blocks of 10 contacts, e.g. 0,6."),
+    search_speeds: str = typer.Option("", "--search-speeds", help="Campaign variation: search speeds (m/s) drawn per contact, e.g. 0.005,0.01,0.02."),
+    face_order: str = typer.Option("shuffled", "--face-order", help="Campaign variation: shuffled (interleaved) or blocked faces."),
+    repeatability: float = typer.Option(None, "--repeatability", min=0.0, help="Robot repeatability 3σ (m); default 1e-4."),
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
     from pipeline.models.jig import stepped_block
@@ -30,7 +36,12 @@ def arc_welder_cmd(
     nominal = aw.nominal_arm()
     true = aw.random_truth(nominal, np.random.default_rng(seed + 1_000_003)) if random_errors else aw.reference_truth()
     campaign, noise = Campaign(contacts=contacts, seed=seed), Noise(scale=noise_scale)
+    if repeatability is not None:
+        noise = Noise(repeatability_3sigma_m=repeatability, scale=noise_scale)
     jig = stepped_block()
+    if effect or payloads or search_speeds or face_order != "shuffled":  # the effects simulator (issue 7)
+        _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order)
+        return
     with err.status(f"simulating {contacts} contacts…"):
         sim = simulate(nominal, true, jig, campaign, noise)
     meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: jig.to_dict(),
@@ -46,3 +57,45 @@ def arc_welder_cmd(
         truth.write_text(json.dumps(truth_document(true, noise, campaign, sim), indent=2) + "\n")
     err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.contact_t_ns.size} contacts; "
               f"injected noise RMS {sim.injected_noise_rms_m * 1e3:.4f} mm)")
+
+
+def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order) -> None:
+    """Campaign with concealed effects and campaign variations (`pipeline.simulate.effects`)."""
+    from pipeline.errors import RobocalError
+    from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
+    from pipeline.recording.writer import write_campaign
+    from pipeline.simulate import effects as se
+    from pipeline.simulate.arc_welder import truth_document
+    from pipeline.systems import arc_welder as aw
+
+    def floats(text: str, what: str) -> tuple[float, ...]:
+        try:
+            return tuple(float(v) for v in text.split(",") if v.strip())
+        except ValueError:
+            raise RobocalError(f"{what} {text!r}: expected comma-separated numbers") from None
+
+    try:
+        injected = [se.parse_effect(e) for e in effect]
+        var = se.Variations(payloads_kg=floats(payloads, "--payloads"),
+                            search_speeds_m_s=floats(search_speeds, "--search-speeds"), face_order=face_order)
+        with err.status(f"planning {campaign.contacts} contacts…"):
+            targets = se.plan_targets(nominal, jig, campaign, truth=true)
+        es = se.run(nominal, true, jig, targets, campaign, noise, injected, var)
+    except (ValueError, RuntimeError) as e:
+        raise RobocalError(str(e)) from None
+    sim = es.sim
+    meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: jig.to_dict(),
+            META_CAMPAIGN: {"system": aw.SYSTEM, "simulated": True, "contacts": campaign.contacts,
+                            "controller_rate_hz": campaign.rate_hz, "search_speed_m_s": campaign.search_speed_m_s,
+                            "approach_offset_m": campaign.approach_offset_m, **se.campaign_metadata(es, campaign)}}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with err.status("writing recording…"):
+        write_campaign(out, meta, (sim.stream_t_ns, sim.stream_q, [j.name for j in nominal.joints]),
+                       aw.contact_messages(sim))
+    if truth is not None:
+        truth.parent.mkdir(parents=True, exist_ok=True)
+        doc = truth_document(true, noise, campaign, sim)
+        doc.update(se.truth_effects(es))
+        truth.write_text(json.dumps(doc, indent=2, default=float) + "\n")
+    err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.contact_t_ns.size} contacts, "
+              f"{len(injected)} concealed effect(s))")

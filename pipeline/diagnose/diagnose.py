@@ -26,6 +26,9 @@ from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
 from pipeline.models import serial_arm
 
 
+MIN_BOOTSTRAP = 0.5  # a confident finding is re-selected in at least this share of resamples
+
+
 @dataclass(frozen=True)
 class Settings:
     """Diagnosis settings: family α of the selection and of the lack-of-fit test, folds, group
@@ -114,7 +117,7 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         delta_bic = n * np.log(max(rss_wo, 1e-300) / max(rss_full, 1e-300)) - e.k * np.log(n)
         cv_wo = confirm.holdout(A_wo, r_wo, folds)
         findings.append({
-            "effect": e.name, "location": e.location,
+            "effect": e.name, "location": str(e.location),
             "parameters": [{"name": p, "value": float(th[m]), "std": float(std[pos + m]), "unit": e.units[m]}
                            for m, p in enumerate(e.parameters)],
             "evidence": {"statistic": st.statistic, "statistic_kind": "grouped F", "dof": list(st.dof),
@@ -139,17 +142,21 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
              for t in sorted(lof, key=lambda t: t.p_value) if t.significant]
     flagged = {w["variable"] for w in where}
     for fd, i in zip(findings, accepted):
+        ev = fd["evidence"]
+        if ev["bootstrap_frequency"] < MIN_BOOTSTRAP or ev["cv_rms_after_m"] >= ev["cv_rms_before_m"]:
+            fd["confidence"] = "low"
+            fd["note"] = "selected in few bootstrap resamples or no held-out improvement"
         if lib[i].variable in flagged:
             fd["confidence"] = "low"
             fd["note"] = (f"structure remains in {lib[i].variable} that {lib[i].name} does not explain; "
                           "the effect may be something outside the library")
 
-    not_ident = [{"effect": g.effect.name, "location": g.effect.location, "reason": g.reason,
+    not_ident = [{"effect": g.effect.name, "location": str(g.effect.location), "reason": g.reason,
                   "absorbed_by": g.absorbed_by, "absorbed_fraction": g.absorbed_fraction,
                   "min_detectable": g.min_detectable if np.isfinite(g.min_detectable) else None,
                   "plausible_max": g.effect.plausible, "unit": g.effect.units[0], "advice": g.effect.advice}
                  for g in gates if not g.identifiable]
-    candidates = [{"effect": g.effect.name, "location": g.effect.location, "identifiable": g.identifiable,
+    candidates = [{"effect": g.effect.name, "location": str(g.effect.location), "identifiable": g.identifiable,
                    "absorbed_fraction": g.absorbed_fraction,
                    "min_detectable": g.min_detectable if np.isfinite(g.min_detectable) else None,
                    "unit": g.effect.units[0], "plausible_max": g.effect.plausible} for g in gates]

@@ -126,30 +126,26 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         peak = 0.0
         if Bp is not None:
             coef, *_ = np.linalg.lstsq(Bp, res, rcond=None)
-            fitted = Bp @ coef
-            peak = float(np.max(np.abs(fitted)))
-            region = locate(v, coef)
+            peak = float(np.max(np.abs(Bp @ coef)))
+            region = locate(v, QA, res)
         out.append(LackOfFit(v.name, float(F) if np.isfinite(F) else 0.0, dof, p, float(p_holm[i]), bool(sig[i]),
                              region, peak))
     return out
 
 
-def locate(v: Variable, coef: np.ndarray) -> tuple[float, float] | str:
-    """Where along v the fitted structure is largest: the interval above half its peak."""
-    if v.categorical:
-        labels = v.unit.split(",")
-        return labels[int(np.argmax(np.abs(coef)))]
-    c = v.gain.shape[1]
-    grid = np.linspace(v.centres[0], v.centres[-1], 200)
-    Phi = rbf(grid, v.centres, v.width)  # (G, K)
-    C = coef.reshape(c, -1)  # per channel
-    curve = np.sqrt(np.sum((Phi @ C.T) ** 2, axis=1))  # magnitude over channels
-    k = int(np.argmax(curve))
-    above = curve >= 0.5 * curve[k]
-    lo = k
-    while lo > 0 and above[lo - 1]:
-        lo -= 1
-    hi = k
-    while hi < grid.size - 1 and above[hi + 1]:
-        hi += 1
-    return float(grid[lo]), float(grid[hi])
+def locate(v: Variable, QA: np.ndarray, res: np.ndarray, n_scan: int = 25) -> tuple[float, float]:
+    """Where along v the structure is: a matched-filter scan of single narrow bumps (width
+    range/12) at `n_scan` centres, each projected against the design; the interval ±1 width
+    around the centre whose bump explains most of the residual."""
+    lo, hi = float(v.centres[0]), float(v.centres[-1])
+    width = (hi - lo) / 12
+    centres = np.linspace(lo, hi, n_scan)
+    Phi = rbf(v.values, centres, width)  # (n, S)
+    best, c_best = -1.0, lo
+    for s in range(n_scan):
+        cols = v.gain * Phi[:, s:s + 1]  # (n, c)
+        Qb = orthonormal(project_out(cols, QA), 1e-6)
+        g = float(np.sum((Qb.T @ res) ** 2)) if Qb.shape[1] else 0.0
+        if g > best:
+            best, c_best = g, centres[s]
+    return float(max(lo, c_best - width)), float(min(hi, c_best + width))

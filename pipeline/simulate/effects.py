@@ -73,11 +73,8 @@ class Targets:
     sign: np.ndarray
 
 
-def plan_targets(nominal: SerialArm, jig: Jig, campaign: Campaign, spare: float = 2.2) -> Targets:
-    """Approach poses of `spare`× the wanted contacts (the expensive IK), seeded by campaign.seed."""
-    rng = np.random.default_rng(campaign.seed)
+def _plan_batch(nominal: SerialArm, jig: Jig, campaign: Campaign, n_try: int, rng) -> Targets:
     xn = nominal.vector()
-    n_try = int(campaign.contacts * spare * 1.25) + 10
     faces, P, R = _targets(jig, n_try, rng, campaign.approach_offset_m, campaign.max_tilt_rad)
     q_a, ok = ik.solve(xn, P, R, IK_SEEDS, nominal.lower, nominal.upper, iters=40)
     faces, q_a = faces[ok], q_a[ok]
@@ -88,6 +85,55 @@ def plan_targets(nominal: SerialArm, jig: Jig, campaign: Campaign, spare: float 
     axis = np.array([jig.faces[f].axis_index for f in faces], int)
     sign = np.array([jig.faces[f].normal_sign for f in faces], float)
     return Targets(faces, q_a, dq, axis, sign)
+
+
+def plan_targets(nominal: SerialArm, jig: Jig, campaign: Campaign, truth: SerialArm | None = None,
+                 spare: float = 1.25) -> Targets:
+    """Approach poses (the expensive IK), seeded by campaign.seed.  With `truth`, targets whose
+    search would miss the true face are screened out and batches are added until there are
+    `spare`× the wanted contacts."""
+    rng = np.random.default_rng(campaign.seed)
+    want = int(np.ceil(campaign.contacts * spare))
+    parts: list[Targets] = []
+    for _ in range(12):
+        have = sum(p.faces.size for p in parts)
+        if have >= want:
+            break
+        t = _plan_batch(nominal, jig, campaign, int((want - have) * (1.9 if truth is not None else 1.0)) + 8, rng)
+        if truth is not None:
+            t = _screen(t, truth, jig, campaign)
+        parts.append(t)
+    return Targets(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("faces", "q_a", "dq", "axis", "sign")))
+
+
+def _screen(t: Targets, truth: SerialArm, jig: Jig, campaign: Campaign) -> Targets:
+    ok = _touches(t, truth.vector(), jig, campaign, np.zeros((t.faces.size, 3)),
+                  np.array([jig.faces[f].coordinate for f in t.faces]))[0]
+    return Targets(t.faces[ok], t.q_a[ok], t.dq[ok], t.axis[ok], t.sign[ok])
+
+
+def _touches(t: Targets, xt: np.ndarray, jig: Jig, campaign: Campaign, eps: np.ndarray, c_true: np.ndarray):
+    """Which targets' searches touch the true face (2 mm inside its edges), and the travel s."""
+    r = np.arange(t.faces.size)
+
+    def gap(s):
+        p = serial_arm.tip_position(xt, t.q_a + s[:, None] * t.dq) + eps
+        return t.sign * (p[r, t.axis] - c_true)
+
+    s = np.zeros(r.size)
+    g0 = gap(s)
+    for _ in range(8):
+        h = 1e-6
+        s = s - gap(s) / ((gap(s + h) - gap(s - h)) / (2 * h))
+    p1 = serial_arm.tip_position(xt, t.q_a + s[:, None] * t.dq)
+    on_face = np.ones(r.size, bool)
+    for i, f in enumerate(t.faces):
+        fc = jig.faces[f]
+        a, b = fc.other_axes()
+        on_face[i] = (fc.extent[0][0] + 2e-3 <= p1[i, a] <= fc.extent[0][1] - 2e-3
+                      and fc.extent[1][0] + 2e-3 <= p1[i, b] <= fc.extent[1][1] - 2e-3)
+    good = (g0 > 0) & (s > 0) & (s < campaign.search_travel_m - 0.01) & on_face & (np.abs(gap(s)) < 1e-10)
+    return good, s
 
 
 @dataclass
@@ -151,23 +197,13 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
             return sign[rows] * (p[r, axis[rows]] - c_true[rows])
 
         s = np.zeros(rows.size)
-        g0 = gap(s)
         for _ in range(8):
             h = 1e-6
             s = s - gap(s) / ((gap(s + h) - gap(s - h)) / (2 * h))
-        return s, g0, np.abs(gap(s))
+        return s
 
     # pass 1: which targets yield a contact (geometry only; the effects are far below the margins)
-    all_rows = np.arange(m)
-    s1, g0, res = search(all_rows, lambda q: 0.0, 0.0)
-    p1 = serial_arm.tip_position(xt, q_a + s1[:, None] * dq)
-    on_face = np.ones(m, bool)
-    for i, f in enumerate(faces):
-        fc = jig.faces[f]
-        a, b = fc.other_axes()
-        on_face[i] = (fc.extent[0][0] + 2e-3 <= p1[i, a] <= fc.extent[0][1] - 2e-3
-                      and fc.extent[1][0] + 2e-3 <= p1[i, b] <= fc.extent[1][1] - 2e-3)
-    good = (g0 > 0) & (s1 > 0) & (s1 < campaign.search_travel_m - 0.01) & on_face & (res < 1e-10)
+    good, s1 = _touches(Targets(faces, q_a, dq, axis, sign), xt, jig, campaign, eps, c_true)
     keep = np.flatnonzero(good)[:campaign.contacts]
     if keep.size < campaign.contacts:
         raise RuntimeError(f"only {keep.size} of {campaign.contacts} targets touch the jig; plan more targets")
@@ -193,7 +229,7 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
     for e, th in tip_eff:
         extra_tip += np.einsum("nik,k->ni", e.basis(truth, xt, ctx), th)
     # pass 2: the searches of the true robot with its effects; the latch comes `latency` late
-    s2, _, res2 = search(keep, extra_q, extra_tip)
+    s2 = search(keep, extra_q, extra_tip)
     s_latch = s2 + speeds * latency
     quant = k > 0
     q_latch = _quantise(q_a[keep] + s_latch[:, None] * dq[keep], noise.encoder_counts_per_rev, quant)

@@ -1,0 +1,69 @@
+"""`robocal diagnose`: find the physics the geometric model left out."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from pipeline.cli import app, err
+
+
+@app.command("diagnose")
+def diagnose_cmd(
+    recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
+    out: Path = typer.Option(..., "--out", help="Output folder for diagnosis.json."),
+    alpha: float = typer.Option(0.01, "--alpha", min=1e-6, max=0.2, help="Family-wise error rate (Holm)."),
+    folds: int = typer.Option(5, "--folds", min=2, help="Folds of the grouped cross-validation."),
+    n_boot: int = typer.Option(40, "--bootstrap", min=0, help="Bootstrap resamples for selection stability."),
+) -> None:
+    """Locate residual structure, name the effect from the library, model it, show the held-out fit improve."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from pipeline.diagnose.diagnose import Settings
+    from pipeline.diagnose.stage import SUPPORTED, diagnose_recording
+    from pipeline.errors import RobocalError
+    from pipeline.recording.reader import read_recording
+    from pipeline.stages.artefacts import write_json
+    from pipeline.systems.registry import detect
+
+    with err.status(f"diagnosing {recording}…"):
+        rec = read_recording(recording)
+        system = detect(rec)
+        if system.SYSTEM not in SUPPORTED:
+            raise RobocalError(f"{recording}: diagnosis supports {', '.join(SUPPORTED)}; this is {system.SYSTEM}")
+        doc = diagnose_recording(rec, Settings(alpha=alpha, folds=folds, n_boot=n_boot))
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "diagnosis.json", doc)
+    mm = lambda v: f"{v * 1e3:.4f} mm"  # noqa: E731
+    t = Table(title=f"robocal diagnose — {recording.name}")
+    t.add_column("effect")
+    t.add_column("location")
+    t.add_column("parameters (value ± 1σ)")
+    t.add_column("p (Holm)", justify="right")
+    t.add_column("CV RMS without → with", justify="right")
+    t.add_column("boot", justify="right")
+    for f in doc["findings"]:
+        ev = f["evidence"]
+        pars = ", ".join(f"{p['name']}={p['value']:.4g}±{p['std']:.2g} {p['unit']}" for p in f["parameters"])
+        t.add_row(f["effect"] + ("" if f["confidence"] == "high" else " (low confidence)"), f["location"], pars,
+                  f"{ev['p_value']:.2g}", f"{mm(ev['cv_rms_before_m'])} → {mm(ev['cv_rms_after_m'])}",
+                  f"{ev['bootstrap_frequency']:.2f}")
+    con = Console()
+    con.print(t if doc["findings"] else "no effect found beyond the geometric model")
+    if doc["unexplained"]:
+        for w in doc["unexplained_where"]:
+            reg = w["region"]
+            reg = f"[{reg[0]:.3g}, {reg[1]:.3g}]" if isinstance(reg, list) else reg
+            con.print(f"[yellow]unexplained structure[/] in {w['variable']} around {reg} (p={w['p_value']:.2g})")
+    else:
+        con.print("no unexplained structure left in the residuals")
+    shown = [n for n in doc["not_identifiable"] if "no effect" not in n["reason"]]
+    if shown:
+        con.print(f"{len(shown)} effect(s) this campaign cannot separate from the geometry, e.g.:")
+        for n in shown[:4]:
+            con.print(f"  {n['effect']}@{n['location']}: {n['reason']} — {n['advice']}", highlight=False)
+    con.print(f"held-out RMS {mm(doc['holdout_rms_before_m'])} → {mm(doc['holdout_rms_after_m'])} "
+              f"({doc['cross_validation']['folds']}-fold, {doc['cross_validation']['groups']})")
+    print(f"diagnosis: {out / 'diagnosis.json'}")

@@ -1,0 +1,68 @@
+"""The `diagnose` stage: DIR/diagnose/diagnosis.json (contract: docs/pipeline-artefacts.md, issue 7).
+
+Reads the recording named by DIR/ingest/recording.json (the diagnosis needs the encoder
+stream around each measurement and the fixture) and starts from DIR/identify/fit.json when it
+exists (its solution and rejected records).  Params: ``alpha`` (family α, 0.01), ``folds`` (5),
+``block`` (measurements per cross-validation group, 5), ``n_boot`` (40), ``seed`` (0).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.diagnose.diagnose import Settings
+
+NAME = "diagnose"
+SUPPORTED = ("arc-welder",)
+
+
+def settings_of(params: dict) -> Settings:
+    d = Settings()
+    return Settings(alpha=float(params.get("alpha", d.alpha)), folds=int(params.get("folds", d.folds)),
+                    block=int(params.get("block", d.block)), n_boot=int(params.get("n_boot", d.n_boot)),
+                    seed=int(params.get("seed", d.seed)))
+
+
+def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | None = None,
+                       drop_records: list[int] | None = None) -> dict:
+    """Diagnosis document of a decoded recording (arc welder)."""
+    from pipeline.diagnose import table as dtable
+    from pipeline.diagnose.diagnose import diagnose
+    from pipeline.identify.model import take
+
+    model, tab, info = dtable.from_recording(rec)
+    if drop_records:
+        tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
+    doc = diagnose(model, tab, jig_tolerance_m=info["jig_tolerance_m"], x0=x0, settings=settings)
+    doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
+    return doc
+
+
+def run(run_dir: Path, params: dict) -> dict:
+    """Write DIR/diagnose/diagnosis.json; return a summary for stage.json."""
+    from pipeline.stages.artefacts import read_json, write_json
+    from pipeline.stages.ingest import load_system
+
+    run_dir = Path(run_dir)
+    out = run_dir / NAME
+    out.mkdir(parents=True, exist_ok=True)
+    system, model, rec = load_system(run_dir)
+    if system.SYSTEM not in SUPPORTED:
+        doc = {"system": system.SYSTEM, "supported": False, "findings": [], "not_identifiable": [],
+               "unexplained": None, "unexplained_where": [], "holdout_rms_before_m": None,
+               "holdout_rms_after_m": None, "message": f"no effect library for {system.SYSTEM} yet"}
+    else:
+        fit_path = run_dir / "identify" / "fit.json"
+        x0, drop = None, None
+        if fit_path.is_file():
+            fj = read_json(fit_path)
+            x0 = np.asarray(fj["x"], float)
+            drop = fj.get("rejected_records") or None
+        doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop)
+        doc["supported"] = True
+    write_json(out / "diagnosis.json", doc)
+    return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],
+            "unexplained": doc["unexplained"], "holdout_rms_before_m": doc["holdout_rms_before_m"],
+            "holdout_rms_after_m": doc["holdout_rms_after_m"]}

@@ -88,6 +88,21 @@ def _location_column(location: Any, columns: list[str]) -> str | None:
     return None
 
 
+# the variable an effect acts through, by a word in its name ({joint} = the finding's location)
+EFFECT_VARIABLES = (("backlash", "dir_{joint}"), ("thermal", "time_since_start_s"), ("drift", "time_since_start_s"),
+                    ("latency", "v_{joint}"), ("pretravel", "v_{joint}"))
+
+
+def _effect_column(effect: str, location: Any, columns: list[str]) -> str | None:
+    joint = location if isinstance(location, str) else (location or {}).get("joint", "") if isinstance(location, dict) else ""
+    for word, pattern in EFFECT_VARIABLES:
+        if word in effect.lower():
+            c = pattern.format(joint=joint)
+            if c in columns:
+                return c
+    return None
+
+
 def located_plots(doc: dict, measurements: dict[str, np.ndarray] | None, residuals: dict[str, np.ndarray]
                   ) -> list[PlotSpec]:
     """Residuals of the geometric fit against each finding's located variable (added-variable view)."""
@@ -101,7 +116,8 @@ def located_plots(doc: dict, measurements: dict[str, np.ndarray] | None, residua
     for f in doc.get("findings", []) or []:
         if not isinstance(f, dict):
             continue
-        col = _location_column(f.get("location"), cols) or _location_column(f.get("variable"), cols)
+        col = (_effect_column(str(f.get("effect", "")), f.get("location"), cols)
+               or _location_column(f.get("location"), cols) or _location_column(f.get("variable"), cols))
         if col is None or "after_0" not in residuals:
             continue
         x = np.asarray(measurements[col], float)[idx[ok]]
@@ -131,7 +147,8 @@ def finding_rows(doc: dict) -> list[dict[str, str]]:
                      "parameters": "; ".join(params),
                      "evidence": "; ".join(f"{k} = {_fmt(v, 'm' if k.endswith('_m') else '')}"
                                            for k, v in ev.items()) if isinstance(ev, dict) else str(ev),
-                     "absorbed_fraction": _fmt(f.get("absorbed_fraction"), "")})
+                     "absorbed_fraction": _fmt(f.get("absorbed_fraction"), ""),
+                     "confidence": str(f.get("confidence", "")) + (f" ({f['note']})" if f.get("note") else "")})
     return rows
 
 

@@ -180,9 +180,10 @@ def diagnosis_section(art) -> str:
     html = ""
     rows = dg.finding_rows(doc)
     if rows:
-        html += "<h3>Findings</h3>" + _table(["effect", "location", "parameters", "evidence", "absorbed fraction"],
-                                             [[escape(r[k]) for k in ("effect", "location", "parameters", "evidence",
-                                                                      "absorbed_fraction")] for r in rows])
+        html += "<h3>Findings</h3>" + _table(
+            ["effect", "location", "parameters", "evidence", "absorbed fraction", "confidence"],
+            [[escape(r[k]) for k in ("effect", "location", "parameters", "evidence", "absorbed_fraction",
+                                     "confidence")] for r in rows])
     else:
         html += '<p class="note">No finding: no left-out effect was detected.</p>'
     b, a = doc.get("holdout_rms_before_m"), doc.get("holdout_rms_after_m")
@@ -191,7 +192,11 @@ def diagnosis_section(art) -> str:
                                    "held-out RMS: geometry only vs with the findings"),
                         f"Held-out RMS before {b * 1e3:.4f} mm, after modelling the findings {a * 1e3:.4f} mm.",
                         "fig-diagnosis-improvement")
-    specs = dg.find_plots(doc) or dg.located_plots(doc, art.measurements, art.residuals)
+    cols = None
+    if art.measurements is not None:
+        cols = {k: v for k, v in art.measurements.items() if np.ndim(v) == 1}
+        cols.update({f"q_{n}": v for n, v in art.joint_columns().items()})
+    specs = dg.find_plots(doc) or dg.located_plots(doc, cols, art.residuals)
     for i, p in enumerate(specs):
         scale = 1e3 if p.lengths else 1.0
         series = {k[:-2] if k.endswith("_m") else k: v for k, v in p.series.items()}
@@ -205,9 +210,24 @@ def diagnosis_section(art) -> str:
             [[escape(str(e.get("effect", "?"))), escape(str(e.get("absorbed_by", e.get("absorbs", "")))),
               escape(str(e.get("advice", e.get("remedy", ""))))] for e in ni if isinstance(e, dict)])
     un = doc.get("unexplained")
-    if un not in (None, False, {}):
-        html += "<h3>Unexplained structure</h3>" + (
-            f"<p>{escape(dg._loc(un))}</p>" if not isinstance(un, bool) else "<p>yes</p>")
+    where = [w for w in doc.get("unexplained_where", []) or [] if isinstance(w, dict)]
+    if un not in (None, False, {}) or where:
+        html += "<h3>Unexplained structure</h3>"
+        if where:
+            html += _table(["variable", "region", "p-value", "peak"],
+                           [[escape(str(w.get("variable", ""))), escape(dg._fmt(w.get("region"), "")),
+                             escape(dg._fmt(w.get("p_value"), "")), escape(dg._fmt(w.get("peak_m"), "m"))]
+                            for w in where], {2, 3})
+        else:
+            html += f"<p>{escape(dg._loc(un)) if not isinstance(un, bool) else 'yes'}</p>"
+    elif un is False:
+        html += '<p class="note">No structure left in the residuals (lack-of-fit tests).</p>'
+    lof = [t for t in doc.get("lack_of_fit", []) or [] if isinstance(t, dict)]
+    if lof:
+        html += "<h3>Lack-of-fit tests</h3>" + _table(
+            ["variable", "statistic", "p-value (Holm)"],
+            [[escape(str(t.get("variable", ""))), escape(dg._fmt(t.get("statistic"), "")),
+              escape(dg._fmt(t.get("p_value"), ""))] for t in lof], {1, 2})
     return _section("diagnosis", "Diagnosis", html)
 
 

@@ -50,7 +50,7 @@ def run(run_dir: Path, params: dict) -> dict:
     tip_sigma = point_accuracy(model, f, kept_data)
 
     n, k = len(table["record"]), model.residual_dim
-    before = model.residuals(f.nominal, data).reshape(n, k)
+    before = model.residuals(model.nominal(), data).reshape(n, k)  # the nominal model, not the solver's start
     after = model.residuals(f.x, data).reshape(n, k)
     holdout = np.full((n, k), np.nan)
     holdout[rf.kept] = holdout_kept
@@ -69,7 +69,7 @@ def run(run_dir: Path, params: dict) -> dict:
     doc = {
         "system": system.SYSTEM,
         "names": f.names, "units": f.units,
-        "nominal": f.nominal, "x": f.x, "std": f.std, "free": free,
+        "nominal": model.nominal(), "x0": f.nominal, "x": f.x, "std": f.std, "free": free,
         "reasons": {f.names[i]: r for i, r in sorted(f.identifiability.reasons.items())},
         "sigma_m": f.sigma, "cov": f.cov,
         "rejected_records": [r["record"] for r in rf.rejected], "rejected": rf.rejected,
@@ -82,13 +82,15 @@ def run(run_dir: Path, params: dict) -> dict:
         "predicted_point_sigma_rms_m": float(np.sqrt(np.mean(tip_sigma**2))),
         "parameters": parameter_table(f),
     }
+    if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
+        doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
     write_json(out / "fit.json", doc)
     write_json(out / "history.json", {"cost_rms_m": f.history})
     write_json(out / "model.json", model.describe(f.x))
     keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
             "loss", "function_evaluations", "predicted_point_sigma_rms_m")
-    return {k_: doc[k_] for k_ in keys}
+    return {k_: doc[k_] for k_ in keys} | ({"extra": doc["extra"]} if "extra" in doc else {})
 
 
 def read_fit(run_dir: Path) -> dict:

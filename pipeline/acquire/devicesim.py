@@ -73,7 +73,7 @@ def device_streams(rec: Recording, clock: Clock, batch: int = 1, announce_every_
     roles = ["bridge", *sorted(r for r in events if r != "bridge")]
     meta_parts = [p for name, doc in rec.metadata.items() if name.startswith("robocal.")
                   and not name.startswith("robocal.acquisition")
-                  for p in P.encode_meta_parts(name, json.dumps(doc, separators=(",", ":")))]
+                  for p in P.encode_meta_parts(name, json.dumps(doc, separators=(",", ":")), part_size=96)]
     out = {}
     for role in roles:
         items: list[tuple[int, int, int, bytes]] = []  # (t, order, kind, payload)
@@ -106,8 +106,8 @@ def device_streams(rec: Recording, clock: Clock, batch: int = 1, announce_every_
         for t, topic, body in evs:
             items.append((t, 1, P.FrameType.EVENT, P.encode_event(int(clock(t)), topic, body)))
         items.sort(key=lambda it: (it[0], it[1]))
-        end = P.encode_json({"samples": n_samples, "events": len(evs), "frames": len(items) + 3})
-        items += [(t_end, 3, P.FrameType.CAMPAIGN_END, end)] * 3
+        end = P.encode_json({"samples": n_samples, "events": len(evs), "frames": len(items) + 8})
+        items += [(t_end, 3, P.FrameType.CAMPAIGN_END, end)] * 8  # repeated: it ends the recording
         t = np.array([it[0] for it in items], np.int64)
         d_send = clock(t)
         frames = [P.encode_frame(k, seq, int(ds), p) for seq, ((_, _, k, p), ds) in enumerate(zip(items, d_send))]

@@ -74,7 +74,8 @@ class Link:
         return {"frames": self.frames, "samples": self.samples, "events": dict(self.events),
                 "missing_frames": self.seq.missing, "bad_frames": self.decoder.bad_frames,
                 "garbage_bytes": self.decoder.garbage_bytes, "rejected_frames": self.rejected,
-                "bytes": self.decoder.bytes_in}
+                "bytes": self.decoder.bytes_in,
+                "last_seq": None if self.seq.expected is None else (self.seq.expected - 1) % (1 << 32)}
 
 
 class Acquisition:
@@ -246,7 +247,7 @@ class Acquisition:
             fit = link.clock.fit()
             out["devices"][role] = {
                 "port": link.port, "hello": link.hello, "campaign": link.campaign, "end": link.end,
-                **link.counts(), "missing_ranges": [list(g) for g in link.seq.gaps[:MAX_LOGGED_PROBLEMS]],
+                **link.counts(), "missing_ranges": [list(g) for g in link.seq.gaps[:20_000]],
                 "clock": fit.as_dict() if fit else None, "gaps": link.gaps, "problems": link.problems}
         return out
 

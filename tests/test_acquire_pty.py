@@ -1,0 +1,177 @@
+"""End to end over real pseudo-terminals: `robocal device-sim` → `robocal acquire` → calibrate.
+
+Both commands run as real processes; the devices are real ttys."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.acquire import protocol as P
+from pipeline.acquire.devicesim import Clock, device_streams
+from pipeline.calibrate import calibrate
+from pipeline.recording.reader import read_recording
+from pipeline.systems.registry import SYSTEMS
+
+ROBOCAL = str(Path(sys.executable).parent / "robocal")
+
+
+def start_sim(tmp: Path, system: str, *args: str) -> tuple[subprocess.Popen, dict[str, str]]:
+    """Start `robocal device-sim`; returns the process and its ROLE=PATH announcements."""
+    proc = subprocess.Popen([ROBOCAL, "device-sim", system, "--link-dir", str(tmp / "dev"),
+                             "--report", str(tmp / "sim.json"), "--wait", "60", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    devices: dict[str, str] = {}
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            raise AssertionError(f"device-sim exited: {proc.stderr.read()}")
+        role, _, rest = line.partition("=")
+        devices[role] = rest.split()[0]
+        assert Path(rest.split()[1]).is_char_device()  # a real tty
+        if len(devices) == expected_devices(system, args):
+            return proc, devices
+    raise AssertionError("device-sim did not announce its ports")
+
+
+def expected_devices(system: str, args) -> int:
+    return {"arc-welder": 1}.get(system, 2)
+
+
+def acquire(tmp: Path, devices: dict[str, str], out: Path, *extra: str, timeout: float = 120) -> dict:
+    cmd = [ROBOCAL, "acquire", "--out", str(out), "--summary", str(tmp / "summary.json"), *extra]
+    for role, path in devices.items():
+        cmd += ["--device", f"{role}={path}"]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    assert r.returncode == 0, r.stderr
+    return json.loads((tmp / "summary.json").read_text())
+
+
+def finish_sim(proc: subprocess.Popen, tmp: Path) -> dict:
+    proc.wait(timeout=60)
+    assert proc.returncode == 0, proc.stderr.read()
+    return json.loads((tmp / "sim.json").read_text())
+
+
+def simulate(tmp: Path, system: str, args: list[str]) -> Path:
+    out = tmp / f"{system}.direct.mcap"
+    subprocess.run([ROBOCAL, "simulate", system, "--out", str(out), *args], check=True, capture_output=True)
+    return out
+
+
+SIM_ARGS = {"arc-welder": ["--contacts", "12", "--seed", "3"], "scorbot-scanner": ["--seed", "3"],
+            "delta-tracker": ["--seed", "3"]}
+
+
+@pytest.mark.parametrize("system", sorted(SYSTEMS))
+def test_campaign_through_pty_calibrates_like_the_direct_recording(tmp_path, system):
+    direct = simulate(tmp_path, system, SIM_ARGS[system])
+    proc, devices = start_sim(tmp_path, system, "--recording", str(direct), "--speed", "40", "--batch", "4",
+                              "--drift-ppm", "100", "--offset-s", "2")
+    out = tmp_path / "acq.mcap"
+    s = acquire(tmp_path, devices, out)
+    finish_sim(proc, tmp_path)
+    assert s["stop_reason"] == "campaign complete"
+    a, b = read_recording(direct), read_recording(out)
+    assert b.complete and not b.warnings
+    for name in a.metadata:  # self-contained: the devices announced every metadata document
+        assert b.metadata[name] == a.metadata[name]
+    for topic, msgs in a.messages.items():
+        assert len(b.messages[topic]) > 0
+        if topic != "/robot/joint_state":
+            strip = lambda m: {k: v for k, v in m.items() if not k.endswith("_ns")}  # noqa: E731
+            assert [strip(m) for m in b.messages[topic]] == [strip(m) for m in msgs]
+    qa = np.concatenate([m["positions"] for m in a.messages["/robot/joint_state"]])
+    qb = np.concatenate([m["positions"] for m in b.messages["/robot/joint_state"]])
+    assert np.array_equal(qa, qb)
+    ra = calibrate(direct, tmp_path / "cal_direct")
+    rb = calibrate(out, tmp_path / "cal_acq")
+    assert rb["n_measurements"] == ra["n_measurements"]
+    assert rb["rms_after_m"] == pytest.approx(ra["rms_after_m"], rel=1e-9, abs=1e-12)
+    assert rb["parameters"] == ra["parameters"]
+
+
+def test_one_percent_corrupted_bytes(tmp_path):
+    """Every clean frame kept, every damaged one counted, none written as data."""
+    direct = simulate(tmp_path, "arc-welder", ["--contacts", "10", "--seed", "5"])
+    proc, devices = start_sim(tmp_path, "arc-welder", "--recording", str(direct), "--speed", "40",
+                              "--corrupt", "0.01", "--noise", "0.02", "--drop", "0.0005", "--seed", "9")
+    out = tmp_path / "acq.mcap"
+    s = acquire(tmp_path, devices, out, "--max-s", "60")
+    rep = finish_sim(proc, tmp_path)
+    dev, sent = s["devices"]["bridge"], rep["devices"]["bridge"]
+    damaged = set(sent["damaged_seqs"])
+    assert len(damaged) > 0.2 * sent["frames"]  # the impairment really happened
+    # rebuild what the device sent, frame by frame
+    rec = read_recording(direct)
+    t0 = rec.messages["/robot/joint_state"][0]["timestamp_ns"]
+    stream = device_streams(rec, Clock(t0=t0), batch=1)["bridge"]
+    last = dev["last_seq"]  # the host stops reading once the campaign is complete
+    clean = [k for k in range(last + 1) if k not in damaged]
+    # every damaged frame between clean ones is counted missing (with its position)
+    inner_damaged = {k for k in damaged if min(clean) < k < last}
+    assert dev["missing_frames"] == len(inner_damaged)
+    assert dev["frames"] == len(clean)
+    missing = {m for first, n, _ in dev["missing_ranges"] for m in range(first, first + n)}
+    assert missing == inner_damaged
+    assert dev["bad_frames"] > 0 and dev["garbage_bytes"] > 0
+    # the recorded samples are exactly those of the clean SAMPLES frames, bit for bit
+    want_t, want_q = [], []
+    for k in clean:
+        if stream.kinds[k] == P.FrameType.SAMPLES:
+            (f,), _ = P.FrameDecoder().feed(stream.frames[k])
+            t, q = P.decode_samples(f.payload)
+            want_t.append(t)
+            want_q.append(q)
+    got = read_recording(out)
+    msgs = got.messages["/robot/joint_state"]
+    assert np.array_equal(np.concatenate([m["device_timestamps_ns"] for m in msgs]), np.concatenate(want_t))
+    assert np.array_equal(np.concatenate([m["positions"] for m in msgs]), np.concatenate(want_q))
+    want_contacts = [P.decode_event(P.FrameDecoder().feed(stream.frames[k])[0][0].payload)[2]["face"]
+                     for k in clean if stream.kinds[k] == P.FrameType.EVENT]
+    assert len(got.messages.get("/touch/contact", [])) == len(want_contacts)
+    assert [m["face"] for m in got.messages.get("/touch/contact", [])] == want_contacts
+
+
+def test_disconnects_are_retried_and_logged_as_gaps(tmp_path):
+    direct = simulate(tmp_path, "arc-welder", ["--contacts", "10", "--seed", "2"])
+    proc, devices = start_sim(tmp_path, "arc-welder", "--recording", str(direct), "--speed", "25",
+                              "--disconnect-every", "1.0", "--disconnect-for", "0.4")
+    out = tmp_path / "acq.mcap"
+    s = acquire(tmp_path, devices, out, "--max-s", "60")
+    rep = finish_sim(proc, tmp_path)
+    dev, sent = s["devices"]["bridge"], rep["devices"]["bridge"]
+    assert s["stop_reason"] == "campaign complete"
+    assert len(sent["disconnects"]) >= 2
+    assert len(dev["gaps"]) == len(sent["disconnects"])
+    assert dev["missing_frames"] == len(sent["lost_seqs"]) and dev["bad_frames"] == 0
+    rec = read_recording(out)
+    assert rec.complete
+    gaps = [v for k, v in rec.metadata.items() if k.startswith("robocal.acquisition.gap.")]
+    assert len(gaps) == len(sent["disconnects"])
+    for g, (down, up) in zip(sorted(gaps, key=lambda g: g["start_ns"]), sent["disconnects"]):
+        assert g["device"] == "bridge" and g["end_ns"] > g["start_ns"]
+        assert abs(g["start_ns"] - down) < 0.3e9 and g["end_ns"] >= up - 0.3e9
+    ts = np.concatenate([m["timestamps_ns"] for m in rec.messages["/robot/joint_state"]])
+    assert np.all(np.diff(ts) > 0)
+    assert np.diff(ts).max() > 0.3e9  # the gap is visible in the stream
+
+
+def test_device_sim_simulates_the_campaign_itself(tmp_path):
+    """Without --recording, device-sim runs `robocal simulate SYSTEM` with the same seed."""
+    direct = simulate(tmp_path, "arc-welder", ["--contacts", "10", "--seed", "4"])
+    proc, devices = start_sim(tmp_path, "arc-welder", "--seed", "4", "--sim-args", "--contacts 10",
+                              "--speed", "60", "--batch", "8")
+    out = tmp_path / "acq.mcap"
+    acquire(tmp_path, devices, out)
+    finish_sim(proc, tmp_path)
+    a, b = read_recording(direct), read_recording(out)
+    assert [m["joint_positions"] for m in a.messages["/touch/contact"]] == \
+        [m["joint_positions"] for m in b.messages["/touch/contact"]]

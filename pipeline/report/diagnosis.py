@@ -45,9 +45,11 @@ def _numeric(v: Any, n: int | None = None) -> np.ndarray | None:
     return a if a.ndim == 1 else None
 
 
-def _as_plot(d: dict, title: str) -> PlotSpec | None:
+def _as_plot(d: dict, title: str, marked: bool = False) -> PlotSpec | None:
+    """A plot: ``x`` plus same-length series, and either under a ``plot``/``plots`` key (`marked`) or
+    labelled (``x_label`` or ``series``) — so that e.g. a parameter vector ``x`` is not taken for one."""
     x = _numeric(d.get("x"))
-    if x is None:
+    if x is None or not (marked or "x_label" in d or isinstance(d.get("series"), dict)):
         return None
     src = d.get("series") if isinstance(d.get("series"), dict) else d
     series = {k: a for k, v in src.items() if k not in ("x",) and (a := _numeric(v, x.size)) is not None}
@@ -57,21 +59,22 @@ def _as_plot(d: dict, title: str) -> PlotSpec | None:
                     x=x, series=series, y_label=str(d.get("y_label") or ""))
 
 
-def find_plots(doc: Any, title: str = "diagnosis", depth: int = 0) -> list[PlotSpec]:
+def find_plots(doc: Any, title: str = "diagnosis", depth: int = 0, marked: bool = False) -> list[PlotSpec]:
     """Every plot-shaped object in the diagnosis document (depth-first, document order)."""
     if depth > 6:
         return []
     out: list[PlotSpec] = []
     if isinstance(doc, dict):
-        p = _as_plot(doc, title)
+        p = _as_plot(doc, title, marked)
         if p is not None:
             return [p]
         label = str(doc.get("effect") or doc.get("name") or title)
         for k, v in doc.items():
-            out += find_plots(v, label if k in ("plot", "plots") else f"{label}: {k}", depth + 1)
+            plot_key = k in ("plot", "plots")
+            out += find_plots(v, label if plot_key else f"{label}: {k}", depth + 1, plot_key)
     elif isinstance(doc, list):
         for v in doc:
-            out += find_plots(v, title, depth + 1)
+            out += find_plots(v, title, depth + 1, marked)
     return out
 
 

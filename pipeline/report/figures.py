@@ -180,12 +180,22 @@ def provenance(art: RunArtefacts, version: str, params: dict[str, Any]) -> dict[
         "input_sha256": art.source.get("sha256"),
         "input_path": art.source.get("path"),
         "robocal_version": version,
-        "metadata": {k: v.get("name") if isinstance(v, dict) else v for k, v in (rec.get("metadata") or {}).items()},
+        "metadata": {k: _brief(v) for k, v in (rec.get("metadata") or {}).items()},
         "stages": {s: {"params": d.get("params", {}), "key": d.get("key"), "elapsed_s": d.get("elapsed_s"),
                        "robocal_version": d.get("robocal_version")} for s, d in art.stages.items()},
         "report_params": params,
         "warnings": list(rec.get("warnings", []) or []),
     }
+
+
+def _brief(v: Any) -> str:
+    """A metadata record in one line: its name, else its system, else its scalar fields."""
+    if not isinstance(v, dict):
+        return str(v)
+    if v.get("name"):
+        return str(v["name"])
+    scalars = {k: x for k, x in v.items() if isinstance(x, (str, int, float, bool))}
+    return ", ".join(f"{k}={x}" for k, x in scalars.items())[:300]
 
 
 def results_figures(art: RunArtefacts) -> dict[str, Any]:

@@ -185,12 +185,30 @@ def summary_markdown(art: RunArtefacts, figures: dict[str, Any]) -> str:
     ])
 
 
+def diagnosis_markdown(doc: dict) -> str:
+    """Findings, not-identifiable effects and unexplained structure of diagnosis.json as markdown."""
+    from pipeline.report.diagnosis import finding_rows
+
+    lines = ["# Diagnosis", ""]
+    rows = finding_rows(doc)
+    lines += [f"- **{r['effect']}** at {r['location']}: {r['parameters']} ({r['confidence']})" for r in rows] or [
+        "No finding: no left-out effect detected."]
+    b, a = doc.get("holdout_rms_before_m"), doc.get("holdout_rms_after_m")
+    if isinstance(b, (int, float)) and isinstance(a, (int, float)):
+        lines += ["", f"Held-out RMS {b * 1e3:.4f} mm → {a * 1e3:.4f} mm."]
+    where = doc.get("unexplained_where") or []
+    if where:
+        lines += ["", "Unexplained structure in: " + ", ".join(str(w.get("variable")) for w in where)]
+    return "\n".join(lines)
+
+
 def blueprint(has_scene: bool) -> rrb.Blueprint:
     """Layout: 3-D scene left; encoder, residuals and solver/summary right; time panel on `time`."""
     right = rrb.Vertical(
         rrb.TimeSeriesView(origin="/encoder", name="Encoder stream (rad)"),
         rrb.TimeSeriesView(origin="/residuals", name="Residuals per face/channel (mm)"),
         rrb.Tabs(rrb.TextDocumentView(origin="/summary", name="Summary"),
+                 rrb.TextDocumentView(origin="/diagnosis", name="Diagnosis"),
                  rrb.TimeSeriesView(origin="/solver", name="Solver RMS per evaluation (mm), timeline: iteration")),
     )
     if has_scene:
@@ -216,6 +234,10 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     rec.log("summary", rr.TextDocument(summary_markdown(art, figures), media_type=rr.MediaType.MARKDOWN), static=True)
     entities.append("summary")
+    if isinstance(art.diagnosis, dict):
+        rec.log("diagnosis", rr.TextDocument(diagnosis_markdown(art.diagnosis), media_type=rr.MediaType.MARKDOWN),
+                static=True)
+        entities.append("diagnosis")
     if art.encoder is not None:
         entities += log_encoder(rec, art.encoder)
     entities += log_residual_series(rec, art)

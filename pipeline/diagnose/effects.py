@@ -239,6 +239,9 @@ PLAUSIBLE = {
 }
 
 
+MIN_SPEED_SPREAD = 1.5  # approach speeds must span this ratio for latency to be told from pretravel
+
+
 def touch_library(arm: SerialArm, table: Table, jig_tolerance_m: float = 2e-5) -> list[Effect]:
     """Every candidate effect of the arc-welder touch campaign (module docstring)."""
     nj = arm.n_joints
@@ -271,8 +274,13 @@ def touch_library(arm: SerialArm, table: Table, jig_tolerance_m: float = 2e-5) -
                       "tip", _drift, 70, "time", ADVICE["thermal_drift"], confounders=("face_offset",)))
     lib.append(Effect("trigger_pretravel", "touch sensor", ("pretravel",), ("m",), P["trigger_pretravel"], "tip",
                       _pretravel, 80, "approach", ADVICE["trigger_pretravel"]))
+    speed = np.linalg.norm(tip_speed_vector(arm.vector(), table), axis=1) if "approach_joint_velocity" in table else None
+    spread = float(np.percentile(speed, 90) / max(np.percentile(speed, 10), 1e-12)) if speed is not None else 1.0
+    blocked = {} if spread >= MIN_SPEED_SPREAD else {
+        "blocked": f"the approach speed hardly varies (90th/10th percentile ratio {spread:.2f}): latency acts "
+                   f"like pretravel", "absorbed_by": "trigger_pretravel"}
     lib.append(Effect("trigger_latency", "touch sensor", ("latency",), ("s",), P["trigger_latency"], "tip", _latency,
-                      85, "approach", ADVICE["trigger_latency"], confounders=("trigger_pretravel",)))
+                      85, "approach", ADVICE["trigger_latency"], confounders=("trigger_pretravel",), data=blocked))
     for f in sorted(set(np.asarray(table["face"]).astype(str))):
         lib.append(Effect("face_offset", f, (f"offset_{f}",), ("m",), P["face_offset"], "coordinate", _face(f), 90,
                           "face", ADVICE["face_offset"], tolerance=jig_tolerance_m))

@@ -122,6 +122,9 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
             smin = float(sv[-1]) if sv.size == e.k else 0.0
             if smin < RANK_REL * np.sqrt(tot):
                 smin = 0.0
+        if e.data.get("blocked"):  # the library knows this campaign cannot expose it
+            smin = 0.0
+            conf_label = e.data.get("absorbed_by", "")
         mds = np.inf if smin == 0 else z * sigma / smin + e.tolerance
         ok = bool(np.isfinite(mds) and mds <= e.plausible)
         if conf_label:
@@ -131,6 +134,8 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
             kept.append(i)
         elif tot == 0:
             reason = "no effect on these measurements"
+        elif e.data.get("blocked"):
+            reason = e.data["blocked"]
         elif conf_label:
             reason = f"indistinguishable from {conf_label} in this campaign"
         elif smin == 0:

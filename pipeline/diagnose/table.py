@@ -41,15 +41,24 @@ def last_motion_sign(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, threshold_r
 
 
 def approach_velocity(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, lead_s: float = 0.004,
-                      span_s: float = 0.2) -> np.ndarray:
-    """Joint velocity (n, nj) rad/s over [t − lead − span, t − lead]: the approach just before
-    each measurement (the window ends before the arm stops after the latch)."""
+                      span_s: float = 0.2, short_s: float = 0.04) -> np.ndarray:
+    """Joint velocity (n, nj) rad/s just before each measurement (the window ends `lead_s`
+    before it, before the arm stops after the latch).  The long window `span_s` averages the
+    encoder quantisation away; where it disagrees with the short window `short_s` by more than
+    10 % (a search shorter than the long window) the short one is used."""
     t_ns = np.asarray(t_ns, np.int64)
     ts = (t - t[0]) * 1e-9
     tm = (t_ns - t[0]) * 1e-9
-    a, b = tm - lead_s - span_s, tm - lead_s
-    return np.stack([(np.interp(b, ts, q[:, j]) - np.interp(a, ts, q[:, j])) / span_s
-                     for j in range(q.shape[1])], axis=1)
+
+    def over(span):
+        a, b = tm - lead_s - span, tm - lead_s
+        return np.stack([(np.interp(b, ts, q[:, j]) - np.interp(a, ts, q[:, j])) / span
+                         for j in range(q.shape[1])], axis=1)
+
+    long_, short = over(span_s), over(short_s)
+    nl, ns = np.linalg.norm(long_, axis=1), np.linalg.norm(short, axis=1)
+    agree = np.abs(nl - ns) <= 0.1 * np.maximum(ns, 1e-12)
+    return np.where(agree[:, None], long_, short)
 
 
 def payload_at(t_ns: np.ndarray, schedule: list[dict] | None, default_kg: float) -> np.ndarray:

@@ -25,12 +25,13 @@ def file_sha256(path: Path) -> str:
 
 
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
-              seed: int = 0, solver: str = "lm", joint_offsets: bool = False) -> dict:
+              seed: int = 0, solver: str = "lm", joint_offsets: bool = False, variant: str | None = None) -> dict:
     """Read, identify, cross-validate; write DIR/results.json and DIR/model.json.
 
     `solver`: 'lm' (least squares, default) or 'ga' (seed 001's genetic algorithm, for systems
     whose model offers `batch_cost_fn`).  `joint_offsets`: also identify the arm's joint
-    offsets (systems whose model has a `joint_offsets` field)."""
+    offsets (systems whose model has a `joint_offsets` field).  `variant`: the model variant
+    (systems whose model has a `variant` field, e.g. delta-tracker: simplified, extended)."""
     t0 = time.perf_counter()
     path, out = Path(path), Path(out)
     rec = read_recording(path)
@@ -41,6 +42,14 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
             raise RobocalError(f"{path}: system {system.SYSTEM} does not support --joint-offsets")
         import dataclasses
         model = dataclasses.replace(model, joint_offsets=True)
+    if variant is not None:  # e.g. the Delta's "extended" error model
+        if not hasattr(model, "variant"):
+            raise RobocalError(f"{path}: system {system.SYSTEM} has no model variants (--model-variant)")
+        import dataclasses
+        try:
+            model = dataclasses.replace(model, variant=variant)
+        except ValueError as e:
+            raise RobocalError(f"{path}: {e}") from None
     if solver == "ga":
         from pipeline.identify.genetic import cross_validate_ga, fit_ga
         if not hasattr(model, "batch_cost_fn"):

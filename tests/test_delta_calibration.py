@@ -199,3 +199,16 @@ def test_malformed_records_are_named(tmp_path):
 def test_simulate_cli_rejects_a_bad_truth_model(tmp_path):
     r = run_cli("simulate", "delta-tracker", "--out", tmp_path / "x.mcap", "--truth-model", "exact")
     assert r.returncode == 2 and "--truth-model" in r.stderr
+
+
+def test_calibrate_cli_extended_variant(tmp_path):
+    rec, out = tmp_path / "full.mcap", tmp_path / "out"
+    assert run_cli("simulate", "delta-tracker", "--out", rec, "--truth-model", "full", "--noise-scale", "0",
+                   "--seed", "2").returncode == 0
+    r = run_cli("calibrate", rec, "--out", out, "--model-variant", "extended")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((out / "results.json").read_text())
+    assert doc["n_parameters"] == 43 and doc["rms_after_m"] < 1e-7
+    assert json.loads((out / "model.json").read_text())["error_model"] == "extended"
+    r = run_cli("calibrate", rec, "--out", out, "--model-variant", "bogus")
+    assert r.returncode == 2 and "unknown Delta model variant" in " ".join(r.stderr.split())

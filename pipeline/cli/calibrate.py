@@ -21,6 +21,8 @@ def calibrate_cmd(
                                    help="Smallest remaining norm of a kept unit-norm Jacobian column (rank test)."),
     solver: str = typer.Option("lm", "--solver", help="lm (least squares, default) or ga (seed 001's genetic algorithm)."),
     joint_offsets: bool = typer.Option(False, "--joint-offsets", help="Also identify the arm's joint offsets (scanner)."),
+    variant: str = typer.Option(None, "--model-variant",
+                                help="Model variant of the system (delta-tracker: simplified, extended)."),
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows
@@ -28,7 +30,7 @@ def calibrate_cmd(
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,
-                        joint_offsets=joint_offsets)
+                        joint_offsets=joint_offsets, variant=variant)
     for w in doc["warnings"]:
         err.print(f"[yellow]warning:[/] {w}", highlight=False)
     t = Table(title=f"robocal calibrate — {recording.name}")

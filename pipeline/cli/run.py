@@ -77,6 +77,7 @@ def run_cmd(
     flag: Optional[float] = typer.Option(None, "--flag-outliers", help="validate: flag residuals beyond this many robust σ (default 6)."),
     gap_factor: Optional[float] = typer.Option(None, "--gap-factor", help="validate: a gap is this many sample periods (default 5)."),
     force: bool = FORCE,
+    only: Optional[str] = typer.Option(None, "--stages", help="Comma-separated stages to run (default: all available)."),
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached."""
@@ -86,7 +87,8 @@ def run_cmd(
 
     t0 = time.perf_counter()
     try:
-        outs = run_pipeline(recording, out, _params(loss, f_scale, reject, folds, flag, gap_factor), force=force, log=_log)
+        outs = run_pipeline(recording, out, _params(loss, f_scale, reject, folds, flag, gap_factor), force=force, log=_log,
+                            stages=[s.strip() for s in only.split(",")] if only else None)
     finally:
         _summary(out)
     n_cached = sum(o.cached for o in outs)

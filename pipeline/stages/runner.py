@@ -130,6 +130,8 @@ def input_keys(run_dir: Path, stage: Stage, recording: Path | None = None) -> di
 def run_stage(run_dir: Path, name: str, params: dict | None = None, recording: Path | None = None,
               force: bool = False, log: Callable[[str], None] | None = None) -> Outcome:
     """Run one stage unless it is cached.  Raises StageFailed when its summary says fail."""
+    if name not in BY_NAME:
+        raise RobocalError(f"unknown stage {name!r} (stages: {', '.join(BY_NAME)})")
     stage = BY_NAME[name]
     run_dir = Path(run_dir)
     if not is_available(stage):

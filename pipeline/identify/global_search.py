@@ -111,7 +111,7 @@ def multistart(batch_residuals: Callable[[np.ndarray], np.ndarray], lower: np.nd
     best = int(np.argmin(costs_a))
     # polish the winner: flat valleys (weak directions) need more iterations than the screening
     sol = least_squares(fun, finals_a[best], jac=jac, bounds=(lower, upper), method="trf", x_scale=width,
-                        max_nfev=20 * max_nfev, xtol=1e-15, ftol=1e-15, gtol=1e-15)
+                        max_nfev=10 * max_nfev, xtol=1e-15, ftol=1e-15, gtol=1e-15)
     if np.sum(sol.fun**2) <= costs_a[best]:
         finals_a[best], costs_a[best] = sol.x, float(np.sum(sol.fun**2))
     return SearchResult(z=finals_a[best], cost=float(costs_a[best]), starts=starts, finals=finals_a,

@@ -96,16 +96,6 @@ def run_cmd(
     err.print(f"{what} ({time.perf_counter() - t0:.2f} s); results: {out / 'results.json'}")
 
 
-def _stage_cmd(name: str, doc: str):
-    def cmd(out: Path, params: dict, force: bool, recording: Path | None = None) -> None:
-        from pipeline.stages.runner import run_stage
-
-        run_stage(out, name, params, recording=recording, force=force, log=_log)
-        _summary(out)
-    cmd.__doc__ = doc
-    return cmd
-
-
 @app.command("ingest")
 def ingest_cmd(recording: Path = typer.Argument(..., help="Recording (MCAP)."),
                out: Path = typer.Option(..., "--out", help="Run folder."), force: bool = FORCE) -> None:
@@ -126,7 +116,7 @@ def validate_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after 
                  force: bool = FORCE) -> None:
     """Named checks (schema, time, duplicates, NaN/inf, joint limits, faces, outliers) → DIR/validate/."""
     from pipeline.stages.artefacts import read_json
-    from pipeline.stages.runner import StageFailed, run_stage
+    from pipeline.stages.runner import run_stage
 
     try:
         run_stage(out, "validate", _params(None, None, None, None, flag, gap_factor)["validate"], force=force, log=_log)
@@ -137,7 +127,6 @@ def validate_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after 
             for c in read_json(p)["checks"]:
                 if c["status"] != "pass":
                     err.print(f"[{colour[c['status']]}]{c['status']}[/] {c['name']}: {c['message']}", highlight=False, soft_wrap=True)
-    _ = StageFailed
 
 
 @app.command("identify")

@@ -193,6 +193,9 @@ class Pty:
             pass
 
     def close(self) -> None:
+        """Unplug: the symlink goes first (as udev removes /dev/serial/by-id links), so a
+        host retrying never opens a recycled /dev/pts number that now belongs to another pty."""
+        self.link.unlink(missing_ok=True)
         if self.master >= 0:
             os.close(self.master)
             self.master = -1

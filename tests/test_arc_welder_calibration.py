@@ -45,6 +45,7 @@ def test_results_document_and_model_file(default_run):
     assert len(rows) == 42 and all({"nominal", "estimate", "std", "unit", "identifiable"} <= set(p) for p in rows.values())
     assert all(p["std"] > 0 for p in rows.values() if p["identifiable"])
     assert all(p["reason"] for p in rows.values() if not p["identifiable"])
+    assert all(p["estimate"] == p["nominal"] for p in rows.values() if not p["identifiable"])  # fixed means fixed
     assert rows["tool.rz"]["reason"].startswith("no effect")
     # the 3-D accuracy a user gets is worse than the along-normal residual, and is reported
     assert "touch fixes one" in res["predicted_point_accuracy"]["note"]

@@ -88,16 +88,18 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
     # Seed 000 re-eliminates dependent parameters at every iteration (eq. 57): a dependency
     # that holds only at the nominal geometry (e.g. a tool tip exactly on the last joint
     # axis) is lifted once the estimate moves off it.  Re-test at each solution until the
-    # free set is stable.
-    for _round in range(4):
+    # free set is stable.  Parameters that the re-test fixes go back to their start value,
+    # so a fixed parameter always reads as fixed.
+    for round_ in range(4):
         sol = _solve(model, data, x, ident.free, options, history)
         nfev += int(sol.nfev)
         x = x.copy()
         x[ident.free] = sol.x
         again = analyse(_flat_jac(model, x, data), names, fixed, priority, options.rank_tol)
-        if np.array_equal(again.free, ident.free):
+        if np.array_equal(again.free, ident.free) or round_ == 3:
             break
         ident = again
+        x[~ident.free] = x0[~ident.free]
     free = ident.free
     r1 = model.residuals(x, data)
     Jf = _flat_jac(model, x, data)[:, free]

@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/robocal calibrate recordings/arc-welder-touch.mcap --out runs/demo
+	$(BIN)/robocal run recordings/arc-welder-touch.mcap --out runs/demo
 
 test: $(STAMP) chromium
 	$(BIN)/python -m pytest -q

@@ -47,6 +47,12 @@ def _palette(n: int) -> list[tuple[int, int, int]]:
     return [base[i % len(base)] for i in range(n)]
 
 
+def entity_part(label: str) -> str:
+    """A group label as one entity-path part (a channel name such as /tracker/point → tracker_point)."""
+    part = "_".join(p for p in str(label).split("/") if p)
+    return part or "all"
+
+
 def _times(ns: np.ndarray) -> rr.TimeColumn:
     return rr.TimeColumn(TIMELINE, timestamp=np.asarray(ns, np.int64).astype("datetime64[ns]"))
 
@@ -76,7 +82,7 @@ def log_residual_series(rec: rr.RecordingStream, art: RunArtefacts) -> list[str]
             m = (groups == g) & np.all(np.isfinite(R), axis=1)
             if not m.any():
                 continue
-            path = f"residuals/{kind}_mm/{g}"
+            path = f"residuals/{kind}_mm/{entity_part(g)}"
             k = R.shape[1]
             names = [f"{g} {kind}"] if k == 1 else [f"{g} {kind} [{i}]" for i in range(k)]
             rec.log(path, rr.SeriesPoints(colors=[rgb] * k, names=names, marker_sizes=[3.0] * k), static=True)
@@ -123,6 +129,18 @@ def log_points(rec: rr.RecordingStream, model, table: dict, x_before: np.ndarray
         rec.reset_time()
         paths.append("world/tips/current")
     return paths
+
+
+def arm_vector(model, arm, x: np.ndarray) -> np.ndarray | None:
+    """The arm's own parameter vector inside the model's x: the model's `arm_vector(x)` if it has
+    one, else x itself or its leading slice when the parameter names match the arm's; else None."""
+    if hasattr(model, "arm_vector"):
+        return np.asarray(model.arm_vector(x), float)
+    names = arm.parameter_names()
+    have = list(model.parameter_names())
+    if have[: len(names)] == names:
+        return np.asarray(x, float)[: len(names)]
+    return None
 
 
 def log_arm(rec: rr.RecordingStream, arm, x_after: np.ndarray, table: dict,
@@ -254,8 +272,15 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
         entities += log_points(rec, model, table, x_before, x_after, residual_matrix(art.residuals, "after"))
         arm = getattr(model, "arm", None)
         if arm is not None and hasattr(arm, "joints") and "joint_positions" in table:
-            entities += log_arm(rec, arm, x_after, table, art.encoder)
-        hook = call_system_hook(rec, art.system, model, table, x_before, x_after, art)
+            x_arm = arm_vector(model, arm, x_after)
+            if x_arm is None:
+                warnings.append("the model's parameters do not start with its arm's: arm drawn from the hook only")
+            else:
+                entities += log_arm(rec, arm, x_arm, table, art.encoder)
+        try:
+            hook = call_system_hook(rec, art.system, model, table, x_before, x_after, art)
+        except Exception as e:  # a drawing hook must not lose the rest of the recording
+            warnings.append(f"system hook for {art.system} failed: {type(e).__name__}: {e}")
     rec.send_blueprint(blueprint(built is not None))
     rec.flush()
     rec.disconnect()

@@ -164,6 +164,8 @@ class Pty:
 
     def host_open(self) -> bool:
         """The host has the slave open (no hang-up on the master)."""
+        if self.master < 0:
+            return False
         p = select.poll()
         p.register(self.master, select.POLLOUT)
         ev = p.poll(0)
@@ -254,6 +256,9 @@ def play(streams: dict[str, DeviceStream], link_dir: Path, speed: float = 1.0, i
     i, n = 0, t.size
     while i < n:
         now = time.monotonic()
+        left_s = (t[-1] - t[0]) / speed / 1e9 - (now - wall0)
+        if now >= next_disc and left_s < imp.disconnect_for_s + 1.0:
+            next_disc = float("inf")  # no unplugging at the very end: the campaign end must get through
         if now >= next_disc and imp.disconnect_device in ptys:
             p = ptys[imp.disconnect_device]
             p.close()

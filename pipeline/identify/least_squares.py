@@ -14,7 +14,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from pipeline.identify.identifiability import RANK_TOL, Identifiability, analyse
-from pipeline.identify.model import MeasurementModel, Table, n_rows, take
+from pipeline.identify.model import MeasurementModel, Table, n_rows, take, uncalibrated
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
         raise ValueError(f"cannot fix unknown parameters: {sorted(unknown)}")
     fixed = np.array([n in options.fixed for n in names])
     priority = getattr(model, "priority", lambda: None)()
-    r0 = model.residuals(x0, data)
+    r0 = model.residuals(uncalibrated(model, data), data)  # "before": the uncalibrated system
     history: list[float] = []
     x = x0.copy()
     ident = analyse(_flat_jac(model, x0, data), names, fixed, priority, options.rank_tol)

@@ -28,6 +28,18 @@ def take(table: Table, idx: np.ndarray) -> dict[str, np.ndarray]:
     return {k: np.asarray(v)[idx] for k, v in table.items()}
 
 
+def uncalibrated(model: "MeasurementModel", table: Table) -> np.ndarray:
+    """The parameters of the system before calibration — the reference of every "RMS before".
+
+    The nominal model, plus what must be known before any comparison is possible (a laser
+    tracker's registration to the robot base): a model offers that through an optional
+    ``uncalibrated(table)`` method.  A solver's data-driven start (`initial_guess`) is not
+    this: it may already be fitted.
+    """
+    hook = getattr(model, "uncalibrated", None)
+    return np.asarray(hook(table), float) if hook is not None else model.nominal()
+
+
 @runtime_checkable
 class MeasurementModel(Protocol):
     """A calibration system's model of its measurements (see module docstring)."""

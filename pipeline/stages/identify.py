@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.identify.least_squares import FitOptions, cross_validate, point_accuracy
-from pipeline.identify.model import take
+from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.outliers import fit_rejecting
 from pipeline.identify.results import parameter_table
 from pipeline.ingest.tables import model_columns
@@ -50,7 +50,7 @@ def run(run_dir: Path, params: dict) -> dict:
     tip_sigma = point_accuracy(model, f, kept_data)
 
     n, k = len(table["record"]), model.residual_dim
-    before = model.residuals(model.nominal(), data).reshape(n, k)  # the nominal model, not the solver's start
+    before = model.residuals(uncalibrated(model, data), data).reshape(n, k)  # not the solver's start
     after = model.residuals(f.x, data).reshape(n, k)
     holdout = np.full((n, k), np.nan)
     holdout[rf.kept] = holdout_kept

@@ -214,6 +214,11 @@ class TrackerModel:
         x[self.n_beta: self.n_beta + 6] = register(self.reflector(x, data["joint_positions"]), data["point"])
         return x
 
+    def uncalibrated(self, data: Table) -> np.ndarray:
+        """Before calibration: the nominal Delta seen through the closed-form registration
+        (without it no tracker point can be compared with the robot)."""
+        return self.initial_guess(data)
+
     def describe(self, x: np.ndarray) -> dict:
         """Robot model JSON: the nominal Delta plus the identified error parameters."""
         beta, reg, h = self._split(x)

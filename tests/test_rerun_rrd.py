@@ -147,3 +147,21 @@ def test_blueprint_lays_out_the_views(report_run):  # noqa: F811
             assert b.column("TimePanelBlueprint:timeline").to_pylist()[-1] in ("time", ["time"])
     assert {"3D", "TimeSeries"} <= kinds, kinds
     assert {"/world", "/encoder", "/residuals", "/solver"} <= origins, origins
+
+
+def test_artefacts_shaped_as_the_documented_contract(report_run, tmp_path):  # noqa: F811
+    """The report also reads artefacts written exactly as docs/pipeline-artefacts.md describes them
+    (q_<joint> columns, history as a list, sha256 at the top of recording.json)."""
+    from pipeline.report.artefacts import load_run
+    from pipeline.report.html import diagnosis_section
+    from pipeline.report.stage import run
+    from report_support import make_run
+
+    d = make_run(_RUN["recording"], tmp_path / "run", diagnosis=True)
+    out = run(d, {"html": False})
+    assert out["n_measurements"] == 40 and out["rms_after_m"] < out["rms_before_m"] / 10
+    art = load_run(d)
+    assert set(art.joint_columns()) == {f"J{i}" for i in range(1, 7)} and len(art.history) > 3
+    assert "fig-diagnosis-0" in diagnosis_section(art)
+    rrd = _read(d / "run.rrd")
+    assert {"world/jig/blocks", "world/tips/calibrated", "world/robot/live", "encoder/joints", "diagnosis"} <= set(rrd)

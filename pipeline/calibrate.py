@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import json
 import time
 from pathlib import Path
@@ -13,15 +12,8 @@ from pipeline.errors import RobocalError
 from pipeline.identify.least_squares import FitOptions, cross_validate, fit, point_accuracy
 from pipeline.identify.results import results_document
 from pipeline.recording.reader import read_recording
+from pipeline.stages.artefacts import sha256_file
 from pipeline.systems.registry import detect
-
-
-def file_sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
@@ -63,7 +55,7 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         raise RobocalError(f"unknown solver {solver!r} (expected lm or ga)")
     tip_sigma = point_accuracy(model, f, table)
     doc = results_document(system.SYSTEM, f, holdout, tip_sigma, elapsed_s=time.perf_counter() - t0,
-                           source={"path": str(path), "sha256": file_sha256(path)}, warnings=list(rec.warnings),
+                           source={"path": str(path), "sha256": sha256_file(path)}, warnings=list(rec.warnings),
                            k_folds=k_folds)
     doc["solver"] = solver
     if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures
@@ -91,4 +83,4 @@ def summary_rows(doc: dict) -> list[tuple[str, str]]:
     ]
 
 
-__all__ = ["calibrate", "summary_rows", "file_sha256", "np"]
+__all__ = ["calibrate", "summary_rows"]

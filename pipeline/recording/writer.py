@@ -15,9 +15,12 @@ from pipeline.recording.schemas import CHANNELS, schema_bytes, schema_title
 PROFILE = "robocal"
 
 
-def _default(o: Any) -> Any:
+def jsonable(o: Any) -> Any:
+    """`json.dumps` default for numpy values: arrays become lists, scalars Python numbers."""
     if isinstance(o, np.ndarray):
         return o.tolist()
+    if isinstance(o, np.bool_):
+        return bool(o)
     if isinstance(o, np.integer):
         return int(o)
     if isinstance(o, np.floating):
@@ -27,7 +30,7 @@ def _default(o: Any) -> Any:
 
 def encode(msg: dict) -> bytes:
     """Compact JSON (numpy arrays become lists)."""
-    return json.dumps(msg, separators=(",", ":"), default=_default, allow_nan=False).encode()
+    return json.dumps(msg, separators=(",", ":"), default=jsonable, allow_nan=False).encode()
 
 
 class RecordingWriter:
@@ -65,7 +68,7 @@ class RecordingWriter:
 
     def metadata(self, name: str, value: dict | str) -> None:
         """A metadata record; dicts are stored as {'json': <compact JSON>}."""
-        data = {"json": value if isinstance(value, str) else json.dumps(value, separators=(",", ":"), default=_default)}
+        data = {"json": value if isinstance(value, str) else json.dumps(value, separators=(",", ":"), default=jsonable)}
         self._w.add_metadata(name, data)
 
     def flush_chunk(self) -> None:

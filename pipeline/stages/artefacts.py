@@ -17,21 +17,15 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from pipeline.recording.writer import jsonable
+
 VECTORS_KEY = b"robocal.vectors"
 
 
 def _jsonable(o: Any) -> Any:
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.integer):
-        return int(o)
-    if isinstance(o, np.floating):
-        return float(o)
-    if isinstance(o, np.bool_):
-        return bool(o)
     if isinstance(o, Path):
         return str(o)
-    raise TypeError(f"cannot encode {type(o).__name__}")
+    return jsonable(o)
 
 
 def dumps(doc: Any) -> str:
@@ -63,11 +57,9 @@ def read_json(path: Path) -> Any:
 
 
 def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
+    """Hex SHA-256 of a file's bytes."""
     with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def to_arrow(table: Mapping[str, np.ndarray]) -> pa.Table:

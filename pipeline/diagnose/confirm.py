@@ -10,6 +10,7 @@ the full-data solution, which is exact to first order and costs a few small leas
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -20,10 +21,15 @@ from pipeline.models import serial_arm
 
 @dataclass(frozen=True)
 class AugmentedModel:
-    """`base` (a serial-arm measurement model with `.arm`) plus accepted effects."""
+    """`base` (a measurement model) plus accepted effects.
+
+    `signatures(x, data, effects)` → list of (n, residual_dim, k_e) m/unit per effect at
+    geometric parameters x; without it, `base` is a serial-arm touch model (`.arm`) and the
+    arc-welder signatures of `pipeline.diagnose.effects` are used."""
 
     base: object
     effects: tuple[Effect, ...]
+    signatures: Callable | None = None
 
     @property
     def system(self) -> str:
@@ -51,17 +57,22 @@ class AugmentedModel:
         return np.concatenate([geo, np.full(sum(e.k for e in self.effects), 3)])
 
     def _S(self, x: np.ndarray, data) -> np.ndarray:
+        """Effect columns (n, residual_dim, Σk_e) at geometric parameters x."""
+        if self.signatures is not None:
+            cols = self.signatures(x, data, self.effects)
+            n = np.asarray(data["joint_positions"]).shape[0]
+            return np.concatenate(cols, axis=2) if cols else np.zeros((n, self.residual_dim, 0))
         _, Jq = serial_arm.joint_jacobian(x, data["joint_positions"])
         cols = [signature(e, self.base.arm, x, data, Jq) for e in self.effects]
-        return np.hstack(cols) if cols else np.zeros((len(data["axis"]), 0))
+        return (np.hstack(cols) if cols else np.zeros((len(data["axis"]), 0)))[:, None, :]
 
     def residuals(self, z: np.ndarray, data) -> np.ndarray:
         x, th = z[: self.n_geom], z[self.n_geom:]
-        return self.base.residuals(x, data) + (self._S(x, data) @ th)[:, None]
+        return self.base.residuals(x, data) + np.einsum("nkc,c->nk", self._S(x, data), th)
 
     def jacobian(self, z: np.ndarray, data) -> np.ndarray:
         x = z[: self.n_geom]
-        return np.concatenate([self.base.jacobian(x, data), self._S(x, data)[:, None, :]], axis=2)
+        return np.concatenate([self.base.jacobian(x, data), self._S(x, data)], axis=2)
 
     def points(self, z: np.ndarray, data):
         return self.base.points(z[: self.n_geom], data)

@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
-from pipeline.diagnose import confirm, lack_of_fit
+from pipeline.diagnose import confirm, lack_of_fit, visual
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
 from pipeline.diagnose.select import forward_select, gate, orthonormal, project_out
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
@@ -42,27 +43,85 @@ class Settings:
     max_terms: int = 8
 
 
+@dataclass(frozen=True)
+class Adapter:
+    """What is system-specific in a diagnosis (everything else is shared).
+
+    - `library`: the candidate effects;
+    - `signatures(x, data, effects)`: list of (n, residual_dim, k_e) residual change per unit
+      parameter of each effect at geometric parameters x (m/unit);
+    - `variables(x)`: lack-of-fit `Variable`s whose rows are the flattened residual rows
+      (measurement-major, n·residual_dim);
+    - `time_s` (n,): time since start (s), for cross-validation blocks;
+    - `located(effect)`: (label, values (n,)) — the variable an effect acts through, for the
+      added-variable plots (None: the measurement index).
+    """
+
+    library: list[Effect]
+    signatures: Callable[[np.ndarray, object, tuple], list[np.ndarray]]
+    variables: Callable[[np.ndarray], list]
+    time_s: np.ndarray
+    located: Callable[[Effect], tuple[str, np.ndarray] | None] = lambda e: None
+
+
+def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None) -> Adapter:
+    """The arc-welder touch campaign's adapter (`effects.touch_library`, joint/time/speed lack of fit)."""
+    arm = model.arm
+    lib = library if library is not None else touch_library(arm, table, jig_tolerance_m)
+    jn = [j.name for j in arm.joints]
+
+    def sigs(x, data, effects):
+        _, Jq = serial_arm.joint_jacobian(x, data["joint_positions"])
+        return [signature(e, arm, x, data, Jq)[:, None, :] for e in effects]
+
+    def variables(x):
+        speed = None
+        if "approach_joint_velocity" in table:
+            speed = np.linalg.norm(tip_speed_vector(x, table), axis=1)
+        return lack_of_fit.touch_variables(x, table, jn, speed)
+
+    def located(e: Effect):
+        if e.name == "backlash" and e.location in jn:
+            return f"last motion sign of {e.location}", np.asarray(table["last_motion_sign"])[:, jn.index(e.location)]
+        if e.variable.startswith("q_") and e.variable[2:] in jn:
+            return f"{e.variable[2:]} (rad)", np.asarray(table["joint_positions"])[:, jn.index(e.variable[2:])]
+        if e.variable == "time":
+            return "time since start (s)", np.asarray(table["time_since_start_s"], float)
+        if e.variable == "approach" and "approach_joint_velocity" in table:
+            return "approach speed (m/s)", np.linalg.norm(tip_speed_vector(arm.vector(), table), axis=1)
+        if e.variable == "face":
+            faces = np.asarray(table["face"]).astype(str)
+            return f"on face {e.location} (1) or not (0)", (faces == e.location).astype(float)
+        return None
+
+    return Adapter(lib, sigs, variables, np.asarray(table["time_since_start_s"], float), located)
+
+
 def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | None = None,
              settings: Settings = Settings(), library: list[Effect] | None = None,
-             geometry_fit: Fit | None = None) -> dict:
-    """Diagnose a touch campaign (module docstring).  `model` is a TouchModel; `table` a
-    diagnosis table (`pipeline.diagnose.table`)."""
+             geometry_fit: Fit | None = None, adapter: Adapter | None = None) -> dict:
+    """Diagnose a campaign (module docstring).  `model` is a measurement model; `table` a
+    diagnosis table.  Without `adapter`, `model` is an arc-welder TouchModel and the table a
+    touch diagnosis table (`pipeline.diagnose.table`).  Vector residuals (residual_dim k > 1)
+    are flattened measurement-major; cross-validation and bootstrap keep a measurement's k
+    rows together."""
     t0 = time.perf_counter()
     s = settings
-    arm = model.arm
+    ad = adapter or touch_adapter(model, table, jig_tolerance_m, library)
     f = geometry_fit or fit(model, table, FitOptions(x0=x0))
-    n = f.residuals_after.shape[0]
+    n, k = f.residuals_after.shape
+    nk = n * k
     x = f.x
     free = f.free
     names = f.names
-    free_names = [nm for nm, k in zip(names, free) if k]
-    Jf = model.jacobian(x, table)[:, 0, free]
-    r = f.residuals_after[:, 0]
-    dof = n - int(free.sum())
+    free_names = [nm for nm, b in zip(names, free) if b]
+    Jf = model.jacobian(x, table)[:, :, free].reshape(nk, -1)
+    r = f.residuals_after.reshape(nk)
+    dof = nk - int(free.sum())
     sigma = f.sigma
-    lib = library if library is not None else touch_library(arm, table, jig_tolerance_m)
-    _, Jq = serial_arm.joint_jacobian(x, table["joint_positions"])
-    S = [signature(e, arm, x, table, Jq) for e in lib]
+    lib = ad.library
+    S3 = ad.signatures(x, table, tuple(lib))
+    S = [sg.reshape(nk, -1) for sg in S3]
 
     # 2. gate
     gates = gate(lib, S, Jf, free_names, sigma, s.alpha)
@@ -75,15 +134,15 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     accepted = [testable[st.index] for st in steps]
 
     # 4. joint refit
-    groups = confirm.time_blocks(table["time_since_start_s"], s.block)
-    folds = kfold_indices(n, s.folds, s.seed, groups)
+    groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
+    folds = kfold_indices(nk, s.folds, s.seed, groups)
     before_cv = confirm.holdout(Jf, r, folds)
-    aug = confirm.AugmentedModel(model, tuple(lib[i] for i in accepted))
+    aug = confirm.AugmentedModel(model, tuple(lib[i] for i in accepted), None if adapter is None else ad.signatures)
     if accepted:
         z0 = np.concatenate([x, np.zeros(sum(lib[i].k for i in accepted))])
         fa = fit(aug, table, FitOptions(x0=z0))
-        z, r_final, free_a = fa.x, fa.residuals_after[:, 0], fa.free
-        A = aug.jacobian(z, table)[:, 0, free_a]
+        z, r_final, free_a = fa.x, fa.residuals_after.reshape(nk), fa.free
+        A = aug.jacobian(z, table)[:, :, free_a].reshape(nk, -1)
         std = fa.std
         sigma_after = fa.sigma
     else:
@@ -103,18 +162,22 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         pos += lib[i].k
     rss_full = float(r_final @ r_final)
     findings = []
+    contributions = []  # (n, k) fitted contribution of each accepted effect, m
     pos = ng
-    for st, i in zip(steps, accepted):
+    S_final = ad.signatures(z[:ng], table, tuple(lib[i] for i in accepted)) if accepted else []
+    for st, i, Se in zip(steps, accepted, S_final):
         e = lib[i]
         keep_cols = np.setdiff1d(np.arange(A.shape[1]), col_of[i])
         A_wo = A[:, keep_cols]
         # residual without this effect, to first order: r_final minus its contribution, refit
         th = z[pos:pos + e.k]
-        r_wo = r_final - (signature(e, arm, z[:ng], table) @ th)
+        contrib = np.einsum("nkc,c->nk", Se, th)
+        contributions.append(contrib)
+        r_wo = r_final - contrib.reshape(nk)
         Q = orthonormal(A_wo)
         r_wo_p = project_out(r_wo[:, None], Q)[:, 0]
         rss_wo = float(r_wo_p @ r_wo_p)
-        delta_bic = n * np.log(max(rss_wo, 1e-300) / max(rss_full, 1e-300)) - e.k * np.log(n)
+        delta_bic = nk * np.log(max(rss_wo, 1e-300) / max(rss_full, 1e-300)) - e.k * np.log(nk)
         cv_wo = confirm.holdout(A_wo, r_wo, folds)
         findings.append({
             "effect": e.name, "location": str(e.location),
@@ -131,12 +194,8 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         pos += e.k
 
     # 6. lack of fit
-    speed = None
-    if "approach_joint_velocity" in table:
-        v = tip_speed_vector(z[:ng], table)
-        speed = np.linalg.norm(v, axis=1)
-    variables = lack_of_fit.touch_variables(z[:ng], table, [j.name for j in arm.joints], speed)
-    lof = lack_of_fit.test(r_final, A, variables, n - A.shape[1], s.alpha)
+    variables = ad.variables(z[:ng])
+    lof = lack_of_fit.test(r_final, A, variables, nk - A.shape[1], s.alpha)
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
               "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m}
              for t in sorted(lof, key=lambda t: t.p_value) if t.significant]
@@ -160,9 +219,19 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
                    "absorbed_fraction": g.absorbed_fraction,
                    "min_detectable": g.min_detectable if np.isfinite(g.min_detectable) else None,
                    "unit": g.effect.units[0], "plausible_max": g.effect.plausible} for g in gates]
-    return {
+    # 7. visual proof: added-variable plots and the re-simulated campaign (pure arrays)
+    Qg = orthonormal(Jf)
+    for fd, i, c in zip(findings, accepted, contributions):
+        fd["plots"] = visual.added_variable(lib[i], ad.located(lib[i]), r.reshape(n, k), r_final.reshape(n, k), c, Qg)
+    for w in where:
+        v = next(vv for vv in variables if vv.name == w["variable"])
+        w["plots"] = visual.unexplained(v, r.reshape(n, k), r_final.reshape(n, k), A, k)
+    resim = visual.resimulation(ad.time_s, r.reshape(n, k), r_final.reshape(n, k), contributions)
+
+    doc = {
         "system": model.system,
         "n_measurements": int(n),
+        "residual_dim": int(k),
         "sigma_m": float(sigma),
         "sigma_after_m": float(sigma_after),
         "alpha": s.alpha,
@@ -178,5 +247,8 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
                              "seed": s.seed, "linearised_at": "the full-data solution"},
         "candidates": candidates,
         "geometry": {"names": names, "x": [float(v) for v in z[:ng]], "free": [bool(b) for b in free]},
-        "elapsed_s": time.perf_counter() - t0,
+        "resimulation": resim,
+        "elapsed_s": 0.0,
     }
+    doc["elapsed_s"] = time.perf_counter() - t0
+    return doc

@@ -200,7 +200,9 @@ def diagnosis_section(art) -> str:
     for i, p in enumerate(specs):
         scale = 1e3 if p.lengths else 1.0
         series = {k[:-2] if k.endswith("_m") else k: v for k, v in p.series.items()}
-        y_label = p.y_label or ("residual (mm)" if p.lengths else "value")
+        y_label = p.y_label or ("residual (m)" if p.lengths else "value")
+        if p.lengths:  # drawn in mm
+            y_label = y_label.replace("(m)", "(mm)") if "(m)" in y_label else f"{y_label} (mm)"
         html += _figure(plots.xy_series(p.x, series, p.x_label, y_label, p.title, y_scale=scale), p.title,
                         f"fig-diagnosis-{i}")
     ni = doc.get("not_identifiable") or []

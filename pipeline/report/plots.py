@@ -181,9 +181,18 @@ def xy_series(x: np.ndarray, series: Mapping[str, np.ndarray], x_label: str, y_l
         a = ax[0, 0]
         palette = ["#d62728", "#2ca02c", "#1f77b4", "#ff7f0e", "#9467bd"]
         x = np.asarray(x, float)
+        levels = np.unique(x[np.isfinite(x)])
+        categorical = 0 < levels.size <= 5  # e.g. a motion sign −1/0/+1: spread the series side by side
+        step = float(np.min(np.diff(levels))) if levels.size > 1 else 1.0
+        rng = np.random.default_rng(0)
         for i, (name, y) in enumerate(series.items()):
-            a.scatter(x, np.asarray(y, float) * y_scale, s=10, color=palette[i % len(palette)], label=name,
+            xi = x
+            if categorical:
+                xi = x + step * ((i - (len(series) - 1) / 2) * 0.18 + rng.uniform(-0.05, 0.05, x.size))
+            a.scatter(xi, np.asarray(y, float) * y_scale, s=10, color=palette[i % len(palette)], label=name,
                       alpha=0.8, linewidths=0)
+        if categorical:
+            a.set_xticks(levels, [f"{v:g}" for v in levels])
         a.axhline(0, color="k", lw=0.6)
         a.set_xlabel(x_label)
         a.set_ylabel(y_label)

@@ -22,6 +22,13 @@ def delta_tracker_cmd(
     grid: tuple[int, int, int] = typer.Option((3, 3, 3), "--grid", help="Grid points along x, y, z (seed 003: 3 3 3)."),
     spacing: tuple[float, float, float] = typer.Option((0.150, 0.150, 0.040), "--spacing", help="Grid spacing x y z, m."),
     points: int = typer.Option(None, "--points", min=4, help="Random points in the grid's box instead of the grid."),
+    effect: list[str] = typer.Option([], "--effect", help="Inject an effect into the TRUE robot/tracker: NAME=VALUE[,VALUE][@LOCATION] "
+                                     "(backlash@A1..A3 rad, actuator_scale@A1..A3, axis_yaw|axis_tilt@leg1..3 rad, "
+                                     "unequal_rods@leg1..3 m, thermal_drift=vx,vy,vz m/s, tracker_scale; "
+                                     "bump=A@A2:CENTRE_RAD is outside the library). Repeatable; goes to TRUTH.json only."),
+    both_sides: bool = typer.Option(False, "--both-sides", help="Approach every point from both sides of each actuator."),
+    passes: int = typer.Option(1, "--passes", min=1, help="Visit the point list this many times (alternating order)."),
+    warmup: float = typer.Option(0.0, "--warmup-s", min=0.0, help="Idle warm-up before the first point, s."),
 ) -> None:
     """Laser-tracker campaign of seed 003's 90° Delta robot."""
     from pipeline.errors import RobocalError
@@ -39,7 +46,16 @@ def delta_tracker_cmd(
     out.parent.mkdir(parents=True, exist_ok=True)
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)
+    from pipeline.simulate.delta_tracker import Variations, check_effects
+    from pipeline.simulate.effects import parse_effect
+
+    try:
+        injected = tuple(parse_effect(e) for e in effect)
+        check_effects(injected)
+    except ValueError as e:
+        raise RobocalError(str(e)) from None
+    variations = Variations(both_sides=both_sides, passes=passes, warmup_s=warmup)
     with err.status("simulating the tracker campaign…"):
-        sim = write(out, delta, true, campaign, noise, truth)
+        sim = write(out, delta, true, campaign, noise, truth, injected, variations)
     err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.t_ns.size} tracker points, "
               f"truth model {truth_model}; tracker noise RMS {sim.tracker_noise_rms_m * 1e3:.4f} mm per axis)")

@@ -15,7 +15,7 @@ import numpy as np
 from pipeline.diagnose.diagnose import Settings
 
 NAME = "diagnose"
-SUPPORTED = ("arc-welder",)
+SUPPORTED = ("arc-welder", "delta-tracker")
 
 
 def settings_of(params: dict) -> Settings:
@@ -27,11 +27,23 @@ def settings_of(params: dict) -> Settings:
 
 def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | None = None,
                        drop_records: list[int] | None = None) -> dict:
-    """Diagnosis document of a decoded recording (arc welder)."""
+    """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker)."""
     from pipeline.diagnose import table as dtable
     from pipeline.diagnose.diagnose import diagnose
     from pipeline.identify.model import take
+    from pipeline.systems.registry import detect
 
+    if detect(rec).SYSTEM == "delta-tracker":
+        from pipeline.diagnose import delta as ddelta
+
+        model, tab, _ = ddelta.from_recording(rec)
+        if drop_records:
+            tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
+        if x0 is not None and len(x0) != len(model.parameter_names()):
+            x0 = None  # identify ran another model variant: start from the closed-form registration
+        doc = diagnose(model, tab, x0=x0, settings=settings, adapter=ddelta.adapter(model, tab))
+        doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
+        return doc
     model, tab, info = dtable.from_recording(rec)
     if drop_records:
         tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))

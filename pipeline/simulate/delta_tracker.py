@@ -116,6 +116,7 @@ class SimResult:
     targets: np.ndarray  # (n, 3) commanded positions, m in {A}
     tracker_noise: np.ndarray  # (n, 3) injected tracker noise, m
     measurement_error: np.ndarray  # (n, 3) reading (in {A}) minus true reflector at the latched angles, m
+    point_index: np.ndarray | None = None  # (n,) commanded point of each measurement (None: 0..n-1)
 
     @property
     def tracker_noise_rms_m(self) -> float:
@@ -189,8 +190,9 @@ def _timeline(theta: np.ndarray, c: Campaign):
 
 def tracker_messages(sim: SimResult) -> list[tuple[str, dict]]:
     """`/tracker/point` message bodies of a simulated campaign."""
+    idx = range(sim.t_ns.size) if sim.point_index is None else [int(i) for i in sim.point_index]
     return [("/tracker/point", {"timestamp_ns": int(t), "joint_positions": q, "point": p, "point_index": i})
-            for i, (t, q, p) in enumerate(zip(sim.t_ns, np.round(sim.q, 12).tolist(), sim.point_t.tolist()))]
+            for i, t, q, p in zip(idx, sim.t_ns, np.round(sim.q, 12).tolist(), sim.point_t.tolist())]
 
 
 def truth_document(delta: Delta, truth: Truth, noise: Noise, campaign: Campaign, sim: SimResult) -> dict:
@@ -227,19 +229,167 @@ def recording_metadata(delta: Delta, campaign: Campaign, noise: Noise) -> dict[s
 
 
 def write(path, delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noise: Noise = Noise(),
-          truth_path=None) -> SimResult:
-    """Simulate and write REC.mcap (and TRUTH.json if `truth_path`)."""
+          truth_path=None, effects: tuple = (), variations: "Variations | None" = None) -> SimResult:
+    """Simulate and write REC.mcap (and TRUTH.json if `truth_path`).  With `effects` or
+    `variations`, the campaign with concealed effects (`simulate_effects`); the effects go to
+    TRUTH.json only, the variations (what the integrator programmed) to the campaign metadata."""
     import json
     from pathlib import Path
 
     from pipeline.recording.writer import write_campaign
 
-    sim = simulate(delta, truth, campaign, noise)
-    write_campaign(path, recording_metadata(delta, campaign, noise), (sim.stream_t_ns, sim.stream_q, ["A1", "A2", "A3"]),
-                   tracker_messages(sim))
+    varied = bool(effects) or (variations is not None and variations != Variations())
+    var = variations or Variations()
+    sim = simulate_effects(delta, truth, campaign, noise, effects, var) if varied else simulate(delta, truth, campaign, noise)
+    meta = recording_metadata(delta, campaign, noise)
+    if varied:
+        from pipeline.recording.schemas import META_CAMPAIGN
+        meta[META_CAMPAIGN].update({"both_sides": var.both_sides, "passes": var.passes, "warmup_s": var.warmup_s,
+                                    "approach_overshoot_rad": var.overshoot_rad if var.both_sides else None})
+    write_campaign(path, meta, (sim.stream_t_ns, sim.stream_q, ["A1", "A2", "A3"]), tracker_messages(sim))
     if truth_path is not None:
-        Path(truth_path).write_text(json.dumps(truth_document(delta, truth, noise, campaign, sim), indent=2) + "\n")
+        doc = truth_document(delta, truth, noise, campaign, sim)
+        if varied:
+            doc["effects"] = [{"effect": e.name, "location": e.location, "values": list(e.values)} for e in effects]
+            doc["variations"] = asdict(var)
+        Path(truth_path).write_text(json.dumps(doc, indent=2) + "\n")
     return sim
 
 
-__all__ = ["Campaign", "Noise", "Truth", "random_truth", "simulate", "write", "truth_document", "field"]
+# ----- concealed effects and campaign variations (issue 7) ----------------------------------
+EFFECTS = {  # name: (number of values, location kind)
+    "backlash": (1, "actuator"), "actuator_scale": (1, "actuator"), "axis_yaw": (1, "leg"), "axis_tilt": (1, "leg"),
+    "unequal_rods": (1, "leg"), "thermal_drift": (3, None), "tracker_scale": (1, None),
+    "bump": (1, "actuator:centre"),  # out-of-library: a Gaussian bump in one actuator's transmission
+}
+BUMP_WIDTH_RAD = 0.05
+# approach sides of (A1, A2, A3) per visit with --both-sides (balanced: no actuator's last-motion
+# sign is tied to another's); each visit approaches from −pattern, then from +pattern
+SIDE_PATTERNS = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]])
+
+
+@dataclass(frozen=True)
+class Variations:
+    """What the campaign varies to expose effects: each point approached from both sides of
+    every actuator (via θ ∓ overshoot·pattern, the actuators' side patterns balanced over
+    visits), `passes` over the point list (alternating order),
+    a warm-up idle before the first point (s)."""
+
+    both_sides: bool = False
+    passes: int = 1
+    warmup_s: float = 0.0
+    overshoot_rad: float = 0.03
+
+
+def check_effects(effects) -> None:
+    """ValueError naming the problem for an unknown effect, wrong value count or location."""
+    for e in effects:
+        if e.name not in EFFECTS:
+            raise ValueError(f"unknown delta-tracker effect {e.name!r} (use one of {', '.join(EFFECTS)})")
+        nv, loc = EFFECTS[e.name]
+        vals = e.values if e.name != "thermal_drift" or len(e.values) == 3 else None
+        if vals is None or len(vals) != nv:
+            raise ValueError(f"effect {e.label}: expected {nv} value(s), got {len(e.values)}")
+        ok = (loc is None and e.location in (None, "campaign", "tracker")) or \
+             (loc == "actuator" and e.location in ("A1", "A2", "A3")) or \
+             (loc == "leg" and e.location in ("leg1", "leg2", "leg3")) or \
+             (loc == "actuator:centre" and (e.location or "").partition(":")[0] in ("A1", "A2", "A3"))
+        if not ok:
+            where_ = {"actuator": "A1|A2|A3", "leg": "leg1|leg2|leg3", "actuator:centre": "A<i>:CENTRE_RAD"}.get(loc, "")
+            raise ValueError(f"effect {e.label}: location must be {where_ or 'omitted'}")
+
+
+def _via_timeline(waypoints: np.ndarray, measure: np.ndarray, c: Campaign, warmup_s: float, via_dwell_s: float = 0.1):
+    """Cosine moves through `waypoints` (m, 3) rad from home after an idle `warmup_s`; a settle
+    dwell after each measured waypoint (the tracker measures at its end), a short one after a
+    via point.  Returns stream times, angles and the measurement times."""
+    m = waypoints.shape[0]
+    home = np.zeros(3)
+    starts = np.concatenate([[home], waypoints[:-1]])
+    move = np.max(np.abs(waypoints - starts), axis=1) / c.joint_speed_rad_s * 1.5 + 0.2
+    dwell = np.where(measure, c.settle_s, via_dwell_s)
+    dur = np.concatenate([[max(warmup_s, 0.0)], np.stack([move, dwell], 1).ravel()])
+    seg_start = np.concatenate([[home], np.repeat(starts, 2, 0)])
+    seg_end = np.concatenate([[home], np.repeat(waypoints, 2, 0)])
+    seg_start[2::2] = waypoints  # dwell segments stand still
+    dur = np.maximum(dur, 1e-9)
+    edges = np.concatenate([[0.0], np.cumsum(dur)])
+    t_meas = c.start_ns + np.round(edges[3::2][measure] * 1e9).astype(np.int64)
+    T = np.arange(0.0, edges[-1] + 0.5 / c.rate_hz, 1.0 / c.rate_hz)
+    seg = np.clip(np.searchsorted(edges, T, side="right") - 1, 0, dur.size - 1)
+    u = np.clip((T - edges[seg]) / dur[seg], 0, 1)
+    wgt = 0.5 - 0.5 * np.cos(np.pi * u)
+    q = seg_start[seg] + wgt[:, None] * (seg_end[seg] - seg_start[seg])
+    return c.start_ns + np.round(T * 1e9).astype(np.int64), q, t_meas
+
+
+def simulate_effects(delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noise: Noise = Noise(),
+                     effects: tuple = (), variations: Variations = Variations()) -> SimResult:
+    """A campaign with concealed effects in the TRUE robot/tracker (sign conventions of
+    `pipeline.diagnose.delta`) and campaign variations.  Several effects may be combined."""
+    from dataclasses import replace
+
+    from pipeline.diagnose.table import last_motion_sign
+
+    check_effects(effects)
+    rng = np.random.default_rng(campaign.seed)
+    targets = campaign_targets(campaign)
+    theta, ok = dm.inverse(delta, np.zeros(27), targets)
+    if not np.all(ok):
+        bad = np.flatnonzero(~ok)
+        raise RobocalError(f"simulation: {bad.size} campaign points are outside the nominal workspace "
+                           f"(first: {targets[bad[0]].round(4).tolist()} m); shrink the grid or move its centre")
+    v = variations
+    order = np.concatenate([np.arange(len(theta)) if p % 2 == 0 else np.arange(len(theta))[::-1]
+                            for p in range(max(1, v.passes))])
+    way, meas, pidx = [], [], []
+    for visit, i in enumerate(order):
+        pattern = SIDE_PATTERNS[visit % len(SIDE_PATTERNS)]  # actuators' approach sides differ between visits
+        for side in ((-1.0, 1.0) if v.both_sides else (None,)):
+            if side is not None:
+                way.append(theta[i] + side * pattern * v.overshoot_rad)
+                meas.append(False)
+            way.append(theta[i])
+            meas.append(True)
+            pidx.append(i)
+    way, meas, pidx = np.array(way), np.array(meas), np.array(pidx)
+    stream_t, q_stream, t_meas = _via_timeline(way, meas, campaign, v.warmup_s)
+    cmd = way[meas]  # commanded angles at each measurement (the motors stand there)
+    k = noise.scale
+    q_rec = _quantise(cmd, noise.encoder_counts_per_rev, k > 0)
+    sign = last_motion_sign(stream_t, q_stream, t_meas)
+    t_s = (t_meas - stream_t[0]) * 1e-9
+    B = truth.beta.reshape(3, 12).copy()
+    dtheta = np.zeros_like(cmd)
+    drift = np.zeros(3)
+    scale = 0.0
+    for e in effects:
+        val = np.asarray(e.values, float)
+        if e.name in ("backlash", "actuator_scale"):
+            j = int(e.location[1]) - 1
+            dtheta[:, j] += -0.5 * val[0] * sign[:, j] if e.name == "backlash" else val[0] * cmd[:, j]
+        elif e.name == "bump":
+            a, _, c0 = e.location.partition(":")
+            j = int(a[1]) - 1
+            dtheta[:, j] += val[0] * np.exp(-0.5 * ((cmd[:, j] - float(c0 or 0.0)) / BUMP_WIDTH_RAD) ** 2)
+        elif e.name in ("axis_yaw", "axis_tilt"):
+            B[int(e.location[3]) - 1, 9 if e.name == "axis_yaw" else 10] += val[0]
+        elif e.name == "unequal_rods":
+            B[int(e.location[3]) - 1, 11] += val[0]
+        elif e.name == "thermal_drift":
+            drift += val
+        elif e.name == "tracker_scale":
+            scale += val[0]
+    true_ = replace(truth, beta=B.ravel())
+    M_true = true_reflector(delta, true_, cmd + dtheta) + t_s[:, None] * drift
+    R, t = registration_matrix(truth.registration)
+    eps = rng.normal(0, k * noise.tracker_sigma_m, M_true.shape)
+    point_t = (1 + scale) * ((M_true - t) @ R) + eps
+    err = eps @ R.T + (true_reflector(delta, true_, cmd) - true_reflector(delta, true_, q_rec))
+    q_stream = _quantise(q_stream, noise.encoder_counts_per_rev, k > 0)
+    return SimResult(stream_t_ns=stream_t, stream_q=q_stream, t_ns=t_meas, q=q_rec, point_t=point_t,
+                     targets=targets[pidx], tracker_noise=eps, measurement_error=err, point_index=pidx)
+
+
+__all__ = ["Campaign", "Noise", "Truth", "Variations", "random_truth", "simulate", "simulate_effects", "write",
+           "truth_document", "field"]

@@ -128,3 +128,18 @@ def test_simulator_conceals_effects_and_cli_and_stage_diagnose_the_recording(tmp
 def test_bad_effect_spec_is_one_line_error(tmp_path):
     r = robocal("simulate", "delta-tracker", "--out", tmp_path / "r.mcap", "--effect", "backlash=1e-4@leg2")
     assert r.returncode == 2 and "A1|A2|A3" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_visual_proof_is_logged_to_rerun(tmp_path):
+    import rerun as rr
+
+    from pipeline.visualize.diagnosis import log_diagnosis
+
+    doc = run(["backlash=1.5e-4@A2"], seed=4)
+    rec = rr.RecordingStream("robocal-test", recording_id="diag", send_properties=False)
+    rec.save(tmp_path / "d.rrd")
+    paths = log_diagnosis(rec, doc)
+    rec.flush()
+    assert any(p.startswith("diagnosis/plots/00_backlash_A2") and p.endswith("/before") for p in paths)
+    assert any("re_simulated" in p or "resimulated" in p for p in paths)
+    assert (tmp_path / "d.rrd").stat().st_size > 1000

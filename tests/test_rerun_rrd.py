@@ -165,3 +165,5 @@ def test_artefacts_shaped_as_the_documented_contract(report_run, tmp_path):  # n
     assert "fig-diagnosis-0" in diagnosis_section(art)
     rrd = _read(d / "run.rrd")
     assert {"world/jig/blocks", "world/tips/calibrated", "world/robot/live", "encoder/joints", "diagnosis"} <= set(rrd)
+    plots = [e for e in rrd if e.startswith("diagnosis/plots/")]
+    assert plots and all(rrd[e]["rows"] for e in plots)  # the diagnosis's plot data, logged

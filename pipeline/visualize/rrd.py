@@ -227,6 +227,7 @@ def blueprint(has_scene: bool) -> rrb.Blueprint:
         rrb.TimeSeriesView(origin="/residuals", name="Residuals per face/channel (mm)"),
         rrb.Tabs(rrb.TextDocumentView(origin="/summary", name="Summary"),
                  rrb.TextDocumentView(origin="/diagnosis", name="Diagnosis"),
+                 rrb.TimeSeriesView(origin="/diagnosis/plots", name="Diagnosis plots (timeline: diagnosis x <nn>)"),
                  rrb.TimeSeriesView(origin="/solver", name="Solver RMS per evaluation (mm), timeline: iteration")),
     )
     if has_scene:
@@ -256,6 +257,14 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
         rec.log("diagnosis", rr.TextDocument(diagnosis_markdown(art.diagnosis), media_type=rr.MediaType.MARKDOWN),
                 static=True)
         entities.append("diagnosis")
+        try:  # the diagnosis's plots, each against its own x timeline (pipeline.visualize.diagnosis)
+            from pipeline.visualize.diagnosis import log_diagnosis
+
+            entities += list(log_diagnosis(rec, art.diagnosis) or [])
+        except ImportError:
+            pass
+        except Exception as e:  # a drawing error must not lose the rest of the recording
+            warnings.append(f"diagnosis plots not logged: {type(e).__name__}: {e}")
     if art.encoder is not None:
         entities += log_encoder(rec, art.encoder)
     entities += log_residual_series(rec, art)

@@ -129,3 +129,12 @@ def test_cli_run_reports_every_stage_cached_on_the_second_run(first_run, tmp_pat
     for s in CORE:
         assert f"{s}: cached" in p.stderr
     assert "every stage cached" in p.stderr
+
+
+def test_a_change_of_robocal_code_changes_every_stage_key(monkeypatch):
+    from pipeline.stages import runner
+
+    before = runner.stage_key("identify", {"loss": "linear"}, {"ingest": "abc"})
+    assert before == runner.stage_key("identify", {"loss": "linear"}, {"ingest": "abc"})
+    monkeypatch.setattr(runner, "code_fingerprint", lambda: "edited source")
+    assert runner.stage_key("identify", {"loss": "linear"}, {"ingest": "abc"}) != before

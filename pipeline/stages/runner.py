@@ -1,7 +1,8 @@
 """Run stages with content-hash caching.
 
-A stage's key is the SHA-256 of (stage name, its parameters, the robocal version, and the
-keys of the stages it requires — for ingest, the SHA-256 of the recording).  A stage whose
+A stage's key is the SHA-256 of (stage name, its parameters, the robocal version, a
+fingerprint of robocal's own source and schemas, and the keys of the stages it requires —
+for ingest, the SHA-256 of the recording).  A stage whose
 ``stage.json`` has the same key and whose recorded outputs are all present and unchanged is
 *cached*: nothing is run.  Changing a parameter changes that stage's key and, through the
 chain, the keys of every stage after it.
@@ -9,6 +10,7 @@ chain, the keys of every stage after it.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import importlib.util
@@ -42,9 +44,24 @@ class Outcome:
     summary: dict
 
 
+@functools.cache
+def code_fingerprint() -> str:
+    """SHA-256 over robocal's Python sources and JSON Schemas (path and bytes), so that a
+    change of code re-runs the stages even without a version bump (~100 small files, ms)."""
+    from pipeline.recording.schemas import schema_dir
+
+    pkg = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for root, pattern in ((pkg, "*.py"), (schema_dir(), "*.json")):
+        for f in sorted(root.rglob(pattern)):
+            h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
 def stage_key(name: str, params: dict, inputs: dict[str, str], version: str = __version__) -> str:
     """SHA-256 over the canonical JSON of what determines a stage's output."""
-    doc = {"stage": name, "params": params, "inputs": inputs, "robocal_version": version}
+    doc = {"stage": name, "params": params, "inputs": inputs, "robocal_version": version,
+           "code": code_fingerprint()}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
 
 

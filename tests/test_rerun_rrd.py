@@ -30,7 +30,7 @@ def _read(path: Path) -> dict[str, dict]:
             if "RowId" in name:
                 continue
             arr = b.column(name)
-            if pa.types.is_timestamp(arr.type):  # ns since the epoch, as int64
+            if pa.types.is_timestamp(arr.type) or pa.types.is_duration(arr.type):  # ns, as int64
                 arr = arr.cast(pa.int64())
             col = arr.to_pylist()
             if name in chunk.timeline_names:
@@ -166,4 +166,5 @@ def test_artefacts_shaped_as_the_documented_contract(report_run, tmp_path):  # n
     rrd = _read(d / "run.rrd")
     assert {"world/jig/blocks", "world/tips/calibrated", "world/robot/live", "encoder/joints", "diagnosis"} <= set(rrd)
     plots = [e for e in rrd if e.startswith("diagnosis/plots/")]
-    assert plots and all(rrd[e]["rows"] for e in plots)  # the diagnosis's plot data, logged
+    series = [e for e in plots if e.rsplit("/", 1)[-1] in ("before", "after")]
+    assert len(series) == 2 and all(len(rrd[e]["rows"]["Scalars:scalars"]) == 40 for e in series)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import RobocalError
-from pipeline.identify.least_squares import FitOptions, cross_validate, fit, point_accuracy
+from pipeline.identify.least_squares import FitOptions, cross_validate, fit, holdout_warning, point_accuracy
 from pipeline.identify.results import results_document
 from pipeline.recording.reader import read_recording
 from pipeline.stages.artefacts import sha256_file
@@ -54,8 +54,11 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     else:
         raise RobocalError(f"unknown solver {solver!r} (expected lm or ga)")
     tip_sigma = point_accuracy(model, f, table)
+    warnings = list(rec.warnings)
+    if w := holdout_warning(len(holdout), k_folds, model.residual_dim, int(f.free.sum())):
+        warnings.append(w)
     doc = results_document(system.SYSTEM, f, holdout, tip_sigma, elapsed_s=time.perf_counter() - t0,
-                           source={"path": str(path), "sha256": sha256_file(path)}, warnings=list(rec.warnings),
+                           source={"path": str(path), "sha256": sha256_file(path)}, warnings=warnings,
                            k_folds=k_folds)
     doc["solver"] = solver
     if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures

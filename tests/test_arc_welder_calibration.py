@@ -34,6 +34,16 @@ def test_default_noise_reaches_the_noise_floor(default_run):
     assert res["holdout_rms_m"] <= 1.5 * noise
     assert res["n_measurements"] == 100 and res["n_parameters"] == 42
     assert res["n_identifiable"] == 27
+    assert res["warnings"] == []  # 80 training contacts per fold for 27 parameters: no warning
+
+
+def test_too_few_measurements_for_cross_validation_are_flagged():
+    from pipeline.identify.least_squares import holdout_warning
+
+    assert holdout_warning(100, 5, 1, 27) is None
+    w = holdout_warning(30, 5, 1, 27)
+    assert w and "24 measurements" in w and "27 identifiable" in w
+    assert holdout_warning(27, 5, 3, 21) is None  # the Delta: 3 residuals per point
 
 
 def test_results_document_and_model_file(default_run):

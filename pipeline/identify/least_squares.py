@@ -162,6 +162,16 @@ def kfold_indices(n: int, k: int, seed: int = 0, groups: np.ndarray | None = Non
     return [np.flatnonzero(fold == i) for i in range(k)]
 
 
+def holdout_warning(n: int, k: int, residual_dim: int, n_free: int) -> str | None:
+    """A warning when k-fold training sets are too small for the held-out figure to mean much:
+    each training fold must hold clearly more residuals than identifiable parameters."""
+    n_train = n - -(-n // k)  # n minus the largest fold
+    if n_train * residual_dim < 1.5 * n_free:
+        return (f"held-out RMS is unreliable: each {k}-fold training set has {n_train} measurements "
+                f"({n_train * residual_dim} residuals) for {n_free} identifiable parameters; record more measurements")
+    return None
+
+
 def cross_validate(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0,
                    options: FitOptions = FitOptions(), groups: np.ndarray | None = None) -> np.ndarray:
     """Held-out residuals (n, residual_dim) m: each fold predicted by a fit on the others."""

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.identify.least_squares import FitOptions, cross_validate, point_accuracy
+from pipeline.identify.least_squares import FitOptions, cross_validate, holdout_warning, point_accuracy
 from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.outliers import fit_rejecting
 from pipeline.identify.results import parameter_table
@@ -81,6 +81,7 @@ def run(run_dir: Path, params: dict) -> dict:
         "n_parameters": len(f.names), "n_identifiable": int(free.sum()), "function_evaluations": f.nfev,
         "predicted_point_sigma_rms_m": float(np.sqrt(np.mean(tip_sigma**2))),
         "parameters": parameter_table(f),
+        "warnings": [w for w in [holdout_warning(int(rf.kept.sum()), folds, k, int(free.sum()))] if w],
     }
     if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
         doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
@@ -89,7 +90,7 @@ def run(run_dir: Path, params: dict) -> dict:
     write_json(out / "model.json", model.describe(f.x))
     keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
-            "loss", "function_evaluations", "predicted_point_sigma_rms_m")
+            "loss", "function_evaluations", "predicted_point_sigma_rms_m", "warnings")
     return {k_: doc[k_] for k_ in keys} | ({"extra": doc["extra"]} if "extra" in doc else {})
 
 

@@ -44,6 +44,7 @@ def gather(run_dir: Path) -> dict:
     summary["status"] = status
     ingest = docs.get("ingest", {}).get("summary", {})
     warnings = list(ingest.get("warnings", []))
+    warnings += list(docs.get("identify", {}).get("summary", {}).get("warnings", []))
     for c in docs.get("validate", {}).get("summary", {}).get("checks", []):
         if c["status"] != "pass":
             warnings.append(f"validate {c['name']} ({c['status']}): {c['message']}")

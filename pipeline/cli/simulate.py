@@ -28,8 +28,6 @@ def arc_welder_cmd(
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
     from pipeline.models.jig import stepped_block
-    from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
-    from pipeline.recording.writer import write_campaign
     from pipeline.simulate.arc_welder import Campaign, Noise, simulate, truth_document
     from pipeline.systems import arc_welder as aw
 
@@ -44,29 +42,35 @@ def arc_welder_cmd(
         return
     with err.status(f"simulating {contacts} contacts…"):
         sim = simulate(nominal, true, jig, campaign, noise)
+    _write(out, truth, nominal, jig, campaign, sim, truth_document(true, noise, campaign, sim), {})
+    err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.contact_t_ns.size} contacts; "
+              f"injected noise RMS {sim.injected_noise_rms_m * 1e3:.4f} mm)")
+
+
+def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc: dict, campaign_meta: dict) -> None:
+    """Write the recording (nominal model, jig, campaign metadata, stream, contacts) and TRUTH.json."""
+    from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
+    from pipeline.recording.writer import write_campaign
+    from pipeline.systems import arc_welder as aw
+
     meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: jig.to_dict(),
-            META_CAMPAIGN: {"system": aw.SYSTEM, "simulated": True, "contacts": contacts,
+            META_CAMPAIGN: {"system": aw.SYSTEM, "simulated": True, "contacts": campaign.contacts,
                             "controller_rate_hz": campaign.rate_hz, "search_speed_m_s": campaign.search_speed_m_s,
-                            "approach_offset_m": campaign.approach_offset_m}}
+                            "approach_offset_m": campaign.approach_offset_m, **campaign_meta}}
     out.parent.mkdir(parents=True, exist_ok=True)
     with err.status("writing recording…"):
         write_campaign(out, meta, (sim.stream_t_ns, sim.stream_q, [j.name for j in nominal.joints]),
                        aw.contact_messages(sim))
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)
-        truth.write_text(json.dumps(truth_document(true, noise, campaign, sim), indent=2) + "\n")
-    err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.contact_t_ns.size} contacts; "
-              f"injected noise RMS {sim.injected_noise_rms_m * 1e3:.4f} mm)")
+        truth.write_text(json.dumps(truth_doc, indent=2, default=float) + "\n")
 
 
 def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order) -> None:
     """Campaign with concealed effects and campaign variations (`pipeline.simulate.effects`)."""
     from pipeline.errors import RobocalError
-    from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
-    from pipeline.recording.writer import write_campaign
     from pipeline.simulate import effects as se
     from pipeline.simulate.arc_welder import truth_document
-    from pipeline.systems import arc_welder as aw
 
     def floats(text: str, what: str) -> tuple[float, ...]:
         try:
@@ -84,18 +88,7 @@ def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, paylo
     except (ValueError, RuntimeError) as e:
         raise RobocalError(str(e)) from None
     sim = es.sim
-    meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: jig.to_dict(),
-            META_CAMPAIGN: {"system": aw.SYSTEM, "simulated": True, "contacts": campaign.contacts,
-                            "controller_rate_hz": campaign.rate_hz, "search_speed_m_s": campaign.search_speed_m_s,
-                            "approach_offset_m": campaign.approach_offset_m, **se.campaign_metadata(es, campaign)}}
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with err.status("writing recording…"):
-        write_campaign(out, meta, (sim.stream_t_ns, sim.stream_q, [j.name for j in nominal.joints]),
-                       aw.contact_messages(sim))
-    if truth is not None:
-        truth.parent.mkdir(parents=True, exist_ok=True)
-        doc = truth_document(true, noise, campaign, sim)
-        doc.update(se.truth_effects(es))
-        truth.write_text(json.dumps(doc, indent=2, default=float) + "\n")
+    _write(out, truth, nominal, jig, campaign, sim, truth_document(true, noise, campaign, sim) | se.truth_effects(es),
+           se.campaign_metadata(es, campaign))
     err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.contact_t_ns.size} contacts, "
               f"{len(injected)} concealed effect(s))")

@@ -75,6 +75,8 @@ class Campaign:
     dwell_s: float = 1.0
     max_tilt_rad: float = np.radians(20)
     start_ns: int = EPOCH_NS
+    capture_speed_rad_s: float = 0.0  # > 0: the arm sweeps through each pose while the image is captured (issue 7)
+    spread: bool = False  # stripe rows over 10-90 % of the image and crossings spread along it (not the centre ones)
 
 
 @dataclass
@@ -123,10 +125,71 @@ def _floor_line(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, z0: float):
     return np.concatenate([pxy, np.full((len(C), 1), z0)], axis=1), direc
 
 
-def _project(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels (N,2) of base-frame points X (N,3) seen by cameras (R_c, C); and depth z_C."""
+def _project(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, X: np.ndarray,
+             fx: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (N,2) of base-frame points X (N,3) seen by cameras (R_c, C); and depth z_C.
+    With `fx` (`effect_values`), the true lens also has k2 and tangential (p1, p2) terms."""
     p_c = np.einsum("nji,nj->ni", R_c, X - C)
-    return cam.project(s, p_c), p_c[:, 2]
+    if fx is None or not (fx["k2"] or fx["p1"] or fx["p2"]):
+        return cam.project(s, p_c), p_c[:, 2]
+    from pipeline.diagnose.scanner import lens_excess
+
+    x, y, z = p_c[:, 0], p_c[:, 1], p_c[:, 2]
+    u, v = s[cam.I_F] * y / z, s[cam.I_F] * x / z  # ideal sensor coordinates
+    ut, vt = cam.distort(u, v, s[cam.I_K])
+    for _ in range(20):  # solve U_k(ũ, ṽ) + Δ(ũ, ṽ) = (u, v) for the distorted coordinates
+        du, dv = lens_excess(ut, vt, fx["k2"], fx["p1"], fx["p2"])
+        ut, vt = cam.distort(u - du, v - dv, s[cam.I_K])
+    return np.stack([ut / s[cam.I_SU] + s[cam.I_U0], vt / s[cam.I_SV] + s[cam.I_V0]], axis=1), z
+
+
+def _stripe_normal(px: np.ndarray) -> np.ndarray:
+    """Unit normal (2,) across the stripe through pixels px (M,2), +V side (V for one pixel)."""
+    from pipeline.diagnose.scanner import stripe_normal
+
+    return stripe_normal(px)
+
+
+# ----- concealed effects (issue 7) ------------------------------------------------------------
+EFFECTS = {  # name: (values, location kind) — conventions of `pipeline.diagnose.scanner`
+    "tangential_distortion": (2, "camera"), "radial_k2": (1, "camera"), "time_offset": (1, "camera"),
+    "stripe_peak_bias": (1, "camera"), "joint_offset": (1, "joint"), "joint_scale": (1, "joint"),
+}
+
+
+def check_effects(effects, n_joints: int = 5) -> None:
+    """ValueError naming the problem for an unknown effect, wrong value count or location."""
+    joints = [f"J{i + 1}" for i in range(n_joints)]
+    for e in effects:
+        if e.name not in EFFECTS:
+            raise ValueError(f"unknown scorbot-scanner effect {e.name!r} (use one of {', '.join(EFFECTS)})")
+        nv, loc = EFFECTS[e.name]
+        if len(e.values) != nv:
+            raise ValueError(f"effect {e.label}: expected {nv} value(s), got {len(e.values)}")
+        if (loc == "camera" and e.location not in (None, "camera")) or (loc == "joint" and e.location not in joints):
+            raise ValueError(f"effect {e.label}: location must be {'|'.join(joints) if loc == 'joint' else 'omitted'}")
+
+
+def effect_values(effects, n_joints: int = 5) -> dict:
+    """Injected effects as arrays: k2 (1/m⁴), p1, p2 (1/m), peak_bias (px), time_offset (s),
+    joint_offset (n_joints,) rad, joint_scale (n_joints,)."""
+    check_effects(effects, n_joints)
+    fx = {"k2": 0.0, "p1": 0.0, "p2": 0.0, "peak_bias": 0.0, "time_offset": 0.0,
+          "joint_offset": np.zeros(n_joints), "joint_scale": np.zeros(n_joints)}
+    for e in effects:
+        v = [float(a) for a in e.values]
+        if e.name == "tangential_distortion":
+            fx["p1"] += v[0]
+            fx["p2"] += v[1]
+        elif e.name == "radial_k2":
+            fx["k2"] += v[0]
+        elif e.name == "stripe_peak_bias":
+            fx["peak_bias"] += v[0]
+        elif e.name == "time_offset":
+            fx["time_offset"] += v[0]
+        else:
+            fx[e.name][int(e.location[1:]) - 1] += v[0]
+    return fx
 
 
 def _newton(fun, q0: np.ndarray, iters: int = 40, h: float = 1e-7) -> np.ndarray:
@@ -154,7 +217,7 @@ def _plan_pose(arm: SerialArm, xa: np.ndarray, s: np.ndarray, pattern: Pattern, 
     sq = pattern.square_m
     a_v = s[cam.I_SV] / s[cam.I_F]
     # stand-off: stripe at a random image row in the middle 60 %, depth 0.12-0.70 m
-    vf = a_v * (rng.uniform(0.2, 0.8) * H - s[cam.I_V0])
+    vf = a_v * ((rng.uniform(0.1, 0.9) if campaign.spread else rng.uniform(0.2, 0.8)) * H - s[cam.I_V0])
     den = np.tan(s[cam.I_TH]) + vf
     if den <= 0:
         return None
@@ -222,14 +285,19 @@ def _plan_pose(arm: SerialArm, xa: np.ndarray, s: np.ndarray, pattern: Pattern, 
         return None
     # M crossings closest to the image centre column
     keep = np.argsort(np.abs(px[:, 0] - W / 2))[:campaign.corners]
+    if campaign.spread:  # evenly along the visible stripe, out to the image edges
+        order = np.argsort(px[:, 0])
+        keep = order[np.unique(np.linspace(0, order.size - 1, campaign.corners).round().astype(int))]
     return q, idx[np.sort(keep)]
 
 
 def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.ndarray, campaign: Campaign = Campaign(),
              noise: Noise = Noise(), pattern: Pattern = Pattern(), image_size: tuple[int, int] = (640, 480),
-             max_attempts: int = 400) -> SimResult:
+             max_attempts: int = 400, effects: tuple = ()) -> SimResult:
     """Run the campaign (module docstring).  Raises RuntimeError if the truth cannot see
-    enough corners from reachable poses."""
+    enough corners from reachable poses.  `effects` (`pipeline.simulate.effects.Injected`,
+    names of `EFFECTS`) are injected into the TRUE camera/arm (`pipeline.diagnose.scanner`)."""
+    fx = effect_values(effects, arm_truth.n_joints)
     rng = np.random.default_rng(campaign.seed)
     s = np.asarray(scanner_truth, float)
     xa = arm_truth.vector()
@@ -241,6 +309,7 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
     obs: list[Observation] = []
     attempts = 0
     used_lines: list[frozenset] = []
+    sweeps: list[np.ndarray] = []
     while len(obs) < campaign.poses:
         attempts += 1
         if attempts > max_attempts:
@@ -249,9 +318,15 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
         plan = _plan_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
         if plan is None:
             continue
-        q, idx = plan
+        q, idx = plan  # q: where the TRUE arm stands at the capture
         if frozenset(idx.tolist()) in used_lines:
             continue
+        w = np.zeros_like(q)
+        if campaign.capture_speed_rad_s > 0:  # sweep direction of this pose (drawn only for moving captures)
+            w = campaign.capture_speed_rad_s * rng.choice([-1.0, 1.0], q.size) * rng.uniform(0.5, 1.0, q.size)
+        q_enc = q.copy()  # encoders: true = enc + offset + scale·enc, and the image is δ late
+        for _ in range(8):
+            q_enc = q - fx["joint_offset"] - fx["joint_scale"] * q_enc - w * fx["time_offset"]
         # repeatability: the flange is not exactly where the encoders say
         sig = k * noise.repeatability_3sigma_m / 3
         dR = rot("x", rng.normal(0, sig / 0.3)) @ rot("y", rng.normal(0, sig / 0.3)) @ rot("z", rng.normal(0, sig / 0.3))
@@ -262,14 +337,16 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
         X = P_true[idx]
         Y = p0 + ((X - p0) @ dvec[0])[:, None] * dvec
         Rn, Cn = np.repeat(R_c, len(idx), 0), np.repeat(C, len(idx), 0)
-        px, _ = _project(Rn, Cn, s, Y)
-        px = px + k * rng.normal(0, noise.image_px, px.shape)
+        px, _ = _project(Rn, Cn, s, Y, fx)
+        nrm = _stripe_normal(px)
+        px = px + fx["peak_bias"] * nrm + k * rng.normal(0, noise.image_px, px.shape)
         # stripe profile across the image
         t_c = (X - p0) @ dvec[0]
         ts = np.linspace(t_c.min() - 0.4, t_c.max() + 0.4, 4000)
         Ys = p0 + ts[:, None] * dvec
         Rs, Cs = np.repeat(R_c, ts.size, 0), np.repeat(C, ts.size, 0)
-        spx, zs = _project(Rs, Cs, s, Ys)
+        spx, zs = _project(Rs, Cs, s, Ys, fx)
+        spx = spx + fx["peak_bias"] * nrm
         vis = (zs > 0) & (spx[:, 0] >= 0) & (spx[:, 0] <= W - 1) & (spx[:, 1] >= 0) & (spx[:, 1] <= H - 1)
         spx = spx[vis]
         if len(spx) >= 2:
@@ -280,30 +357,36 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
         if np.any((px < 0) | (px > [W - 1, H - 1])):
             continue
         used_lines.append(frozenset(idx.tolist()))
-        obs.append(Observation(q=q, corner_idx=idx, corner_px=px, stripe_px=spx, corner_true=X))
-    t_ns, q_stream, t_obs = _timeline(np.array([o.q for o in obs]), campaign)
+        obs.append(Observation(q=q_enc, corner_idx=idx, corner_px=px, stripe_px=spx, corner_true=X))
+        sweeps.append(w)
+    t_ns, q_stream, t_obs = _timeline(np.array([o.q for o in obs]), campaign, np.array(sweeps))
     err = np.concatenate([o.corner_true - P_nom[o.corner_idx] for o in obs])
     return SimResult(stream_t_ns=t_ns, stream_q=q_stream, obs_t_ns=t_obs, observations=obs,
                      corner_error_rms_m=float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), attempts=attempts)
 
 
-def _timeline(Q: np.ndarray, c: Campaign):
-    """Encoder stream: home → each pose (cosine blend) → dwell; observation at mid-dwell."""
+def _timeline(Q: np.ndarray, c: Campaign, W: np.ndarray | None = None):
+    """Encoder stream: home → each pose (cosine blend) → dwell; observation at mid-dwell.
+    With sweep velocities W (N,5) rad/s the dwell is a constant-velocity sweep through the
+    pose (q − W·dwell/2 → q + W·dwell/2), so the arm moves at W when the image is taken."""
     home = np.array([0.0, -0.4, 0.8, -0.4, 0.0])
-    starts, ends, durs, kinds = [], [], [], []
+    W = np.zeros_like(Q) if W is None or len(W) == 0 else W
+    starts, ends, durs, lin = [], [], [], []
     prev = home
-    for q in Q:
-        move = float(np.max(np.abs(q - prev))) / c.joint_speed_rad_s * 1.5 + 0.5
-        starts += [prev, q]
-        ends += [q, q]
+    for q, w in zip(Q, W):
+        a, b = q - 0.5 * c.dwell_s * w, q + 0.5 * c.dwell_s * w
+        move = float(np.max(np.abs(a - prev))) / c.joint_speed_rad_s * 1.5 + 0.5
+        starts += [prev, a]
+        ends += [a, b]
         durs += [move, c.dwell_s]
-        prev = q
-    starts, ends, durs = np.array(starts), np.array(ends), np.array(durs)
+        lin += [False, True]
+        prev = b
+    starts, ends, durs, lin = np.array(starts), np.array(ends), np.array(durs), np.array(lin)
     edges = np.concatenate([[0.0], np.cumsum(durs)])
     T = np.arange(0.0, edges[-1], 1.0 / c.rate_hz)
     seg = np.clip(np.searchsorted(edges, T, side="right") - 1, 0, len(durs) - 1)
     u = np.clip((T - edges[seg]) / durs[seg], 0, 1)
-    w = 0.5 - 0.5 * np.cos(np.pi * u)
+    w = np.where(lin[seg], u, 0.5 - 0.5 * np.cos(np.pi * u))
     q = starts[seg] + w[:, None] * (ends[seg] - starts[seg])
     t_obs = c.start_ns + np.round((edges[1::2][:len(Q)] + 0.5 * c.dwell_s) * 1e9).astype(np.int64)
     return c.start_ns + np.round(T * 1e9).astype(np.int64), q, t_obs
@@ -319,10 +402,12 @@ def stripe_messages(sim: SimResult, pattern: Pattern) -> list[tuple[str, dict]]:
 
 
 def truth_document(arm_truth: SerialArm, scanner_truth: np.ndarray, noise: Noise, campaign: Campaign,
-                   sim: SimResult) -> dict:
+                   sim: SimResult, effects: tuple = ()) -> dict:
     """TRUTH.json (never written into the recording)."""
     from pipeline.systems.scorbot_scanner import gauge_invariants
-    return {"system": "scorbot-scanner",
+    extra = {"effects": [{"effect": e.name, "location": e.location or "camera", "values": list(e.values)}
+                         for e in effects]} if effects else {}
+    return {"system": "scorbot-scanner", **extra,
             "scanner": {n: float(v) for n, v in zip(cam.SCANNER_NAMES, scanner_truth)},
             "scanner_invariants": gauge_invariants(scanner_truth),
             "arm": arm_truth.to_dict(), "noise": asdict(noise), "campaign": asdict(campaign),
@@ -330,12 +415,15 @@ def truth_document(arm_truth: SerialArm, scanner_truth: np.ndarray, noise: Noise
 
 
 def simulate_in_memory(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.ndarray,
-                       campaign: Campaign = Campaign(), noise: Noise = Noise(), pattern: Pattern = Pattern()):
-    """The measurement table a recording of this campaign would load to (for tests/benchmarks)."""
-    sim = simulate(arm_nominal, arm_truth, scanner_truth, campaign, noise, pattern)
+                       campaign: Campaign = Campaign(), noise: Noise = Noise(), pattern: Pattern = Pattern(),
+                       effects: tuple = ()):
+    """The measurement table a recording of this campaign would load to (for tests/benchmarks);
+    with effects it also has timestamp_ns (the diagnosis rebuilds its context from the stream)."""
+    sim = simulate(arm_nominal, arm_truth, scanner_truth, campaign, noise, pattern, effects=effects)
     rows = [(i, o.q, px, pattern.corners()[j]) for i, o in enumerate(sim.observations)
             for px, j in zip(o.corner_px, o.corner_idx)]
     table = {"joint_positions": np.array([r[1] for r in rows]), "pixel": np.array([r[2] for r in rows]),
              "corner": np.array([r[3] for r in rows]), "pose": np.array([r[0] for r in rows]),
-             "record": np.array([r[0] for r in rows])}
+             "record": np.array([r[0] for r in rows]),
+             "timestamp_ns": np.array([sim.obs_t_ns[r[0]] for r in rows], np.int64)}
     return sim, table

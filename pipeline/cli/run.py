@@ -36,6 +36,14 @@ def _summary(run_dir: Path) -> None:
             ("held-out RMS", mm(s.get("holdout_rms_m"))),
             ("predicted point accuracy (1σ RMS)", mm(s.get("predicted_point_sigma_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
+    diag = doc.get("stages", {}).get("diagnose", {}).get("summary", {})
+    if "findings" in diag:  # what the geometric model left out (issue 7)
+        found = ", ".join(diag["findings"]) or "none"
+        rows.append(("diagnosis: effects found", found))
+        if diag.get("unexplained"):
+            rows.append(("diagnosis: unexplained structure", "yes (see report)"))
+        if diag["findings"] and diag.get("holdout_rms_after_m") is not None:
+            rows.append(("held-out RMS with the effects modelled", mm(diag["holdout_rms_after_m"])))
     for k, v in rows:
         t.add_row(k, str(v))
     Console(stderr=True).print(t)

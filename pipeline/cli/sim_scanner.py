@@ -21,13 +21,25 @@ def scorbot_scanner_cmd(
     poses: int = typer.Option(5, "--poses", min=1, help="Robot poses (the paper: 5)."),
     corners: int = typer.Option(5, "--corners", min=1, help="Corner crossings picked per pose (the paper: 5)."),
     joint_offset_deg: float = typer.Option(0.0, "--joint-offset-errors", min=0.0, help="1σ of true joint offset errors, deg (for joint identification)."),
+    effect: list[str] = typer.Option([], "--effect", help="Inject an effect into the TRUE camera/arm: NAME=VALUE[,VALUE][@LOCATION] "
+                                     "(radial_k2 1/m^4, tangential_distortion=p1,p2 1/m, stripe_peak_bias px, time_offset s, "
+                                     "joint_offset@J1..J5 rad, joint_scale@J1..J5). Repeatable; goes to TRUTH.json only."),
+    capture_speed: float = typer.Option(0.0, "--capture-speed", min=0.0, help="Joint speed (rad/s) of a sweep through each pose during the capture (exposes a camera time offset)."),
+    spread: bool = typer.Option(False, "--spread", help="Stripe rows over 10-90 %% of the image and crossings spread along the stripe (exposes lens distortion)."),
 ) -> None:
     """Laser-stripe scanner on a SCORBOT-ER VII (seed 001): stripe crossings of a printed 30 mm grid."""
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
     from pipeline.recording.writer import write_campaign
     from pipeline.simulate import scorbot_scanner as sim
+    from pipeline.errors import RobocalError
+    from pipeline.simulate.effects import parse_effect
     from pipeline.systems import scorbot_scanner as sc
 
+    try:
+        injected = tuple(parse_effect(e) for e in effect)
+        sim.check_effects(injected)
+    except ValueError as e:
+        raise RobocalError(str(e)) from None
     nominal = sc.nominal_arm()
     rng = np.random.default_rng(seed + 1_000_003)
     arm_true = nominal
@@ -35,12 +47,12 @@ def scorbot_scanner_cmd(
         x = nominal.vector()
         x[6 + 5 * np.arange(nominal.n_joints)] += rng.normal(0, np.radians(joint_offset_deg), nominal.n_joints)
         arm_true = nominal.with_vector(x)
-    campaign, noise, pattern = sim.Campaign(poses=poses, corners=corners, seed=seed), sim.Noise(scale=noise_scale), sim.Pattern()
+    campaign, noise, pattern = sim.Campaign(poses=poses, corners=corners, seed=seed, capture_speed_rad_s=capture_speed, spread=spread), sim.Noise(scale=noise_scale), sim.Pattern()
     with err.status(f"simulating {poses} poses x {corners} corners…"):
         for attempt in range(50):
             s_true = sc.random_scanner(rng) if random_errors else sc.reference_scanner()
             try:
-                result = sim.simulate(nominal, arm_true, s_true, campaign, noise, pattern)
+                result = sim.simulate(nominal, arm_true, s_true, campaign, noise, pattern, effects=injected)
                 break
             except RuntimeError:
                 if not random_errors:
@@ -59,6 +71,6 @@ def scorbot_scanner_cmd(
                    sim.stripe_messages(result, pattern))
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)
-        truth.write_text(json.dumps(sim.truth_document(arm_true, s_true, noise, campaign, result), indent=2) + "\n")
+        truth.write_text(json.dumps(sim.truth_document(arm_true, s_true, noise, campaign, result, injected), indent=2) + "\n")
     err.print(f"wrote {out} ({result.stream_t_ns.size} encoder samples, {len(result.observations)} stripe "
               f"observations, {sum(len(o.corner_idx) for o in result.observations)} corner crossings)")

@@ -38,7 +38,7 @@ from pipeline.models import serial_arm
 
 PLAUSIBLE = {
     "radial_k2": 2e8,  # 1/m⁴ (normalised k2·f⁴ ≈ 0.55 for f = 7.25 mm)
-    "tangential_distortion": 1.0,  # 1/m (normalised p·f ≈ 7e-3)
+    "tangential_distortion": 2.0,  # 1/m (normalised p·f ≈ 0.015: a strongly decentred lens)
     "stripe_peak_bias": 0.5,  # px
     "time_offset": 0.1,  # s (a few video frames)
     "joint_offset": 2e-2,  # rad (1.1°)

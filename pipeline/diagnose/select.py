@@ -132,10 +132,10 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
         if ok:
             reason = ""
             kept.append(i)
-        elif tot == 0:
-            reason = "no effect on these measurements"
         elif e.data.get("blocked"):
             reason = e.data["blocked"]
+        elif tot == 0:
+            reason = "no effect on these measurements"
         elif conf_label:
             reason = f"indistinguishable from {conf_label} in this campaign"
         elif smin == 0:

@@ -15,7 +15,7 @@ import numpy as np
 from pipeline.diagnose.diagnose import Settings
 
 NAME = "diagnose"
-SUPPORTED = ("arc-welder", "delta-tracker")
+SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner")
 
 
 def settings_of(params: dict) -> Settings:
@@ -27,12 +27,23 @@ def settings_of(params: dict) -> Settings:
 
 def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | None = None,
                        drop_records: list[int] | None = None) -> dict:
-    """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker)."""
+    """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker, SCORBOT scanner)."""
     from pipeline.diagnose import table as dtable
     from pipeline.diagnose.diagnose import diagnose
     from pipeline.identify.model import take
     from pipeline.systems.registry import detect
 
+    if detect(rec).SYSTEM == "scorbot-scanner":
+        from pipeline.diagnose import scanner as dscan
+
+        model, tab, _ = dscan.from_recording(rec)
+        if drop_records:
+            tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
+        if x0 is not None and len(x0) != len(model.parameter_names()):
+            x0 = None  # identify ran another model variant (joint offsets): start from the global search
+        doc = diagnose(model, tab, x0=x0, settings=settings, adapter=dscan.adapter(model, tab))
+        doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
+        return doc
     if detect(rec).SYSTEM == "delta-tracker":
         from pipeline.diagnose import delta as ddelta
 

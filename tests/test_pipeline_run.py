@@ -138,3 +138,17 @@ def test_a_change_of_robocal_code_changes_every_stage_key(monkeypatch):
     assert before == runner.stage_key("identify", {"loss": "linear"}, {"ingest": "abc"})
     monkeypatch.setattr(runner, "code_fingerprint", lambda: "edited source")
     assert runner.stage_key("identify", {"loss": "linear"}, {"ingest": "abc"}) != before
+
+
+def test_every_result_of_a_full_run_is_bit_identical(tmp_path):
+    """All stages, diagnose and report included: everything but the timings (stage.json) and
+    run.rrd (rerun gives every row a fresh id) is byte for byte the same in two runs."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    run_pipeline(BUNDLED, a)
+    run_pipeline(BUNDLED, b)
+    skip = {"stage.json", "run.rrd"}
+    files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file() and p.name not in skip)
+    assert {"results.json", "report.html", "diagnose/diagnosis.json"} <= {f.as_posix() for f in files}
+    assert files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file() and p.name not in skip)
+    for f in files:
+        assert (a / f).read_bytes() == (b / f).read_bytes(), f

@@ -14,7 +14,6 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Callable
 
@@ -105,7 +104,6 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     touch diagnosis table (`pipeline.diagnose.table`).  Vector residuals (residual_dim k > 1)
     are flattened measurement-major; cross-validation and bootstrap keep a measurement's k
     rows together."""
-    t0 = time.perf_counter()
     s = settings
     ad = adapter or touch_adapter(model, table, jig_tolerance_m, library)
     f = geometry_fit or fit(model, table, FitOptions(x0=x0))
@@ -248,7 +246,5 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         "candidates": candidates,
         "geometry": {"names": names, "x": [float(v) for v in z[:ng]], "free": [bool(b) for b in free]},
         "resimulation": resim,
-        "elapsed_s": 0.0,
     }
-    doc["elapsed_s"] = time.perf_counter() - t0
-    return doc
+    return doc  # no wall-clock time: diagnosis.json is bit-identical across runs (timing: stage.json)

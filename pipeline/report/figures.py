@@ -181,7 +181,7 @@ def provenance(art: RunArtefacts, version: str, params: dict[str, Any]) -> dict[
         "input_path": art.source.get("path"),
         "robocal_version": version,
         "metadata": {k: _brief(v) for k, v in (rec.get("metadata") or {}).items()},
-        "stages": {s: {"params": d.get("params", {}), "key": d.get("key"), "elapsed_s": d.get("elapsed_s"),
+        "stages": {s: {"params": d.get("params", {}), "key": d.get("key"),
                        "robocal_version": d.get("robocal_version")} for s, d in art.stages.items()},
         "report_params": params,
         "warnings": list(rec.get("warnings", []) or []),

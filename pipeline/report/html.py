@@ -240,10 +240,10 @@ def provenance_section(prov: dict[str, Any], rrd_name: str | None) -> str:
     rows += [[f"metadata: {escape(k)}", escape(str(v))] for k, v in prov.get("metadata", {}).items()]
     html = _table(["item", "value"], rows)
     st = [[escape(s), f"<code>{escape(str(d.get('key') or ''))}</code>",
-           f"<code>{escape(_json(d.get('params', {})))}</code>", _num(d.get("elapsed_s"), 3),
+           f"<code>{escape(_json(d.get('params', {})))}</code>",
            escape(str(d.get("robocal_version") or ""))] for s, d in prov.get("stages", {}).items()]
-    st.append(["report", "", f"<code>{escape(_json(prov.get('report_params', {})))}</code>", "", ""])
-    html += "<h3>Stages</h3>" + _table(["stage", "key", "parameters", "time (s)", "version"], st, {3})
+    st.append(["report", "", f"<code>{escape(_json(prov.get('report_params', {})))}</code>", ""])
+    html += "<h3>Stages</h3>" + _table(["stage", "key", "parameters", "version"], st)
     if rrd_name:
         html += (f'<p class="note">3-D view of this run: <code>{escape(rrd_name)}</code> beside this file; open it '
                  f"with <code>robocal view DIR</code> (rerun viewer).</p>")

@@ -10,7 +10,6 @@ the measurement model for the 3-D scene).
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +24,6 @@ RUN_RRD = "run.rrd"
 
 def run(run_dir: Path, params: dict[str, Any] | None = None) -> dict[str, Any]:
     """Write DIR/report.html and DIR/run.rrd; return the figures (SI) for results.json."""
-    t0 = time.perf_counter()
     run_dir = Path(run_dir)
     params = dict(params or {})
     art = load_run(run_dir)
@@ -47,5 +45,4 @@ def run(run_dir: Path, params: dict[str, Any] | None = None) -> dict[str, Any]:
         if info["warnings"]:
             out["warnings"] = info["warnings"]
     out["outputs"] = sorted(out["files"].values())  # files outside DIR/report/ (for the runner's cache)
-    out["elapsed_s"] = time.perf_counter() - t0
-    return out
+    return out  # timings live in stage.json (the runner's), never in results

@@ -60,7 +60,7 @@ def main() -> None:
     clean = [run([], 10_000 + s) for s in range(a.clean)]
     fp = np.mean([bool(d["findings"]) for d in clean])
     un = np.mean([d["unexplained"] for d in clean])
-    el = np.array([d["elapsed_s"] for d in clean])
+    el = np.array([d.get("elapsed_s", d.get("timing", {}).get("total_s", np.nan)) for d in clean])
     print(f"clean: {a.clean} recordings, false findings {fp * 100:.1f} %, unexplained {un * 100:.1f} %, "
           f"diagnosis {np.median(el):.2f} s median", flush=True)
     for name, loc in EFFECTS:

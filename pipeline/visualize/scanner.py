@@ -39,6 +39,12 @@ def log_system(rec, model, table: dict, x_before: np.ndarray, x_after: np.ndarra
     if not isinstance(rec, rr.RecordingStream):
         path = Path(rec)
         rec = rr.RecordingStream("robocal", recording_id=f"robocal-scanner-{path.stem}", send_properties=False)
+    if stripes is None and artefacts is not None:  # a pipeline run: the stripes are in its recording
+        src = Path(str(artefacts.source.get("path") or ""))
+        if src.is_file():
+            from pipeline.recording.reader import read_recording
+
+            stripes = stripes_of(read_recording(src, topics={"/scanner/stripe"}))
     corners = np.asarray(table["corner"], float)
     before, _ = model.points(x_before, table)
     after, _ = model.points(x_after, table)

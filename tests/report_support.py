@@ -43,7 +43,6 @@ def make_run(recording: Path, out: Path, *, diagnosis: bool = False) -> Path:
     pq.write_table(pa.table({"t_ns": stream.t_ns, **{f"q_{n}": stream.q[:, j] for j, n in enumerate(names)}}),
                    ing / "encoder.parquet")
     ctx = motion_context(stream, table["timestamp_ns"])
-    n = len(table["record"])
     meas = {"record": table["record"], "timestamp_ns": table["timestamp_ns"],
             **{f"q_{nm}": table["joint_positions"][:, j] for j, nm in enumerate(names)},
             "axis": np.array(["xyz"[a] for a in table["axis"]]), "coordinate": table["coordinate"],

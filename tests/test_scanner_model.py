@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline.identify.least_squares import FitOptions, fit
+from pipeline.identify.least_squares import fit
 from pipeline.models import camera as cam
 from pipeline.simulate import scorbot_scanner as sim
 from pipeline.systems import scorbot_scanner as sc

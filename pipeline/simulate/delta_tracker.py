@@ -303,7 +303,6 @@ def _via_timeline(waypoints: np.ndarray, measure: np.ndarray, c: Campaign, warmu
     """Cosine moves through `waypoints` (m, 3) rad from home after an idle `warmup_s`; a settle
     dwell after each measured waypoint (the tracker measures at its end), a short one after a
     via point.  Returns stream times, angles and the measurement times."""
-    m = waypoints.shape[0]
     home = np.zeros(3)
     starts = np.concatenate([[home], waypoints[:-1]])
     move = np.max(np.abs(waypoints - starts), axis=1) / c.joint_speed_rad_s * 1.5 + 0.2

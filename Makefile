@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv demo test bench reprocess clean chromium
+.PHONY: venv demo test lint bench reprocess clean chromium
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -17,8 +17,12 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/robocal run recordings/arc-welder-touch.mcap --out runs/demo
 
-test: $(STAMP) chromium
+test: $(STAMP) chromium lint
 	$(BIN)/python -m pytest -q
+
+# pyflakes rules only: undefined names, unused imports/variables, syntax errors
+lint: $(STAMP)
+	$(BIN)/ruff check --select F,E9 pipeline tests benchmarks
 
 reprocess: $(STAMP)
 	$(BIN)/robocal reprocess recordings/ --out runs/reprocess

@@ -122,3 +122,17 @@ def test_cli_injects_conceals_and_stage_diagnoses(tmp_path):
     r = subprocess.run([*ROBOCAL, "simulate", "scorbot-scanner", "--out", str(tmp_path / "x.mcap"), "--effect",
                         "joint_scale=1e-3@leg2"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "J1|J2|J3|J4|J5" in r.stderr
+
+
+def test_clustered_inference_counts_only_noisy_rows_and_reports_structure_in_metres():
+    """A pose's 5 collinear corners reconstruct into the laser plane, so 3 of its 15 residual rows
+    are structural zeros (no degrees of freedom); lack-of-fit `peak_m` is in m (original
+    residuals, as the plot's smooth), not in whitened units."""
+    doc = run(seed=0)
+    ci = doc["clustered_inference"]
+    assert ci["clusters"] == 20 and ci["effective_rows"] == 20 * 13  # 12 + the near-void roll about the line
+    doc = run(["tangential_distortion=8,8"], seed=1)
+    w = [w for w in doc["unexplained_where"] if w["variable"] == "pixel_U"]
+    assert w
+    smooth = np.abs(w[0]["plots"][0]["smooth_m"]).max()
+    assert abs(w[0]["peak_m"] - smooth) < 1e-3 * smooth + 1e-9 and 1e-4 < w[0]["peak_m"] < 2e-2

@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable
 
@@ -21,7 +22,8 @@ import numpy as np
 
 from pipeline.diagnose import confirm, lack_of_fit, visual
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
-from pipeline.diagnose.select import forward_select, gate, orthonormal, project_out
+from pipeline.diagnose.select import (Whitener, cluster_whitener, forward_select, gate, measurement_whitener,
+                                      noise_components, orthonormal, project_out)
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
 from pipeline.models import serial_arm
 
@@ -53,7 +55,12 @@ class Adapter:
       (measurement-major, n·residual_dim);
     - `time_s` (n,): time since start (s), for cross-validation blocks;
     - `located(effect)`: (label, values (n,)) — the variable an effect acts through, for the
-      added-variable plots (None: the measurement index).
+      added-variable plots (None: the measurement index);
+    - `cluster` (n,): the cluster (pose) of each measurement when several measurements share
+      one pose's error (None: every measurement is its own cluster), and `cluster_basis(x)`
+      (n, residual_dim, p): how a pose's error reaches each residual (None: a shift per
+      residual axis) — the tests are then made under the random-effects model of
+      `select.cluster_whitener` (pose-clustered inference, docs/diagnose.md).
     """
 
     library: list[Effect]
@@ -61,6 +68,9 @@ class Adapter:
     variables: Callable[[np.ndarray], list]
     time_s: np.ndarray
     located: Callable[[Effect], tuple[str, np.ndarray] | None] = lambda e: None
+    cluster: np.ndarray | None = None
+    cluster_basis: Callable[[np.ndarray], np.ndarray] | None = None
+    noise_shape: Callable[[np.ndarray], np.ndarray] | None = None
 
 
 def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None) -> Adapter:
@@ -121,15 +131,55 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     S3 = ad.signatures(x, table, tuple(lib))
     S = [sg.reshape(nk, -1) for sg in S3]
 
-    # 2. gate
-    gates = gate(lib, S, Jf, free_names, sigma, s.alpha)
-    testable = [i for i, g in enumerate(gates) if g.identifiable]
-    Sp = [gates[i].projected for i in testable]
-    tols = [lib[i].tolerance for i in testable]
+    # pose-clustered inference: the random-effects model of the cluster errors, estimated from the
+    # geometric residuals and re-estimated once effects are accepted (iterated feasible GLS)
+    Zc, cl = None, None
+    if ad.cluster is not None:
+        Zb = (ad.cluster_basis(x) if ad.cluster_basis is not None
+              else np.broadcast_to(np.eye(k), (n, k, k)))
+        Zc = np.asarray(Zb, float).reshape(nk, -1)
+        cl = np.repeat(np.asarray(ad.cluster), k)
+    M, eff_rows, nm = None, None, None  # per-measurement shape of the within-cluster noise (k×k), whitened first
+    if Zc is not None and ad.noise_shape is not None:
+        src = ad.noise_shape(x)
+        src = list(src) if isinstance(src, (list, tuple)) else [src]
+        nm = noise_components(r, Zc, cl, src)
+        M, eff_rows = measurement_whitener(src, nm.variances), nm.effective_rows
+    W = None if Zc is None else cluster_whitener(r, Zc, cl, int(free.sum()), pre=M, effective_rows=eff_rows)
+    if W is not None:  # residual degrees of freedom: only the dimensions that carry noise
+        dof = W.n_effective - int(free.sum())
 
-    # 3. forward selection
-    steps = forward_select(r, Sp, dof, s.alpha, tols, s.max_terms)
+    def screen(W: Whitener | None):
+        """2. gate and 3. forward selection, on the whitened problem when W is given."""
+        if W is None:
+            Jw, rw, Sw, sw = Jf, r, S, sigma
+        else:
+            Jw = W(Jf)
+            rw = project_out(W(r)[:, None], orthonormal(Jw))[:, 0]
+            Sw = [W(sg) for sg in S]
+            sw = float(np.sqrt(rw @ rw / max(dof, 1)))
+        gs = gate(lib, Sw, Jw, free_names, sw, s.alpha)
+        tst = [i for i, g in enumerate(gs) if g.identifiable]
+        sp = [gs[i].projected for i in tst]
+        tl = [lib[i].tolerance for i in tst]
+        return gs, tst, sp, tl, forward_select(rw, sp, dof, s.alpha, tl, s.max_terms), Jw, rw
+
+    gates, testable, Sp, tols, steps, Jf_w, r_w = screen(W)
     accepted = [testable[st.index] for st in steps]
+    for _ in range(3 if W is not None else 0):
+        if not accepted:
+            break
+        Dacc = np.hstack([Jf] + [S[i] for i in accepted])
+        coef, *_ = np.linalg.lstsq(Dacc, r, rcond=None)
+        W2 = cluster_whitener(r - Dacc @ coef, Zc, cl, Dacc.shape[1], pre=M, effective_rows=eff_rows)
+        if W2 is None:
+            break
+        W = W2
+        gates, testable, Sp, tols, steps, Jf_w, r_w = screen(W)
+        new = [testable[st.index] for st in steps]
+        if new == accepted:
+            break
+        accepted = new
 
     # 4. joint refit
     groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
@@ -148,7 +198,7 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     after_cv = confirm.holdout(A, r_final, folds)
 
     # 5. evidence per finding: ablation CV, ΔBIC, bootstrap
-    boot = (confirm.bootstrap_frequency(Jf, r, Sp, tols, groups, s.alpha, s.n_boot, s.seed)
+    boot = (confirm.bootstrap_frequency(Jf_w, r_w, Sp, tols, groups, s.alpha, s.n_boot, s.seed)
             if accepted and s.n_boot else np.zeros(len(testable)))
     ng = len(names)
     col_of = {}  # accepted effect -> columns of A
@@ -193,7 +243,12 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
 
     # 6. lack of fit
     variables = ad.variables(z[:ng])
-    lof = lack_of_fit.test(r_final, A, variables, nk - A.shape[1], s.alpha)
+    if W is None:
+        lof = lack_of_fit.test(r_final, A, variables, nk - A.shape[1], s.alpha)
+    else:
+        vw = [dataclasses.replace(v, columns=W(v.columns)) for v in variables]
+        lof = lack_of_fit.test(W(r_final), W(A), vw, W.n_effective - A.shape[1], s.alpha, whiten=W,
+                               original=(r_final, A, variables))
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
               "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m}
              for t in sorted(lof, key=lambda t: t.p_value) if t.significant]
@@ -233,6 +288,10 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         "sigma_m": float(sigma),
         "sigma_after_m": float(sigma_after),
         "alpha": s.alpha,
+        **({} if W is None else {"clustered_inference": {
+            "clusters": W.n_clusters, "sigma_within_m": W.sigma_within, "effective_rows": W.n_effective,
+            "noise_variances": None if nm is None else [float(v) for v in nm.variances],
+            "method": "random-effects whitening per cluster (select.cluster_whitener), iterated"}}),
         "findings": findings,
         "not_identifiable": not_ident,
         "unexplained": bool(where),

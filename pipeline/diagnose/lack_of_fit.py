@@ -90,9 +90,17 @@ class LackOfFit:
     peak_m: float  # largest fitted residual structure, m
 
 
-def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int, alpha: float = 0.01) -> list[LackOfFit]:
-    """Grouped F test of each variable's smooth basis against design A, Holm across variables."""
+def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int, alpha: float = 0.01,
+         whiten=None, original: tuple | None = None) -> list[LackOfFit]:
+    """Grouped F test of each variable's smooth basis against design A, Holm across variables.
+    With clustered errors, r, A and the variables' columns come whitened (`select.Whitener`),
+    `whiten` is that W (for `locate`) and `original` = (r, A, variables) unwhitened: `peak_m`
+    is then the smooth fitted to the original residuals (m, not whitened units)."""
     QA = orthonormal(A)
+    if original is not None:
+        QA0 = orthonormal(original[1])
+        res0 = project_out(np.asarray(original[0], float)[:, None], QA0)[:, 0]
+        cols0 = {v.name: v.columns for v in original[2]}
     res = project_out(r[:, None], QA)[:, 0]
     rss = float(res @ res)
     raw = []
@@ -125,15 +133,16 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         region: tuple[float, float] | str = ""
         peak = 0.0
         if Bp is not None:
-            coef, *_ = np.linalg.lstsq(Bp, res, rcond=None)
-            peak = float(np.max(np.abs(Bp @ coef)))
-            region = locate(v, QA, res)
+            B0, r0 = (Bp, res) if original is None else (project_out(cols0[v.name], QA0), res0)
+            coef, *_ = np.linalg.lstsq(B0, r0, rcond=None)
+            peak = float(np.max(np.abs(B0 @ coef)))
+            region = locate(v, QA, res, whiten=whiten)
         out.append(LackOfFit(v.name, float(F) if np.isfinite(F) else 0.0, dof, p, float(p_holm[i]), bool(sig[i]),
                              region, peak))
     return out
 
 
-def locate(v: Variable, QA: np.ndarray, res: np.ndarray, n_scan: int = 25) -> tuple[float, float]:
+def locate(v: Variable, QA: np.ndarray, res: np.ndarray, n_scan: int = 25, whiten=None) -> tuple[float, float]:
     """Where along v the structure is: a matched-filter scan of single narrow bumps (width
     range/12) at `n_scan` centres, each projected against the design; the interval ±1 width
     around the centre whose bump explains most of the residual."""
@@ -144,6 +153,8 @@ def locate(v: Variable, QA: np.ndarray, res: np.ndarray, n_scan: int = 25) -> tu
     best, c_best = -1.0, lo
     for s in range(n_scan):
         cols = v.gain * Phi[:, s:s + 1]  # (n, c)
+        if whiten is not None:
+            cols = whiten(cols)
         Qb = orthonormal(project_out(cols, QA), 1e-6)
         g = float(np.sum((Qb.T @ res) ** 2)) if Qb.shape[1] else 0.0
         if g > best:

@@ -227,6 +227,41 @@ def variables(model, x: np.ndarray, table) -> list[lack_of_fit.Variable]:
     return out
 
 
+def pose_basis(model, x: np.ndarray, table) -> np.ndarray:
+    """How a pose's repeatability error reaches its corners (n, 3, 6): the flange (and so the
+    camera) stands a small rigid motion (δt, δω) away from where the encoders say, which moves
+    every reconstructed point P by δt + δω × (P − P̄) (P̄ the pose's mean point)."""
+    P = model.residuals(x, table) + np.asarray(table["corner"], float)
+    pose = np.asarray(table["pose"])
+    _, inv = np.unique(pose, return_inverse=True)
+    cnt = np.bincount(inv)
+    Pm = np.stack([np.bincount(inv, P[:, a]) / cnt for a in range(3)], axis=1)[inv]
+    d = P - Pm
+    n = P.shape[0]
+    Z = np.zeros((n, 3, 6))
+    Z[:, :, :3] = np.eye(3)
+    Z[:, 0, 4], Z[:, 0, 5] = d[:, 2], -d[:, 1]  # δω × d
+    Z[:, 1, 3], Z[:, 1, 5] = -d[:, 2], d[:, 0]
+    Z[:, 2, 3], Z[:, 2, 4] = d[:, 1], -d[:, 0]
+    return Z
+
+
+def stripe_directions(table) -> np.ndarray:
+    """Unit direction (n, 3, 1) in {B} of the grid line each pose's corners lie on: the printed
+    corner's error along the stripe (the part across it only moves the crossing along the line)
+    reaches the residual there, independently per corner."""
+    C = np.asarray(table["corner"], float)
+    pose = np.asarray(table["pose"]) if "pose" in table else np.zeros(len(C), int)
+    out = np.zeros((len(C), 3, 1))
+    for p in np.unique(pose):
+        m = pose == p
+        if m.sum() < 2:
+            continue
+        _, _, Vt = np.linalg.svd(C[m] - C[m].mean(axis=0), full_matrices=False)
+        out[m, :, 0] = Vt[0]
+    return out
+
+
 def adapter(model, table, lib: list[Effect] | None = None):
     """`diagnose.Adapter` of a scanner diagnosis table (`add_context`)."""
     from pipeline.diagnose.diagnose import Adapter
@@ -236,7 +271,10 @@ def adapter(model, table, lib: list[Effect] | None = None):
                    signatures=lambda x, data, effects: signatures(model, x, data, effects),
                    variables=lambda x: variables(model, x, table),
                    time_s=np.asarray(table["time_since_start_s"], float),
-                   located=lambda e: e.data.get("located"))
+                   located=lambda e: e.data.get("located"),
+                   cluster=np.asarray(table["pose"]) if "pose" in table else None,
+                   cluster_basis=(lambda x: pose_basis(model, x, table)) if "pose" in table else None,
+                   noise_shape=lambda x: [context(model, x, table)["dP_dpx"], stripe_directions(table)])
 
 
 def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray) -> dict:

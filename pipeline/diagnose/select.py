@@ -224,3 +224,178 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         rss = float(res @ res)
         dof -= kc
     return steps
+
+
+# ----- pose-clustered inference -------------------------------------------------------------
+@dataclass
+class Whitener:
+    """Block-diagonal W = σ_w·Σ^{-1/2} of a random-effects error model per cluster (pose):
+    r_g = Z_g u_g + e_g, u_g ~ (0, Ψ), e_g ~ (0, σ_w² I), Σ_g = σ_w² I + Z_g Ψ Z_gᵀ.
+
+    Applying W to residuals, Jacobians and signatures turns the correlated rows of a pose into
+    rows with variance σ_w² that are (to the estimate of Ψ) independent, so the grouped F tests
+    and the minimum detectable sizes hold: a pose-level signature (inside span Z_g) is tested
+    against the between-pose variance σ_w² + Z Ψ Zᵀ, a within-pose one against σ_w²."""
+
+    blocks: list[tuple[np.ndarray, np.ndarray]]  # (row indices, W_g)
+    sigma_within: float  # σ_w, m
+    psi: np.ndarray  # (p, p) between-cluster covariance of u, units of Z's columns
+    n_clusters: int
+    pre: object = None  # a per-measurement noise-shape whitener applied first (or None)
+    n_effective: int = 0  # residual dimensions that carry noise (structural zeros excluded)
+
+    def __call__(self, A: np.ndarray) -> np.ndarray:
+        A = np.asarray(A, float)
+        if self.pre is not None:
+            A = self.pre(A)
+        out = A.copy()
+        for rows, W in self.blocks:
+            out[rows] = W @ A[rows]
+        return out
+
+
+@dataclass
+class NoiseModel:
+    """Within-cluster noise of `noise_components`: variance per source (+ isotropic, last) and
+    the number of residual dimensions each cluster's rows really span (`effective_rows`)."""
+
+    variances: np.ndarray
+    effective_rows: dict
+
+
+def noise_components(r: np.ndarray, Z: np.ndarray, cluster: np.ndarray, sources: list[np.ndarray],
+                     void_tol: float = 1e-8) -> NoiseModel:
+    """Variance components of the within-cluster noise, by moments.  Each measurement's k rows get
+    Σ_i = Σ_j s_j N_ij N_ijᵀ + s_iso I (N_j (n, k, c_j) a noise source's map to the residual, e.g. a
+    pixel error through ∂P/∂pixel).  Per cluster g, what neither the sources nor the cluster basis
+    Z_g reach (the complement of span[blockdiag N_i, Z_g]) can only hold isotropic noise: s_iso is
+    its mean square.  When that is nil (a structural zero: the scanner's reconstructed points all
+    lie in the laser plane, so the off-plane residuals of a pose's collinear corners are affine
+    along the line, i.e. rigid, whatever the parameters) those dimensions carry neither noise nor
+    signal and must not count as residual degrees of freedom: `effective_rows[g]` is the rank of
+    span[blockdiag N_i, Z_g] then (all rows otherwise).  The source variances s_j are the
+    least-squares fit of every entry of e_g e_gᵀ (e_g = P_g r_g, P_g = I − Z_g Z_g⁺) to
+    P_g Σ_g P_g (unbiased moments), clipped ≥ 0."""
+    r = np.asarray(r, float)
+    Z = np.asarray(Z, float)
+    n, k = sources[0].shape[:2]
+    srcs = [np.asarray(N, float) for N in sources]
+    blocks = [np.einsum("nic,njc->nij", N, N) for N in srcs]
+    meas = np.arange(n * k) // k
+    X, y, eff = [], [], {}
+    ss_void, dim_void, ss_all = 0.0, 0, 0.0
+    per = []
+    for c in np.unique(cluster):
+        rows = np.flatnonzero(cluster == c)
+        Zg = Z[rows]
+        Pg = np.eye(rows.size) - Zg @ np.linalg.pinv(Zg, rcond=1e-9)
+        ms, loc = np.unique(meas[rows], return_inverse=True)
+        Nb = np.zeros((rows.size, sum(N.shape[2] for N in srcs) * ms.size))
+        col = 0
+        for N in srcs:
+            for a, m in enumerate(ms):
+                Nb[loc == a, col:col + N.shape[2]] = N[m]
+                col += N.shape[2]
+        span = np.hstack([Nb, Zg])
+        nrm = np.linalg.norm(span, axis=0)
+        span = span[:, nrm > 0] / nrm[nrm > 0]
+        U, sv, _ = np.linalg.svd(span, full_matrices=True)
+        rk = int(np.sum(sv > void_tol * sv[0])) if sv.size else 0
+        Vvoid = U[:, rk:]
+        ss_void += float(np.sum((Vvoid.T @ r[rows]) ** 2))
+        dim_void += Vvoid.shape[1]
+        ss_all += float(r[rows] @ r[rows])
+        eff[c] = (rk, rows.size)
+        e = Pg @ r[rows]
+        cols = []
+        for B in blocks:
+            Bg = np.zeros((rows.size, rows.size))
+            for a, m in enumerate(ms):
+                ix = np.flatnonzero(loc == a)
+                Bg[np.ix_(ix, ix)] = B[m]
+            cols.append((Pg @ Bg @ Pg).ravel())
+        per.append((Pg, e))
+        X.append(np.stack(cols, axis=1))
+        y.append(np.outer(e, e).ravel())
+    s_iso = ss_void / dim_void if dim_void else 0.0
+    X, y = np.vstack(X), np.concatenate(y)
+    y = y - s_iso * np.concatenate([(Pg @ Pg).ravel() for Pg, _ in per])
+    sc = np.sqrt(np.sum(X**2, axis=0))
+    sc[sc == 0] = 1.0
+    sj, *_ = np.linalg.lstsq(X / sc, y, rcond=None)
+    sj = np.clip(sj / sc, 0.0, None)
+    # void dims hold nothing (relative to the typical source variance): structural zeros
+    structural = dim_void > 0 and s_iso <= 1e-10 * ss_all / r.size
+    return NoiseModel(np.append(sj, s_iso), {c: (rk if structural else m) for c, (rk, m) in eff.items()})
+
+
+def measurement_whitener(sources: list[np.ndarray], variances: np.ndarray, floor: float = 1e-3):
+    """Row map (nk, c) → (nk, c) that whitens each measurement's k residual rows by its noise
+    covariance Σ_i = Σ_j s_j N_ij N_ijᵀ + s_iso I (`noise_components`).  `floor` (relative to the
+    median largest eigenvalue of Σ_i) only guards directions no source reaches against a zero
+    variance estimate; the output keeps the residual's units (scaled by √median λ_max)."""
+    n, k = sources[0].shape[:2]
+    C = np.zeros((n, k, k))
+    for N, v in zip(sources, variances):
+        N = np.asarray(N, float)
+        C += v * np.einsum("nic,njc->nij", N, N)
+    lam_med = float(np.median(np.linalg.eigvalsh(C + variances[-1] * np.eye(k))[:, -1]))
+    C += max(variances[-1], floor * lam_med) * np.eye(k)
+    w, V = np.linalg.eigh(C)
+    T = np.einsum("nij,nj,nkj->nik", V, np.sqrt(lam_med) / np.sqrt(w), V)
+
+    def apply(A: np.ndarray) -> np.ndarray:
+        A = np.asarray(A, float)
+        return np.einsum("nij,njc->nic", T, A.reshape(n, k, -1)).reshape(A.shape)
+    return apply
+
+
+def cluster_whitener(r: np.ndarray, Z: np.ndarray, cluster: np.ndarray, n_fitted: int = 0,
+                     pre=None, effective_rows: dict | None = None) -> Whitener | None:
+    """Estimate the random-effects model of `Whitener` from residuals r (N,) ⊥ the fitted design,
+    with Z (N, p) the random-effect columns of each row (a pose's rigid motion, say) and
+    `cluster` (N,) the cluster of each row; None when no cluster holds more rows than Z has
+    columns (nothing to separate: every row is its own measurement).
+
+    Moments: per cluster û_g = Z_g⁺ r_g; σ_w² = Σ‖r_g − Z_g û_g‖² / Σ(m_g − rank Z_g); Ψ =
+    mean(û_g û_gᵀ) − σ_w² mean((Z_gᵀZ_g)⁺), inflated by the share of the between-cluster degrees
+    of freedom the fit (`n_fitted` parameters) used, and clipped to positive semi-definite."""
+    r = np.asarray(r, float)
+    Z = np.asarray(Z, float)
+    if pre is not None:
+        r, Z = pre(r[:, None])[:, 0], pre(Z)
+    p = Z.shape[1]
+    ids = np.unique(cluster)
+    members = [np.flatnonzero(cluster == c) for c in ids]
+    if not any(m.size > p for m in members):
+        return None
+    U, V, ss_w, dof_w, dof_b = [], [], 0.0, 0, 0
+    pinvs = []
+    for c, rows in zip(ids, members):
+        Zg = Z[rows]
+        Zp = np.linalg.pinv(Zg, rcond=1e-9)
+        rk = int(np.linalg.matrix_rank(Zg, tol=1e-9 * max(np.abs(Zg).max(), 1e-300)))
+        u = Zp @ r[rows]
+        e = r[rows] - Zg @ u
+        ss_w += float(e @ e)
+        dof_w += (effective_rows[c] if effective_rows is not None else rows.size) - rk
+        dof_b += rk
+        U.append(u)
+        V.append(Zp @ Zp.T)
+        pinvs.append(Zp)
+    if dof_w < 1:
+        return None
+    s2 = ss_w / dof_w
+    U = np.array(U)
+    infl = dof_b / max(dof_b - n_fitted, 1) if n_fitted < dof_b else 1.0
+    psi = infl * (U.T @ U) / len(ids) - s2 * np.mean(V, axis=0)
+    w, Vec = np.linalg.eigh(0.5 * (psi + psi.T))
+    psi = (Vec * np.clip(w, 0, None)) @ Vec.T
+    blocks = []
+    for rows in members:
+        Zg = Z[rows]
+        Sg = np.eye(rows.size) + Zg @ psi @ Zg.T / s2
+        w, Vec = np.linalg.eigh(Sg)
+        blocks.append((rows, (Vec / np.sqrt(np.clip(w, 1e-12, None))) @ Vec.T))
+    n_eff = sum(effective_rows.values()) if effective_rows is not None else Z.shape[0]
+    return Whitener(blocks, float(np.sqrt(s2)), psi, len(ids), pre, int(n_eff))

@@ -204,13 +204,3 @@ def from_recording(rec):
     model, table = dt.load(rec)
     stream = joint_stream(rec)
     return model, add_context(table, stream.t_ns, stream.q), {"system": dt.SYSTEM}
-
-
-def effect_by_name(model, table, name: str, location: str | None) -> Effect:
-    """The library entry `name@location` (location may be omitted when unique)."""
-    hits = [e for e in library(model, table) if e.name == name and (location is None or e.location == location)]
-    if len(hits) != 1:
-        opts = sorted({e.label for e in library(model, table) if e.name == name}) or \
-            sorted({e.name for e in library(model, table)})
-        raise ValueError(f"effect {name}@{location}: expected one match, options: {', '.join(opts)}")
-    return hits[0]

@@ -303,7 +303,12 @@ def effect_by_name(arm: SerialArm, table: Table, name: str, location: str | None
         if j not in names:
             raise ValueError(f"bump needs @JOINT:CENTRE_RAD, e.g. bump=2e-4@J2:0.6 (got {location!r})")
         return bump_effect(arm, names.index(j), float(c or 0.0))
-    lib = touch_library(arm, table, jig_tolerance_m)
+    return pick(touch_library(arm, table, jig_tolerance_m), name, location)
+
+
+def pick(lib: list[Effect], name: str, location: str | None) -> Effect:
+    """The entry `name@location` of an effect library (location may be omitted when unique);
+    ValueError listing the options otherwise."""
     hits = [e for e in lib if e.name == name and (location is None or e.location == location)]
     if len(hits) != 1:
         options = sorted({e.label for e in lib if e.name == name}) or sorted({e.name for e in lib})

@@ -307,9 +307,6 @@ def from_recording(rec):
 
 def effect_by_name(model, table, name: str, location: str | None) -> Effect:
     """The library entry `name@location` (location may be omitted when unique)."""
-    lib = library(model, table)
-    hits = [e for e in lib if e.name == name and (location is None or e.location == location)]
-    if len(hits) != 1:
-        opts = sorted({e.label for e in lib if e.name == name}) or sorted({e.name for e in lib})
-        raise ValueError(f"effect {name}@{location}: expected one match, options: {', '.join(opts)}")
-    return hits[0]
+    from pipeline.diagnose.effects import pick
+
+    return pick(library(model, table), name, location)

@@ -187,7 +187,7 @@ def adapter(model, table, lib: list[Effect] | None = None):
 
 def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray) -> dict:
     """A copy of a tracker table with ``last_motion_sign`` (n, 3) and ``time_since_start_s`` (n,)."""
-    from pipeline.diagnose.table import last_motion_sign
+    from pipeline.ingest.context import last_motion_sign
 
     t_ns = np.asarray(table["timestamp_ns"], np.int64)
     out = dict(table)

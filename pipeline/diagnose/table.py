@@ -11,33 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-ENCODER_COUNT_RAD = 2 * np.pi / 2**17
-
-
-def last_motion_sign(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, threshold_rad: float = 3 * ENCODER_COUNT_RAD,
-                     lookback_s: float = 60.0) -> np.ndarray:
-    """Sign of each joint's last motion before each time, (n, nj) in {−1, 0, +1}.
-
-    The last motion is found by looking back from the measurement for the latest sample at
-    which the joint was more than `threshold_rad` away from its value at the measurement; the
-    sign is that of (now − then).  Unlike a per-sample step test this also sees slow motions
-    (a joint creeping at less than one encoder count per sample during a search).
-    """
-    t_ns = np.asarray(t_ns, np.int64)
-    n, nj = t_ns.size, q.shape[1]
-    at = np.clip(np.searchsorted(t, t_ns, side="right") - 1, 0, t.size - 1)
-    out = np.zeros((n, nj))
-    w = int(max(1, np.ceil(lookback_s / max(np.median(np.diff(t[: min(t.size, 1000)])) * 1e-9, 1e-6))))
-    for i in range(n):  # ≤ a few hundred measurements; each a vectorised look-back window
-        lo = max(0, at[i] - w)
-        seg = q[lo:at[i] + 1]
-        d = seg[-1] - seg  # (len, nj): now minus then
-        far = np.abs(d) > threshold_rad
-        for j in range(nj):
-            k = np.flatnonzero(far[:, j])
-            if k.size:
-                out[i, j] = np.sign(d[k[-1], j])
-    return out
+from pipeline.ingest.context import ENCODER_COUNT_RAD, last_motion_sign  # noqa: F401  (re-exported)
 
 
 def approach_velocity(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, lead_s: float = 0.004,

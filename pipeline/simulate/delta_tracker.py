@@ -142,15 +142,22 @@ def _quantise(q: np.ndarray, counts: int, on: bool) -> np.ndarray:
     return np.round(q / step) * step
 
 
-def simulate(delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noise: Noise = Noise()) -> SimResult:
-    """Run a campaign (see module docstring).  Deterministic for a given `campaign.seed`."""
-    rng = np.random.default_rng(campaign.seed)
+def commanded_angles(delta: Delta, campaign: Campaign) -> np.ndarray:
+    """Actuator angles (n, 3) rad the controller commands for the campaign's points (nominal IK)."""
     targets = campaign_targets(campaign)
     theta, ok = dm.inverse(delta, np.zeros(27), targets)
     if not np.all(ok):
         bad = np.flatnonzero(~ok)
         raise RobocalError(f"simulation: {bad.size} campaign points are outside the nominal workspace "
                            f"(first: {targets[bad[0]].round(4).tolist()} m); shrink the grid or move its centre")
+    return theta
+
+
+def simulate(delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noise: Noise = Noise()) -> SimResult:
+    """Run a campaign (see module docstring).  Deterministic for a given `campaign.seed`."""
+    rng = np.random.default_rng(campaign.seed)
+    targets = campaign_targets(campaign)
+    theta = commanded_angles(delta, campaign)
     k = noise.scale
     q_rec = _quantise(theta, noise.encoder_counts_per_rev, k > 0)
     M_true = true_reflector(delta, truth, theta)  # the actuators stand at the commanded angles
@@ -328,16 +335,12 @@ def simulate_effects(delta: Delta, truth: Truth, campaign: Campaign = Campaign()
     `pipeline.diagnose.delta`) and campaign variations.  Several effects may be combined."""
     from dataclasses import replace
 
-    from pipeline.diagnose.table import last_motion_sign
+    from pipeline.ingest.context import last_motion_sign
 
     check_effects(effects)
     rng = np.random.default_rng(campaign.seed)
     targets = campaign_targets(campaign)
-    theta, ok = dm.inverse(delta, np.zeros(27), targets)
-    if not np.all(ok):
-        bad = np.flatnonzero(~ok)
-        raise RobocalError(f"simulation: {bad.size} campaign points are outside the nominal workspace "
-                           f"(first: {targets[bad[0]].round(4).tolist()} m); shrink the grid or move its centre")
+    theta = commanded_angles(delta, campaign)
     v = variations
     order = np.concatenate([np.arange(len(theta)) if p % 2 == 0 else np.arange(len(theta))[::-1]
                             for p in range(max(1, v.passes))])

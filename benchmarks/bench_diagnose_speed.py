@@ -1,0 +1,44 @@
+"""Benchmark: time to diagnose a 300-contact arc-welder recording (target < 1 s).
+
+Run: .venv/bin/python benchmarks/bench_diagnose_speed.py
+Simulates one clean campaign (payload 0/6 kg, three search speeds), then times the diagnosis
+core (geometric fit, gating, selection, confirmation, lack of fit) and the whole
+`diagnose_recording` including decoding the encoder stream (best of 3).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from pipeline.diagnose.diagnose import diagnose
+from pipeline.diagnose.stage import diagnose_recording, settings_of
+from pipeline.diagnose.table import from_recording
+from pipeline.recording.reader import read_recording
+
+
+def main() -> None:
+    with tempfile.TemporaryDirectory() as d:
+        rec_path = Path(d) / "rec.mcap"
+        subprocess.run([str(Path(sys.executable).parent / "robocal"), "simulate", "arc-welder", "--out", str(rec_path),
+                        "--contacts", "300", "--payloads", "0,6", "--search-speeds", "0.005,0.01,0.02", "--seed", "2"],
+                       check=True, capture_output=True)
+        rec = read_recording(rec_path)
+        model, table, info = from_recording(rec)
+        core, whole = [], []
+        for _ in range(3):
+            t = time.perf_counter()
+            doc = diagnose(model, table, jig_tolerance_m=info.get("jig_tolerance_m", 2e-5))
+            core.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            diagnose_recording(rec, settings_of({}))
+            whole.append(time.perf_counter() - t)
+    print(f"300 contacts: diagnosis core {min(core):.2f} s, with stream decoding {min(whole):.2f} s; "
+          f"findings {[f['effect'] for f in doc['findings']]}, unexplained {doc['unexplained']}")
+
+
+if __name__ == "__main__":
+    main()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,12 @@ def arc_welder_cmd(
     search_speeds: str = typer.Option("", "--search-speeds", help="Campaign variation: search speeds (m/s) drawn per contact, e.g. 0.005,0.01,0.02."),
     face_order: str = typer.Option("shuffled", "--face-order", help="Campaign variation: shuffled (interleaved) or blocked faces."),
     repeatability: float = typer.Option(None, "--repeatability", min=0.0, help="Robot repeatability 3σ (m); default 1e-4."),
+    warm_up: str = typer.Option("", "--warm-up", help="Thermal: the arm warms as ΔT∞·(1 − exp(−t/τ)), given as TAU_S,DT_K "
+                                "(e.g. 900,6); an injected thermal_drift=GX,GY,GZ is then in m/K of that rise."),
+    temperature_sensor: bool = typer.Option(False, "--temperature-sensor", help="Thermal: log a temperature sensor "
+                                            "(1 Hz, 0.05 K noise) on /arm/temperature."),
+    dwell_s: float = typer.Option(None, "--dwell-s", min=0.0, help="Campaign: dwell (s) at the approach pose and at "
+                                  "each contact (default 0.2); longer dwells make a longer campaign (warm-up)."),
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
     from pipeline.models.jig import stepped_block
@@ -36,9 +43,13 @@ def arc_welder_cmd(
     campaign, noise = Campaign(contacts=contacts, seed=seed), Noise(scale=noise_scale)
     if repeatability is not None:
         noise = Noise(repeatability_3sigma_m=repeatability, scale=noise_scale)
+    if dwell_s is not None:
+        campaign = replace(campaign, dwell_s=dwell_s)
     jig = stepped_block()
-    if effect or payloads or search_speeds or face_order != "shuffled":  # the effects simulator (issue 7)
-        _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order)
+    thermal = (warm_up, temperature_sensor)
+    if effect or payloads or search_speeds or face_order != "shuffled" or warm_up or temperature_sensor:
+        _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
+                      thermal)  # the effects simulator (issue 7)
         return
     with err.status(f"simulating {contacts} contacts…"):
         sim = simulate(nominal, true, jig, campaign, noise)
@@ -47,7 +58,8 @@ def arc_welder_cmd(
               f"injected noise RMS {sim.injected_noise_rms_m * 1e3:.4f} mm)")
 
 
-def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc: dict, campaign_meta: dict) -> None:
+def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc: dict, campaign_meta: dict,
+           extra_events: list | tuple = ()) -> None:
     """Write the recording (nominal model, jig, campaign metadata, stream, contacts) and TRUTH.json."""
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
     from pipeline.recording.writer import write_campaign
@@ -60,17 +72,19 @@ def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc
     out.parent.mkdir(parents=True, exist_ok=True)
     with err.status("writing recording…"):
         write_campaign(out, meta, (sim.stream_t_ns, sim.stream_q, [j.name for j in nominal.joints]),
-                       aw.contact_messages(sim))
+                       list(aw.contact_messages(sim)) + list(extra_events))
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)
         truth.write_text(json.dumps(truth_doc, indent=2, default=float) + "\n")
 
 
-def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order) -> None:
+def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
+                  thermal_opts: tuple[str, bool] = ("", False)) -> None:
     """Campaign with concealed effects and campaign variations (`pipeline.simulate.effects`)."""
     from pipeline.errors import RobocalError
     from pipeline.simulate import effects as se
     from pipeline.simulate.arc_welder import truth_document
+    from pipeline.simulate.thermal import parse_warm_up
 
     def floats(text: str, what: str) -> tuple[float, ...]:
         try:
@@ -80,8 +94,10 @@ def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, paylo
 
     try:
         injected = [se.parse_effect(e) for e in effect]
+        warm = parse_warm_up(thermal_opts[0])
         var = se.Variations(payloads_kg=floats(payloads, "--payloads"),
-                            search_speeds_m_s=floats(search_speeds, "--search-speeds"), face_order=face_order)
+                            search_speeds_m_s=floats(search_speeds, "--search-speeds"), face_order=face_order,
+                            warm_up=(warm.tau_s, warm.rise_k) if warm else (), temperature_sensor=thermal_opts[1])
         with err.status(f"planning {campaign.contacts} contacts…"):
             targets = se.plan_targets(nominal, jig, campaign, truth=true)
         es = se.run(nominal, true, jig, targets, campaign, noise, injected, var)
@@ -89,6 +105,6 @@ def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, paylo
         raise RobocalError(str(e)) from None
     sim = es.sim
     _write(out, truth, nominal, jig, campaign, sim, truth_document(true, noise, campaign, sim) | se.truth_effects(es),
-           se.campaign_metadata(es, campaign))
+           se.campaign_metadata(es, campaign), es.temperature.messages() if es.temperature is not None else ())
     err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.contact_t_ns.size} contacts, "
               f"{len(injected)} concealed effect(s))")

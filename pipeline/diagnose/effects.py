@@ -20,7 +20,8 @@ motor); eccentricity δq_k = a·cos q_k + b·sin q_k; transmission error δq_k =
 b·sin 2q_k; scale δq_k = ε·q_k; wrist coupling δq_j = κ·q_i; pretravel: the trigger fires
 after the wire has travelled d past contact along the search direction (−face normal);
 latency: the encoders latch t_l after contact while the arm moves at its approach velocity;
-thermal drift: the tip moves by v·t (t since the start of the recording); face offset: the
+thermal drift: the tip moves by v·t (t since the start of the recording), or by g·ΔT when a
+temperature channel is recorded (ΔT its rise since the first reading); face offset: the
 machined face lies δ along its axis from the drawing value.
 """
 
@@ -165,6 +166,29 @@ def _drift(arm, x, t):
     return ts[:, None, None] * np.eye(3)[None]
 
 
+# ----- thermal drift: against time, or against a recorded temperature ---------------------
+PLAUSIBLE_THERMAL_M_PER_K = 1e-4  # 100 µm/K: a 1 m steel link grows 12 µm/K, 2 m of aluminium 46 µm/K
+
+
+def _drift_temperature(arm, x, t):
+    """The tip moves by g·ΔT (ΔT: temperature rise since the first reading, K)."""
+    dT = np.asarray(t["temperature_rise_K"], float)
+    return dT[:, None, None] * np.eye(3)[None]
+
+
+def thermal_drift_effect(table: Table) -> Effect:
+    """thermal_drift: the tip (in {W}) moves by v·t (m/s, time since start) — or, when the table
+    carries a recorded temperature (``temperature_rise_K``), by g·ΔT (m/K) located on that sensor."""
+    if "temperature_rise_K" in table:
+        sensor = str(np.asarray(table["temperature_sensor"])[0]) if "temperature_sensor" in table else "sensor"
+        return Effect("thermal_drift", f"temperature {sensor}", ("drift_x", "drift_y", "drift_z"), ("m/K",) * 3,
+                      PLAUSIBLE_THERMAL_M_PER_K, "tip", _drift_temperature, 70, "temperature_rise_K",
+                      ADVICE["thermal_drift"], confounders=("face_offset",))
+    return Effect("thermal_drift", "campaign", ("drift_x", "drift_y", "drift_z"), ("m/s",) * 3,
+                  PLAUSIBLE["thermal_drift"], "tip", _drift, 70, "time", ADVICE["thermal_drift"],
+                  confounders=("face_offset",))
+
+
 def _pretravel(arm, x, t):
     """Tip, as the model should place it, is d back along the face normal from the latch."""
     sign = np.asarray(t["normal_sign"], float)
@@ -270,8 +294,7 @@ def touch_library(arm: SerialArm, table: Table, jig_tolerance_m: float = 2e-5) -
             lib.append(Effect("wrist_coupling", f"{J[src]}->{J[dst]}", (f"coupling_{J[src]}_{J[dst]}",), ("rad/rad",),
                               P["wrist_coupling"], "joint", _coupling(src, dst), 60, f"q_{J[src]}",
                               ADVICE["wrist_coupling"]))
-    lib.append(Effect("thermal_drift", "campaign", ("drift_x", "drift_y", "drift_z"), ("m/s",) * 3, P["thermal_drift"],
-                      "tip", _drift, 70, "time", ADVICE["thermal_drift"], confounders=("face_offset",)))
+    lib.append(thermal_drift_effect(table))
     lib.append(Effect("trigger_pretravel", "touch sensor", ("pretravel",), ("m",), P["trigger_pretravel"], "tip",
                       _pretravel, 80, "approach", ADVICE["trigger_pretravel"]))
     speed = np.linalg.norm(tip_speed_vector(arm.vector(), table), axis=1) if "approach_joint_velocity" in table else None

@@ -54,7 +54,8 @@ def smooth_variable(name: str, unit: str, v: np.ndarray, gain: np.ndarray, K: in
 
 
 def touch_variables(x: np.ndarray, table, joint_names: list[str], speed: np.ndarray | None) -> list[Variable]:
-    """The variables of a touch campaign: each joint angle, time, approach speed.  (Per-face
+    """The variables of a touch campaign: each joint angle, time, the temperature rise (when
+    recorded), approach speed.  (Per-face
     structure is the library's `face_offset`, tested against the jig's machining tolerance.)"""
     q = np.asarray(table["joint_positions"], float)
     ax = np.asarray(table["axis"], int)
@@ -69,6 +70,10 @@ def touch_variables(x: np.ndarray, table, joint_names: list[str], speed: np.ndar
     v = smooth_variable("time_since_start_s", "s", table["time_since_start_s"], onehot_axis, K=6)
     if v is not None:
         out.append(v)
+    if "temperature_rise_K" in table:  # a recorded temperature channel (diagnose.table)
+        v = smooth_variable("temperature_rise_K", "K", table["temperature_rise_K"], onehot_axis, K=6)
+        if v is not None:
+            out.append(v)
     if speed is not None and np.ptp(speed) > 0.2 * np.max(np.abs(speed)):
         v = smooth_variable("approach_speed_m_s", "m/s", speed, np.asarray(table["normal_sign"], float)[:, None], K=4)
         if v is not None:

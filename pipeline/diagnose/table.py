@@ -4,7 +4,9 @@ Columns added to the system's measurement table (one row per measurement):
 ``last_motion_sign`` (n, n_joints) in {−1, 0, +1}, ``approach_joint_velocity`` (n, n_joints)
 rad/s just before the measurement, ``time_since_start_s`` (n,), ``payload_kg`` (n,) from the
 campaign's payload schedule (or the robot model's payload), ``normal_sign`` (n,) of the
-touched face (from the fixture).  Nothing here reads anything but what a real controller logs.
+touched face (from the fixture); when the recording has a temperature channel,
+``temperature_rise_K`` (n,) since its first reading (interpolated to each measurement) and
+``temperature_sensor`` (n,) the sensor's name.  Nothing here reads anything but what a real controller logs.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.ingest.context import ENCODER_COUNT_RAD, last_motion_sign  # noqa: F401  (re-exported)
+from pipeline.ingest.temperature import TemperatureStream, rise_at
 
 
 def approach_velocity(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, lead_s: float = 0.004,
@@ -43,8 +46,20 @@ def payload_at(t_ns: np.ndarray, schedule: list[dict] | None, default_kg: float)
     return out
 
 
+def add_temperature(table: dict, temperature: TemperatureStream, path: object = "",
+                    channel: str = "/touch/contact") -> dict:
+    """A copy of a table with ``temperature_rise_K`` and ``temperature_sensor`` (module docstring);
+    one-line `RobocalError` when the readings do not cover a measurement."""
+    t_ns = np.asarray(table["timestamp_ns"], np.int64)
+    out = dict(table)
+    out["temperature_rise_K"] = rise_at(temperature, t_ns, path, channel, table.get("record"))
+    out["temperature_sensor"] = np.full(t_ns.size, temperature.sensor, object)
+    return out
+
+
 def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray, *, normal_sign_of: dict[str, int],
-                payload_schedule: list[dict] | None, default_payload_kg: float) -> dict:
+                payload_schedule: list[dict] | None, default_payload_kg: float,
+                temperature: TemperatureStream | None = None, path: object = "") -> dict:
     """A copy of a touch table with the diagnosis columns (module docstring)."""
     t_ns = np.asarray(table["timestamp_ns"], np.int64)
     out = dict(table)
@@ -53,12 +68,15 @@ def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray, *, norm
     out["time_since_start_s"] = (t_ns - stream_t[0]) * 1e-9
     out["payload_kg"] = payload_at(t_ns, payload_schedule, default_payload_kg)
     out["normal_sign"] = np.array([normal_sign_of[str(f)] for f in table["face"]], float)
+    if temperature is not None:
+        out = add_temperature(out, temperature, path)
     return out
 
 
 def from_recording(rec):
     """(TouchModel, diagnosis table, info) of an arc-welder recording."""
     from pipeline.ingest.streams import joint_stream
+    from pipeline.ingest.temperature import temperature_stream
     from pipeline.models.jig import Jig
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE
     from pipeline.systems import arc_welder as aw
@@ -68,5 +86,6 @@ def from_recording(rec):
     campaign = rec.metadata.get(META_CAMPAIGN, {})
     stream = joint_stream(rec)
     tab = add_context(table, stream.t_ns, stream.q, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
-                      payload_schedule=campaign.get("payload_schedule"), default_payload_kg=model.arm.payload_kg)
+                      payload_schedule=campaign.get("payload_schedule"), default_payload_kg=model.arm.payload_kg,
+                      temperature=temperature_stream(rec), path=rec.path)
     return model, tab, {"jig_tolerance_m": jig.tolerance_m, "system": aw.SYSTEM}

@@ -9,6 +9,7 @@ import pyarrow as pa
 
 from pipeline.ingest.context import motion_context
 from pipeline.ingest.streams import JointStream
+from pipeline.ingest.temperature import TemperatureStream, rise_at
 
 
 def channel_table(messages: list[dict], log_times: list[int] | None = None) -> pa.Table:
@@ -37,12 +38,18 @@ def encoder_table(stream: JointStream) -> dict[str, np.ndarray]:
 
 
 def measurement_table(table: dict[str, np.ndarray], stream: JointStream | None,
-                      time_column: str = "timestamp_ns", window_s: float = 0.02) -> dict[str, np.ndarray]:
+                      time_column: str = "timestamp_ns", window_s: float = 0.02,
+                      temperature: TemperatureStream | None = None, path: object = "",
+                      channel: str = "") -> dict[str, np.ndarray]:
     """The system's measurement table (from `system.load`) joined with the motion context
-    of each measurement: `v_<joint>` (rad/s), `dir_<joint>` (−1/0/+1), `time_since_start_s`."""
+    of each measurement: `v_<joint>` (rad/s), `dir_<joint>` (−1/0/+1), `time_since_start_s`;
+    with a temperature channel, `temperature_rise_K` (since its first reading, interpolated)."""
     n = len(next(iter(table.values())))
     out = dict(table)
     out.setdefault("record", np.arange(n, dtype=np.int64))
+    if temperature is not None and time_column in table:
+        out["temperature_rise_K"] = rise_at(temperature, np.asarray(table[time_column], np.int64), path, channel,
+                                            out["record"])
     if stream is None or time_column not in table or len(stream) < 2:
         return out
     ctx = motion_context(stream, np.asarray(table[time_column], np.int64), window_s)
@@ -60,4 +67,4 @@ MODEL_EXCLUDE_PREFIXES = ("v_", "dir_")
 def model_columns(table: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The columns of a measurement table that came from the system (motion context removed)."""
     return {k: v for k, v in table.items()
-            if not k.startswith(MODEL_EXCLUDE_PREFIXES) and k != "time_since_start_s"}
+            if not k.startswith(MODEL_EXCLUDE_PREFIXES) and k not in ("time_since_start_s", "temperature_rise_K")}

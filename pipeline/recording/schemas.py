@@ -14,6 +14,7 @@ CHANNELS: dict[str, str] = {
     "/touch/contact": "touch_contact",
     "/scanner/stripe": "scanner_stripe",
     "/tracker/point": "tracker_point",
+    "/arm/temperature": "temperature",
 }
 
 # metadata record names

@@ -98,6 +98,8 @@ EFFECT_VARIABLES = (("backlash", "dir_{joint}"), ("thermal", "time_since_start_s
 
 def _effect_column(effect: str, location: Any, columns: list[str]) -> str | None:
     joint = location if isinstance(location, str) else (location or {}).get("joint", "") if isinstance(location, dict) else ""
+    if str(joint).startswith("temperature ") and "temperature_rise_K" in columns:
+        return "temperature_rise_K"  # thermal drift located on a recorded temperature channel
     for word, pattern in EFFECT_VARIABLES:
         if word in effect.lower():
             c = pattern.format(joint=joint)

@@ -23,6 +23,7 @@ from pipeline.diagnose.table import add_context, last_motion_sign
 from pipeline.models import ik, serial_arm
 from pipeline.models.jig import Jig
 from pipeline.models.serial_arm import SerialArm
+from pipeline.simulate import thermal
 from pipeline.simulate.arc_welder import IK_SEEDS, Campaign, Noise, SimResult, _quantise, _targets, _timeline
 
 
@@ -60,6 +61,10 @@ class Variations:
     payload_block: int = 10
     search_speeds_m_s: tuple[float, ...] = ()  # drawn per contact; () = campaign.search_speed_m_s
     face_order: str = "shuffled"  # "shuffled" | "blocked" (all contacts of a face in one block)
+    # thermal (pipeline.simulate.thermal): warm-up (τ s, ΔT∞ K) — thermal_drift is then g·ΔT in m/K —
+    # and whether a temperature sensor is logged on /arm/temperature
+    warm_up: tuple[float, ...] = ()
+    temperature_sensor: bool = False
 
 
 @dataclass
@@ -146,6 +151,7 @@ class EffectSim:
     injected: list[Injected]
     variations: Variations
     face_errors_m: dict[str, float] = field(default_factory=dict)
+    temperature: thermal.Readings | None = None  # the /arm/temperature channel, when a sensor is logged
 
 
 def _resolve(injected, arm, jig):
@@ -166,7 +172,7 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
     rng = np.random.default_rng(campaign.seed + 7919 if seed is None else seed)
     xt = truth.vector()
     k = noise.scale
-    eff = _resolve(injected, truth, jig)
+    eff = _thermal_retarget(_resolve(injected, truth, jig), variations)
     face_err = {f.id: float(k * rng.uniform(-noise.jig_error_m, noise.jig_error_m)) for f in jig.faces}
     for e, th in eff:
         if e.name == "face_offset":
@@ -220,7 +226,7 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
         payload = np.asarray(variations.payloads_kg, float)[blk % len(variations.payloads_kg)]
     ctx = {"joint_positions": q_a[keep] + s1[keep, None] * dq[keep], "axis": axis[keep], "face": ids[keep],
            "normal_sign": sign[keep], "payload_kg": payload, "time_since_start_s": (t_c - t_ns[0]) * 1e-9,
-           "last_motion_sign": last_motion_sign(t_ns, q_stream, t_c)}
+           "last_motion_sign": last_motion_sign(t_ns, q_stream, t_c), **_thermal_context(variations, t_c, t_ns)}
 
     def extra_q(q):
         return fx.joint_offsets(joint_eff, truth, xt, {**ctx, "joint_positions": q}) if joint_eff else 0.0
@@ -247,7 +253,43 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
                     contact_face=list(ids[keep]), contact_axis=axis[keep], contact_coordinate=coord,
                     injected_along_normal_m=injected_n, face_errors_m=face_err, dropped_targets=int(m - n))
     return EffectSim(sim=sim, payload_schedule=payload_schedule, search_speeds=speeds, injected=list(injected),
-                     variations=variations, face_errors_m=face_err)
+                     variations=variations, face_errors_m=face_err,
+                     temperature=_thermal_readings(variations, t_ns, campaign.seed + 7919 if seed is None else seed))
+
+
+# ----- thermal: warm-up and temperature sensor (pipeline.simulate.thermal) ------------------
+def _warm(variations: Variations) -> thermal.WarmUp | None:
+    return thermal.WarmUp(*variations.warm_up) if variations.warm_up else None
+
+
+def _thermal_retarget(eff: list, variations: Variations) -> list:
+    """With a warm-up, thermal_drift follows the true temperature rise (values in m/K)."""
+    if _warm(variations) is None:
+        return eff
+    as_temp = fx.thermal_drift_effect({"temperature_rise_K": np.zeros(1), "temperature_sensor": np.array(["true"])})
+    return [(as_temp, th) if e.name == "thermal_drift" else (e, th) for e, th in eff]
+
+
+def _thermal_context(variations: Variations, t_c: np.ndarray, t_ns: np.ndarray) -> dict:
+    warm = _warm(variations)
+    return {} if warm is None else {"temperature_rise_K": warm.rise((t_c - t_ns[0]) * 1e-9)}
+
+
+def _thermal_readings(variations: Variations, t_ns: np.ndarray, seed: int) -> thermal.Readings | None:
+    """The sensor's readings over the whole stream (own random stream: other draws unchanged)."""
+    if not variations.temperature_sensor:
+        return None
+    return thermal.read_sensor(_warm(variations), int(t_ns[0]), int(t_ns[-1]), np.random.default_rng([seed, 271828]))
+
+
+def temperature_stream(es: EffectSim):
+    """The logged readings as the ingest's `TemperatureStream` (None without a sensor)."""
+    from pipeline.ingest.temperature import TemperatureStream
+
+    r = es.temperature
+    if r is None:
+        return None
+    return TemperatureStream(r.sensor.name, r.sensor.location, r.t_ns, r.kelvin, np.arange(r.t_ns.size))
 
 
 def diagnosis_table(es: EffectSim, jig: Jig, default_payload_kg: float = 0.0) -> dict:
@@ -257,7 +299,8 @@ def diagnosis_table(es: EffectSim, jig: Jig, default_payload_kg: float = 0.0) ->
              "axis": s.contact_axis, "coordinate": s.contact_coordinate, "record": np.arange(s.contact_t_ns.size)}
     q_stream = s.stream_q
     return add_context(table, s.stream_t_ns, q_stream, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
-                       payload_schedule=es.payload_schedule or None, default_payload_kg=default_payload_kg)
+                       payload_schedule=es.payload_schedule or None, default_payload_kg=default_payload_kg,
+                       temperature=temperature_stream(es))
 
 
 def campaign_metadata(es: EffectSim, campaign: Campaign) -> dict:

@@ -15,6 +15,7 @@ import pyarrow.parquet as pq
 from pipeline.errors import RobocalError
 from pipeline.ingest.streams import JOINT_STATE, joint_stream
 from pipeline.ingest.tables import channel_table, encoder_table, measurement_table
+from pipeline.ingest.temperature import temperature_stream
 from pipeline.recording.reader import read_recording
 from pipeline.stages.artefacts import read_json, read_table, sha256_file, write_json, write_table
 
@@ -57,7 +58,9 @@ def run(run_dir: Path, params: dict) -> dict:
     if not errors:
         try:
             _, table = system.load(rec)
-            meas = measurement_table(dict(table), stream, window_s=float(params.get("context_window_s", 0.02)))
+            meas = measurement_table(dict(table), stream, window_s=float(params.get("context_window_s", 0.02)),
+                                     temperature=temperature_stream(rec), path=path,
+                                     channel=system.MEASUREMENT_CHANNEL)
             write_table(out / "measurements.parquet", meas)
             n = len(meas["record"])
         except RobocalError as e:

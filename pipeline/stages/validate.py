@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.ingest.streams import JOINT_STATE
+from pipeline.ingest.temperature import TEMPERATURE
 from pipeline.recording.reader import read_recording
 from pipeline.recording.schemas import CHANNELS, META_FIXTURE, META_ROBOT, validator
 from pipeline.stages.artefacts import read_table, write_json
@@ -95,6 +96,10 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
     for topic in decoded:
         if topic != mchan:
             out.append(C.check_duplicates(topic, _raw(rec, topic)))
+    if TEMPERATURE in decoded:
+        t_meas = table["timestamp_ns"] if table is not None and "timestamp_ns" in table else None
+        out += C.check_temperature(TEMPERATURE, decoded[TEMPERATURE], t_meas, mchan,
+                                   table["record"] if t_meas is not None else None)
     # joint limits
     lim = _limits(rec, system)
     if lim is not None and table is not None and "joint_positions" in table:

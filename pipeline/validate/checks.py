@@ -235,3 +235,34 @@ def check_outliers(channel: str, residuals: np.ndarray, record: np.ndarray, thre
 
 
 CheckFn = Callable[..., Check | list[Check]]
+
+
+# ----- temperature channel ----------------------------------------------------------------
+def check_temperature(channel: str, messages: Sequence[dict], meas_t_ns: np.ndarray | None,
+                      meas_channel: str = "", meas_record: np.ndarray | None = None) -> list[Check]:
+    """Readings of each sensor: finite, plausible (kelvin), time increasing (fail); the
+    measurements covered by readings (fail naming the measurement records)."""
+    from pipeline.ingest.temperature import coverage_problems, max_gap_ns, problems
+
+    out: list[Check] = []
+    by_sensor: dict[str, list[int]] = {}
+    for i, m in enumerate(messages):
+        by_sensor.setdefault(str(m.get("sensor", "")), []).append(i)
+    for sensor, idx in by_sensor.items():
+        ok = [i for i in idx if isinstance(messages[i].get("timestamp_ns"), int)
+              and isinstance(messages[i].get("temperature_k"), (int, float))]
+        t = np.array([messages[i]["timestamp_ns"] for i in ok], np.int64)
+        k = np.array([messages[i]["temperature_k"] for i in ok], float)
+        found = problems(t, k, np.array(ok, int))
+        for name, recs, reason in found:
+            out.append(make(name, channel, recs, FAIL, "", f"sensor {sensor!r}: {reason}"))
+        if not found:
+            out.append(Check("temperature", PASS, f"{channel}: sensor {sensor!r}: {t.size} readings finite, "
+                                                  f"plausible and in time order", channel, []))
+        if meas_t_ns is not None and not found and sensor == next(iter(by_sensor)):
+            bad = coverage_problems(t, meas_t_ns)
+            recs = bad if meas_record is None else np.asarray(meas_record)[bad]
+            out.append(make("temperature_coverage", meas_channel or channel, recs, FAIL,
+                            f"{channel}: every measurement within {max_gap_ns(t) * 1e-9:.0f} s of a reading",
+                            f"no {channel} reading of sensor {sensor!r} within {max_gap_ns(t) * 1e-9:.0f} s"))
+    return out

@@ -1,0 +1,169 @@
+"""Thermal drift driven by a recorded temperature channel (issue 7).
+
+A warm-up ΔT(t) = ΔT∞·(1 − exp(−t/τ)) moves the true tip by g·ΔT; with the `/arm/temperature`
+sensor logged the diagnosis models the drift against the temperature, without it only against
+time.  One IK'd target set per module; each case re-runs only the contact searches.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from pipeline.diagnose.diagnose import diagnose
+from pipeline.diagnose.stage import diagnose_recording
+from pipeline.errors import RobocalError
+from pipeline.ingest.temperature import TEMPERATURE, rise_at, temperature_stream
+from pipeline.models.jig import stepped_block
+from pipeline.recording.reader import read_recording
+from pipeline.recording.schemas import CHANNELS, META_CAMPAIGN, schema_bytes, validator
+from pipeline.recording.writer import RecordingWriter
+from pipeline.simulate import effects as se
+from pipeline.simulate import thermal
+from pipeline.simulate.arc_welder import Campaign, Noise
+from pipeline.systems import arc_welder as aw
+from pipeline.validate.checks import FAIL, check_temperature
+
+NOM, TRUE, JIG = aw.nominal_arm(), aw.reference_truth(), stepped_block()
+CAMPAIGN = replace(Campaign(contacts=100, seed=3), dwell_s=10.0)  # ≈ 50 min: a warm-up
+WARM = (900.0, 8.0)  # τ = 15 min, ΔT∞ = 8 K
+G = (4e-5, 0.0, 3e-5)  # m/K of tip drift in {W}
+
+
+def variations(sensor: bool, warm: tuple = WARM) -> se.Variations:
+    return se.Variations(payloads_kg=(0.0, 6.0), search_speeds_m_s=(0.005, 0.01, 0.02), warm_up=warm,
+                         temperature_sensor=sensor)
+
+
+@pytest.fixture(scope="module")
+def targets():
+    return se.plan_targets(NOM, JIG, CAMPAIGN, truth=TRUE)
+
+
+def run(targets, effects=(), sensor=True, warm=WARM, seed=0):
+    es = se.run(NOM, TRUE, JIG, targets, CAMPAIGN, Noise(), [se.parse_effect(e) for e in effects],
+                variations(sensor, warm), seed=seed)
+    return diagnose(aw.TouchModel(NOM), se.diagnosis_table(es, JIG), jig_tolerance_m=JIG.tolerance_m)
+
+
+def drift(g=G) -> str:
+    return "thermal_drift=" + ",".join(f"{v:g}" for v in g)
+
+
+def test_temperature_recording_round_trips_byte_for_byte(tmp_path):
+    r = thermal.read_sensor(thermal.WarmUp(*WARM), 0, 120_000_000_000, np.random.default_rng(0))
+    first, again = tmp_path / "t.mcap", tmp_path / "again.mcap"
+    with RecordingWriter(first) as w:
+        w.metadata(META_CAMPAIGN, {"system": "arc-welder"})
+        for topic, m in r.messages():
+            w.write(topic, m)
+    with open(first, "rb") as f:
+        summary = make_reader(f).get_summary()
+        (ch,) = summary.channels.values()
+        assert ch.topic == TEMPERATURE and summary.schemas[ch.schema_id].data == schema_bytes(CHANNELS[TEMPERATURE])
+    rec = read_recording(first)
+    for m in rec.messages[TEMPERATURE]:
+        validator("temperature").validate(m)
+    with RecordingWriter(again) as w:
+        w.metadata(META_CAMPAIGN, rec.metadata[META_CAMPAIGN])
+        for m in rec.messages[TEMPERATURE]:
+            w.write(TEMPERATURE, m)
+    assert again.read_bytes() == first.read_bytes()
+    ts = temperature_stream(rec)
+    assert ts.sensor == "link2" and ts.t_ns.size == 121
+    assert np.allclose(ts.kelvin, r.kelvin) and 293 < ts.kelvin.mean() < 300
+
+
+def test_warm_up_with_sensor_is_found_on_the_temperature_channel(targets):
+    floor = run(targets, seed=1)["holdout_rms_before_m"]
+    doc = run(targets, [drift()], seed=1)
+    assert [(f["effect"], f["location"]) for f in doc["findings"]] == [("thermal_drift", "temperature link2")]
+    f = doc["findings"][0]
+    assert f["confidence"] == "high" and [p["unit"] for p in f["parameters"]] == ["m/K"] * 3
+    for p, g in zip(f["parameters"], G):
+        if g:
+            assert abs(p["value"] - g) < 0.2 * g  # within 20 %
+            assert abs(p["value"] - g) < 1.96 * p["std"] or abs(p["value"] - g) < 0.05 * g  # inside its 95 % CI
+    assert doc["holdout_rms_after_m"] < 1.2 * floor
+    assert doc["unexplained"] is False
+    plot = f["plots"][0]
+    assert plot["x_label"].startswith("temperature rise of link2") and max(plot["x"]) > 5.0
+
+
+def test_same_warm_up_without_sensor_leaves_the_linear_time_model_short(targets):
+    """The honest outcome: the drift is found against time (named thermal_drift@campaign, high
+    confidence), but the straight line cannot follow the exponential warm-up: structure stays
+    in time in most runs (mostly the fast early rise) and the held-out RMS stays above what the
+    temperature model reaches on the same campaign (benchmark: 1.16–1.55× the floor)."""
+    unexplained_time = 0
+    for seed in range(4):
+        doc = run(targets, [drift()], sensor=False, seed=seed)
+        assert ("thermal_drift", "campaign") in {(f["effect"], f["location"]) for f in doc["findings"]}
+        unexplained_time += any(w["variable"] == "time_since_start_s" for w in doc["unexplained_where"])
+        with_sensor = run(targets, [drift()], sensor=True, seed=seed)
+        assert with_sensor["holdout_rms_after_m"] < doc["holdout_rms_after_m"]
+    assert unexplained_time >= 2
+
+
+@pytest.mark.parametrize("warm", [WARM, ()], ids=["warm-up, no drift", "no warm-up"])
+def test_clean_recording_with_sensor_has_no_finding(targets, warm):
+    for seed in (0, 2):
+        doc = run(targets, sensor=True, warm=warm, seed=seed)
+        assert doc["findings"] == [] and doc["unexplained"] is False
+        assert any(c["location"] == "temperature link2" for c in doc["candidates"])
+
+
+def _write_temperatures(path, t_s, kelvin, contacts_at_s=(10.0,)):
+    """A tiny arc-welder-shaped recording: temperature readings (raw JSON, NaN allowed) only."""
+    with RecordingWriter(path) as w:
+        cid = w.channel(TEMPERATURE)
+        for i, (t, k) in enumerate(zip(t_s, kelvin)):
+            body = json.dumps({"timestamp_ns": int(t * 1e9), "sensor": "link2", "temperature_k": k}).encode()
+            w._w.add_message(cid, log_time=int(abs(t) * 1e9), data=body, publish_time=int(abs(t) * 1e9), sequence=i)
+    return read_recording(path)
+
+
+@pytest.mark.parametrize("kelvin, times, reason", [
+    ([293.2, float("nan"), 293.4, 293.5], [0, 1, 2, 3], "record 1: temperature is NaN or inf"),
+    ([293.2, 293.3, 293.4, 293.5], [0, 1, 0.5, 3], "record 2: time stamp not after the previous"),
+    ([293.2, 20.3, 293.4, 293.5], [0, 1, 2, 3], "record 1: temperature 20.30 K outside the plausible"),
+])
+def test_bad_temperature_input_is_a_one_line_error(tmp_path, kelvin, times, reason):
+    rec = _write_temperatures(tmp_path / "bad.mcap", times, kelvin)
+    with pytest.raises(RobocalError) as e:
+        temperature_stream(rec)
+    msg = str(e.value)
+    assert "\n" not in msg and str(tmp_path / "bad.mcap") in msg and f"channel {TEMPERATURE}" in msg and reason in msg
+    checks = check_temperature(TEMPERATURE, rec.messages[TEMPERATURE], None)
+    assert any(c.status == FAIL and reason.split(": ", 1)[1][:20] in c.message for c in checks)
+
+
+def test_measurements_not_covered_by_readings_are_a_one_line_error(tmp_path):
+    rec = _write_temperatures(tmp_path / "gap.mcap", np.r_[np.arange(0, 60), np.arange(200, 260)],
+                              np.full(120, 293.15))
+    ts = temperature_stream(rec)
+    meas = np.array([30, 130, 250, 400], np.int64) * 1_000_000_000
+    with pytest.raises(RobocalError, match=r"channel /touch/contact: record 11: no /arm/temperature reading"):
+        rise_at(ts, meas, rec.path, "/touch/contact", records=np.array([10, 11, 12, 13]))
+    assert np.allclose(rise_at(ts, meas[[0, 2]]), 0.0)
+
+
+def test_cli_recording_with_sensor_is_diagnosed_from_the_file(tmp_path, targets):
+    """End to end through the MCAP: the simulator's recording carries the channel, the
+    diagnosis reads it (the same finding as from the in-memory table)."""
+    from pipeline.cli.simulate import _write
+    from pipeline.simulate.arc_welder import truth_document
+
+    es = se.run(NOM, TRUE, JIG, targets, CAMPAIGN, Noise(), [se.parse_effect(drift())], variations(True), seed=1)
+    out = tmp_path / "warm.mcap"
+    _write(out, None, NOM, JIG, CAMPAIGN, es.sim, truth_document(TRUE, Noise(), CAMPAIGN, es.sim),
+           se.campaign_metadata(es, CAMPAIGN), es.temperature.messages())
+    rec = read_recording(out)
+    assert len(rec.messages[TEMPERATURE]) == es.temperature.t_ns.size
+    assert "warm_up" not in json.dumps(rec.metadata)  # the warm-up is truth, not in the recording
+    doc = diagnose_recording(rec)
+    assert [(f["effect"], f["location"]) for f in doc["findings"]] == [("thermal_drift", "temperature link2")]

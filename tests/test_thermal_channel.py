@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from pipeline.diagnose.diagnose import diagnose
+from pipeline.diagnose.diagnose import Settings, diagnose
 from pipeline.diagnose.stage import diagnose_recording
 from pipeline.errors import RobocalError
 from pipeline.ingest.temperature import TEMPERATURE, rise_at, temperature_stream
@@ -44,10 +44,11 @@ def targets():
     return se.plan_targets(NOM, JIG, CAMPAIGN, truth=TRUE)
 
 
-def run(targets, effects=(), sensor=True, warm=WARM, seed=0):
+def run(targets, effects=(), sensor=True, warm=WARM, seed=0, n_boot=40):
     es = se.run(NOM, TRUE, JIG, targets, CAMPAIGN, Noise(), [se.parse_effect(e) for e in effects],
                 variations(sensor, warm), seed=seed)
-    return diagnose(aw.TouchModel(NOM), se.diagnosis_table(es, JIG), jig_tolerance_m=JIG.tolerance_m)
+    return diagnose(aw.TouchModel(NOM), se.diagnosis_table(es, JIG), jig_tolerance_m=JIG.tolerance_m,
+                    settings=Settings(n_boot=n_boot))
 
 
 def drift(g=G) -> str:
@@ -101,10 +102,10 @@ def test_same_warm_up_without_sensor_leaves_the_linear_time_model_short(targets)
     temperature model reaches on the same campaign (benchmark: 1.16–1.55× the floor)."""
     unexplained_time = 0
     for seed in range(4):
-        doc = run(targets, [drift()], sensor=False, seed=seed)
+        doc = run(targets, [drift()], sensor=False, seed=seed, n_boot=10)
         assert ("thermal_drift", "campaign") in {(f["effect"], f["location"]) for f in doc["findings"]}
         unexplained_time += any(w["variable"] == "time_since_start_s" for w in doc["unexplained_where"])
-        with_sensor = run(targets, [drift()], sensor=True, seed=seed)
+        with_sensor = run(targets, [drift()], sensor=True, seed=seed, n_boot=0)
         assert with_sensor["holdout_rms_after_m"] < doc["holdout_rms_after_m"]
     assert unexplained_time >= 2
 
@@ -158,12 +159,41 @@ def test_cli_recording_with_sensor_is_diagnosed_from_the_file(tmp_path, targets)
     from pipeline.cli.simulate import _write
     from pipeline.simulate.arc_welder import truth_document
 
-    es = se.run(NOM, TRUE, JIG, targets, CAMPAIGN, Noise(), [se.parse_effect(drift())], variations(True), seed=1)
+    camp = replace(CAMPAIGN, rate_hz=100.0)  # a smaller file: 3000 s of encoder samples
+    es = se.run(NOM, TRUE, JIG, targets, camp, Noise(), [se.parse_effect(drift())], variations(True), seed=1)
     out = tmp_path / "warm.mcap"
-    _write(out, None, NOM, JIG, CAMPAIGN, es.sim, truth_document(TRUE, Noise(), CAMPAIGN, es.sim),
-           se.campaign_metadata(es, CAMPAIGN), es.temperature.messages())
+    _write(out, None, NOM, JIG, camp, es.sim, truth_document(TRUE, Noise(), camp, es.sim),
+           se.campaign_metadata(es, camp), es.temperature.messages())
     rec = read_recording(out)
     assert len(rec.messages[TEMPERATURE]) == es.temperature.t_ns.size
     assert "warm_up" not in json.dumps(rec.metadata)  # the warm-up is truth, not in the recording
-    doc = diagnose_recording(rec)
+    doc = diagnose_recording(rec, Settings(n_boot=10))
     assert [(f["effect"], f["location"]) for f in doc["findings"]] == [("thermal_drift", "temperature link2")]
+
+
+def test_delta_shares_the_temperature_model():
+    """Delta + tracker (108 measurements, ≈ 2 min, τ = 120 s): found on the temperature channel
+    with the sensor; without, a straight line in time is found instead (this short campaign
+    cannot tell the two apart: both reach the floor)."""
+    from pipeline.diagnose import delta as dd
+    from pipeline.diagnose.table import add_temperature
+    from pipeline.models.delta import Delta
+    from pipeline.simulate import delta_tracker as sd
+    from pipeline.systems.delta_tracker import TrackerModel
+
+    g = (3e-5, 0.0, 2e-5)
+    for sensor, location in ((True, "temperature link2"), (False, "campaign")):
+        var = sd.Variations(both_sides=True, passes=2, warm_up=(120.0, 5.0), temperature_sensor=sensor)
+        sim = sd.simulate_effects(Delta(), sd.random_truth(np.random.default_rng(1_000_004)), sd.Campaign(seed=1),
+                                  sd.Noise(), (se.parse_effect(drift(g)),), var)
+        tab = {"timestamp_ns": sim.t_ns, "joint_positions": sim.q, "point": sim.point_t,
+               "record": np.arange(sim.t_ns.size)}
+        tab = dd.add_context(tab, sim.stream_t_ns, sim.stream_q)
+        if sensor:
+            tab = add_temperature(tab, sim.temperature.stream(), "mem", "/tracker/point")
+        model = TrackerModel(Delta())
+        doc = diagnose(model, tab, adapter=dd.adapter(model, tab))
+        assert [(f["effect"], f["location"]) for f in doc["findings"]] == [("thermal_drift", location)]
+        if sensor:
+            gx = doc["findings"][0]["parameters"][0]
+            assert abs(gx["value"] - g[0]) < 0.2 * g[0] and gx["unit"] == "m/K"

@@ -29,6 +29,10 @@ def delta_tracker_cmd(
     both_sides: bool = typer.Option(False, "--both-sides", help="Approach every point from both sides of each actuator."),
     passes: int = typer.Option(1, "--passes", min=1, help="Visit the point list this many times (alternating order)."),
     warmup: float = typer.Option(0.0, "--warmup-s", min=0.0, help="Idle warm-up before the first point, s."),
+    warm_up: str = typer.Option("", "--warm-up", help="Thermal: the robot warms as ΔT∞·(1 − exp(−t/τ)), given as TAU_S,DT_K; "
+                                "an injected thermal_drift=GX,GY,GZ is then in m/K of that rise."),
+    temperature_sensor: bool = typer.Option(False, "--temperature-sensor", help="Thermal: log a temperature sensor "
+                                            "(1 Hz, 0.05 K noise) on /arm/temperature."),
 ) -> None:
     """Laser-tracker campaign of seed 003's 90° Delta robot."""
     from pipeline.errors import RobocalError
@@ -49,12 +53,16 @@ def delta_tracker_cmd(
     from pipeline.simulate.delta_tracker import Variations, check_effects
     from pipeline.simulate.effects import parse_effect
 
+    from pipeline.simulate.thermal import parse_warm_up
+
     try:
         injected = tuple(parse_effect(e) for e in effect)
         check_effects(injected)
+        warm = parse_warm_up(warm_up)
     except ValueError as e:
         raise RobocalError(str(e)) from None
-    variations = Variations(both_sides=both_sides, passes=passes, warmup_s=warmup)
+    variations = Variations(both_sides=both_sides, passes=passes, warmup_s=warmup,
+                            warm_up=(warm.tau_s, warm.rise_k) if warm else (), temperature_sensor=temperature_sensor)
     with err.status("simulating the tracker campaign…"):
         sim = write(out, delta, true, campaign, noise, truth, injected, variations)
     err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.t_ns.size} tracker points, "

@@ -14,7 +14,8 @@ change of r per unit parameter at the geometric solution x (sign conventions sha
   which single leg's yaw is absorbed depends on the campaign;
 - ``unequal_rods@leg<i>`` (m): parallelogram rods l2+Δl2 ± d/2 (tilts the platform);
 - ``thermal_drift@campaign`` (m/s ×3): the reflector seen by the tracker moves by v·t in {A}
-  (t since the start of the recording) → S = t·I;
+  (t since the start of the recording) → S = t·I; with a recorded `/arm/temperature` channel
+  ``thermal_drift@temperature <sensor>`` (m/K ×3) instead: it moves by g·ΔT → S = ΔT·I;
 - ``tracker_scale@tracker`` (1): the tracker reads (1+s)·p about its own origin → S = ᴬR_T p_T.
   A uniform scale of the Delta's lengths (a, b, l1, l2, h) scales every platform position, so
   β' absorbs it entirely: a scale can only be told by a reference length (scale bar).
@@ -83,6 +84,8 @@ def context(model, x: np.ndarray, data, need_ext: bool = True) -> dict:
     ctx = {"dM": dM_dtheta(model, x, data), "theta": np.asarray(data["joint_positions"], float),
            "sign": np.asarray(data["last_motion_sign"], float), "t": np.asarray(data["time_since_start_s"], float),
            "pA": np.asarray(data["point"], float) @ R.T}
+    if "temperature_rise_K" in data:
+        ctx["dT"] = np.asarray(data["temperature_rise_K"], float)
     if need_ext:
         ctx["ext"] = extended_columns(model, x, data)
     return ctx
@@ -106,6 +109,25 @@ def _rods(i):
 
 def _drift(c):
     return c["t"][:, None, None] * np.eye(3)[None]
+
+
+def _drift_temperature(c):
+    return c["dT"][:, None, None] * np.eye(3)[None]
+
+
+def _thermal(table, t) -> Effect:
+    """thermal_drift against time, or against the recorded temperature rise when there is one."""
+    if "temperature_rise_K" in table:
+        from pipeline.diagnose.effects import PLAUSIBLE_THERMAL_M_PER_K
+
+        sensor = str(np.asarray(table["temperature_sensor"])[0])
+        dT = np.asarray(table["temperature_rise_K"], float)
+        return Effect("thermal_drift", f"temperature {sensor}", ("drift_x", "drift_y", "drift_z"), ("m/K",) * 3,
+                      PLAUSIBLE_THERMAL_M_PER_K, "direct", _drift_temperature, 70, "temperature_rise_K",
+                      ADVICE["thermal_drift"], data={"located": (f"temperature rise of {sensor} (K)", dT)})
+    return Effect("thermal_drift", "campaign", ("drift_x", "drift_y", "drift_z"), ("m/s",) * 3,
+                  PLAUSIBLE["thermal_drift"], "direct", _drift, 70, "time", ADVICE["thermal_drift"],
+                  data={"located": ("time since start (s)", t)})
 
 
 def _tracker_scale(c):
@@ -137,9 +159,7 @@ def library(model, table) -> list[Effect]:
             lib.append(Effect("unequal_rods", leg, (f"{leg}.dl2_diff",), ("m",), P["unequal_rods"], "direct",
                               _rods(i), 50, f"q_{ACTUATORS[i]}", ADVICE["unequal_rods"],
                               data={"located": (f"{ACTUATORS[i]} (rad)", th[:, i])}))
-    lib.append(Effect("thermal_drift", "campaign", ("drift_x", "drift_y", "drift_z"), ("m/s",) * 3,
-                      P["thermal_drift"], "direct", _drift, 70, "time", ADVICE["thermal_drift"],
-                      data={"located": ("time since start (s)", t)}))
+    lib.append(_thermal(table, t))
     dist = np.linalg.norm(np.asarray(table["point"], float), axis=1)
     lib.append(Effect("tracker_scale", "tracker", ("tracker_scale",), ("1",), P["tracker_scale"], "direct",
                       _tracker_scale, 80, "range", ADVICE["tracker_scale"],
@@ -170,6 +190,11 @@ def variables(model, x: np.ndarray, table) -> list[lack_of_fit.Variable]:
     v = lack_of_fit.smooth_variable("time_since_start_s", "s", np.repeat(t, 3), np.tile(np.eye(3), (n, 1)), K=6)
     if v is not None:
         out.append(v)
+    if "temperature_rise_K" in table:
+        dT = np.asarray(table["temperature_rise_K"], float)
+        v = lack_of_fit.smooth_variable("temperature_rise_K", "K", np.repeat(dT, 3), np.tile(np.eye(3), (n, 1)), K=6)
+        if v is not None:
+            out.append(v)
     return out
 
 
@@ -198,9 +223,15 @@ def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray) -> dict
 
 def from_recording(rec):
     """(TrackerModel, diagnosis table, info) of a delta-tracker recording."""
+    from pipeline.diagnose.table import add_temperature
     from pipeline.ingest.streams import joint_stream
+    from pipeline.ingest.temperature import temperature_stream
     from pipeline.systems import delta_tracker as dt
 
     model, table = dt.load(rec)
     stream = joint_stream(rec)
-    return model, add_context(table, stream.t_ns, stream.q), {"system": dt.SYSTEM}
+    tab = add_context(table, stream.t_ns, stream.q)
+    temp = temperature_stream(rec)
+    if temp is not None:
+        tab = add_temperature(tab, temp, rec.path, dt.MEASUREMENT_CHANNEL)
+    return model, tab, {"system": dt.SYSTEM}

@@ -67,8 +67,8 @@ def max_gap_ns(t_ns: np.ndarray) -> int:
 
 
 def coverage_problems(t_ns: np.ndarray, meas_t_ns: np.ndarray) -> np.ndarray:
-    """Indices of measurements the readings do not cover: before the first reading, after the
-    last, or in a gap, by more than `max_gap_ns` from the nearest reading on either side."""
+    """Indices of measurements the readings do not cover: more than `max_gap_ns` before the
+    first reading or after the last, or in a gap with a reading farther than that on either side."""
     t = np.asarray(t_ns, np.int64)
     m = np.asarray(meas_t_ns, np.int64)
     if t.size == 0:
@@ -77,8 +77,10 @@ def coverage_problems(t_ns: np.ndarray, meas_t_ns: np.ndarray) -> np.ndarray:
     j = np.searchsorted(t, m)  # t[j-1] < m <= t[j]
     before = np.where(j > 0, m - t[np.maximum(j - 1, 0)], np.iinfo(np.int64).max)
     after = np.where(j < t.size, t[np.minimum(j, t.size - 1)] - m, np.iinfo(np.int64).max)
-    exact = (j < t.size) & (t[np.minimum(j, t.size - 1)] == m)
-    return np.flatnonzero(~exact & ((before > gap) | (after > gap)))
+    # inside the readings both neighbours must be near; beyond either end, the nearest reading
+    first, last = j == 0, j == t.size
+    ok = np.where(first, after <= gap, np.where(last, before <= gap, (before <= gap) & (after <= gap)))
+    return np.flatnonzero(~ok)
 
 
 def _number(path, i: int, msg: dict, key: str, kind: type):

@@ -21,6 +21,7 @@ import numpy as np
 from pipeline.errors import RobocalError
 from pipeline.models import delta as dm
 from pipeline.models.delta import Delta
+from pipeline.simulate import thermal
 from pipeline.systems.delta_tracker import H_NOMINAL, REG_KEYS, registration_matrix
 
 EPOCH_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
@@ -117,6 +118,7 @@ class SimResult:
     tracker_noise: np.ndarray  # (n, 3) injected tracker noise, m
     measurement_error: np.ndarray  # (n, 3) reading (in {A}) minus true reflector at the latched angles, m
     point_index: np.ndarray | None = None  # (n,) commanded point of each measurement (None: 0..n-1)
+    temperature: object = None  # simulate.thermal.Readings of /arm/temperature, when a sensor is logged
 
     @property
     def tracker_noise_rms_m(self) -> float:
@@ -253,7 +255,8 @@ def write(path, delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noi
         from pipeline.recording.schemas import META_CAMPAIGN
         meta[META_CAMPAIGN].update({"both_sides": var.both_sides, "passes": var.passes, "warmup_s": var.warmup_s,
                                     "approach_overshoot_rad": var.overshoot_rad if var.both_sides else None})
-    write_campaign(path, meta, (sim.stream_t_ns, sim.stream_q, ["A1", "A2", "A3"]), tracker_messages(sim))
+    temp_msgs = sim.temperature.messages() if sim.temperature is not None else []
+    write_campaign(path, meta, (sim.stream_t_ns, sim.stream_q, ["A1", "A2", "A3"]), tracker_messages(sim) + temp_msgs)
     if truth_path is not None:
         doc = truth_document(delta, truth, noise, campaign, sim)
         if varied:
@@ -286,6 +289,8 @@ class Variations:
     passes: int = 1
     warmup_s: float = 0.0
     overshoot_rad: float = 0.03
+    warm_up: tuple[float, ...] = ()  # (τ s, ΔT∞ K): thermal_drift is then g·ΔT in m/K (simulate.thermal)
+    temperature_sensor: bool = False  # log /arm/temperature
 
 
 def check_effects(effects) -> None:
@@ -383,14 +388,18 @@ def simulate_effects(delta: Delta, truth: Truth, campaign: Campaign = Campaign()
         elif e.name == "tracker_scale":
             scale += val[0]
     true_ = replace(truth, beta=B.ravel())
-    M_true = true_reflector(delta, true_, cmd + dtheta) + t_s[:, None] * drift
+    warm = thermal.WarmUp(*v.warm_up) if v.warm_up else None
+    M_true = true_reflector(delta, true_, cmd + dtheta) + (t_s if warm is None else warm.rise(t_s))[:, None] * drift
     R, t = registration_matrix(truth.registration)
     eps = rng.normal(0, k * noise.tracker_sigma_m, M_true.shape)
     point_t = (1 + scale) * ((M_true - t) @ R) + eps
     err = eps @ R.T + (true_reflector(delta, true_, cmd) - true_reflector(delta, true_, q_rec))
     q_stream = _quantise(q_stream, noise.encoder_counts_per_rev, k > 0)
+    temp = (thermal.read_sensor(warm, int(stream_t[0]), int(stream_t[-1]), np.random.default_rng([campaign.seed, 271828]))
+            if v.temperature_sensor else None)
     return SimResult(stream_t_ns=stream_t, stream_q=q_stream, t_ns=t_meas, q=q_rec, point_t=point_t,
-                     targets=targets[pidx], tracker_noise=eps, measurement_error=err, point_index=pidx)
+                     targets=targets[pidx], tracker_noise=eps, measurement_error=err, point_index=pidx,
+                     temperature=temp)
 
 
 __all__ = ["Campaign", "Noise", "Truth", "Variations", "random_truth", "simulate", "simulate_effects", "write",

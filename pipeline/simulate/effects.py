@@ -284,12 +284,7 @@ def _thermal_readings(variations: Variations, t_ns: np.ndarray, seed: int) -> th
 
 def temperature_stream(es: EffectSim):
     """The logged readings as the ingest's `TemperatureStream` (None without a sensor)."""
-    from pipeline.ingest.temperature import TemperatureStream
-
-    r = es.temperature
-    if r is None:
-        return None
-    return TemperatureStream(r.sensor.name, r.sensor.location, r.t_ns, r.kelvin, np.arange(r.t_ns.size))
+    return None if es.temperature is None else es.temperature.stream()
 
 
 def diagnosis_table(es: EffectSim, jig: Jig, default_payload_kg: float = 0.0) -> dict:

@@ -66,6 +66,13 @@ class Readings:
     t_ns: np.ndarray
     kelvin: np.ndarray
 
+    def stream(self):
+        """As the ingest's `TemperatureStream` (what reading the recorded channel yields)."""
+        from pipeline.ingest.temperature import TemperatureStream
+
+        return TemperatureStream(self.sensor.name, self.sensor.location, self.t_ns, self.kelvin,
+                                 np.arange(self.t_ns.size))
+
     def messages(self) -> list[tuple[str, dict]]:
         """(topic, body) events of the `/arm/temperature` channel."""
         return [(TEMPERATURE, {"timestamp_ns": int(t), "sensor": self.sensor.name, "location": self.sensor.location,

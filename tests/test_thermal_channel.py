@@ -197,3 +197,32 @@ def test_delta_shares_the_temperature_model():
         if sensor:
             gx = doc["findings"][0]["parameters"][0]
             assert abs(gx["value"] - g[0]) < 0.2 * g[0] and gx["unit"] == "m/K"
+
+
+def test_acquisition_carries_temperature_event_frames(tmp_path):
+    """The wire protocol's EVENT frame carries `/arm/temperature` readings like any channel."""
+    from pipeline.acquire import protocol as P
+    from pipeline.acquire.session import Acquisition
+
+    t0, ms = 1_795_000_000_000_000_000, 1_000_000
+    t = t0 + np.arange(2000, dtype=np.int64) * 4 * ms  # 8 s of 250 Hz samples
+    q = np.zeros((t.size, 6))
+    frames = [P.encode_frame(P.FrameType.HELLO, 0, t0, P.encode_json(
+        {"device": "bridge", "joint_names": [f"J{i}" for i in range(1, 7)]}))]
+    for seq, s in enumerate(range(0, t.size, 50)):
+        frames.append(P.encode_frame(P.FrameType.SAMPLES, seq + 1, int(t[s + 49]), P.encode_samples(t[s:s + 50], q[s:s + 50])))
+        if s % 250 == 0:  # one reading per second
+            body = {"sensor": "link2", "location": "upper arm", "temperature_k": 293.15 + s * 1e-3}
+            frames.append(P.encode_frame(P.FrameType.EVENT, 1000 + seq, int(t[s]), P.encode_event(int(t[s]), TEMPERATURE, body)))
+    out = tmp_path / "acq.mcap"
+    with open(out, "wb") as f:
+        acq = Acquisition(RecordingWriter(f), {"bridge": "sim"})
+        for i, fr in enumerate(frames):
+            acq.on_bytes("bridge", fr, int(t0 + i * 20 * ms))
+            if i % 25 == 0:
+                acq.tick()
+        acq.finish("test")
+    rec = read_recording(out)
+    ts = temperature_stream(rec)
+    assert ts.t_ns.size == 8 and ts.sensor == "link2"
+    assert np.allclose(np.diff(ts.kelvin), 0.25) and all("device_timestamp_ns" in m for m in rec.messages[TEMPERATURE])

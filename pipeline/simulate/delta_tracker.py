@@ -395,8 +395,9 @@ def simulate_effects(delta: Delta, truth: Truth, campaign: Campaign = Campaign()
     point_t = (1 + scale) * ((M_true - t) @ R) + eps
     err = eps @ R.T + (true_reflector(delta, true_, cmd) - true_reflector(delta, true_, q_rec))
     q_stream = _quantise(q_stream, noise.encoder_counts_per_rev, k > 0)
-    temp = (thermal.read_sensor(warm, int(stream_t[0]), int(stream_t[-1]), np.random.default_rng([campaign.seed, 271828]))
-            if v.temperature_sensor else None)
+    sensor = replace(thermal.Sensor(), noise_k=thermal.Sensor().noise_k * k)
+    temp = (thermal.read_sensor(warm, int(stream_t[0]), int(stream_t[-1]), np.random.default_rng([campaign.seed, 271828]),
+                                sensor) if v.temperature_sensor else None)
     return SimResult(stream_t_ns=stream_t, stream_q=q_stream, t_ns=t_meas, q=q_rec, point_t=point_t,
                      targets=targets[pidx], tracker_noise=eps, measurement_error=err, point_index=pidx,
                      temperature=temp)

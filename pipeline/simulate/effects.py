@@ -5,7 +5,8 @@ along the nominal face normal, contact decided by the true robot), but the true 
 has the effects of `pipeline.diagnose.effects` (compliance under gravity and payload,
 backlash, harmonics, scale, wrist coupling, thermal drift, trigger pretravel and latency, face
 offsets, and the out-of-library `bump`), and the campaign can vary what exposes them
-(payloads, search speeds, face order).  The recording carries only what a controller logs
+(payloads, search speeds, face order, a warm-up logged or not by a temperature sensor —
+`pipeline.simulate.thermal`).  The recording carries only what a controller logs
 (and the payload schedule the integrator programmed); the injected effects go to TRUTH.json.
 
 The expensive part — IK of the approach poses — is `plan_targets`; `run` re-runs only the
@@ -254,7 +255,7 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
                     injected_along_normal_m=injected_n, face_errors_m=face_err, dropped_targets=int(m - n))
     return EffectSim(sim=sim, payload_schedule=payload_schedule, search_speeds=speeds, injected=list(injected),
                      variations=variations, face_errors_m=face_err,
-                     temperature=_thermal_readings(variations, t_ns, campaign.seed + 7919 if seed is None else seed))
+                     temperature=_thermal_readings(variations, t_ns, campaign.seed + 7919 if seed is None else seed, k))
 
 
 # ----- thermal: warm-up and temperature sensor (pipeline.simulate.thermal) ------------------
@@ -275,11 +276,14 @@ def _thermal_context(variations: Variations, t_c: np.ndarray, t_ns: np.ndarray) 
     return {} if warm is None else {"temperature_rise_K": warm.rise((t_c - t_ns[0]) * 1e-9)}
 
 
-def _thermal_readings(variations: Variations, t_ns: np.ndarray, seed: int) -> thermal.Readings | None:
-    """The sensor's readings over the whole stream (own random stream: other draws unchanged)."""
+def _thermal_readings(variations: Variations, t_ns: np.ndarray, seed: int, noise_scale: float) -> thermal.Readings | None:
+    """The sensor's readings over the whole stream (own random stream: other draws unchanged;
+    its noise scales with `Noise.scale` like every error source)."""
     if not variations.temperature_sensor:
         return None
-    return thermal.read_sensor(_warm(variations), int(t_ns[0]), int(t_ns[-1]), np.random.default_rng([seed, 271828]))
+    sensor = replace(thermal.Sensor(), noise_k=thermal.Sensor().noise_k * noise_scale)
+    return thermal.read_sensor(_warm(variations), int(t_ns[0]), int(t_ns[-1]), np.random.default_rng([seed, 271828]),
+                               sensor)
 
 
 def temperature_stream(es: EffectSim):

@@ -52,9 +52,10 @@ def diag(c, targets, var, effects, seed):
 
 def measure(kind: str, cseed: int, seeds: int) -> dict:
     c, targets, var = campaign(kind, cseed)
-    found, ratio, rel, cover, mds = 0, [], [], [], []
+    found, ratio, rel, cover, mds, floors = 0, [], [], [], [], []
     for s in range(seeds):
         floor = diag(c, targets, var, [], s)["holdout_rms_before_m"]
+        floors.append(floor)
         d = diag(c, targets, var, [se.Injected("joint_compliance", (C_TRUE,), "J2")], s)
         ratio.append(d["holdout_rms_after_m"] / floor)
         mds.append(next(g["min_detectable"] for g in d["candidates"] if (g["effect"], g["location"]) == KEY))
@@ -70,7 +71,8 @@ def measure(kind: str, cseed: int, seeds: int) -> dict:
             "share_within_1.2_floor": float(np.mean(ratio <= 1.2)),
             "median_rel_error": float(np.median(rel)) if rel else None,
             "ci95_coverage": float(np.mean(cover)) if cover else None,
-            "mds_rad_per_Nm": float(np.median(mds)), "true_rad_per_Nm": C_TRUE}
+            "mds_rad_per_Nm": float(np.median(mds)), "true_rad_per_Nm": C_TRUE,
+            "clean_floor_m_median": float(np.median(floors))}
 
 
 def main() -> None:

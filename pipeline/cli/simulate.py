@@ -24,6 +24,8 @@ def arc_welder_cmd(
     payloads: str = typer.Option("", "--payloads", help="Campaign variation: payloads (kg) cycled in blocks of 10 contacts, e.g. 0,6."),
     search_speeds: str = typer.Option("", "--search-speeds", help="Campaign variation: search speeds (m/s) drawn per contact, e.g. 0.005,0.01,0.02."),
     face_order: str = typer.Option("shuffled", "--face-order", help="Campaign variation: shuffled (interleaved) or blocked faces."),
+    payload_pairs: bool = typer.Option(False, "--payload-pairs", help="With --payloads: touch each point once per payload, the "
+                                       "points planned for the compliance information left after the geometry."),
     repeatability: float = typer.Option(None, "--repeatability", min=0.0, help="Robot repeatability 3σ (m); default 1e-4."),
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
@@ -38,7 +40,8 @@ def arc_welder_cmd(
         noise = Noise(repeatability_3sigma_m=repeatability, scale=noise_scale)
     jig = stepped_block()
     if effect or payloads or search_speeds or face_order != "shuffled":  # the effects simulator (issue 7)
-        _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order)
+        _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
+                      payload_pairs)
         return
     with err.status(f"simulating {contacts} contacts…"):
         sim = simulate(nominal, true, jig, campaign, noise)
@@ -66,7 +69,8 @@ def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc
         truth.write_text(json.dumps(truth_doc, indent=2, default=float) + "\n")
 
 
-def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order) -> None:
+def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
+                  payload_pairs: bool = False) -> None:
     """Campaign with concealed effects and campaign variations (`pipeline.simulate.effects`)."""
     from pipeline.errors import RobocalError
     from pipeline.simulate import effects as se
@@ -81,9 +85,11 @@ def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, paylo
     try:
         injected = [se.parse_effect(e) for e in effect]
         var = se.Variations(payloads_kg=floats(payloads, "--payloads"),
-                            search_speeds_m_s=floats(search_speeds, "--search-speeds"), face_order=face_order)
+                            search_speeds_m_s=floats(search_speeds, "--search-speeds"), face_order=face_order,
+                            payload_pairs=payload_pairs)
         with err.status(f"planning {campaign.contacts} contacts…"):
-            targets = se.plan_targets(nominal, jig, campaign, truth=true)
+            targets = se.plan_targets(nominal, jig, campaign, truth=true,
+                                      payloads_kg=var.payloads_kg if payload_pairs else ())
         es = se.run(nominal, true, jig, targets, campaign, noise, injected, var)
     except (ValueError, RuntimeError) as e:
         raise RobocalError(str(e)) from None

@@ -118,11 +118,12 @@ def plan_targets(nominal: SerialArm, jig: Jig, campaign: Campaign, truth: Serial
 
 
 def compliance_design(nominal: SerialArm, t: Targets, payloads_kg: tuple[float, ...], m: int,
-                      travel_m: float = 0.04, ridge: float = 1e-6) -> np.ndarray:
+                      travel_m: float = 0.04, ridge: float = 1e-6, geometry_weight: float = 0.0) -> np.ndarray:
     """Indices of m targets, each touched once per payload, chosen greedily for the most
     information on the gravity compliance of every loaded joint *after* the geometry
-    (Ds-optimal: log det M − log det M_geometry, the geometry a nuisance), from the nominal
-    model with contacts `travel_m` along the search — what the planner can know beforehand."""
+    (Ds-optimal: log det M − log det M_geometry, the geometry a nuisance; `geometry_weight` w
+    blends in D-optimality: log det M − (1 − w)·log det M_geometry), from the nominal model with
+    contacts `travel_m` along the search — what the planner can know beforehand."""
     xn = nominal.vector()
     q = t.q_a + travel_m * t.dq
     model = TouchModel(nominal)
@@ -141,8 +142,8 @@ def compliance_design(nominal: SerialArm, t: Targets, payloads_kg: tuple[float, 
     eye = np.eye(len(payloads_kg))
     chosen = np.zeros(A.shape[0], bool)
     for _ in range(min(m, A.shape[0])):
-        gain = (np.linalg.slogdet(eye + np.einsum("nkp,pq,nlq->nkl", A, Minv, A))[1]
-                - np.linalg.slogdet(eye + np.einsum("nkp,pq,nlq->nkl", G, Ginv, G))[1])
+        gain_g = np.linalg.slogdet(eye + np.einsum("nkp,pq,nlq->nkl", G, Ginv, G))[1]
+        gain = np.linalg.slogdet(eye + np.einsum("nkp,pq,nlq->nkl", A, Minv, A))[1] - (1 - geometry_weight) * gain_g
         gain[chosen] = -np.inf
         j = int(np.argmax(gain))
         chosen[j] = True
@@ -325,6 +326,8 @@ def campaign_metadata(es: EffectSim, campaign: Campaign) -> dict:
             "face_order": es.variations.face_order}
     if es.payload_schedule:
         meta["payload_schedule"] = es.payload_schedule
+    if es.variations.payload_pairs:
+        meta["payload_pairs"] = True
     return meta
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pipeline.diagnose import effects as fx
-from pipeline.diagnose.diagnose import diagnose
+from pipeline.diagnose.diagnose import Settings, diagnose
 from pipeline.diagnose.select import forward_select
 from pipeline.models.jig import stepped_block
 from pipeline.simulate import effects as se
@@ -99,21 +99,36 @@ def test_face_blocked_drift_is_not_identifiable_with_advice(targets):
     assert ("thermal_drift", "campaign") not in named(doc)
 
 
-def test_acceptance_compliance_payload_varied_noise_floor(targets):
-    """0.2 mm RMS tip deflection of J2 compliance, payload 0/6 kg, 0.05 mm noise, 100 contacts."""
+@pytest.fixture(scope="module")
+def payload_targets():
+    """The integrator's plan for a payload campaign: 50 points, each touched with 0 and 6 kg,
+    chosen for the compliance information left after the geometry (nominal model only)."""
+    return se.plan_targets(NOM, JIG, CAMPAIGN, truth=TRUE, payloads_kg=(0.0, 6.0))
+
+
+def test_acceptance_compliance_payload_varied_noise_floor(payload_targets):
+    """0.2 mm RMS tip deflection of J2 compliance, payload 0/6 kg, 0.05 mm noise, 100 contacts:
+    found in every seed, held-out RMS back to the noise floor, the estimate within its 95 % CI
+    (benchmarks/bench_diagnose_acceptance.py measures the rates over many seeds)."""
     noise = Noise(repeatability_3sigma_m=1.5e-4)
-    var = se.Variations(payloads_kg=(0.0, 6.0))
+    var = se.Variations(payloads_kg=(0.0, 6.0), payload_pairs=True)
     c = 3.56e-6  # rad/(N·m): 0.2 mm RMS tip deflection over this campaign
-    hits = 0
+    quick = Settings(n_boot=0)  # the bootstrap is not what this test is about
     for seed in (1, 3, 5):
-        floor = run(targets, [], var, seed, noise)["holdout_rms_before_m"]
-        doc = run(targets, [f"joint_compliance={c}@J2"], var, seed, noise)
-        if ("joint_compliance", "J2") in named(doc):
-            hits += 1
-            assert doc["holdout_rms_after_m"] < 1.2 * floor
-            est = doc["findings"][0]["parameters"][0]
-            assert abs(est["value"] - c) < 3 * est["std"]
-    assert hits >= 2
+        es = se.run(NOM, TRUE, JIG, payload_targets, CAMPAIGN, noise, [], var, seed=seed)
+        floor = diagnose(aw.TouchModel(NOM), se.diagnosis_table(es, JIG), jig_tolerance_m=JIG.tolerance_m,
+                         settings=quick)["holdout_rms_before_m"]
+        es = se.run(NOM, TRUE, JIG, payload_targets, CAMPAIGN, noise,
+                    [se.parse_effect(f"joint_compliance={c}@J2")], var, seed=seed)
+        table = se.diagnosis_table(es, JIG)
+        doc = diagnose(aw.TouchModel(NOM), table, jig_tolerance_m=JIG.tolerance_m, settings=quick)
+        assert named(doc) == {("joint_compliance", "J2")}, seed
+        assert doc["holdout_rms_after_m"] < 1.2 * floor
+        est = doc["findings"][0]["parameters"][0]
+        assert abs(est["value"] - c) < 1.96 * est["std"]
+        if seed == 1:  # every point is touched once per payload, 10 contacts apart
+            q, m = table["joint_positions"], table["payload_kg"]
+            assert np.abs(q[:10] - q[10:20]).max() < 5e-3 and set(m[:10]) == {0.0} and set(m[10:20]) == {6.0}
 
 
 def test_gravity_torque_vanishes_about_a_vertical_axis_and_scales_with_payload():

@@ -25,6 +25,8 @@ def arc_welder_cmd(
     payloads: str = typer.Option("", "--payloads", help="Campaign variation: payloads (kg) cycled in blocks of 10 contacts, e.g. 0,6."),
     search_speeds: str = typer.Option("", "--search-speeds", help="Campaign variation: search speeds (m/s) drawn per contact, e.g. 0.005,0.01,0.02."),
     face_order: str = typer.Option("shuffled", "--face-order", help="Campaign variation: shuffled (interleaved) or blocked faces."),
+    payload_pairs: bool = typer.Option(False, "--payload-pairs", help="With --payloads: touch each point once per payload, the "
+                                       "points planned for the compliance information left after the geometry."),
     repeatability: float = typer.Option(None, "--repeatability", min=0.0, help="Robot repeatability 3σ (m); default 1e-4."),
     warm_up: str = typer.Option("", "--warm-up", help="Thermal: the arm warms as ΔT∞·(1 − exp(−t/τ)), given as TAU_S,DT_K "
                                 "(e.g. 900,6); an injected thermal_drift=GX,GY,GZ is then in m/K of that rise."),
@@ -47,9 +49,10 @@ def arc_welder_cmd(
         campaign = replace(campaign, dwell_s=dwell_s)
     jig = stepped_block()
     thermal = (warm_up, temperature_sensor)
-    if effect or payloads or search_speeds or face_order != "shuffled" or warm_up or temperature_sensor:
+    if (effect or payloads or search_speeds or face_order != "shuffled" or warm_up or temperature_sensor
+            or payload_pairs):
         _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
-                      thermal)  # the effects simulator (issue 7)
+                      thermal, payload_pairs)  # the effects simulator (issue 7)
         return
     with err.status(f"simulating {contacts} contacts…"):
         sim = simulate(nominal, true, jig, campaign, noise)
@@ -79,7 +82,7 @@ def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc
 
 
 def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
-                  thermal_opts: tuple[str, bool] = ("", False)) -> None:
+                  thermal_opts: tuple[str, bool] = ("", False), payload_pairs: bool = False) -> None:
     """Campaign with concealed effects and campaign variations (`pipeline.simulate.effects`)."""
     from pipeline.errors import RobocalError
     from pipeline.simulate import effects as se
@@ -97,9 +100,11 @@ def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, paylo
         warm = parse_warm_up(thermal_opts[0])
         var = se.Variations(payloads_kg=floats(payloads, "--payloads"),
                             search_speeds_m_s=floats(search_speeds, "--search-speeds"), face_order=face_order,
-                            warm_up=(warm.tau_s, warm.rise_k) if warm else (), temperature_sensor=thermal_opts[1])
+                            warm_up=(warm.tau_s, warm.rise_k) if warm else (), temperature_sensor=thermal_opts[1],
+                            payload_pairs=payload_pairs)
         with err.status(f"planning {campaign.contacts} contacts…"):
-            targets = se.plan_targets(nominal, jig, campaign, truth=true)
+            targets = se.plan_targets(nominal, jig, campaign, truth=true,
+                                      payloads_kg=var.payloads_kg if payload_pairs else ())
         es = se.run(nominal, true, jig, targets, campaign, noise, injected, var)
     except (ValueError, RuntimeError) as e:
         raise RobocalError(str(e)) from None

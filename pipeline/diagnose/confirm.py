@@ -89,6 +89,23 @@ class AugmentedModel:
         return d
 
 
+def shared_error_covariance(A: np.ndarray, r: np.ndarray, Z: np.ndarray, tau2: float) -> tuple[np.ndarray, float]:
+    """Covariance of least-squares parameters when errors are shared within groups.
+
+    Model of the errors: e = ε + Z·u, ε ~ (0, σ²I) per row, u ~ (0, τ²I) per group (e.g. each
+    jig face's machining error, τ² known from the jig's tolerance).  The estimator stays ordinary
+    least squares; its covariance is the sandwich A⁺(σ²I + τ²ZZᵀ)A⁺ᵀ, with σ² from the residuals
+    r (n,) less the part the group errors leave in them: E[rᵀr] = σ²·dof + τ²·tr(ZᵀP⊥Z).
+    A (n, p) the free columns at the solution, Z (n, g) 0/1 membership.  Returns (cov (p, p), σ)."""
+    Q = orthonormal(A)
+    Zp = project_out(Z, Q)
+    dof = max(r.size - Q.shape[1], 1)
+    sig2 = max(float(r @ r) - tau2 * float(np.sum(Zp * Z)), 0.25 * float(r @ r)) / dof
+    Ap = np.linalg.pinv(A)
+    AZ = Ap @ Z
+    return sig2 * Ap @ Ap.T + tau2 * AZ @ AZ.T, float(np.sqrt(sig2))
+
+
 def time_blocks(t: np.ndarray, size: int = 5) -> np.ndarray:
     """Group label of each measurement: consecutive blocks of `size` in time order."""
     order = np.argsort(np.asarray(t), kind="stable")

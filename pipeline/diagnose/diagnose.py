@@ -60,7 +60,10 @@ class Adapter:
       one pose's error (None: every measurement is its own cluster), and `cluster_basis(x)`
       (n, residual_dim, p): how a pose's error reaches each residual (None: a shift per
       residual axis) — the tests are then made under the random-effects model of
-      `select.cluster_whitener` (pose-clustered inference, docs/diagnose.md).
+      `select.cluster_whitener` (pose-clustered inference, docs/diagnose.md);
+    - `shared_error`: (Z (n·residual_dim, g) group membership, τ² m²) — an error shared by the
+      rows of a group with a variance known a priori (a jig face's machining error within the
+      jig's tolerance); the refit's parameter std then use `confirm.shared_error_covariance`.
     """
 
     library: list[Effect]
@@ -71,6 +74,7 @@ class Adapter:
     cluster: np.ndarray | None = None
     cluster_basis: Callable[[np.ndarray], np.ndarray] | None = None
     noise_shape: Callable[[np.ndarray], np.ndarray] | None = None
+    shared_error: tuple[np.ndarray, float] | None = None
 
 
 def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None) -> Adapter:
@@ -106,7 +110,11 @@ def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Eff
             return f"on face {e.location} (1) or not (0)", (faces == e.location).astype(float)
         return None
 
-    return Adapter(lib, sigs, variables, np.asarray(table["time_since_start_s"], float), located)
+    # each face's machining error is shared by its contacts: uniform within ± the jig tolerance
+    faces = np.asarray(table["face"]).astype(str)
+    Zf = (faces[:, None] == np.unique(faces)[None, :]).astype(float)
+    return Adapter(lib, sigs, variables, np.asarray(table["time_since_start_s"], float), located,
+                   shared_error=(Zf, jig_tolerance_m**2 / 3))
 
 
 def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | None = None,
@@ -196,6 +204,10 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         A = aug.jacobian(z, table)[:, :, free_a].reshape(nk, -1)
         std = fa.std
         sigma_after = fa.sigma
+        if ad.shared_error is not None:  # errors shared within groups: sandwich covariance (honest std)
+            cov, _ = confirm.shared_error_covariance(A, r_final, *ad.shared_error)
+            std = np.zeros_like(z)
+            std[free_a] = np.sqrt(np.clip(np.diag(cov), 0, None))
     else:
         z, r_final, A, std, sigma_after, free_a = x, r, Jf, f.std, sigma, free
     after_cv = confirm.holdout(A, r_final, folds)

@@ -46,7 +46,7 @@ def logdet_info(A: np.ndarray, idx: np.ndarray) -> float:
     return float(ld) if sign > 0 else -np.inf
 
 
-def _woodbury_add(Minv: np.ndarray, a: np.ndarray, sign: float = 1.0) -> np.ndarray:
+def woodbury_update(Minv: np.ndarray, a: np.ndarray, sign: float = 1.0) -> np.ndarray:
     """(M ± aᵀa)⁻¹ from M⁻¹ for a block a (k × L)."""
     Ma = Minv @ a.T  # L × k
     S = np.eye(a.shape[0]) * sign + a @ Ma
@@ -76,7 +76,7 @@ def select(A: np.ndarray, m: int, *, ridge: float = 1e-8, max_exchanges: int | N
         j = int(np.argmax(gain))
         chosen[j] = True
         order.append(j)
-        Minv = _woodbury_add(Minv, A[j])
+        Minv = woodbury_update(Minv, A[j])
     sel = np.array(order)
     Minfo = np.einsum("nkp,nkq->pq", A[sel], A[sel])
     Minv = np.linalg.inv(Minfo)
@@ -105,7 +105,7 @@ def select(A: np.ndarray, m: int, *, ridge: float = 1e-8, max_exchanges: int | N
             break
         i_pos, j_pos = int(best[0]), int(best[1])
         i, j = int(sel[i_pos]), int(out[j_pos])
-        Minv = _woodbury_add(_woodbury_add(Minv, A[j]), A[i], sign=-1.0)
+        Minv = woodbury_update(woodbury_update(Minv, A[j]), A[i], sign=-1.0)
         chosen[i], chosen[j] = False, True
         sel[i_pos] = j
         n_ex += 1

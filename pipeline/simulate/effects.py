@@ -21,11 +21,14 @@ import numpy as np
 
 from pipeline.diagnose import effects as fx
 from pipeline.diagnose.table import add_context, last_motion_sign
+from pipeline.identify.identifiability import analyse
 from pipeline.models import ik, serial_arm
 from pipeline.models.jig import Jig
 from pipeline.models.serial_arm import SerialArm
+from pipeline.plan.doptimal import woodbury_update
 from pipeline.simulate import thermal
 from pipeline.simulate.arc_welder import IK_SEEDS, Campaign, Noise, SimResult, _quantise, _targets, _timeline
+from pipeline.systems.arc_welder import TouchModel
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,7 @@ class Variations:
     # and whether a temperature sensor is logged on /arm/temperature
     warm_up: tuple[float, ...] = ()
     temperature_sensor: bool = False
+    payload_pairs: bool = False  # each block of targets touched once per payload (same points, payload changed)
 
 
 @dataclass
@@ -94,10 +98,17 @@ def _plan_batch(nominal: SerialArm, jig: Jig, campaign: Campaign, n_try: int, rn
 
 
 def plan_targets(nominal: SerialArm, jig: Jig, campaign: Campaign, truth: SerialArm | None = None,
-                 spare: float = 1.25) -> Targets:
+                 spare: float = 1.25, payloads_kg: tuple[float, ...] = (), pool: float = 3.0) -> Targets:
     """Approach poses (the expensive IK), seeded by campaign.seed.  With `truth`, targets whose
     search would miss the true face are screened out and batches are added until there are
-    `spare`× the wanted contacts."""
+    `spare`× the wanted contacts.  With `payloads_kg` (a payload-paired campaign, each point
+    touched once per payload) `pool`× the wanted points are planned and the D-optimal subset
+    for the geometry and every joint's gravity compliance is kept (`compliance_design`)."""
+    if payloads_kg:
+        n_points = -(-campaign.contacts // len(payloads_kg))
+        wide = plan_targets(nominal, jig, replace(campaign, contacts=int(np.ceil(n_points * pool))), truth, spare)
+        pick = compliance_design(nominal, wide, payloads_kg, int(np.ceil(n_points * spare)), campaign.approach_offset_m)
+        return Targets(*(getattr(wide, k)[np.sort(pick)] for k in ("faces", "q_a", "dq", "axis", "sign")))
     rng = np.random.default_rng(campaign.seed)
     want = int(np.ceil(campaign.contacts * spare))
     parts: list[Targets] = []
@@ -110,6 +121,40 @@ def plan_targets(nominal: SerialArm, jig: Jig, campaign: Campaign, truth: Serial
             t = _screen(t, truth, jig, campaign)
         parts.append(t)
     return Targets(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("faces", "q_a", "dq", "axis", "sign")))
+
+
+def compliance_design(nominal: SerialArm, t: Targets, payloads_kg: tuple[float, ...], m: int,
+                      travel_m: float = 0.04, ridge: float = 1e-6, geometry_weight: float = 0.0) -> np.ndarray:
+    """Indices of m targets, each touched once per payload, chosen greedily for the most
+    information on the gravity compliance of every loaded joint *after* the geometry
+    (Ds-optimal: log det M − log det M_geometry, the geometry a nuisance; `geometry_weight` w
+    blends in D-optimality: log det M − (1 − w)·log det M_geometry), from the nominal model with
+    contacts `travel_m` along the search — what the planner can know beforehand."""
+    xn = nominal.vector()
+    q = t.q_a + travel_m * t.dq
+    model = TouchModel(nominal)
+    tab = {"joint_positions": q, "axis": t.axis, "coordinate": np.zeros(t.axis.size)}
+    Jg = model.jacobian(xn, tab)[:, 0, :]
+    Jg = Jg[:, analyse(Jg, model.parameter_names(), priority=model.priority()).free]
+    _, Jq = serial_arm.joint_jacobian(xn, q)
+    jq = Jq[np.arange(q.shape[0]), t.axis]  # (N, n_joints) m/rad along the measured axis
+    C = np.stack([jq * fx.gravity_torque(nominal, xn, q, p) for p in payloads_kg], axis=1)  # (N, P, n_joints)
+    loaded = np.sqrt(np.einsum("npj,npj->j", C, C))
+    C = C[:, :, loaded > 1e-6 * loaded.max()]  # joints gravity never loads (a vertical axis) carry nothing
+    G = np.repeat(Jg[:, None, :], len(payloads_kg), axis=1)
+    G, C = G / np.linalg.norm(G, axis=(0, 1)), C / np.linalg.norm(C, axis=(0, 1))
+    A = np.concatenate([G, C], axis=2)
+    Minv, Ginv = np.eye(A.shape[2]) / ridge, np.eye(G.shape[2]) / ridge
+    eye = np.eye(len(payloads_kg))
+    chosen = np.zeros(A.shape[0], bool)
+    for _ in range(min(m, A.shape[0])):
+        gain_g = np.linalg.slogdet(eye + np.einsum("nkp,pq,nlq->nkl", G, Ginv, G))[1]
+        gain = np.linalg.slogdet(eye + np.einsum("nkp,pq,nlq->nkl", A, Minv, A))[1] - (1 - geometry_weight) * gain_g
+        gain[chosen] = -np.inf
+        j = int(np.argmax(gain))
+        chosen[j] = True
+        Minv, Ginv = woodbury_update(Minv, A[j]), woodbury_update(Ginv, G[j])
+    return np.flatnonzero(chosen)
 
 
 def _screen(t: Targets, truth: SerialArm, jig: Jig, campaign: Campaign) -> Targets:
@@ -200,7 +245,7 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
 
         def gap(s):
             q = q_a[rows] + s[:, None] * dq[rows]
-            p = serial_arm.tip_position(xt, q + extra_q(q)) + eps[rows] + extra_tip
+            p = serial_arm.tip_position(xt, q + extra_q(q)) + eps_k + extra_tip
             return sign[rows] * (p[r, axis[rows]] - c_true[rows])
 
         s = np.zeros(rows.size)
@@ -211,12 +256,26 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
 
     # pass 1: which targets yield a contact (geometry only; the effects are far below the margins)
     good, s1 = _touches(Targets(faces, q_a, dq, axis, sign), xt, jig, campaign, eps, c_true)
-    keep = np.flatnonzero(good)[:campaign.contacts]
-    if keep.size < campaign.contacts:
-        raise RuntimeError(f"only {keep.size} of {campaign.contacts} targets touch the jig; plan more targets")
+    pairs = bool(variations.payload_pairs and variations.payloads_kg)
+    n_points = -(-campaign.contacts // len(variations.payloads_kg)) if pairs else campaign.contacts
+    keep = np.flatnonzero(good)[:n_points]
+    if keep.size < n_points:
+        raise RuntimeError(f"only {keep.size} of {n_points} targets touch the jig; plan more targets")
+    payload_idx = None
+    if pairs:  # block b of points, touched with payload 0, then 1, …: [b0·p0, b0·p1, b1·p0, b1·p1, …]
+        blk = max(variations.payload_block, 1)
+        chunks = [keep[i:i + blk] for i in range(0, keep.size, blk)]
+        np_ = len(variations.payloads_kg)
+        keep = np.concatenate([c for c in chunks for _ in range(np_)])[:campaign.contacts]
+        payload_idx = np.concatenate([np.full(c.size, p) for c in chunks for p in range(np_)])[:campaign.contacts]
     n = keep.size
     speeds = (rng.choice(np.asarray(variations.search_speeds_m_s, float), n) if variations.search_speeds_m_s
               else np.full(n, campaign.search_speed_m_s))
+    eps_k = eps[keep]
+    if pairs:  # a repeated point gets its own repeatability error
+        first = np.zeros(n, bool)
+        first[np.unique(keep, return_index=True)[1]] = True
+        eps_k[~first] = rng.normal(0, k * noise.repeatability_3sigma_m / 3, ((~first).sum(), 3))
     camp_v = replace(campaign, search_speed_m_s=speeds)  # _timeline divides the travel elementwise
     # first timeline: contact times and the direction each joint last moved (the physical state)
     t_ns, q_stream, t_c = _timeline(q_a[keep], dq[keep], s1[keep], camp_v, nominal.n_joints)
@@ -224,7 +283,8 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
     payload = np.full(n, truth.payload_kg)
     if variations.payloads_kg:
         blk = np.arange(n) // max(variations.payload_block, 1)
-        payload = np.asarray(variations.payloads_kg, float)[blk % len(variations.payloads_kg)]
+        payload = np.asarray(variations.payloads_kg, float)[blk % len(variations.payloads_kg) if payload_idx is None
+                                                            else payload_idx]
     ctx = {"joint_positions": q_a[keep] + s1[keep, None] * dq[keep], "axis": axis[keep], "face": ids[keep],
            "normal_sign": sign[keep], "payload_kg": payload, "time_since_start_s": (t_c - t_ns[0]) * 1e-9,
            "last_motion_sign": last_motion_sign(t_ns, q_stream, t_c), **_thermal_context(variations, t_c, t_ns)}
@@ -236,7 +296,7 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
     for e, th in tip_eff:
         extra_tip += np.einsum("nik,k->ni", e.basis(truth, xt, ctx), th)
     # pass 2: the searches of the true robot with its effects; the latch comes `latency` late
-    s2 = search(keep, extra_q, extra_tip)
+    s2 = search(keep, extra_q, extra_tip)  # (rows = keep; eps_k is already per contact)
     s_latch = s2 + speeds * latency
     quant = k > 0
     q_latch = _quantise(q_a[keep] + s_latch[:, None] * dq[keep], noise.encoder_counts_per_rev, quant)
@@ -308,6 +368,8 @@ def campaign_metadata(es: EffectSim, campaign: Campaign) -> dict:
             "face_order": es.variations.face_order}
     if es.payload_schedule:
         meta["payload_schedule"] = es.payload_schedule
+    if es.variations.payload_pairs:
+        meta["payload_pairs"] = True
     return meta
 
 

@@ -147,82 +147,211 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
     return gates  # type: ignore[return-value]
 
 
+def sigma_given(r: np.ndarray, J: np.ndarray, blocks: list[np.ndarray], dof_resid: int) -> float:
+    """Residual σ (units of r) after the geometry J and the signature `blocks` (n, k_c) of the
+    effects accepted so far, dof-corrected (`dof_resid` = n − free geometric parameters).  The
+    gate's minimum detectable sizes use it: the geometry-only σ carries every unmodelled effect,
+    and two effects at 4× their MDS inflate it enough (×1.8 on the Delta) to gate each other out."""
+    Q = orthonormal(J)
+    e = project_out(r[:, None], Q)[:, 0]
+    if blocks:
+        P = orthonormal(project_out(np.hstack(blocks), Q))
+        e = project_out(e[:, None], P)[:, 0]
+        dof_resid -= P.shape[1]
+    return float(np.sqrt(e @ e / max(dof_resid, 1)))
+
+
 @dataclass
 class Step:
-    """One accepted forward-selection step."""
+    """One accepted candidate block and its grouped F test: given every other accepted block
+    (after the refinement), or given the blocks accepted before it (greedy pass only)."""
 
     index: int  # into the candidate list
     statistic: float  # grouped F
     dof: tuple[int, int]
     p_value: float  # raw
-    p_holm: float  # Holm-adjusted (monotone)
-    gain: float  # RSS reduction, m²
+    p_holm: float  # Holm-adjusted (step-down, monotone)
+    gain: float  # RSS reduction, m² (units of r²)
+
+
+class _Design:
+    """The candidate blocks as Gram algebra: with C the unit-scaled candidate columns (⊥ the
+    geometry and `base`), G = CᵀC, g = Cᵀr, the fit of any set S of blocks and every column with
+    S partialled out (Frisch–Waugh–Lovell) are K×K products (K = Σk_c); no n-row work after setup."""
+
+    def __init__(self, r: np.ndarray, candidates: list[np.ndarray], base: np.ndarray | None):
+        ks = [c.shape[1] for c in candidates]
+        self.edges = np.concatenate([[0], np.cumsum(ks)]).astype(int)
+        self.k = ks
+        C = np.hstack(candidates)
+        cn = np.linalg.norm(C, axis=0)
+        self.cn = np.where(cn > 0, cn, 1.0)
+        C = C / self.cn  # unit columns: gains and ranks do not depend on units
+        B = np.zeros((r.size, 0)) if base is None else orthonormal(base)
+        if B.shape[1]:
+            C, r = project_out(C, B), project_out(r[:, None], B)[:, 0]
+        self.nb = B.shape[1]
+        self.G, self.g, self.rr = C.T @ C, C.T @ r, float(r @ r)
+
+    def cols(self, S) -> np.ndarray:
+        return np.concatenate([np.arange(self.edges[c], self.edges[c + 1]) for c in S]) if len(S) else \
+            np.zeros(0, int)
+
+    def given(self, S) -> tuple[float, int, np.ndarray, np.ndarray]:
+        """(RSS, rank) of the fit of blocks S, and (G, g) of all columns with S partialled out."""
+        if not len(S):
+            return self.rr, 0, self.G, self.g
+        ix = self.cols(S)
+        w, V = np.linalg.eigh(self.G[np.ix_(ix, ix)])
+        keep = w > RANK_REL
+        Vk = V[:, keep] / np.sqrt(w[keep])  # G_SS⁺ = Vk Vkᵀ on the kept directions
+        A = self.G[:, ix] @ Vk
+        a = self.g[ix] @ Vk
+        return max(self.rr - float(a @ a), 0.0), int(keep.sum()), self.G - A @ A.T, self.g - A @ a
+
+    def test(self, c: int, G: np.ndarray, g: np.ndarray, rss: float, dof: int, tol: float):
+        """Grouped F of block c against a fit with Gram (G, g), RSS `rss` and `dof` residual dof:
+        (p, F, k_c, gain) or None when c adds no direction.  `tol` > 0 (single parameter): the
+        gain is shrunk as if the estimate were moved to the edge of the interval null ±tol."""
+        sl = slice(self.edges[c], self.edges[c + 1])
+        Gc, gc = G[sl, sl], g[sl]
+        w, V = np.linalg.eigh(Gc)
+        keep = w > RANK_REL
+        kc = int(keep.sum())
+        if kc == 0 or dof - kc < 1:
+            return None
+        proj = (V[:, keep].T @ gc) / np.sqrt(w[keep])
+        gain = float(proj @ proj)
+        if tol > 0 and kc == 1 and self.k[c] == 1:
+            theta = abs(float(gc[0])) / float(Gc[0, 0]) / self.cn[self.edges[c]]  # parameter units
+            shrink = max(theta - tol, 0.0) / theta if theta > 0 else 0.0
+            gain *= shrink**2
+        F = (gain / kc) / (max(rss - gain, 1e-300) / (dof - kc))
+        return float(scipy.special.fdtrc(kc, dof - kc, F)), float(F), kc, gain
+
+    def group_gains(self, G: np.ndarray, g: np.ndarray, groups: list[tuple[int, ...]]):
+        """RSS reduction and rank of adding each group of blocks to a fit with Gram (G, g),
+        batched by group width: (gains, ranks) arrays."""
+        gains, ranks = np.zeros(len(groups)), np.zeros(len(groups), int)
+        ixs = [self.cols(q) for q in groups]
+        for L in {ix.size for ix in ixs}:
+            sel = [i for i, ix in enumerate(ixs) if ix.size == L]
+            I = np.array([ixs[i] for i in sel])
+            w, V = np.linalg.eigh(G[I[:, :, None], I[:, None, :]])
+            keep = w > RANK_REL
+            proj = np.einsum("pij,pi->pj", V, g[I]) / np.sqrt(np.where(keep, w, 1.0))
+            gains[sel] = np.sum(np.where(keep, proj**2, 0.0), axis=1)
+            ranks[sel] = keep.sum(axis=1)
+        return gains, ranks
 
 
 def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, alpha: float = 0.01,
                    tolerances: list[float] | None = None, max_terms: int = 8, n_family: int | None = None,
-                   base: np.ndarray | None = None) -> list[Step]:
-    """Forward selection by grouped F with Holm's step-down thresholds (module docstring).
+                   base: np.ndarray | None = None, refine: bool = True) -> list[Step]:
+    """Stepwise selection of candidate blocks by grouped F tests under Holm's step-down
+    thresholds α/(m − j) (module docstring): a greedy forward pass, then (`refine`) exchanges
+    and backward elimination.
 
     `r` (n,) residuals ⊥ the geometry; `candidates` their projected signatures (n, k_c);
     `dof_resid` = n − free geometric parameters; `tolerances` per candidate (single-parameter
-    interval nulls: an estimate within ±tol counts as zero); `base` columns already in the model.
-    All candidates are projected at once; each step costs one matrix product and a few k×k solves.
+    interval nulls: an estimate within ±tol counts as zero); `base` columns already in the model;
+    `n_family` the Holm family size m (default: the number of candidates).  Everything after the
+    set-up is algebra on the K×K Gram matrix of the unit-scaled candidate columns.
     """
     m = len(candidates) if n_family is None else n_family
     if not candidates:
         return []
-    tol = tolerances or [0.0] * len(candidates)
-    ks = [c.shape[1] for c in candidates]
-    edges = np.concatenate([[0], np.cumsum(ks)])
-    C = np.hstack(candidates)
-    cn = np.linalg.norm(C, axis=0)
-    C = C / np.where(cn > 0, cn, 1.0)  # unit columns: gains and ranks do not depend on units
-    B = np.zeros((r.size, 0)) if base is None else orthonormal(base)
-    res = project_out(r[:, None], B)[:, 0]
-    rss = float(res @ res)
-    dof = dof_resid - B.shape[1]
-    steps: list[Step] = []
-    chosen: set[int] = set()
-    p_adj_prev = 0.0
-    for j in range(min(max_terms, m)):
-        R = project_out(C, B)
-        G = R.T @ R
-        g = R.T @ res
-        best = None
-        for c in range(len(candidates)):
-            if c in chosen:
-                continue
-            sl = slice(edges[c], edges[c + 1])
-            Gc, gc = G[sl, sl], g[sl]
-            w, V = np.linalg.eigh(Gc)
-            keep = w > RANK_REL
-            kc = int(keep.sum())
-            if kc == 0 or dof - kc < 1:
-                continue
-            proj = (V[:, keep].T @ gc) / np.sqrt(w[keep])
-            gain = float(proj @ proj)
-            if tol[c] > 0 and kc == 1 and ks[c] == 1:
-                theta = abs(float(gc[0])) / float(Gc[0, 0]) / cn[edges[c]]  # parameter units
-                shrink = max(theta - tol[c], 0.0) / theta if theta > 0 else 0.0
-                gain *= shrink**2
-            F = (gain / kc) / (max(rss - gain, 1e-300) / (dof - kc))
-            p = float(scipy.special.fdtrc(kc, dof - kc, F))
-            if best is None or p < best[0] or (p == best[0] and F > best[1]):
-                best = (p, F, c, kc, gain)
-        if best is None:
+    nc = len(candidates)
+    tol = tolerances or [0.0] * nc
+    D = _Design(r, candidates, base)
+    dof0 = dof_resid - D.nb
+
+    def forward(A: list[int]) -> list[tuple[int, float, int, float, float]]:
+        """Greedy additions to A (in place) while the best block passes α/(m − |A|)."""
+        added = []
+        while len(A) < min(max_terms, m):
+            rss, rk, G, g = D.given(A)
+            best = None
+            for c in range(nc):
+                if c in A:
+                    continue
+                t = D.test(c, G, g, rss, dof0 - rk, tol[c])
+                if t is not None and (best is None or t[0] < best[1] or (t[0] == best[1] and t[1] > best[2])):
+                    best = (c, *t)
+            if best is None or best[1] > alpha / (m - len(A)):
+                break
+            c, p, F, kc, gain = best
+            added.append((c, p, F, kc, gain, dof0 - rk - kc))
+            A.append(c)
+        return added
+
+    def conditional(A: list[int]) -> list[tuple[float, float, int, float, int]]:
+        """Each block of A tested given all the others: (p, F, k_c, gain, dof)."""
+        out = []
+        for b in A:
+            rss, rk, G, g = D.given([c for c in A if c != b])
+            t = D.test(b, G, g, rss, dof0 - rk, tol[b])
+            out.append((1.0, 0.0, 0, 0.0, dof0 - rk) if t is None else (*t, dof0 - rk - t[2]))
+        return out
+
+    def holm_fails(ps: list[float]) -> bool:
+        """Does Holm's step-down (thresholds α/(m − j)) leave any of these p-values unrejected?"""
+        return any(p > alpha / (m - j) for j, p in enumerate(sorted(ps)))
+
+    def backward(A: list[int]) -> list[int]:
+        """Drop the least significant block (given the others) while Holm does not reject all."""
+        A = list(A)
+        while A:
+            ps = [t[0] for t in conditional(A)]
+            if not holm_fails(ps):
+                break
+            A.pop(int(np.argmax(ps)))
+        return A
+
+    def add_pair(A: list[int]) -> bool:
+        """Add the pair of blocks whose joint grouped F given A is most significant, if it passes
+        α/(m − |A|) divided by the number of pairs tried (Bonferroni over the search); in place."""
+        out = [c for c in range(nc) if c not in A]
+        pairs = [(c, d) for i, c in enumerate(out) for d in out[i + 1:]]
+        if not pairs or len(A) + 2 > min(max_terms, m):
+            return False
+        rss, rk, G, g = D.given(A)
+        gains, ranks = D.group_gains(G, g, pairs)
+        dof2 = dof0 - rk - ranks
+        ok = (ranks > 0) & (dof2 >= 1)
+        if not ok.any():
+            return False
+        F = np.where(ok, gains / np.maximum(ranks, 1), 0.0) / (np.maximum(rss - gains, 1e-300) / np.maximum(dof2, 1))
+        p = np.where(ok, scipy.special.fdtrc(np.maximum(ranks, 1), np.maximum(dof2, 1), F), 1.0)
+        i = int(np.argmin(p))
+        if p[i] > alpha / (m - len(A)) / len(pairs):
+            return False
+        A.extend(pairs[i])
+        return True
+
+    A: list[int] = []
+    greedy = forward(A)
+    if not refine or not A:
+        steps, adj = [], 0.0
+        for j, (c, p, F, kc, gain, dof) in enumerate(greedy):
+            adj = max(adj, min(1.0, p * (m - j)))
+            steps.append(Step(c, F, (kc, dof), p, adj, gain))
+        return steps
+    seen = set()
+    for _ in range(2 * max_terms):  # backward elimination, forward additions (single, then pairs)
+        A = backward(A)
+        forward(A)
+        if frozenset(A) in seen or not add_pair(A):
             break
-        p, F, c, kc, gain = best
-        if p > alpha / (m - j):
-            break
-        p_adj_prev = max(p_adj_prev, min(1.0, p * (m - j)))
-        steps.append(Step(c, float(F), (kc, dof - kc), p, p_adj_prev, gain))
-        chosen.add(c)
-        Qc = orthonormal(R[:, edges[c]:edges[c + 1]], 1e-6)
-        B = np.hstack([B, Qc])
-        res = project_out(res[:, None], Qc)[:, 0]
-        rss = float(res @ res)
-        dof -= kc
+        seen.add(frozenset(A))
+    A = backward(A)
+    cond = conditional(A)
+    order = np.argsort([t[0] for t in cond], kind="stable")
+    steps, adj = [], 0.0
+    for j, i in enumerate(order):
+        p, F, kc, gain, dof = cond[i]
+        adj = max(adj, min(1.0, p * (m - j)))
+        steps.append(Step(A[i], F, (kc, dof), p, adj, gain))
     return steps
 
 

@@ -14,6 +14,7 @@ is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -174,15 +175,37 @@ class Step:
     gain: float  # RSS reduction, m² (units of r²)
 
 
+def _batches(edges: np.ndarray, groups) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Groups of blocks by total width L: (positions in `groups`, column indices (P, L))."""
+    by: dict[int, tuple[list, list]] = {}
+    for i, q in enumerate(groups):
+        ix = np.concatenate([np.arange(edges[c], edges[c + 1]) for c in q])
+        by.setdefault(ix.size, ([], []))
+        by[ix.size][0].append(i)
+        by[ix.size][1].append(ix)
+    return [(np.array(pos), np.array(rows)) for pos, rows in by.values()]
+
+
+@functools.lru_cache(maxsize=16)
+def _pair_batches(k: tuple[int, ...]) -> tuple[np.ndarray, list]:
+    """Every pair of blocks (c < d) of widths k and their batches (the bootstrap reuses them)."""
+    nc = len(k)
+    pl = np.array([(c, d) for c in range(nc) for d in range(c + 1, nc)], int).reshape(-1, 2)
+    return pl, _batches(np.concatenate([[0], np.cumsum(k)]).astype(int), [tuple(q) for q in pl])
+
+
 class _Design:
     """The candidate blocks as Gram algebra: with C the unit-scaled candidate columns (⊥ the
     geometry and `base`), G = CᵀC, g = Cᵀr, the fit of any set S of blocks and every column with
-    S partialled out (Frisch–Waugh–Lovell) are K×K products (K = Σk_c); no n-row work after setup."""
+    S partialled out (Frisch–Waugh–Lovell) are K×K products (K = Σk_c); no n-row work after set-up,
+    and the tests of all blocks (or pairs of blocks) against one fit are one batched eigh per width."""
 
-    def __init__(self, r: np.ndarray, candidates: list[np.ndarray], base: np.ndarray | None):
-        ks = [c.shape[1] for c in candidates]
-        self.edges = np.concatenate([[0], np.cumsum(ks)]).astype(int)
-        self.k = ks
+    def __init__(self, r: np.ndarray, candidates: list[np.ndarray], base: np.ndarray | None,
+                 tolerances: list[float]):
+        self.nc = len(candidates)
+        self.k = np.array([c.shape[1] for c in candidates])
+        self.edges = np.concatenate([[0], np.cumsum(self.k)]).astype(int)
+        self.ix = [np.arange(self.edges[c], self.edges[c + 1]) for c in range(self.nc)]
         C = np.hstack(candidates)
         cn = np.linalg.norm(C, axis=0)
         self.cn = np.where(cn > 0, cn, 1.0)
@@ -192,65 +215,94 @@ class _Design:
             C, r = project_out(C, B), project_out(r[:, None], B)[:, 0]
         self.nb = B.shape[1]
         self.G, self.g, self.rr = C.T @ C, C.T @ r, float(r @ r)
+        self.tol = np.asarray(tolerances, float)
+        self.singles = self._batches([(c,) for c in range(self.nc)])
+        self._pairs = None
 
-    def cols(self, S) -> np.ndarray:
-        return np.concatenate([np.arange(self.edges[c], self.edges[c + 1]) for c in S]) if len(S) else \
-            np.zeros(0, int)
+    def _batches(self, groups: list[tuple[int, ...]]) -> list[tuple[np.ndarray, np.ndarray]]:
+        return _batches(self.edges, groups)
 
-    def given(self, S) -> tuple[float, int, np.ndarray, np.ndarray]:
-        """(RSS, rank) of the fit of blocks S, and (G, g) of all columns with S partialled out."""
+    @property
+    def pairs(self) -> tuple[np.ndarray, list]:
+        if self._pairs is None:
+            self._pairs = _pair_batches(tuple(int(k) for k in self.k))
+        return self._pairs
+
+    def given(self, S, only: int | None = None) -> tuple[float, int, np.ndarray, np.ndarray]:
+        """(RSS, rank) of the fit of blocks S, and (G, g) of all columns (or of block `only`'s)
+        with S partialled out."""
+        cols = slice(None) if only is None else self.ix[only]
         if not len(S):
-            return self.rr, 0, self.G, self.g
-        ix = self.cols(S)
+            return self.rr, 0, self.G[np.ix_(cols, cols)] if only is not None else self.G, self.g[cols]
+        ix = np.concatenate([self.ix[c] for c in S])
         w, V = np.linalg.eigh(self.G[np.ix_(ix, ix)])
         keep = w > RANK_REL
         Vk = V[:, keep] / np.sqrt(w[keep])  # G_SS⁺ = Vk Vkᵀ on the kept directions
-        A = self.G[:, ix] @ Vk
+        A = self.G[cols, :][:, ix] @ Vk
         a = self.g[ix] @ Vk
-        return max(self.rr - float(a @ a), 0.0), int(keep.sum()), self.G - A @ A.T, self.g - A @ a
+        Gc = self.G[np.ix_(cols, cols)] if only is not None else self.G
+        return max(self.rr - float(a @ a), 0.0), int(keep.sum()), Gc - A @ A.T, self.g[cols] - A @ a
 
-    def test(self, c: int, G: np.ndarray, g: np.ndarray, rss: float, dof: int, tol: float):
-        """Grouped F of block c against a fit with Gram (G, g), RSS `rss` and `dof` residual dof:
-        (p, F, k_c, gain) or None when c adds no direction.  `tol` > 0 (single parameter): the
-        gain is shrunk as if the estimate were moved to the edge of the interval null ±tol."""
-        sl = slice(self.edges[c], self.edges[c + 1])
-        Gc, gc = G[sl, sl], g[sl]
-        w, V = np.linalg.eigh(Gc)
+    def test(self, c: int, G: np.ndarray, g: np.ndarray, rss: float, dof: int) -> tuple[float, float, int, float]:
+        """`tests` of block c alone, (G, g) being its own columns given the fit."""
+        w, V = np.linalg.eigh(G)
         keep = w > RANK_REL
         kc = int(keep.sum())
         if kc == 0 or dof - kc < 1:
-            return None
-        proj = (V[:, keep].T @ gc) / np.sqrt(w[keep])
+            return 1.0, 0.0, 0, 0.0
+        proj = (V[:, keep].T @ g) / np.sqrt(w[keep])
         gain = float(proj @ proj)
-        if tol > 0 and kc == 1 and self.k[c] == 1:
-            theta = abs(float(gc[0])) / float(Gc[0, 0]) / self.cn[self.edges[c]]  # parameter units
-            shrink = max(theta - tol, 0.0) / theta if theta > 0 else 0.0
-            gain *= shrink**2
+        if self.tol[c] > 0 and kc == 1 and self.k[c] == 1:
+            theta = abs(float(g[0])) / float(G[0, 0]) / self.cn[self.edges[c]]  # parameter units
+            gain *= (max(theta - self.tol[c], 0.0) / theta if theta > 0 else 0.0) ** 2
         F = (gain / kc) / (max(rss - gain, 1e-300) / (dof - kc))
         return float(scipy.special.fdtrc(kc, dof - kc, F)), float(F), kc, gain
 
-    def group_gains(self, G: np.ndarray, g: np.ndarray, groups: list[tuple[int, ...]]):
-        """RSS reduction and rank of adding each group of blocks to a fit with Gram (G, g),
-        batched by group width: (gains, ranks) arrays."""
-        gains, ranks = np.zeros(len(groups)), np.zeros(len(groups), int)
-        ixs = [self.cols(q) for q in groups]
-        for L in {ix.size for ix in ixs}:
-            sel = [i for i, ix in enumerate(ixs) if ix.size == L]
-            I = np.array([ixs[i] for i in sel])
+    @staticmethod
+    def gains(G: np.ndarray, g: np.ndarray, batches, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """RSS reduction and rank of adding each group (of `batches`, n groups) to the fit (G, g)."""
+        gains, ranks = np.zeros(n), np.zeros(n, int)
+        for pos, I in batches:
+            if I.shape[1] == 1:  # one column: g²/G
+                d = G[I[:, 0], I[:, 0]]
+                keep = d > RANK_REL
+                gains[pos] = np.where(keep, g[I[:, 0]] ** 2 / np.where(keep, d, 1.0), 0.0)
+                ranks[pos] = keep
+                continue
             w, V = np.linalg.eigh(G[I[:, :, None], I[:, None, :]])
             keep = w > RANK_REL
             proj = np.einsum("pij,pi->pj", V, g[I]) / np.sqrt(np.where(keep, w, 1.0))
-            gains[sel] = np.sum(np.where(keep, proj**2, 0.0), axis=1)
-            ranks[sel] = keep.sum(axis=1)
+            gains[pos] = np.sum(np.where(keep, proj**2, 0.0), axis=1)
+            ranks[pos] = keep.sum(axis=1)
         return gains, ranks
+
+    def tests(self, G: np.ndarray, g: np.ndarray, rss: float, dof: int, groups=None):
+        """Grouped F of every block (or every pair: groups="pairs") against the fit with Gram
+        (G, g), RSS `rss` and `dof` residual dof: (p, F, rank, gain) arrays; p = 1 where a group
+        adds no direction.  Single-parameter blocks with a tolerance (interval null ±tol): the gain
+        is shrunk as if the estimate were moved to the edge of the interval."""
+        if groups == "pairs":
+            pl, batches = self.pairs
+            gain, kc = self.gains(G, g, batches, len(pl))
+        else:
+            gain, kc = self.gains(G, g, self.singles, self.nc)
+            for c in np.flatnonzero((self.tol > 0) & (self.k == 1) & (kc == 1)):
+                j = self.edges[c]
+                theta = abs(float(g[j])) / float(G[j, j]) / self.cn[j]  # parameter units
+                gain[c] *= (max(theta - self.tol[c], 0.0) / theta if theta > 0 else 0.0) ** 2
+        d2 = dof - kc
+        ok = (kc > 0) & (d2 >= 1)
+        F = np.where(ok, (gain / np.maximum(kc, 1)) / (np.maximum(rss - gain, 1e-300) / np.maximum(d2, 1)), 0.0)
+        p = np.where(ok, scipy.special.fdtrc(np.maximum(kc, 1), np.maximum(d2, 1), F), 1.0)
+        return p, F, kc, gain
 
 
 def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, alpha: float = 0.01,
                    tolerances: list[float] | None = None, max_terms: int = 8, n_family: int | None = None,
                    base: np.ndarray | None = None, refine: bool = True) -> list[Step]:
     """Stepwise selection of candidate blocks by grouped F tests under Holm's step-down
-    thresholds α/(m − j) (module docstring): a greedy forward pass, then (`refine`) exchanges
-    and backward elimination.
+    thresholds α/(m − j) (module docstring): a greedy forward pass, then (`refine`) backward
+    elimination and pair additions until nothing changes.
 
     `r` (n,) residuals ⊥ the geometry; `candidates` their projected signatures (n, k_c);
     `dof_resid` = n − free geometric parameters; `tolerances` per candidate (single-parameter
@@ -262,71 +314,88 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
     if not candidates:
         return []
     nc = len(candidates)
-    tol = tolerances or [0.0] * nc
-    D = _Design(r, candidates, base)
+    D = _Design(r, candidates, base, tolerances or [0.0] * nc)
     dof0 = dof_resid - D.nb
 
-    def forward(A: list[int]) -> list[tuple[int, float, int, float, float]]:
-        """Greedy additions to A (in place) while the best block passes α/(m − |A|)."""
+    def forward(A: list[int]) -> list[tuple[int, float, float, int, float, int]]:
+        """Greedy additions to A (in place) while the best block passes α/(m − |A|):
+        (block, p, F, rank, gain, residual dof) of each."""
         added = []
         while len(A) < min(max_terms, m):
             rss, rk, G, g = D.given(A)
-            best = None
-            for c in range(nc):
-                if c in A:
-                    continue
-                t = D.test(c, G, g, rss, dof0 - rk, tol[c])
-                if t is not None and (best is None or t[0] < best[1] or (t[0] == best[1] and t[1] > best[2])):
-                    best = (c, *t)
-            if best is None or best[1] > alpha / (m - len(A)):
+            p, F, kc, gain = D.tests(G, g, rss, dof0 - rk)
+            p[A] = 2.0
+            c = int(np.lexsort((-F, p))[0])  # smallest p; ties (p underflows to 0) by the larger F
+            if p[c] > alpha / (m - len(A)):
                 break
-            c, p, F, kc, gain = best
-            added.append((c, p, F, kc, gain, dof0 - rk - kc))
+            added.append((c, float(p[c]), float(F[c]), int(kc[c]), float(gain[c]), dof0 - rk - int(kc[c])))
             A.append(c)
         return added
 
     def conditional(A: list[int]) -> list[tuple[float, float, int, float, int]]:
-        """Each block of A tested given all the others: (p, F, k_c, gain, dof)."""
+        """Each block of A tested given all the others: (p, F, rank, gain, residual dof).  With
+        M = G_AA⁻¹ and β = M g_A, block b's gain given the others is β_bᵀ M_bb⁻¹ β_b (one inverse
+        for all blocks); the general path (a block with fewer directions than columns) refits."""
+        if not A:
+            return []
+        ix = np.concatenate([D.ix[c] for c in A])
+        w, V = np.linalg.eigh(D.G[np.ix_(ix, ix)])
+        if w[0] > RANK_REL:
+            M = (V / w) @ V.T
+            beta = M @ D.g[ix]
+            dof = dof0 - ix.size
+            rss = max(D.rr - float(D.g[ix] @ beta), 1e-300)
+            out, at = [], 0
+            for b in A:
+                sl = slice(at, at + D.k[b])
+                at += D.k[b]
+                raw = gain = float(beta[sl] @ np.linalg.solve(M[sl, sl], beta[sl]))
+                if D.tol[b] > 0 and D.k[b] == 1:
+                    theta = abs(float(beta[sl][0])) / D.cn[D.edges[b]]  # parameter units
+                    gain *= (max(theta - D.tol[b], 0.0) / theta if theta > 0 else 0.0) ** 2
+                kc = int(D.k[b])
+                F = (gain / kc) / ((rss + raw - gain) / dof) if dof >= 1 else 0.0
+                p = float(scipy.special.fdtrc(kc, dof, F)) if dof >= 1 else 1.0
+                out.append((p, float(F), kc, gain, dof))
+            return out
         out = []
         for b in A:
-            rss, rk, G, g = D.given([c for c in A if c != b])
-            t = D.test(b, G, g, rss, dof0 - rk, tol[b])
-            out.append((1.0, 0.0, 0, 0.0, dof0 - rk) if t is None else (*t, dof0 - rk - t[2]))
+            rss, rk, G, g = D.given([c for c in A if c != b], b)
+            p, F, kc, gain = D.test(b, G, g, rss, dof0 - rk)
+            out.append((p, F, kc, gain, dof0 - rk - kc))
         return out
 
     def holm_fails(ps: list[float]) -> bool:
         """Does Holm's step-down (thresholds α/(m − j)) leave any of these p-values unrejected?"""
         return any(p > alpha / (m - j) for j, p in enumerate(sorted(ps)))
 
-    def backward(A: list[int]) -> list[int]:
-        """Drop the least significant block (given the others) while Holm does not reject all."""
+    def backward(A: list[int]) -> tuple[list[int], list]:
+        """Drop the least significant block (given the others) while Holm does not reject all;
+        the remaining blocks and their `conditional` tests."""
         A = list(A)
-        while A:
-            ps = [t[0] for t in conditional(A)]
-            if not holm_fails(ps):
-                break
+        while True:
+            cond = conditional(A)
+            ps = [t[0] for t in cond]
+            if not A or not holm_fails(ps):
+                return A, cond
             A.pop(int(np.argmax(ps)))
-        return A
 
     def add_pair(A: list[int]) -> bool:
         """Add the pair of blocks whose joint grouped F given A is most significant, if it passes
         α/(m − |A|) divided by the number of pairs tried (Bonferroni over the search); in place."""
-        out = [c for c in range(nc) if c not in A]
-        pairs = [(c, d) for i, c in enumerate(out) for d in out[i + 1:]]
-        if not pairs or len(A) + 2 > min(max_terms, m):
+        if len(A) + 2 > min(max_terms, m):
+            return False
+        pl = D.pairs[0]
+        free = ~np.isin(pl, A).any(axis=1)
+        if not free.any():
             return False
         rss, rk, G, g = D.given(A)
-        gains, ranks = D.group_gains(G, g, pairs)
-        dof2 = dof0 - rk - ranks
-        ok = (ranks > 0) & (dof2 >= 1)
-        if not ok.any():
+        p, F, _, _ = D.tests(G, g, rss, dof0 - rk, "pairs")
+        p = np.where(free, p, 2.0)
+        i = int(np.lexsort((-F, p))[0])
+        if p[i] > alpha / (m - len(A)) / int(free.sum()):
             return False
-        F = np.where(ok, gains / np.maximum(ranks, 1), 0.0) / (np.maximum(rss - gains, 1e-300) / np.maximum(dof2, 1))
-        p = np.where(ok, scipy.special.fdtrc(np.maximum(ranks, 1), np.maximum(dof2, 1), F), 1.0)
-        i = int(np.argmin(p))
-        if p[i] > alpha / (m - len(A)) / len(pairs):
-            return False
-        A.extend(pairs[i])
+        A.extend(int(c) for c in pl[i])
         return True
 
     A: list[int] = []
@@ -339,13 +408,12 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         return steps
     seen = set()
     for _ in range(2 * max_terms):  # backward elimination, forward additions (single, then pairs)
-        A = backward(A)
+        A, _ = backward(A)
         forward(A)
         if frozenset(A) in seen or not add_pair(A):
             break
         seen.add(frozenset(A))
-    A = backward(A)
-    cond = conditional(A)
+    A, cond = backward(A)
     order = np.argsort([t[0] for t in cond], kind="stable")
     steps, adj = [], 0.0
     for j, i in enumerate(order):

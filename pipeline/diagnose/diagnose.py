@@ -149,6 +149,8 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     if W is not None:  # residual degrees of freedom: only the dimensions that carry noise
         dof = W.n_effective - int(free.sum())
 
+    gate_cache: dict = {}  # the gate's σ-free part (unwhitened problem: the same in every screen)
+
     def screen(W: Whitener | None, prior: list[int] | None = None):
         """2. gate and 3. selection, on the whitened problem when W is given; the gate's σ is the
         residual σ after the `prior` accepted effects (the geometry-only σ when there are none)."""
@@ -161,7 +163,7 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
             sw = float(np.sqrt(rw @ rw / max(dof, 1)))
         if prior:
             sw = sigma_given(rw, Jw, [Sw[i] for i in prior], dof)
-        gs = gate(lib, Sw, Jw, free_names, sw, s.alpha)
+        gs = gate(lib, Sw, Jw, free_names, sw, s.alpha, gate_cache if W is None else None)
         tst = [i for i, g in enumerate(gs) if g.identifiable]
         sp = [gs[i].projected for i in tst]
         tl = [lib[i].tolerance for i in tst]

@@ -8,8 +8,28 @@ is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at
   weakest direction, (z₁₋α/(2m) + z₀.₈)·σ/s_min(S⊥) (+ its immaterial tolerance), and
   confounding with other candidates; a candidate whose detectable size is beyond what is
   physically plausible is `not_identifiable`.
-- `forward_select`: grouped F tests, one candidate block at a time, each against the
-  geometry and the blocks already accepted; Holm's step-down thresholds α/(m − j).
+- `sigma_given`: the residual σ after the effects accepted so far — the gate's σ once something
+  is accepted (the geometry-only σ carries the unmodelled effects and inflates every MDS).
+- `forward_select`: stepwise selection by grouped F tests under Holm's step-down thresholds
+  α/(m − j), m the number of testable candidates:
+  1. greedy forward pass: add the block with the smallest p given the geometry and the blocks
+     already accepted while it passes α/(m − j) (j accepted so far).  Nothing accepted → stop:
+     the refinement never runs on data where the greedy pass finds nothing, so it cannot raise the
+     family error of a clean campaign;
+  2. backward elimination: test every accepted block given all the others (last-in grouped F);
+     while Holm's step-down over these p-values does not reject them all, drop the least
+     significant block;
+  3. forward additions again (single blocks, same thresholds), then a pair addition: the pair of
+     blocks whose joint grouped F given the accepted set is smallest, added when it passes
+     α/(m − j) divided by the number of pairs tried (Bonferroni over the search);
+  4. repeat 2–3 until the set no longer changes; the blocks reported are those of the final
+     backward step, each with its F given the others and Holm-adjusted p.
+  A pair whose sum a third candidate imitates (c ≈ a + b after projection) is the case this is
+  for: the greedy pass takes c and, given c, neither a nor b alone is significant; the pair {a, b}
+  is, and then c is no longer significant given {a, b}.  Conversely, when c alone is the truth and
+  lies in span(a, b), {a, b} adds only noise directions and parsimony keeps c.  Everything after
+  the set-up is algebra on the K×K Gram matrix of the unit-scaled candidate columns (K = Σk_c):
+  fits of any set and the tests of every block or pair against it, no refits.
 """
 
 from __future__ import annotations
@@ -82,18 +102,16 @@ def absorbing_parameters(S: np.ndarray, Jf: np.ndarray, names: list[str], top: i
     return " + ".join(names[b] for b in best if abs(coef[b]) > 1e-3) or "nothing"
 
 
-def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names: list[str], sigma: float,
-         alpha: float = 0.01) -> list[Gate]:
-    """Detectability of every candidate (module docstring); `S[i]` is effect i's signature (n, k)."""
+def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names: list[str]) -> dict:
+    """What the gate needs that does not depend on σ: projected signatures and their bases, and
+    per candidate (total ‖S‖², absorbed fraction, absorbing parameters, confounder-group label,
+    smallest singular value of what the geometry and the confounder group leave)."""
     Q = orthonormal(Jf)
     m = len(effects)
-    z = scipy.stats.norm.ppf(1 - alpha / (2 * m)) + POWER_Z
     proj = [project_out(s, Q) for s in S]
     basis = [orthonormal(p) for p in proj]
-    order = np.argsort([e.priority for e in effects], kind="stable")
-    gates: list[Gate | None] = [None] * m
-    kept: list[int] = []
-    for i in order:
+    per = []
+    for i in range(m):
         e, s, sp = effects[i], S[i], proj[i]
         tot = float(np.sum(s**2))
         absorbed = 1.0 - float(np.sum(sp**2)) / tot if tot > 0 else 1.0
@@ -110,12 +128,6 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
                 conf_label = " + ".join(sorted({effects[j].name for j in group}))
                 if share > CONFOUND:
                     hide = np.zeros_like(sp)
-        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one
-        for j in kept:
-            if _explained(sp, basis[j]) > CONFOUND:
-                hide = np.zeros_like(sp)
-                conf_label = effects[j].label
-                break
         if tot == 0 or not np.any(hide):  # absorbed, or confounded beyond CONFOUND
             smin = 0.0
         else:
@@ -123,6 +135,36 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
             smin = float(sv[-1]) if sv.size == e.k else 0.0
             if smin < RANK_REL * np.sqrt(tot):
                 smin = 0.0
+        per.append((tot, absorbed, absorbed_by, conf_label, smin))
+    return {"proj": proj, "basis": basis, "per": per}
+
+
+def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names: list[str], sigma: float,
+         alpha: float = 0.01, cache: dict | None = None) -> list[Gate]:
+    """Detectability of every candidate (module docstring); `S[i]` is effect i's signature (n, k).
+    `cache`: a dict kept between calls with the same (effects, S, Jf) and another σ (the σ-free
+    part is computed once)."""
+    if cache is not None and "per" in cache:
+        parts = cache
+    else:
+        parts = _gate_parts(effects, S, Jf, free_names)
+        if cache is not None:
+            cache.update(parts)
+    proj, basis = parts["proj"], parts["basis"]
+    m = len(effects)
+    z = scipy.stats.norm.ppf(1 - alpha / (2 * m)) + POWER_Z
+    order = np.argsort([e.priority for e in effects], kind="stable")
+    gates: list[Gate | None] = [None] * m
+    kept: list[int] = []
+    for i in order:
+        e, sp = effects[i], proj[i]
+        tot, absorbed, absorbed_by, conf_label, smin = parts["per"][i]
+        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one
+        for j in kept:
+            if _explained(sp, basis[j]) > CONFOUND:
+                smin = 0.0
+                conf_label = effects[j].label
+                break
         if e.data.get("blocked"):  # the library knows this campaign cannot expose it
             smin = 0.0
             conf_label = e.data.get("absorbed_by", "")

@@ -358,6 +358,7 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
     nc = len(candidates)
     D = _Design(r, candidates, base, tolerances or [0.0] * nc)
     dof0 = dof_resid - D.nb
+    marginal = D.gains(D.G, D.g, D.singles, nc)[0]  # each block's gain on its own (tie-break)
 
     def forward(A: list[int]) -> list[tuple[int, float, float, int, float, int]]:
         """Greedy additions to A (in place) while the best block passes α/(m − |A|):
@@ -368,6 +369,9 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
             p, F, kc, gain = D.tests(G, g, rss, dof0 - rk)
             p[A] = 2.0
             c = int(np.lexsort((-F, p))[0])  # smallest p; ties (p underflows to 0) by the larger F
+            tie = np.flatnonzero((np.abs(F - F[c]) <= 1e-9 * F[c]) & (kc == kc[c]) & (p <= p[c] * (1 + 1e-9)))
+            if tie.size > 1:  # interchangeable given A (same fit): the one that alone explains most
+                c = int(tie[np.argmax(marginal[tie])])
             if p[c] > alpha / (m - len(A)):
                 break
             added.append((c, float(p[c]), float(F[c]), int(kc[c]), float(gain[c]), dof0 - rk - int(kc[c])))
@@ -396,7 +400,7 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
                     theta = abs(float(beta[sl][0])) / D.cn[D.edges[b]]  # parameter units
                     gain *= (max(theta - D.tol[b], 0.0) / theta if theta > 0 else 0.0) ** 2
                 kc = int(D.k[b])
-                F = (gain / kc) / ((rss + raw - gain) / dof) if dof >= 1 else 0.0
+                F = (gain / kc) / (max(rss + raw - gain, 1e-300) / dof) if dof >= 1 else 0.0
                 p = float(scipy.special.fdtrc(kc, dof, F)) if dof >= 1 else 1.0
                 out.append((p, float(F), kc, gain, dof))
             return out

@@ -13,7 +13,8 @@ is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at
 - `forward_select`: stepwise selection by grouped F tests under Holm's step-down thresholds
   α/(m − j), m the number of testable candidates:
   1. greedy forward pass: add the block with the smallest p given the geometry and the blocks
-     already accepted while it passes α/(m − j) (j accepted so far).  Nothing accepted → stop:
+     already accepted while it passes α/(m − j) (j accepted so far; exact ties — blocks
+     interchangeable given the accepted set — to the block that alone explains most).  Nothing accepted → stop:
      the refinement never runs on data where the greedy pass finds nothing, so it cannot raise the
      family error of a clean campaign;
   2. backward elimination: test every accepted block given all the others (last-in grouped F);

@@ -86,11 +86,15 @@ def main() -> None:
              (("unequal_rods", "leg1"), ("actuator_scale", "A2"))]
     for p1, p2 in pairs:
         specs = [spec(*p1, 4 * mds[p1])[0], spec(*p2, 4 * mds[p2])[0]]
-        both = 0
+        both, other, unexpl = 0, 0, 0
         for s in range(a.per):
-            got = {(f["effect"], f["location"]) for f in run(specs, 30_000 + s)["findings"]}
+            d = run(specs, 30_000 + s)
+            got = {(f["effect"], f["location"]) for f in d["findings"]}
             both += {p1, p2} <= got
-        print(f"pair {specs}: both found {both / a.per * 100:.0f} %")
+            other += bool(got - {p1, p2})
+            unexpl += d["unexplained"]
+        print(f"pair {specs}: both found {both / a.per * 100:.0f} %, another effect named {other / a.per * 100:.0f} %, "
+              f"unexplained {unexpl / a.per * 100:.0f} %")
     loc_ok, named_hi, nb = 0, 0, 2 * a.per
     for s in range(nb):
         centre = (-0.45, -0.3)[s % 2]

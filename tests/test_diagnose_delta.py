@@ -83,6 +83,19 @@ def test_pair_of_effects():
     assert {("backlash", "A1"), ("thermal_drift", "campaign")} <= named(doc)
 
 
+def test_pair_whose_sum_an_axis_yaw_imitates():
+    """Rods of leg 1 + scale of A2 (each ≈ 4× its MDS): axis_yaw@leg1 explains most of their sum.
+    Both are found (the gate's σ is re-estimated once effects are accepted: the geometry-only σ,
+    inflated ×1.8 by the pair, had gated both out) and the imitator is not named."""
+    doc = run(["unequal_rods=2.3e-3@leg1", "actuator_scale=1.1e-2@A2"], seed=3)
+    assert named(doc) == {("unequal_rods", "leg1"), ("actuator_scale", "A2")}
+    assert doc["unexplained"] is False
+    assert all(f["confidence"] == "high" for f in doc["findings"])
+    est = {f["effect"]: f["parameters"][0] for f in doc["findings"]}
+    assert abs(est["unequal_rods"]["value"] - 2.3e-3) < max(0.2 * 2.3e-3, 4 * est["unequal_rods"]["std"])
+    assert abs(est["actuator_scale"]["value"] - 1.1e-2) < max(0.2 * 1.1e-2, 4 * est["actuator_scale"]["std"])
+
+
 def test_paper_campaign_cannot_separate_tracker_scale_rods_or_drift():
     """Seed 003's 27-point grid: a tracker scale is a uniform scale of the Delta (β' absorbs it),
     rod differences and drift are below what 27 points can see — reported, with advice."""

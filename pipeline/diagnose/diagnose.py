@@ -23,7 +23,7 @@ import numpy as np
 from pipeline.diagnose import confirm, lack_of_fit, visual
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
 from pipeline.diagnose.select import (Whitener, cluster_whitener, forward_select, gate, measurement_whitener,
-                                      noise_components, orthonormal, project_out)
+                                      noise_components, orthonormal, project_out, sigma_given)
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
 from pipeline.models import serial_arm
 
@@ -160,8 +160,11 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     if W is not None:  # residual degrees of freedom: only the dimensions that carry noise
         dof = W.n_effective - int(free.sum())
 
-    def screen(W: Whitener | None):
-        """2. gate and 3. forward selection, on the whitened problem when W is given."""
+    gate_cache: dict = {}  # the gate's σ-free part (unwhitened problem: the same in every screen)
+
+    def screen(W: Whitener | None, prior: list[int] | None = None):
+        """2. gate and 3. selection, on the whitened problem when W is given; the gate's σ is the
+        residual σ after the `prior` accepted effects (the geometry-only σ when there are none)."""
         if W is None:
             Jw, rw, Sw, sw = Jf, r, S, sigma
         else:
@@ -169,28 +172,32 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
             rw = project_out(W(r)[:, None], orthonormal(Jw))[:, 0]
             Sw = [W(sg) for sg in S]
             sw = float(np.sqrt(rw @ rw / max(dof, 1)))
-        gs = gate(lib, Sw, Jw, free_names, sw, s.alpha)
+        if prior:
+            sw = sigma_given(rw, Jw, [Sw[i] for i in prior], dof)
+        gs = gate(lib, Sw, Jw, free_names, sw, s.alpha, gate_cache if W is None else None)
         tst = [i for i, g in enumerate(gs) if g.identifiable]
         sp = [gs[i].projected for i in tst]
         tl = [lib[i].tolerance for i in tst]
         return gs, tst, sp, tl, forward_select(rw, sp, dof, s.alpha, tl, s.max_terms), Jw, rw
 
+    # iterate: the gate's σ (and, with clusters, the whitener: feasible GLS) re-estimated from the
+    # residuals after the accepted effects, until the accepted set no longer changes
     gates, testable, Sp, tols, steps, Jf_w, r_w = screen(W)
     accepted = [testable[st.index] for st in steps]
-    for _ in range(3 if W is not None else 0):
+    for _ in range(3):
         if not accepted:
             break
-        Dacc = np.hstack([Jf] + [S[i] for i in accepted])
-        coef, *_ = np.linalg.lstsq(Dacc, r, rcond=None)
-        W2 = cluster_whitener(r - Dacc @ coef, Zc, cl, Dacc.shape[1], pre=M, effective_rows=eff_rows)
-        if W2 is None:
-            break
-        W = W2
-        gates, testable, Sp, tols, steps, Jf_w, r_w = screen(W)
+        if W is not None:
+            Dacc = np.hstack([Jf] + [S[i] for i in accepted])
+            coef, *_ = np.linalg.lstsq(Dacc, r, rcond=None)
+            W2 = cluster_whitener(r - Dacc @ coef, Zc, cl, Dacc.shape[1], pre=M, effective_rows=eff_rows)
+            W = W2 if W2 is not None else W
+        gates, testable, Sp, tols, steps, Jf_w, r_w = screen(W, accepted)
         new = [testable[st.index] for st in steps]
-        if new == accepted:
-            break
+        done = sorted(new) == sorted(accepted)
         accepted = new
+        if done:
+            break
 
     # 4. joint refit
     groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)

@@ -8,12 +8,34 @@ is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at
   weakest direction, (z₁₋α/(2m) + z₀.₈)·σ/s_min(S⊥) (+ its immaterial tolerance), and
   confounding with other candidates; a candidate whose detectable size is beyond what is
   physically plausible is `not_identifiable`.
-- `forward_select`: grouped F tests, one candidate block at a time, each against the
-  geometry and the blocks already accepted; Holm's step-down thresholds α/(m − j).
+- `sigma_given`: the residual σ after the effects accepted so far — the gate's σ once something
+  is accepted (the geometry-only σ carries the unmodelled effects and inflates every MDS).
+- `forward_select`: stepwise selection by grouped F tests under Holm's step-down thresholds
+  α/(m − j), m the number of testable candidates:
+  1. greedy forward pass: add the block with the smallest p given the geometry and the blocks
+     already accepted while it passes α/(m − j) (j accepted so far; exact ties — blocks
+     interchangeable given the accepted set — to the block that alone explains most).  Nothing accepted → stop:
+     the refinement never runs on data where the greedy pass finds nothing, so it cannot raise the
+     family error of a clean campaign;
+  2. backward elimination: test every accepted block given all the others (last-in grouped F);
+     while Holm's step-down over these p-values does not reject them all, drop the least
+     significant block;
+  3. forward additions again (single blocks, same thresholds), then a pair addition: the pair of
+     blocks whose joint grouped F given the accepted set is smallest, added when it passes
+     α/(m − j) divided by the number of pairs tried (Bonferroni over the search);
+  4. repeat 2–3 until the set no longer changes; the blocks reported are those of the final
+     backward step, each with its F given the others and Holm-adjusted p.
+  A pair whose sum a third candidate imitates (c ≈ a + b after projection) is the case this is
+  for: the greedy pass takes c and, given c, neither a nor b alone is significant; the pair {a, b}
+  is, and then c is no longer significant given {a, b}.  Conversely, when c alone is the truth and
+  lies in span(a, b), {a, b} adds only noise directions and parsimony keeps c.  Everything after
+  the set-up is algebra on the K×K Gram matrix of the unit-scaled candidate columns (K = Σk_c):
+  fits of any set and the tests of every block or pair against it, no refits.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,18 +103,16 @@ def absorbing_parameters(S: np.ndarray, Jf: np.ndarray, names: list[str], top: i
     return " + ".join(names[b] for b in best if abs(coef[b]) > 1e-3) or "nothing"
 
 
-def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names: list[str], sigma: float,
-         alpha: float = 0.01) -> list[Gate]:
-    """Detectability of every candidate (module docstring); `S[i]` is effect i's signature (n, k)."""
+def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names: list[str]) -> dict:
+    """What the gate needs that does not depend on σ: projected signatures and their bases, and
+    per candidate (total ‖S‖², absorbed fraction, absorbing parameters, confounder-group label,
+    smallest singular value of what the geometry and the confounder group leave)."""
     Q = orthonormal(Jf)
     m = len(effects)
-    z = scipy.stats.norm.ppf(1 - alpha / (2 * m)) + POWER_Z
     proj = [project_out(s, Q) for s in S]
     basis = [orthonormal(p) for p in proj]
-    order = np.argsort([e.priority for e in effects], kind="stable")
-    gates: list[Gate | None] = [None] * m
-    kept: list[int] = []
-    for i in order:
+    per = []
+    for i in range(m):
         e, s, sp = effects[i], S[i], proj[i]
         tot = float(np.sum(s**2))
         absorbed = 1.0 - float(np.sum(sp**2)) / tot if tot > 0 else 1.0
@@ -109,12 +129,6 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
                 conf_label = " + ".join(sorted({effects[j].name for j in group}))
                 if share > CONFOUND:
                     hide = np.zeros_like(sp)
-        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one
-        for j in kept:
-            if _explained(sp, basis[j]) > CONFOUND:
-                hide = np.zeros_like(sp)
-                conf_label = effects[j].label
-                break
         if tot == 0 or not np.any(hide):  # absorbed, or confounded beyond CONFOUND
             smin = 0.0
         else:
@@ -122,6 +136,36 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
             smin = float(sv[-1]) if sv.size == e.k else 0.0
             if smin < RANK_REL * np.sqrt(tot):
                 smin = 0.0
+        per.append((tot, absorbed, absorbed_by, conf_label, smin))
+    return {"proj": proj, "basis": basis, "per": per}
+
+
+def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names: list[str], sigma: float,
+         alpha: float = 0.01, cache: dict | None = None) -> list[Gate]:
+    """Detectability of every candidate (module docstring); `S[i]` is effect i's signature (n, k).
+    `cache`: a dict kept between calls with the same (effects, S, Jf) and another σ (the σ-free
+    part is computed once)."""
+    if cache is not None and "per" in cache:
+        parts = cache
+    else:
+        parts = _gate_parts(effects, S, Jf, free_names)
+        if cache is not None:
+            cache.update(parts)
+    proj, basis = parts["proj"], parts["basis"]
+    m = len(effects)
+    z = scipy.stats.norm.ppf(1 - alpha / (2 * m)) + POWER_Z
+    order = np.argsort([e.priority for e in effects], kind="stable")
+    gates: list[Gate | None] = [None] * m
+    kept: list[int] = []
+    for i in order:
+        e, sp = effects[i], proj[i]
+        tot, absorbed, absorbed_by, conf_label, smin = parts["per"][i]
+        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one
+        for j in kept:
+            if _explained(sp, basis[j]) > CONFOUND:
+                smin = 0.0
+                conf_label = effects[j].label
+                break
         if e.data.get("blocked"):  # the library knows this campaign cannot expose it
             smin = 0.0
             conf_label = e.data.get("absorbed_by", "")
@@ -147,82 +191,282 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
     return gates  # type: ignore[return-value]
 
 
+def sigma_given(r: np.ndarray, J: np.ndarray, blocks: list[np.ndarray], dof_resid: int) -> float:
+    """Residual σ (units of r) after the geometry J and the signature `blocks` (n, k_c) of the
+    effects accepted so far, dof-corrected (`dof_resid` = n − free geometric parameters).  The
+    gate's minimum detectable sizes use it: the geometry-only σ carries every unmodelled effect,
+    and two effects at 4× their MDS inflate it enough (×1.8 on the Delta) to gate each other out."""
+    Q = orthonormal(J)
+    e = project_out(r[:, None], Q)[:, 0]
+    if blocks:
+        P = orthonormal(project_out(np.hstack(blocks), Q))
+        e = project_out(e[:, None], P)[:, 0]
+        dof_resid -= P.shape[1]
+    return float(np.sqrt(e @ e / max(dof_resid, 1)))
+
+
 @dataclass
 class Step:
-    """One accepted forward-selection step."""
+    """One accepted candidate block and its grouped F test: given every other accepted block
+    (after the refinement), or given the blocks accepted before it (greedy pass only)."""
 
     index: int  # into the candidate list
     statistic: float  # grouped F
     dof: tuple[int, int]
     p_value: float  # raw
-    p_holm: float  # Holm-adjusted (monotone)
-    gain: float  # RSS reduction, m²
+    p_holm: float  # Holm-adjusted (step-down, monotone)
+    gain: float  # RSS reduction, m² (units of r²)
+
+
+def _batches(edges: np.ndarray, groups) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Groups of blocks by total width L: (positions in `groups`, column indices (P, L))."""
+    by: dict[int, tuple[list, list]] = {}
+    for i, q in enumerate(groups):
+        ix = np.concatenate([np.arange(edges[c], edges[c + 1]) for c in q])
+        by.setdefault(ix.size, ([], []))
+        by[ix.size][0].append(i)
+        by[ix.size][1].append(ix)
+    return [(np.array(pos), np.array(rows)) for pos, rows in by.values()]
+
+
+@functools.lru_cache(maxsize=16)
+def _pair_batches(k: tuple[int, ...]) -> tuple[np.ndarray, list]:
+    """Every pair of blocks (c < d) of widths k and their batches (the bootstrap reuses them)."""
+    nc = len(k)
+    pl = np.array([(c, d) for c in range(nc) for d in range(c + 1, nc)], int).reshape(-1, 2)
+    return pl, _batches(np.concatenate([[0], np.cumsum(k)]).astype(int), [tuple(q) for q in pl])
+
+
+class _Design:
+    """The candidate blocks as Gram algebra: with C the unit-scaled candidate columns (⊥ the
+    geometry and `base`), G = CᵀC, g = Cᵀr, the fit of any set S of blocks and every column with
+    S partialled out (Frisch–Waugh–Lovell) are K×K products (K = Σk_c); no n-row work after set-up,
+    and the tests of all blocks (or pairs of blocks) against one fit are one batched eigh per width."""
+
+    def __init__(self, r: np.ndarray, candidates: list[np.ndarray], base: np.ndarray | None,
+                 tolerances: list[float]):
+        self.nc = len(candidates)
+        self.k = np.array([c.shape[1] for c in candidates])
+        self.edges = np.concatenate([[0], np.cumsum(self.k)]).astype(int)
+        self.ix = [np.arange(self.edges[c], self.edges[c + 1]) for c in range(self.nc)]
+        C = np.hstack(candidates)
+        cn = np.linalg.norm(C, axis=0)
+        self.cn = np.where(cn > 0, cn, 1.0)
+        C = C / self.cn  # unit columns: gains and ranks do not depend on units
+        B = np.zeros((r.size, 0)) if base is None else orthonormal(base)
+        if B.shape[1]:
+            C, r = project_out(C, B), project_out(r[:, None], B)[:, 0]
+        self.nb = B.shape[1]
+        self.G, self.g, self.rr = C.T @ C, C.T @ r, float(r @ r)
+        self.tol = np.asarray(tolerances, float)
+        self.singles = self._batches([(c,) for c in range(self.nc)])
+        self._pairs = None
+
+    def _batches(self, groups: list[tuple[int, ...]]) -> list[tuple[np.ndarray, np.ndarray]]:
+        return _batches(self.edges, groups)
+
+    @property
+    def pairs(self) -> tuple[np.ndarray, list]:
+        if self._pairs is None:
+            self._pairs = _pair_batches(tuple(int(k) for k in self.k))
+        return self._pairs
+
+    def given(self, S, only: int | None = None) -> tuple[float, int, np.ndarray, np.ndarray]:
+        """(RSS, rank) of the fit of blocks S, and (G, g) of all columns (or of block `only`'s)
+        with S partialled out."""
+        cols = slice(None) if only is None else self.ix[only]
+        if not len(S):
+            return self.rr, 0, self.G[np.ix_(cols, cols)] if only is not None else self.G, self.g[cols]
+        ix = np.concatenate([self.ix[c] for c in S])
+        w, V = np.linalg.eigh(self.G[np.ix_(ix, ix)])
+        keep = w > RANK_REL
+        Vk = V[:, keep] / np.sqrt(w[keep])  # G_SS⁺ = Vk Vkᵀ on the kept directions
+        A = self.G[cols, :][:, ix] @ Vk
+        a = self.g[ix] @ Vk
+        Gc = self.G[np.ix_(cols, cols)] if only is not None else self.G
+        return max(self.rr - float(a @ a), 0.0), int(keep.sum()), Gc - A @ A.T, self.g[cols] - A @ a
+
+    def test(self, c: int, G: np.ndarray, g: np.ndarray, rss: float, dof: int) -> tuple[float, float, int, float]:
+        """`tests` of block c alone, (G, g) being its own columns given the fit."""
+        w, V = np.linalg.eigh(G)
+        keep = w > RANK_REL
+        kc = int(keep.sum())
+        if kc == 0 or dof - kc < 1:
+            return 1.0, 0.0, 0, 0.0
+        proj = (V[:, keep].T @ g) / np.sqrt(w[keep])
+        gain = float(proj @ proj)
+        if self.tol[c] > 0 and kc == 1 and self.k[c] == 1:
+            theta = abs(float(g[0])) / float(G[0, 0]) / self.cn[self.edges[c]]  # parameter units
+            gain *= (max(theta - self.tol[c], 0.0) / theta if theta > 0 else 0.0) ** 2
+        F = (gain / kc) / (max(rss - gain, 1e-300) / (dof - kc))
+        return float(scipy.special.fdtrc(kc, dof - kc, F)), float(F), kc, gain
+
+    @staticmethod
+    def gains(G: np.ndarray, g: np.ndarray, batches, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """RSS reduction and rank of adding each group (of `batches`, n groups) to the fit (G, g)."""
+        gains, ranks = np.zeros(n), np.zeros(n, int)
+        for pos, I in batches:
+            if I.shape[1] == 1:  # one column: g²/G
+                d = G[I[:, 0], I[:, 0]]
+                keep = d > RANK_REL
+                gains[pos] = np.where(keep, g[I[:, 0]] ** 2 / np.where(keep, d, 1.0), 0.0)
+                ranks[pos] = keep
+                continue
+            w, V = np.linalg.eigh(G[I[:, :, None], I[:, None, :]])
+            keep = w > RANK_REL
+            proj = np.einsum("pij,pi->pj", V, g[I]) / np.sqrt(np.where(keep, w, 1.0))
+            gains[pos] = np.sum(np.where(keep, proj**2, 0.0), axis=1)
+            ranks[pos] = keep.sum(axis=1)
+        return gains, ranks
+
+    def tests(self, G: np.ndarray, g: np.ndarray, rss: float, dof: int, groups=None):
+        """Grouped F of every block (or every pair: groups="pairs") against the fit with Gram
+        (G, g), RSS `rss` and `dof` residual dof: (p, F, rank, gain) arrays; p = 1 where a group
+        adds no direction.  Single-parameter blocks with a tolerance (interval null ±tol): the gain
+        is shrunk as if the estimate were moved to the edge of the interval."""
+        if groups == "pairs":
+            pl, batches = self.pairs
+            gain, kc = self.gains(G, g, batches, len(pl))
+        else:
+            gain, kc = self.gains(G, g, self.singles, self.nc)
+            for c in np.flatnonzero((self.tol > 0) & (self.k == 1) & (kc == 1)):
+                j = self.edges[c]
+                theta = abs(float(g[j])) / float(G[j, j]) / self.cn[j]  # parameter units
+                gain[c] *= (max(theta - self.tol[c], 0.0) / theta if theta > 0 else 0.0) ** 2
+        d2 = dof - kc
+        ok = (kc > 0) & (d2 >= 1)
+        F = np.where(ok, (gain / np.maximum(kc, 1)) / (np.maximum(rss - gain, 1e-300) / np.maximum(d2, 1)), 0.0)
+        p = np.where(ok, scipy.special.fdtrc(np.maximum(kc, 1), np.maximum(d2, 1), F), 1.0)
+        return p, F, kc, gain
 
 
 def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, alpha: float = 0.01,
                    tolerances: list[float] | None = None, max_terms: int = 8, n_family: int | None = None,
-                   base: np.ndarray | None = None) -> list[Step]:
-    """Forward selection by grouped F with Holm's step-down thresholds (module docstring).
+                   base: np.ndarray | None = None, refine: bool = True) -> list[Step]:
+    """Stepwise selection of candidate blocks by grouped F tests under Holm's step-down
+    thresholds α/(m − j) (module docstring): a greedy forward pass, then (`refine`) backward
+    elimination and pair additions until nothing changes.
 
     `r` (n,) residuals ⊥ the geometry; `candidates` their projected signatures (n, k_c);
     `dof_resid` = n − free geometric parameters; `tolerances` per candidate (single-parameter
-    interval nulls: an estimate within ±tol counts as zero); `base` columns already in the model.
-    All candidates are projected at once; each step costs one matrix product and a few k×k solves.
+    interval nulls: an estimate within ±tol counts as zero); `base` columns already in the model;
+    `n_family` the Holm family size m (default: the number of candidates).  Everything after the
+    set-up is algebra on the K×K Gram matrix of the unit-scaled candidate columns.
     """
     m = len(candidates) if n_family is None else n_family
     if not candidates:
         return []
-    tol = tolerances or [0.0] * len(candidates)
-    ks = [c.shape[1] for c in candidates]
-    edges = np.concatenate([[0], np.cumsum(ks)])
-    C = np.hstack(candidates)
-    cn = np.linalg.norm(C, axis=0)
-    C = C / np.where(cn > 0, cn, 1.0)  # unit columns: gains and ranks do not depend on units
-    B = np.zeros((r.size, 0)) if base is None else orthonormal(base)
-    res = project_out(r[:, None], B)[:, 0]
-    rss = float(res @ res)
-    dof = dof_resid - B.shape[1]
-    steps: list[Step] = []
-    chosen: set[int] = set()
-    p_adj_prev = 0.0
-    for j in range(min(max_terms, m)):
-        R = project_out(C, B)
-        G = R.T @ R
-        g = R.T @ res
-        best = None
-        for c in range(len(candidates)):
-            if c in chosen:
-                continue
-            sl = slice(edges[c], edges[c + 1])
-            Gc, gc = G[sl, sl], g[sl]
-            w, V = np.linalg.eigh(Gc)
-            keep = w > RANK_REL
-            kc = int(keep.sum())
-            if kc == 0 or dof - kc < 1:
-                continue
-            proj = (V[:, keep].T @ gc) / np.sqrt(w[keep])
-            gain = float(proj @ proj)
-            if tol[c] > 0 and kc == 1 and ks[c] == 1:
-                theta = abs(float(gc[0])) / float(Gc[0, 0]) / cn[edges[c]]  # parameter units
-                shrink = max(theta - tol[c], 0.0) / theta if theta > 0 else 0.0
-                gain *= shrink**2
-            F = (gain / kc) / (max(rss - gain, 1e-300) / (dof - kc))
-            p = float(scipy.special.fdtrc(kc, dof - kc, F))
-            if best is None or p < best[0] or (p == best[0] and F > best[1]):
-                best = (p, F, c, kc, gain)
-        if best is None:
+    nc = len(candidates)
+    D = _Design(r, candidates, base, tolerances or [0.0] * nc)
+    dof0 = dof_resid - D.nb
+    marginal = D.gains(D.G, D.g, D.singles, nc)[0]  # each block's gain on its own (tie-break)
+
+    def forward(A: list[int]) -> list[tuple[int, float, float, int, float, int]]:
+        """Greedy additions to A (in place) while the best block passes α/(m − |A|):
+        (block, p, F, rank, gain, residual dof) of each."""
+        added = []
+        while len(A) < min(max_terms, m):
+            rss, rk, G, g = D.given(A)
+            p, F, kc, gain = D.tests(G, g, rss, dof0 - rk)
+            p[A] = 2.0
+            c = int(np.lexsort((-F, p))[0])  # smallest p; ties (p underflows to 0) by the larger F
+            tie = np.flatnonzero((np.abs(F - F[c]) <= 1e-9 * F[c]) & (kc == kc[c]) & (p <= p[c] * (1 + 1e-9)))
+            if tie.size > 1:  # interchangeable given A (same fit): the one that alone explains most
+                c = int(tie[np.argmax(marginal[tie])])
+            if p[c] > alpha / (m - len(A)):
+                break
+            added.append((c, float(p[c]), float(F[c]), int(kc[c]), float(gain[c]), dof0 - rk - int(kc[c])))
+            A.append(c)
+        return added
+
+    def conditional(A: list[int]) -> list[tuple[float, float, int, float, int]]:
+        """Each block of A tested given all the others: (p, F, rank, gain, residual dof).  With
+        M = G_AA⁻¹ and β = M g_A, block b's gain given the others is β_bᵀ M_bb⁻¹ β_b (one inverse
+        for all blocks); the general path (a block with fewer directions than columns) refits."""
+        if not A:
+            return []
+        ix = np.concatenate([D.ix[c] for c in A])
+        w, V = np.linalg.eigh(D.G[np.ix_(ix, ix)])
+        if w[0] > RANK_REL:
+            M = (V / w) @ V.T
+            beta = M @ D.g[ix]
+            dof = dof0 - ix.size
+            rss = max(D.rr - float(D.g[ix] @ beta), 1e-300)
+            out, at = [], 0
+            for b in A:
+                sl = slice(at, at + D.k[b])
+                at += D.k[b]
+                raw = gain = float(beta[sl] @ np.linalg.solve(M[sl, sl], beta[sl]))
+                if D.tol[b] > 0 and D.k[b] == 1:
+                    theta = abs(float(beta[sl][0])) / D.cn[D.edges[b]]  # parameter units
+                    gain *= (max(theta - D.tol[b], 0.0) / theta if theta > 0 else 0.0) ** 2
+                kc = int(D.k[b])
+                F = (gain / kc) / (max(rss + raw - gain, 1e-300) / dof) if dof >= 1 else 0.0
+                p = float(scipy.special.fdtrc(kc, dof, F)) if dof >= 1 else 1.0
+                out.append((p, float(F), kc, gain, dof))
+            return out
+        out = []
+        for b in A:
+            rss, rk, G, g = D.given([c for c in A if c != b], b)
+            p, F, kc, gain = D.test(b, G, g, rss, dof0 - rk)
+            out.append((p, F, kc, gain, dof0 - rk - kc))
+        return out
+
+    def holm_fails(ps: list[float]) -> bool:
+        """Does Holm's step-down (thresholds α/(m − j)) leave any of these p-values unrejected?"""
+        return any(p > alpha / (m - j) for j, p in enumerate(sorted(ps)))
+
+    def backward(A: list[int]) -> tuple[list[int], list]:
+        """Drop the least significant block (given the others) while Holm does not reject all;
+        the remaining blocks and their `conditional` tests."""
+        A = list(A)
+        while True:
+            cond = conditional(A)
+            ps = [t[0] for t in cond]
+            if not A or not holm_fails(ps):
+                return A, cond
+            A.pop(int(np.argmax(ps)))
+
+    def add_pair(A: list[int]) -> bool:
+        """Add the pair of blocks whose joint grouped F given A is most significant, if it passes
+        α/(m − |A|) divided by the number of pairs tried (Bonferroni over the search); in place."""
+        if len(A) + 2 > min(max_terms, m):
+            return False
+        pl = D.pairs[0]
+        free = ~np.isin(pl, A).any(axis=1)
+        if not free.any():
+            return False
+        rss, rk, G, g = D.given(A)
+        p, F, _, _ = D.tests(G, g, rss, dof0 - rk, "pairs")
+        p = np.where(free, p, 2.0)
+        i = int(np.lexsort((-F, p))[0])
+        if p[i] > alpha / (m - len(A)) / int(free.sum()):
+            return False
+        A.extend(int(c) for c in pl[i])
+        return True
+
+    A: list[int] = []
+    greedy = forward(A)
+    if not refine or not A:
+        steps, adj = [], 0.0
+        for j, (c, p, F, kc, gain, dof) in enumerate(greedy):
+            adj = max(adj, min(1.0, p * (m - j)))
+            steps.append(Step(c, F, (kc, dof), p, adj, gain))
+        return steps
+    seen = set()
+    for _ in range(2 * max_terms):  # backward elimination, forward additions (single, then pairs)
+        A, _ = backward(A)
+        forward(A)
+        if frozenset(A) in seen or not add_pair(A):
             break
-        p, F, c, kc, gain = best
-        if p > alpha / (m - j):
-            break
-        p_adj_prev = max(p_adj_prev, min(1.0, p * (m - j)))
-        steps.append(Step(c, float(F), (kc, dof - kc), p, p_adj_prev, gain))
-        chosen.add(c)
-        Qc = orthonormal(R[:, edges[c]:edges[c + 1]], 1e-6)
-        B = np.hstack([B, Qc])
-        res = project_out(res[:, None], Qc)[:, 0]
-        rss = float(res @ res)
-        dof -= kc
+        seen.add(frozenset(A))
+    A, cond = backward(A)
+    order = np.argsort([t[0] for t in cond], kind="stable")
+    steps, adj = [], 0.0
+    for j, i in enumerate(order):
+        p, F, kc, gain, dof = cond[i]
+        adj = max(adj, min(1.0, p * (m - j)))
+        steps.append(Step(A[i], F, (kc, dof), p, adj, gain))
     return steps
 
 

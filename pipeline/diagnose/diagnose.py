@@ -107,6 +107,22 @@ def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Eff
     return Adapter(lib, sigs, variables, np.asarray(table["time_since_start_s"], float), located)
 
 
+def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> np.ndarray:
+    """1σ of least-squares parameters with design A (N, p) and residuals r (N,) when the errors
+    are correlated within clusters: sandwich (AᵀA)⁻¹ (Σ_g A_gᵀ r_g r_gᵀ A_g) (AᵀA)⁻¹ with the CR1
+    small-sample factor G/(G − 1)·(N − 1)/(N − p)."""
+    ids, inv = np.unique(cluster, return_inverse=True)
+    G, (N, p) = ids.size, A.shape
+    cn = np.linalg.norm(A, axis=0)
+    cn[cn == 0] = 1.0
+    A = A / cn  # unit columns: parameters in very different units stay resolvable
+    sc = np.zeros((G, p))
+    np.add.at(sc, inv, A * r[:, None])
+    Binv = np.linalg.pinv(A.T @ A)
+    V = Binv @ (sc.T @ sc) @ Binv * G / max(G - 1, 1) * (N - 1) / max(N - p, 1)
+    return np.sqrt(np.clip(np.diag(V), 0, None)) / cn
+
+
 def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | None = None,
              settings: Settings = Settings(), library: list[Effect] | None = None,
              geometry_fit: Fit | None = None, adapter: Adapter | None = None) -> dict:
@@ -162,6 +178,7 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
             W_max = cluster_whitener(r_max, Zc, cl, int(free.sum()) + sum(sg.shape[1] for sg in S), pre=M,
                                      effective_rows=eff_rows)
             sigma_noise = None if W_max is None else W_max.sigma_within
+
         W = cluster_whitener(r, Zc, cl, int(free.sum()), pre=M, effective_rows=eff_rows)
     if W is not None:  # residual degrees of freedom: only the dimensions that carry noise
         dof = W.n_effective - int(free.sum())
@@ -209,6 +226,9 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         z, r_final, free_a = fa.x, fa.residuals_after.reshape(nk), fa.free
         A = aug.jacobian(z, table)[:, :, free_a].reshape(nk, -1)
         std = fa.std
+        if cl is not None:  # errors correlated within a cluster: cluster-robust (CR1 sandwich) standard errors
+            std = np.zeros_like(fa.std)
+            std[free_a] = cluster_robust_std(A, r_final, cl)
         sigma_after = fa.sigma
     else:
         z, r_final, A, std, sigma_after, free_a = x, r, Jf, f.std, sigma, free
@@ -265,7 +285,8 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     else:
         vw = [dataclasses.replace(v, columns=W(v.columns)) for v in variables]
         lof = lack_of_fit.test(W(r_final), W(A), vw, W.n_effective - A.shape[1], s.alpha, whiten=W,
-                               original=(r_final, A, variables))
+                               original=(r_final, A, variables),
+                               cluster=cl, seed=s.seed)
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
               "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m}
              for t in sorted(lof, key=lambda t: t.p_value) if t.significant]

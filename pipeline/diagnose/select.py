@@ -329,28 +329,7 @@ def noise_components(r: np.ndarray, Z: np.ndarray, cluster: np.ndarray, sources:
     return NoiseModel(np.append(sj, s_iso), {c: (rk if structural else m) for c, (rk, m) in eff.items()})
 
 
-@dataclass
-class MeasurementWhitener:
-    """Per-measurement k×k whitening T_i (`measurement_whitener`); `shape` (n, k, k) is the
-    estimated noise covariance after whitening, T_i Σ_i T_iᵀ / λ_med (≈ I, nil on void directions)."""
-
-    T: np.ndarray
-    Tinv: np.ndarray
-    shape: np.ndarray
-
-    def _map(self, T: np.ndarray, A: np.ndarray) -> np.ndarray:
-        A = np.asarray(A, float)
-        n, k = T.shape[:2]
-        return np.einsum("nij,njc->nic", T, A.reshape(n, k, -1)).reshape(A.shape)
-
-    def __call__(self, A: np.ndarray) -> np.ndarray:
-        return self._map(self.T, A)
-
-    def inverse(self, A: np.ndarray) -> np.ndarray:
-        return self._map(self.Tinv, A)
-
-
-def measurement_whitener(sources: list[np.ndarray], variances: np.ndarray, floor: float = 1e-3) -> MeasurementWhitener:
+def measurement_whitener(sources: list[np.ndarray], variances: np.ndarray, floor: float = 1e-3):
     """Row map (nk, c) → (nk, c) that whitens each measurement's k residual rows by its noise
     covariance Σ_i = Σ_j s_j N_ij N_ijᵀ + s_iso I (`noise_components`).  `floor` (relative to the
     median largest eigenvalue of Σ_i) only guards directions no source reaches against a zero
@@ -360,13 +339,15 @@ def measurement_whitener(sources: list[np.ndarray], variances: np.ndarray, floor
     for N, v in zip(sources, variances):
         N = np.asarray(N, float)
         C += v * np.einsum("nic,njc->nij", N, N)
-    C += variances[-1] * np.eye(k)
-    lam_med = float(np.median(np.linalg.eigvalsh(C)[:, -1]))
-    Cf = C + max(0.0, floor * lam_med - variances[-1]) * np.eye(k)
-    w, V = np.linalg.eigh(Cf)
+    lam_med = float(np.median(np.linalg.eigvalsh(C + variances[-1] * np.eye(k))[:, -1]))
+    C += max(variances[-1], floor * lam_med) * np.eye(k)
+    w, V = np.linalg.eigh(C)
     T = np.einsum("nij,nj,nkj->nik", V, np.sqrt(lam_med) / np.sqrt(w), V)
-    Tinv = np.einsum("nij,nj,nkj->nik", V, np.sqrt(w) / np.sqrt(lam_med), V)
-    return MeasurementWhitener(T, Tinv, np.einsum("nij,njk,nlk->nil", T, C, T) / lam_med)
+
+    def apply(A: np.ndarray) -> np.ndarray:
+        A = np.asarray(A, float)
+        return np.einsum("nij,njc->nic", T, A.reshape(n, k, -1)).reshape(A.shape)
+    return apply
 
 
 def cluster_whitener(r: np.ndarray, Z: np.ndarray, cluster: np.ndarray, n_fitted: int = 0,

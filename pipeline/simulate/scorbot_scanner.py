@@ -137,9 +137,10 @@ def _project(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, X: np.ndarray,
     x, y, z = p_c[:, 0], p_c[:, 1], p_c[:, 2]
     u, v = s[cam.I_F] * y / z, s[cam.I_F] * x / z  # ideal sensor coordinates
     ut, vt = cam.distort(u, v, s[cam.I_K])
-    for _ in range(20):  # solve U_k(ũ, ṽ) + Δ(ũ, ṽ) = (u, v) for the distorted coordinates
-        du, dv = lens_excess(ut, vt, fx["k2"], fx["p1"], fx["p2"])
-        ut, vt = cam.distort(u - du, v - dv, s[cam.I_K])
+    with np.errstate(over="ignore", invalid="ignore"):  # far outside the image it may diverge: dropped as unseen
+        for _ in range(20):  # solve U_k(ũ, ṽ) + Δ(ũ, ṽ) = (u, v) for the distorted coordinates
+            du, dv = lens_excess(ut, vt, fx["k2"], fx["p1"], fx["p2"])
+            ut, vt = cam.distort(u - du, v - dv, s[cam.I_K])
     return np.stack([ut / s[cam.I_SU] + s[cam.I_U0], vt / s[cam.I_SV] + s[cam.I_V0]], axis=1), z
 
 

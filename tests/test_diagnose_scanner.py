@@ -126,16 +126,21 @@ def test_cli_injects_conceals_and_stage_diagnoses(tmp_path):
 
 def test_clustered_inference_counts_only_noisy_rows_and_reports_structure_in_metres():
     """A pose's 5 collinear corners reconstruct into the laser plane, so 3 of its 15 residual rows
-    are structural zeros (no degrees of freedom); lack-of-fit `peak_m` is in m (original
-    residuals, as the plot's smooth), not in whitened units."""
+    are structural zeros (no degrees of freedom); an out-of-library bump in J2's transmission is
+    located by `unexplained` (q_J2, the region holding its centre) and not named with confidence;
+    `peak_m` is in m (original residuals, as the plot's smooth), not in whitened units."""
     doc = run(seed=0)
     ci = doc["clustered_inference"]
     assert ci["clusters"] == 20 and ci["effective_rows"] == 20 * 13  # 12 + the near-void roll about the line
-    doc = run(["tangential_distortion=8,8"], seed=1)
-    w = [w for w in doc["unexplained_where"] if w["variable"] == "pixel_U"]
-    assert w
+    c = ss.Campaign(poses=20, corners=5, seed=1, capture_speed_rad_s=0.1)
+    q2 = np.unique(ss.simulate_in_memory(ARM, ARM, truth(), c)[1]["joint_positions"][:, 1])
+    centre = float(np.sort(q2)[len(q2) // 2])
+    doc = run([f"bump=2e-3@J2:{centre:.4f}"], seed=1)
+    w = doc["unexplained_where"]
+    assert w and w[0]["variable"] == "q_J2" and w[0]["region"][0] <= centre <= w[0]["region"][1]
+    assert not [f for f in doc["findings"] if f["confidence"] == "high"]
     smooth = np.abs(w[0]["plots"][0]["smooth_m"]).max()
-    assert abs(w[0]["peak_m"] - smooth) < 1e-3 * smooth + 1e-9 and 1e-4 < w[0]["peak_m"] < 2e-2
+    assert abs(w[0]["peak_m"] - smooth) < 1e-3 * smooth + 1e-9 and 1e-5 < w[0]["peak_m"] < 1e-2
 
 
 def test_tangential_distortion_at_four_times_its_mds_is_found_and_named():

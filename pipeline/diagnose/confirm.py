@@ -106,6 +106,22 @@ def shared_error_covariance(A: np.ndarray, r: np.ndarray, Z: np.ndarray, tau2: f
     return sig2 * Ap @ Ap.T + tau2 * AZ @ AZ.T, float(np.sqrt(sig2))
 
 
+def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> np.ndarray:
+    """1σ of least-squares parameters with design A (N, p) and residuals r (N,) when the errors
+    are correlated within clusters: sandwich (AᵀA)⁻¹ (Σ_g A_gᵀ r_g r_gᵀ A_g) (AᵀA)⁻¹ with the CR1
+    small-sample factor G/(G − 1)·(N − 1)/(N − p)."""
+    ids, inv = np.unique(cluster, return_inverse=True)
+    G, (N, p) = ids.size, A.shape
+    cn = np.linalg.norm(A, axis=0)
+    cn[cn == 0] = 1.0
+    A = A / cn  # unit columns: parameters in very different units stay resolvable
+    sc = np.zeros((G, p))
+    np.add.at(sc, inv, A * r[:, None])
+    Binv = np.linalg.pinv(A.T @ A)
+    V = Binv @ (sc.T @ sc) @ Binv * G / max(G - 1, 1) * (N - 1) / max(N - p, 1)
+    return np.sqrt(np.clip(np.diag(V), 0, None)) / cn
+
+
 def time_blocks(t: np.ndarray, size: int = 5) -> np.ndarray:
     """Group label of each measurement: consecutive blocks of `size` in time order."""
     order = np.argsort(np.asarray(t), kind="stable")

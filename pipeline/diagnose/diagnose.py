@@ -75,6 +75,7 @@ class Adapter:
     cluster_basis: Callable[[np.ndarray], np.ndarray] | None = None
     noise_shape: Callable[[np.ndarray], np.ndarray] | None = None
     shared_error: tuple[np.ndarray, float] | None = None
+    held: tuple[str, ...] = ()  # weak-gauge parameters the geometric baseline holds at the model's nominal
 
 
 def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None) -> Adapter:
@@ -117,6 +118,7 @@ def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Eff
                    shared_error=(Zf, jig_tolerance_m**2 / 3))
 
 
+
 def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | None = None,
              settings: Settings = Settings(), library: list[Effect] | None = None,
              geometry_fit: Fit | None = None, adapter: Adapter | None = None) -> dict:
@@ -127,6 +129,14 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     rows together."""
     s = settings
     ad = adapter or touch_adapter(model, table, jig_tolerance_m, library)
+    if geometry_fit is None and ad.held:
+        # the baseline every campaign gets (the clean one): a weak gauge freed because an effect
+        # lowers the cost would absorb that effect before it is tested
+        names0 = list(model.parameter_names())
+        idx = [names0.index(h) for h in ad.held]
+        x0 = np.array(model.initial_guess(table) if x0 is None else x0, float)
+        x0[idx] = model.nominal()[idx]
+        geometry_fit = fit(model, table, FitOptions(x0=x0, fixed=tuple(ad.held)))
     f = geometry_fit or fit(model, table, FitOptions(x0=x0))
     n, k = f.residuals_after.shape
     nk = n * k
@@ -143,20 +153,29 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     S = [sg.reshape(nk, -1) for sg in S3]
 
     # pose-clustered inference: the random-effects model of the cluster errors, estimated from the
-    # geometric residuals and re-estimated once effects are accepted (iterated feasible GLS)
+    # geometric residuals and re-estimated once effects are accepted (iterated feasible GLS).  The
+    # within-cluster noise (its variance components, and the σ of the minimum detectable sizes)
+    # comes from the residuals of the maximal model — geometry + every library candidate — so
+    # that an effect cannot inflate the noise it is tested against and hide in it
     Zc, cl = None, None
     if ad.cluster is not None:
         Zb = (ad.cluster_basis(x) if ad.cluster_basis is not None
               else np.broadcast_to(np.eye(k), (n, k, k)))
         Zc = np.asarray(Zb, float).reshape(nk, -1)
         cl = np.repeat(np.asarray(ad.cluster), k)
-    M, eff_rows, nm = None, None, None  # per-measurement shape of the within-cluster noise (k×k), whitened first
-    if Zc is not None and ad.noise_shape is not None:
-        src = ad.noise_shape(x)
-        src = list(src) if isinstance(src, (list, tuple)) else [src]
-        nm = noise_components(r, Zc, cl, src)
-        M, eff_rows = measurement_whitener(src, nm.variances), nm.effective_rows
-    W = None if Zc is None else cluster_whitener(r, Zc, cl, int(free.sum()), pre=M, effective_rows=eff_rows)
+    M, eff_rows, nm, W, sigma_noise = None, None, None, None, None  # M: per-measurement noise shape (k×k)
+    if Zc is not None:
+        if ad.noise_shape is not None:
+            r_max = project_out(r[:, None], orthonormal(np.hstack([Jf] + S)))[:, 0]
+            src = ad.noise_shape(x)
+            src = list(src) if isinstance(src, (list, tuple)) else [src]
+            nm = noise_components(r_max, Zc, cl, src)
+            M, eff_rows = measurement_whitener(src, nm.variances), nm.effective_rows
+            W_max = cluster_whitener(r_max, Zc, cl, int(free.sum()) + sum(sg.shape[1] for sg in S), pre=M,
+                                     effective_rows=eff_rows)
+            sigma_noise = None if W_max is None else W_max.sigma_within
+
+        W = cluster_whitener(r, Zc, cl, int(free.sum()), pre=M, effective_rows=eff_rows)
     if W is not None:  # residual degrees of freedom: only the dimensions that carry noise
         dof = W.n_effective - int(free.sum())
 
@@ -171,8 +190,9 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
             Jw = W(Jf)
             rw = project_out(W(r)[:, None], orthonormal(Jw))[:, 0]
             Sw = [W(sg) for sg in S]
-            sw = float(np.sqrt(rw @ rw / max(dof, 1)))
-        if prior:
+            # the noise, not the geometry-only residual (which holds any effect): from the maximal model
+            sw = sigma_noise or W.sigma_within
+        if prior and (W is None or sigma_noise is None):
             sw = sigma_given(rw, Jw, [Sw[i] for i in prior], dof)
         gs = gate(lib, Sw, Jw, free_names, sw, s.alpha, gate_cache if W is None else None)
         tst = [i for i, g in enumerate(gs) if g.identifiable]
@@ -210,6 +230,9 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         z, r_final, free_a = fa.x, fa.residuals_after.reshape(nk), fa.free
         A = aug.jacobian(z, table)[:, :, free_a].reshape(nk, -1)
         std = fa.std
+        if cl is not None:  # errors correlated within a cluster: cluster-robust (CR1 sandwich) standard errors
+            std = np.zeros_like(fa.std)
+            std[free_a] = confirm.cluster_robust_std(A, r_final, cl)
         sigma_after = fa.sigma
         if ad.shared_error is not None:  # errors shared within groups: sandwich covariance (honest std)
             cov, _ = confirm.shared_error_covariance(A, r_final, *ad.shared_error)
@@ -270,7 +293,8 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     else:
         vw = [dataclasses.replace(v, columns=W(v.columns)) for v in variables]
         lof = lack_of_fit.test(W(r_final), W(A), vw, W.n_effective - A.shape[1], s.alpha, whiten=W,
-                               original=(r_final, A, variables))
+                               original=(r_final, A, variables),
+                               cluster=cl, seed=s.seed)
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
               "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m}
              for t in sorted(lof, key=lambda t: t.p_value) if t.significant]
@@ -313,7 +337,7 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         **({} if W is None else {"clustered_inference": {
             "clusters": W.n_clusters, "sigma_within_m": W.sigma_within, "effective_rows": W.n_effective,
             "noise_variances": None if nm is None else [float(v) for v in nm.variances],
-            "method": "random-effects whitening per cluster (select.cluster_whitener), iterated"}}),
+            "method": "random-effects whitening per cluster (select.cluster_whitener), iterated; within noise from the maximal model"}}),
         "findings": findings,
         "not_identifiable": not_ident,
         "unexplained": bool(where),

@@ -95,12 +95,41 @@ class LackOfFit:
     peak_m: float  # largest fitted residual structure, m
 
 
+def wild_cluster_p(res: np.ndarray, QA: np.ndarray, bases: list[np.ndarray | None], F: list[float],
+                   dofs: list[tuple[int, int]], cluster: np.ndarray, n_boot: int = 2999, seed: int = 0) -> list[float]:
+    """p-values of the grouped F statistics `F` by the restricted wild cluster bootstrap: the
+    residual r̂ (⊥ design, null model) with each cluster's rows multiplied by one random sign,
+    re-projected against the design, gives F* for every variable (orthonormal basis `bases[i]`
+    ⊥ the design); p = (1 + #{F* ≥ F}) / (1 + n_boot).  Each cluster keeps its own error
+    covariance, whatever it is: no estimate of the between-cluster covariance from a few
+    clusters enters the reference distribution (Cameron, Gelbach & Miller 2008)."""
+    ids, inv = np.unique(cluster, return_inverse=True)
+    rng = np.random.default_rng(seed)
+    sg = rng.choice([-1.0, 1.0], (ids.size, n_boot))[inv]  # (N, B)
+    R = sg * res[:, None]
+    R -= QA @ (QA.T @ R)
+    rss = np.sum(R**2, axis=0)
+    out = []
+    for Qb, f, (kb, d2) in zip(bases, F, dofs):
+        if Qb is None or not np.isfinite(f):
+            out.append(1.0)
+            continue
+        g = np.sum((Qb.T @ R) ** 2, axis=0)
+        Fs = (g / kb) / (np.maximum(rss - g, 1e-300) / d2)
+        out.append(float((1 + np.sum(Fs >= f)) / (1 + n_boot)))
+    return out
+
+
 def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int, alpha: float = 0.01,
-         whiten=None, original: tuple | None = None) -> list[LackOfFit]:
+         whiten=None, original: tuple | None = None, cluster: np.ndarray | None = None,
+         seed: int = 0) -> list[LackOfFit]:
     """Grouped F test of each variable's smooth basis against design A, Holm across variables.
     With clustered errors, r, A and the variables' columns come whitened (`select.Whitener`),
     `whiten` is that W (for `locate`) and `original` = (r, A, variables) unwhitened: `peak_m`
-    is then the smooth fitted to the original residuals (m, not whitened units)."""
+    is then the smooth fitted to the original residuals (m, not whitened units).  With
+    `cluster` (the cluster of each row) the p-values come from the wild cluster bootstrap
+    (`wild_cluster_p`) instead of the F distribution, which would hold only if the whitening's
+    between-cluster covariance (estimated from a few clusters) were exact."""
     QA = orthonormal(A)
     if original is not None:
         QA0 = orthonormal(original[1])
@@ -114,12 +143,15 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         Qb = orthonormal(Bp, 1e-6)
         kb = Qb.shape[1]
         if kb == 0 or dof_resid - kb < 2:
-            raw.append((v, np.nan, (0, 0), 1.0, None))
+            raw.append((v, np.nan, (0, 0), 1.0, None, None))
             continue
         gain = float(np.sum((Qb.T @ res) ** 2))
         F = (gain / kb) / ((rss - gain) / (dof_resid - kb))
         p = float(scipy.stats.f.sf(F, kb, dof_resid - kb))
-        raw.append((v, F, (kb, dof_resid - kb), p, Bp))
+        raw.append((v, F, (kb, dof_resid - kb), p, Bp, Qb))
+    if cluster is not None:
+        ps = wild_cluster_p(res, QA, [t[5] for t in raw], [t[1] for t in raw], [t[2] for t in raw], cluster, seed=seed)
+        raw = [(*t[:3], p, *t[4:]) for t, p in zip(raw, ps)]
     m = len(raw)
     order = np.argsort([t[3] for t in raw])
     p_holm = np.ones(m)
@@ -134,7 +166,7 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         else:
             stop = True
     out = []
-    for i, (v, F, dof, p, Bp) in enumerate(raw):
+    for i, (v, F, dof, p, Bp, _) in enumerate(raw):
         region: tuple[float, float] | str = ""
         peak = 0.0
         if Bp is not None:

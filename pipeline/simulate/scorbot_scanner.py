@@ -137,9 +137,10 @@ def _project(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, X: np.ndarray,
     x, y, z = p_c[:, 0], p_c[:, 1], p_c[:, 2]
     u, v = s[cam.I_F] * y / z, s[cam.I_F] * x / z  # ideal sensor coordinates
     ut, vt = cam.distort(u, v, s[cam.I_K])
-    for _ in range(20):  # solve U_k(ũ, ṽ) + Δ(ũ, ṽ) = (u, v) for the distorted coordinates
-        du, dv = lens_excess(ut, vt, fx["k2"], fx["p1"], fx["p2"])
-        ut, vt = cam.distort(u - du, v - dv, s[cam.I_K])
+    with np.errstate(over="ignore", invalid="ignore"):  # far outside the image it may diverge: dropped as unseen
+        for _ in range(20):  # solve U_k(ũ, ṽ) + Δ(ũ, ṽ) = (u, v) for the distorted coordinates
+            du, dv = lens_excess(ut, vt, fx["k2"], fx["p1"], fx["p2"])
+            ut, vt = cam.distort(u - du, v - dv, s[cam.I_K])
     return np.stack([ut / s[cam.I_SU] + s[cam.I_U0], vt / s[cam.I_SV] + s[cam.I_V0]], axis=1), z
 
 
@@ -154,7 +155,9 @@ def _stripe_normal(px: np.ndarray) -> np.ndarray:
 EFFECTS = {  # name: (values, location kind) — conventions of `pipeline.diagnose.scanner`
     "tangential_distortion": (2, "camera"), "radial_k2": (1, "camera"), "time_offset": (1, "camera"),
     "stripe_peak_bias": (1, "camera"), "joint_offset": (1, "joint"), "joint_scale": (1, "joint"),
+    "bump": (1, "joint:centre"),  # out-of-library: a Gaussian bump (rad) in one joint's transmission, J<i>:centre
 }
+BUMP_WIDTH_RAD = 0.1
 
 
 def check_effects(effects, n_joints: int = 5) -> None:
@@ -166,16 +169,24 @@ def check_effects(effects, n_joints: int = 5) -> None:
         nv, loc = EFFECTS[e.name]
         if len(e.values) != nv:
             raise ValueError(f"effect {e.label}: expected {nv} value(s), got {len(e.values)}")
-        if (loc == "camera" and e.location not in (None, "camera")) or (loc == "joint" and e.location not in joints):
+        if loc == "joint:centre":
+            j, _, c = (e.location or "").partition(":")
+            try:
+                float(c)
+            except ValueError:
+                j = None
+            if j not in joints:
+                raise ValueError(f"effect {e.label}: location must be J<i>:CENTRE (rad), e.g. J2:-0.5")
+        elif (loc == "camera" and e.location not in (None, "camera")) or (loc == "joint" and e.location not in joints):
             raise ValueError(f"effect {e.label}: location must be {'|'.join(joints) if loc == 'joint' else 'omitted'}")
 
 
 def effect_values(effects, n_joints: int = 5) -> dict:
     """Injected effects as arrays: k2 (1/m⁴), p1, p2 (1/m), peak_bias (px), time_offset (s),
-    joint_offset (n_joints,) rad, joint_scale (n_joints,)."""
+    joint_offset (n_joints,) rad, joint_scale (n_joints,), bump [(joint index, amplitude rad, centre rad)]."""
     check_effects(effects, n_joints)
     fx = {"k2": 0.0, "p1": 0.0, "p2": 0.0, "peak_bias": 0.0, "time_offset": 0.0,
-          "joint_offset": np.zeros(n_joints), "joint_scale": np.zeros(n_joints)}
+          "joint_offset": np.zeros(n_joints), "joint_scale": np.zeros(n_joints), "bump": []}
     for e in effects:
         v = [float(a) for a in e.values]
         if e.name == "tangential_distortion":
@@ -187,9 +198,20 @@ def effect_values(effects, n_joints: int = 5) -> dict:
             fx["peak_bias"] += v[0]
         elif e.name == "time_offset":
             fx["time_offset"] += v[0]
+        elif e.name == "bump":
+            j, _, c = e.location.partition(":")
+            fx["bump"].append((int(j[1:]) - 1, v[0], float(c)))
         else:
             fx[e.name][int(e.location[1:]) - 1] += v[0]
     return fx
+
+
+def _bumps(fx: dict, q_enc: np.ndarray) -> np.ndarray:
+    """Transmission bumps (rad) at encoder angles q_enc (n_joints,): true = enc + Σ A·exp(−½((enc − c)/w)²)."""
+    out = np.zeros_like(q_enc)
+    for j, a, c in fx["bump"]:
+        out[j] += a * np.exp(-0.5 * ((q_enc[j] - c) / BUMP_WIDTH_RAD) ** 2)
+    return out
 
 
 def _newton(fun, q0: np.ndarray, iters: int = 40, h: float = 1e-7) -> np.ndarray:
@@ -293,10 +315,13 @@ def _plan_pose(arm: SerialArm, xa: np.ndarray, s: np.ndarray, pattern: Pattern, 
 
 def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.ndarray, campaign: Campaign = Campaign(),
              noise: Noise = Noise(), pattern: Pattern = Pattern(), image_size: tuple[int, int] = (640, 480),
-             max_attempts: int = 400, effects: tuple = ()) -> SimResult:
+             max_attempts: int = 400, effects: tuple = (), plan_cache: dict | None = None) -> SimResult:
     """Run the campaign (module docstring).  Raises RuntimeError if the truth cannot see
     enough corners from reachable poses.  `effects` (`pipeline.simulate.effects.Injected`,
-    names of `EFFECTS`) are injected into the TRUE camera/arm (`pipeline.diagnose.scanner`)."""
+    names of `EFFECTS`) are injected into the TRUE camera/arm (`pipeline.diagnose.scanner`).
+    `plan_cache` (a dict the caller keeps): the planned poses (the operator's IK, most of the
+    time; the effects do not change them) memoised by the random generator's state before each
+    plan — bit-identical results, several times faster when one campaign is re-simulated."""
     fx = effect_values(effects, arm_truth.n_joints)
     rng = np.random.default_rng(campaign.seed)
     s = np.asarray(scanner_truth, float)
@@ -315,7 +340,15 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
         if attempts > max_attempts:
             raise RuntimeError(f"could only place {len(obs)} of {campaign.poses} poses with {campaign.corners} "
                                f"visible corners")
-        plan = _plan_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
+        if plan_cache is None:
+            plan = _plan_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
+        else:
+            key = (xa.tobytes(), s.tobytes(), pattern, campaign, image_size, repr(rng.bit_generator.state))
+            if key not in plan_cache:
+                plan = _plan_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
+                plan_cache[key] = (plan, rng.bit_generator.state)
+            plan, state = plan_cache[key]
+            rng.bit_generator.state = state
         if plan is None:
             continue
         q, idx = plan  # q: where the TRUE arm stands at the capture
@@ -326,7 +359,7 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
             w = campaign.capture_speed_rad_s * rng.choice([-1.0, 1.0], q.size) * rng.uniform(0.5, 1.0, q.size)
         q_enc = q.copy()  # encoders: true = enc + offset + scale·enc, and the image is δ late
         for _ in range(8):
-            q_enc = q - fx["joint_offset"] - fx["joint_scale"] * q_enc - w * fx["time_offset"]
+            q_enc = q - fx["joint_offset"] - fx["joint_scale"] * q_enc - w * fx["time_offset"] - _bumps(fx, q_enc)
         # repeatability: the flange is not exactly where the encoders say
         sig = k * noise.repeatability_3sigma_m / 3
         dR = rot("x", rng.normal(0, sig / 0.3)) @ rot("y", rng.normal(0, sig / 0.3)) @ rot("z", rng.normal(0, sig / 0.3))
@@ -416,10 +449,11 @@ def truth_document(arm_truth: SerialArm, scanner_truth: np.ndarray, noise: Noise
 
 def simulate_in_memory(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.ndarray,
                        campaign: Campaign = Campaign(), noise: Noise = Noise(), pattern: Pattern = Pattern(),
-                       effects: tuple = ()):
+                       effects: tuple = (), plan_cache: dict | None = None):
     """The measurement table a recording of this campaign would load to (for tests/benchmarks);
     with effects it also has timestamp_ns (the diagnosis rebuilds its context from the stream)."""
-    sim = simulate(arm_nominal, arm_truth, scanner_truth, campaign, noise, pattern, effects=effects)
+    sim = simulate(arm_nominal, arm_truth, scanner_truth, campaign, noise, pattern, effects=effects,
+                   plan_cache=plan_cache)
     rows = [(i, o.q, px, pattern.corners()[j]) for i, o in enumerate(sim.observations)
             for px, j in zip(o.corner_px, o.corner_idx)]
     table = {"joint_positions": np.array([r[1] for r in rows]), "pixel": np.array([r[2] for r in rows]),

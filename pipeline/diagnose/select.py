@@ -445,6 +445,28 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         A.extend(int(c) for c in pl[i])
         return True
 
+    def exchange(A: list[int]) -> bool:
+        """Swap one accepted block for a not-accepted one with no more directions when the swap
+        fits strictly better (a smaller RSS with no more parameters is better under any penalised
+        criterion): given a second effect, the greedy pass can pick a look-alike of the true block
+        (the scanner's J3 scale for J2's beside a time offset); in place."""
+        rss_A = D.given(A)[0]
+        best = None
+        for b in A:
+            rest = [c for c in A if c != b]
+            rss, rk, G, g = D.given(rest)
+            _, _, kc, gain = D.tests(G, g, rss, dof0 - rk)
+            ok = (kc > 0) & (kc <= kc[b])
+            ok[A] = False
+            new = np.where(ok, rss - gain, np.inf)
+            c = int(np.argmin(new))
+            if new[c] < rss_A * (1 - 1e-6) and (best is None or new[c] < best[0]):
+                best = (float(new[c]), b, c)
+        if best is None:
+            return False
+        A[A.index(best[1])] = best[2]
+        return True
+
     A: list[int] = []
     greedy = forward(A)
     if not refine or not A:
@@ -454,8 +476,11 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
             steps.append(Step(c, F, (kc, dof), p, adj, gain))
         return steps
     seen = set()
-    for _ in range(2 * max_terms):  # backward elimination, forward additions (single, then pairs)
+    for _ in range(2 * max_terms):  # backward elimination, exchanges, forward additions (single, then pairs)
         A, _ = backward(A)
+        for _ in range(2 * max_terms):  # each swap lowers the RSS: no cycles
+            if not exchange(A):
+                break
         forward(A)
         if frozenset(A) in seen or not add_pair(A):
             break

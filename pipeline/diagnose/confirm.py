@@ -108,17 +108,26 @@ def shared_error_covariance(A: np.ndarray, r: np.ndarray, Z: np.ndarray, tau2: f
 
 def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> np.ndarray:
     """1σ of least-squares parameters with design A (N, p) and residuals r (N,) when the errors
-    are correlated within clusters: sandwich (AᵀA)⁻¹ (Σ_g A_gᵀ r_g r_gᵀ A_g) (AᵀA)⁻¹ with the CR1
-    small-sample factor G/(G − 1)·(N − 1)/(N − p)."""
+    are correlated within clusters: the CR2 sandwich (Bell & McCaffrey 2002) B (Σ_g A_gᵀ M_g r_g
+    r_gᵀ M_g A_g) B, B = (AᵀA)⁻¹, M_g = (I − H_gg)^{-1/2}, H_gg = A_g B A_gᵀ: each cluster's residual
+    is un-shrunk by its own leverage, which CR1's single factor G/(G − 1)·(N − 1)/(N − p) does
+    not do with few clusters (20 poses: CR1 covered 75–88 %).  Directions a cluster's rows fit
+    exactly (leverage 1: no residual) get no weight."""
     ids, inv = np.unique(cluster, return_inverse=True)
-    G, (N, p) = ids.size, A.shape
+    G, p = ids.size, A.shape[1]
     cn = np.linalg.norm(A, axis=0)
     cn[cn == 0] = 1.0
     A = A / cn  # unit columns: parameters in very different units stay resolvable
-    sc = np.zeros((G, p))
-    np.add.at(sc, inv, A * r[:, None])
     Binv = np.linalg.pinv(A.T @ A)
-    V = Binv @ (sc.T @ sc) @ Binv * G / max(G - 1, 1) * (N - 1) / max(N - p, 1)
+    sc = np.zeros((G, p))
+    for g in range(G):
+        rows = np.flatnonzero(inv == g)
+        Ag = A[rows]
+        w, V = np.linalg.eigh(np.eye(rows.size) - Ag @ Binv @ Ag.T)
+        keep = w > 1e-6
+        Mg = (V[:, keep] / np.sqrt(w[keep])) @ V[:, keep].T
+        sc[g] = Ag.T @ (Mg @ r[rows])
+    V = Binv @ (sc.T @ sc) @ Binv
     return np.sqrt(np.clip(np.diag(V), 0, None)) / cn
 
 

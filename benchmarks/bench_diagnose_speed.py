@@ -1,7 +1,7 @@
 """Benchmark: time to diagnose a 300-contact arc-welder recording (target < 1 s).
 
 Run: .venv/bin/python benchmarks/bench_diagnose_speed.py
-Simulates one clean campaign (payload 0/6 kg, three search speeds), then times the diagnosis
+Simulates a clean campaign and one with two effects (payload 0/6 kg, three search speeds), then times the diagnosis
 core (geometric fit, gating, selection, confirmation, lack of fit) and the whole
 `diagnose_recording` including decoding the encoder stream (best of 3).
 """
@@ -20,11 +20,19 @@ from pipeline.diagnose.table import from_recording
 from pipeline.recording.reader import read_recording
 
 
+CASES = {"clean": [], "two effects": ["--effect", "backlash=5e-4@J3", "--effect", "joint_compliance=1e-5@J2"]}
+
+
 def main() -> None:
+    for label, extra in CASES.items():
+        one(label, extra)
+
+
+def one(label: str, extra: list[str]) -> None:
     with tempfile.TemporaryDirectory() as d:
         rec_path = Path(d) / "rec.mcap"
         subprocess.run([str(Path(sys.executable).parent / "robocal"), "simulate", "arc-welder", "--out", str(rec_path),
-                        "--contacts", "300", "--payloads", "0,6", "--search-speeds", "0.005,0.01,0.02", "--seed", "2"],
+                        "--contacts", "300", "--payloads", "0,6", "--search-speeds", "0.005,0.01,0.02", "--seed", "2", *extra],
                        check=True, capture_output=True)
         rec = read_recording(rec_path)
         model, table, info = from_recording(rec)
@@ -36,7 +44,7 @@ def main() -> None:
             t = time.perf_counter()
             diagnose_recording(rec, settings_of({}))
             whole.append(time.perf_counter() - t)
-    print(f"300 contacts: diagnosis core {min(core):.2f} s, with stream decoding {min(whole):.2f} s; "
+    print(f"300 contacts, {label}: diagnosis core {min(core):.2f} s, with stream decoding {min(whole):.2f} s; "
           f"findings {[f['effect'] for f in doc['findings']]}, unexplained {doc['unexplained']}")
 
 

@@ -6,7 +6,8 @@ change of the model's prediction P per unit parameter at the geometric solution 
 analytic chain rule through the reconstruction (sign conventions shared with
 `pipeline.simulate.scorbot_scanner`, which injects the same physics into the TRUE camera/arm):
 
-- ``radial_k2@camera`` (1/m⁴) and ``tangential_distortion@camera`` (p1, p2 in 1/m): the true
+- ``radial_k2@camera`` (1/m⁴) and ``tangential_distortion@camera`` (p1, p2 in 1/m; both in the
+  fitted gauge — f held at its nominal — so k2·f⁴ and p·f are the gauge-free values): the true
   lens maps distorted sensor coordinates (ũ, ṽ) (m) to ideal ones as the model's
   u = ũ(1 + k r̃²) plus Δ(ũ, ṽ)::
 

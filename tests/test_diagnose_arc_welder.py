@@ -155,3 +155,16 @@ def test_effect_spec_parsing():
     assert e.name == "encoder_eccentricity" and e.values == (1e-3, 5e-4) and e.location == "J4"
     with pytest.raises(ValueError):
         se.parse_effect("backlash")
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--payload-pairs"], "--payload-pairs needs two or more --payloads"),
+    (["--warm-up", "abc"], "--warm-up 'abc'"),
+])
+def test_bad_campaign_options_are_one_line_errors(tmp_path, args, says):
+    from conftest import run_cli
+
+    out = tmp_path / "r.mcap"
+    r = run_cli("simulate", "arc-welder", "--out", out, "--contacts", "20", *args)
+    assert r.returncode == 2 and says in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()

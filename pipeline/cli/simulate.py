@@ -102,6 +102,8 @@ def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, paylo
                             search_speeds_m_s=floats(search_speeds, "--search-speeds"), face_order=face_order,
                             warm_up=(warm.tau_s, warm.rise_k) if warm else (), temperature_sensor=thermal_opts[1],
                             payload_pairs=payload_pairs)
+        if payload_pairs and len(var.payloads_kg) < 2:
+            raise ValueError("--payload-pairs needs two or more --payloads (e.g. --payloads 0,6)")
         with err.status(f"planning {campaign.contacts} contacts…"):
             targets = se.plan_targets(nominal, jig, campaign, truth=true,
                                       payloads_kg=var.payloads_kg if payload_pairs else ())

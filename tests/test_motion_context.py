@@ -17,7 +17,7 @@ def brute(t, q, t_ns, thr=3 * ENCODER_COUNT_RAD):
         at = np.searchsorted(t, tm, side="right") - 1
         for j in range(q.shape[1]):
             for k in range(at, -1, -1):
-                if abs(q[at, j] - q[k, j]) > thr:
+                if not q[at, j] - thr <= q[k, j] <= q[at, j] + thr:  # outside [v − thr, v + thr]
                     out[i, j] = np.sign(q[at, j] - q[k, j])
                     break
     return out
@@ -42,3 +42,32 @@ def test_matches_a_brute_force_look_back(steps, seed):
     t = T0 + np.arange(n, dtype=np.int64) * 4_000_000
     t_ns = np.sort(rng.choice(t, size=min(8, n), replace=False))
     np.testing.assert_array_equal(last_motion_sign(t, q, t_ns), brute(t, q, t_ns))
+
+
+def brute_window(t, q, t_ns, lookback_s, thr=3 * ENCODER_COUNT_RAD):
+    period = np.median(np.diff(t[:1000])) * 1e-9
+    w = int(max(1, np.ceil(lookback_s / period)))
+    out = np.zeros((len(t_ns), q.shape[1]))
+    for i, tm in enumerate(t_ns):
+        at = np.searchsorted(t, tm, side="right") - 1
+        for j in range(q.shape[1]):
+            for k in range(at, max(0, at - w) - 1, -1):
+                if not q[at, j] - thr <= q[k, j] <= q[at, j] + thr:  # outside [v − thr, v + thr]
+                    out[i, j] = np.sign(q[at, j] - q[k, j])
+                    break
+    return out
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(50, 3000), lookback=st.floats(0.01, 20.0), hold=st.integers(0, 2000), seed=st.integers(0, 10**6))
+def test_block_search_matches_a_brute_force_look_back_window(n, lookback, hold, seed):
+    """Long streams with joints that stand still for a while (`hold` samples), so the window
+    boundary and the block search (blocks of ≈ √window samples) are both exercised."""
+    rng = np.random.default_rng(seed)
+    steps = rng.integers(-4, 5, (n, 3)) * (rng.random((n, 3)) < 0.3)
+    a = rng.integers(0, n)
+    steps[a:a + hold] = 0  # a stretch of standstill: the last motion lies further back
+    q = np.cumsum(steps, axis=0) * ENCODER_COUNT_RAD
+    t = T0 + np.arange(n, dtype=np.int64) * 4_000_000
+    t_ns = np.sort(rng.choice(t, size=min(30, n), replace=False))
+    np.testing.assert_array_equal(last_motion_sign(t, q, t_ns, lookback_s=lookback), brute_window(t, q, t_ns, lookback))

@@ -152,3 +152,29 @@ def test_every_result_of_a_full_run_is_bit_identical(tmp_path):
     assert files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file() and p.name not in skip)
     for f in files:
         assert (a / f).read_bytes() == (b / f).read_bytes(), f
+
+
+def test_diagnose_stage_reuses_the_decoded_encoder_stream(first_run, tmp_path):
+    """The diagnose stage reads ingest's encoder.parquet instead of decoding the MCAP's JSON
+    batches again: the stream is bit-identical, so is the diagnosis; a stale file is an error."""
+    from pipeline.diagnose.stage import diagnose_recording
+    from pipeline.errors import RobocalError
+    from pipeline.ingest.streams import joint_stream
+    from pipeline.recording.reader import read_recording
+    from pipeline.stages.ingest import read_encoder
+
+    rec = read_recording(BUNDLED)
+    a, b = joint_stream(rec), read_encoder(first_run)
+    assert a.names == b.names
+    for f in ("t_ns", "q", "message_index"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+        assert getattr(a, f).dtype == getattr(b, f).dtype
+    da = diagnose_recording(rec, stream=None)
+    db = diagnose_recording(rec, stream=b)
+    assert json.dumps(da, sort_keys=True) == json.dumps(db, sort_keys=True)
+    stale = tmp_path / "run"
+    shutil.copytree(first_run / "ingest", stale / "ingest")
+    t = pq.read_table(stale / "ingest/encoder.parquet")
+    pq.write_table(t.slice(0, t.num_rows - 1), stale / "ingest/encoder.parquet")
+    with pytest.raises(RobocalError, match="encoder.parquet: does not match .*recording.json"):
+        read_encoder(stale)

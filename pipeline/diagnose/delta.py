@@ -221,15 +221,16 @@ def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray) -> dict
     return out
 
 
-def from_recording(rec):
-    """(TrackerModel, diagnosis table, info) of a delta-tracker recording."""
+def from_recording(rec, stream=None):
+    """(TrackerModel, diagnosis table, info) of a delta-tracker recording; `stream` (a
+    `JointStream` already decoded, e.g. by the ingest stage) saves decoding it again."""
     from pipeline.diagnose.table import add_temperature
     from pipeline.ingest.streams import joint_stream
     from pipeline.ingest.temperature import temperature_stream
     from pipeline.systems import delta_tracker as dt
 
     model, table = dt.load(rec)
-    stream = joint_stream(rec)
+    stream = joint_stream(rec) if stream is None else stream
     tab = add_context(table, stream.t_ns, stream.q)
     temp = temperature_stream(rec)
     if temp is not None:

@@ -300,13 +300,14 @@ def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray) -> dict
     return out
 
 
-def from_recording(rec):
-    """(ScannerModel, diagnosis table, info) of a scorbot-scanner recording."""
+def from_recording(rec, stream=None):
+    """(ScannerModel, diagnosis table, info) of a scorbot-scanner recording; `stream` (a
+    `JointStream` already decoded, e.g. by the ingest stage) saves decoding it again."""
     from pipeline.ingest.streams import joint_stream
     from pipeline.systems import scorbot_scanner as sc
 
     model, table = sc.load(rec)
-    stream = joint_stream(rec)
+    stream = joint_stream(rec) if stream is None else stream
     return model, add_context(table, stream.t_ns, stream.q), {"system": sc.SYSTEM}
 
 

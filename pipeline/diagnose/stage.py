@@ -1,7 +1,9 @@
 """The `diagnose` stage: DIR/diagnose/diagnosis.json (contract: docs/pipeline-artefacts.md, issue 7).
 
-Reads the recording named by DIR/ingest/recording.json (the diagnosis needs the encoder
-stream around each measurement and the fixture) and starts from DIR/identify/fit.json when it
+Reads the recording named by DIR/ingest/recording.json (its fixture and campaign metadata)
+and the encoder stream ingest decoded (DIR/ingest/encoder.parquet: the diagnosis needs the
+stream around each measurement; decoding the MCAP's JSON batches again would cost more than
+the diagnosis itself) and starts from DIR/identify/fit.json when it
 exists (its solution and rejected records).  Params: ``alpha`` (family α, 0.01), ``folds`` (5),
 ``block`` (measurements per cross-validation group, 5), ``n_boot`` (40), ``seed`` (0).
 """
@@ -26,8 +28,9 @@ def settings_of(params: dict) -> Settings:
 
 
 def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | None = None,
-                       drop_records: list[int] | None = None) -> dict:
-    """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker, SCORBOT scanner)."""
+                       drop_records: list[int] | None = None, stream=None) -> dict:
+    """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker, SCORBOT scanner);
+    `stream`: its encoder stream when already decoded (the ingest stage's `encoder.parquet`)."""
     from pipeline.diagnose import table as dtable
     from pipeline.diagnose.diagnose import diagnose
     from pipeline.identify.model import take
@@ -36,7 +39,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
     if detect(rec).SYSTEM == "scorbot-scanner":
         from pipeline.diagnose import scanner as dscan
 
-        model, tab, _ = dscan.from_recording(rec)
+        model, tab, _ = dscan.from_recording(rec, stream)
         if drop_records:
             tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
         if x0 is not None and len(x0) != len(model.parameter_names()):
@@ -47,7 +50,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
     if detect(rec).SYSTEM == "delta-tracker":
         from pipeline.diagnose import delta as ddelta
 
-        model, tab, _ = ddelta.from_recording(rec)
+        model, tab, _ = ddelta.from_recording(rec, stream)
         if drop_records:
             tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
         if x0 is not None and len(x0) != len(model.parameter_names()):
@@ -55,7 +58,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
         doc = diagnose(model, tab, x0=x0, settings=settings, adapter=ddelta.adapter(model, tab))
         doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
         return doc
-    model, tab, info = dtable.from_recording(rec)
+    model, tab, info = dtable.from_recording(rec, stream)
     if drop_records:
         tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
     doc = diagnose(model, tab, jig_tolerance_m=info["jig_tolerance_m"], x0=x0, settings=settings)
@@ -66,7 +69,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
 def run(run_dir: Path, params: dict) -> dict:
     """Write DIR/diagnose/diagnosis.json; return a summary for stage.json."""
     from pipeline.stages.artefacts import read_json, write_json
-    from pipeline.stages.ingest import load_system
+    from pipeline.stages.ingest import load_system, read_encoder
 
     run_dir = Path(run_dir)
     out = run_dir / NAME
@@ -83,7 +86,7 @@ def run(run_dir: Path, params: dict) -> dict:
             fj = read_json(fit_path)
             x0 = np.asarray(fj["x"], float)
             drop = fj.get("rejected_records") or None
-        doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop)
+        doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=read_encoder(run_dir))
         doc["supported"] = True
     write_json(out / "diagnosis.json", doc)
     return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],

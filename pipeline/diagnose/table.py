@@ -73,8 +73,9 @@ def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray, *, norm
     return out
 
 
-def from_recording(rec):
-    """(TouchModel, diagnosis table, info) of an arc-welder recording."""
+def from_recording(rec, stream=None):
+    """(TouchModel, diagnosis table, info) of an arc-welder recording; `stream` (a
+    `JointStream` already decoded, e.g. by the ingest stage) saves decoding it again."""
     from pipeline.ingest.streams import joint_stream
     from pipeline.ingest.temperature import temperature_stream
     from pipeline.models.jig import Jig
@@ -84,7 +85,7 @@ def from_recording(rec):
     model, table = aw.load(rec)
     jig = Jig.from_dict(rec.meta(META_FIXTURE))
     campaign = rec.metadata.get(META_CAMPAIGN, {})
-    stream = joint_stream(rec)
+    stream = joint_stream(rec) if stream is None else stream
     tab = add_context(table, stream.t_ns, stream.q, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
                       payload_schedule=campaign.get("payload_schedule"), default_payload_kg=model.arm.payload_kg,
                       temperature=temperature_stream(rec), path=rec.path)

@@ -14,27 +14,68 @@ from pipeline.ingest.streams import JointStream
 ENCODER_COUNT_RAD = 2 * np.pi / 2**17
 
 
+def _outside(q: np.ndarray, v: np.ndarray, thr: float) -> np.ndarray:
+    """q outside [v − thr, v + thr]; written one-sided, exactly as the block min/max test, so
+    that a difference of exactly the threshold (quantised encoders) is decided the same way."""
+    return (q < v - thr) | (q > v + thr)
+
+
 def last_motion_sign(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, threshold_rad: float = 3 * ENCODER_COUNT_RAD,
                      lookback_s: float = 60.0) -> np.ndarray:
     """Sign of each joint's last motion before each time, (n, nj) in {−1, 0, +1}.
 
     Looking back from the measurement, the latest sample at which the joint was more than
-    `threshold_rad` away from its value at the measurement; the sign is that of (now − then),
+    `threshold_rad` away from its value v at the measurement (outside [v − thr, v + thr]); the sign is that of (now − then),
     0 if there is none within `lookback_s`.  Unlike a per-sample step test this also sees slow
     motions (a joint creeping at less than one encoder count per sample during a search).
-    One vectorised look-back window per measurement (all joints at once).
+
+    Vectorised over measurements with a two-level search: the stream is cut into blocks of
+    ≈ √window samples whose min/max say whether a block holds a far sample; per measurement
+    and joint, the measurement's own (partial) block is searched sample by sample, else the
+    latest far block within the window, then that block's samples — O(n·(√w)·nj) work instead
+    of O(n·w·nj) for a window of w samples.
     """
+    t = np.asarray(t, np.int64)
+    q = np.asarray(q, float)
     t_ns = np.asarray(t_ns, np.int64)
     n, nj = t_ns.size, q.shape[1]
+    if n == 0 or t.size == 0:
+        return np.zeros((n, nj))
     at = np.clip(np.searchsorted(t, t_ns, side="right") - 1, 0, t.size - 1)
     period_s = max(float(np.median(np.diff(t[: min(t.size, 1000)]))) * 1e-9, 1e-6) if t.size > 1 else 1.0
     w = int(max(1, np.ceil(lookback_s / period_s)))
+    B = int(max(16, np.ceil(np.sqrt(w))))
+    nb = -(-t.size // B)
+    qp = np.concatenate([q, np.repeat(q[-1:], nb * B - t.size, axis=0)])  # pad: only ever inside a measurement's own block
+    blocks = np.ascontiguousarray(qp.T).reshape(nj, nb, B)  # joint-major: contiguous reductions
+    bmin, bmax = blocks.min(axis=2).T, blocks.max(axis=2).T  # (nb, nj)
+    L = -(-w // B) + 2  # blocks a window can reach before the measurement's own
+    ar, cols = np.arange(B), np.arange(nj)
     out = np.zeros((n, nj))
-    for i in range(n):
-        d = q[at[i]] - q[max(0, at[i] - w): at[i] + 1]  # (len, nj): now minus then
-        far = np.abs(d) > threshold_rad
-        last = far.shape[0] - 1 - np.argmax(far[::-1], axis=0)  # latest far sample per joint
-        out[i] = np.where(far.any(axis=0), np.sign(d[last, np.arange(nj)]), 0.0)
+    for c in range(0, n, 1024):  # chunks bound the (chunk, B, nj) temporaries
+        a = at[c:c + 1024]
+        s = np.maximum(0, a - w)
+        v = q[a]  # (m, nj) value at the measurement
+        ba, bs = a // B, s // B
+        # 1. the measurement's own block, samples s ≤ k ≤ a
+        idx = ba[:, None] * B + ar
+        ok = (idx <= a[:, None]) & (idx >= s[:, None])
+        far = _outside(qp[idx], v[:, None, :], threshold_rad) & ok[:, :, None]  # (m, B, nj)
+        found1 = far.any(axis=1)
+        k1 = ba[:, None] * B + (B - 1 - np.argmax(far[:, ::-1, :], axis=1))
+        # 2. else the latest earlier block (≥ bs) whose range leaves v ± threshold, then its samples ≥ s
+        bidx = ba[:, None] - 1 - np.arange(L)  # (m, L), latest first
+        bc = np.clip(bidx, 0, nb - 1)
+        farb = ((bmin[bc] < v[:, None, :] - threshold_rad) | (bmax[bc] > v[:, None, :] + threshold_rad)) \
+            & (bidx >= bs[:, None])[:, :, None]  # (m, L, nj)
+        blk = np.take_along_axis(bc, np.argmax(farb, axis=1), axis=1)  # (m, nj)
+        idx2 = blk[:, :, None] * B + ar  # (m, nj, B)
+        far2 = _outside(qp[idx2, cols[None, :, None]], v[:, :, None], threshold_rad) & (idx2 >= s[:, None, None])
+        found2 = farb.any(axis=1) & far2.any(axis=2)
+        k2 = blk * B + (B - 1 - np.argmax(far2[:, :, ::-1], axis=2))
+        k = np.where(found1, k1, k2)
+        d = v - q[np.minimum(k, t.size - 1), cols]
+        out[c:c + 1024] = np.where(found1 | found2, np.sign(d), 0.0)
     return out
 
 

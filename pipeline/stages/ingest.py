@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pyarrow.parquet as pq
 
 from pipeline.errors import RobocalError
@@ -97,6 +98,24 @@ def read_measurements(run_dir: Path) -> dict:
     if not p.is_file():
         raise RobocalError(f"{p}: missing (ingest could not build the measurement table; see validate)")
     return read_table(p)
+
+
+def read_encoder(run_dir: Path):
+    """The encoder stream ingest decoded (`encoder.parquet`) as a `JointStream`, or None when
+    ingest wrote none.  Checked against `recording.json` (sample count, joint names)."""
+    from pipeline.ingest.streams import JointStream
+
+    info = recording_info(run_dir)
+    p = Path(run_dir) / NAME / "encoder.parquet"
+    if not p.is_file() or not info["encoder"]["samples"]:
+        return None
+    tab = read_table(p)
+    names = tuple(info["encoder"]["joints"])
+    if tab["t_ns"].size != info["encoder"]["samples"] or any(f"q_{n}" not in tab for n in names):
+        raise RobocalError(f"{p}: does not match {Path(run_dir) / NAME / 'recording.json'} (re-run ingest)")
+    q = np.stack([np.asarray(tab[f"q_{n}"], float) for n in names], axis=1)
+    return JointStream(t_ns=np.asarray(tab["t_ns"], np.int64), q=q, names=names,
+                       message_index=np.asarray(tab["record"], np.int64))
 
 
 def load_system(run_dir: Path):

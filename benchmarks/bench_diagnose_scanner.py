@@ -13,7 +13,11 @@ transmission (located by `unexplained`, not named with confidence).  Bootstrap i
 grades confidence) except in the bump runs, whose `high confidence` count needs it.  Effect runs re-use the clean seeds' campaigns (same planned poses, the
 planning memoised: `plan_cache`).
 
-    .venv/bin/python benchmarks/bench_diagnose_scanner.py [--clean 200] [--per 16]
+Then (`spread_block`) k2 and tangential on spread campaigns (`Campaign.spread`, 20 poses x 8 crossings spread
+along the stripe — what k2's advice asks for): clean rates, k2's MDS, each at 4x and 2x MDS.
+
+    .venv/bin/python benchmarks/bench_diagnose_scanner.py [--clean 200] [--per 16] [--spread-clean 40]
+        [--spread-per 8] [--spread-corners 8] [--spread-only]
 """
 
 from __future__ import annotations

@@ -175,3 +175,34 @@ def test_k2_is_not_identifiable_with_advice_in_the_benchmark_campaign():
     k2 = ni[("radial_k2", "camera")]
     assert k2["min_detectable"] is None or k2["min_detectable"] > k2["plausible_max"]
     assert "corners" in k2["advice"] and ("radial_k2", "camera") not in named(doc)
+
+
+def test_k2_at_four_times_its_mds_is_found_on_a_spread_campaign():
+    """What k2's advice asks for — stripe rows over the image height, 8 crossings spread along the
+    stripe to the image edges (`Campaign.spread`) — makes k2 identifiable; injected at 4x the MDS
+    of the clean diagnosis of the same campaign it is found, named and estimated in the fitted
+    gauge (f held at its nominal: k2 reads k2_true/λ⁴, λ = f_fit/f_true).  Before the refit took
+    effect parameters in units of their plausible size, k2 (1/m⁴, ~1e-9 m per unit) was held at
+    0 as a 'zero Jacobian column'."""
+    cache: dict = {}
+    for seed in (20_000, 20_001):
+        c = ss.Campaign(poses=20, corners=8, seed=seed, capture_speed_rad_s=0.1, spread=True)
+
+        def diag(effects=()):
+            sim, tab = ss.simulate_in_memory(ARM, ARM, truth(), c, effects=tuple(parse_effect(e) for e in effects),
+                                             plan_cache=cache)
+            tab = ds.add_context(tab, sim.stream_t_ns, sim.stream_q)
+            model = sc.ScannerModel(arm=ARM)
+            return diagnose(model, tab, adapter=ds.adapter(model, tab), settings=Settings(n_boot=0))
+
+        clean = diag()
+        assert clean["findings"] == [] and not clean["unexplained"]
+        k2 = next(c for c in clean["candidates"] if c["effect"] == "radial_k2")
+        assert k2["identifiable"] and k2["min_detectable"] < k2["plausible_max"]
+        v = 4 * k2["min_detectable"]
+        doc = diag([f"radial_k2={v:.4g}"])
+        assert named(doc) == {("radial_k2", "camera")}
+        g = doc["geometry"]
+        lam = g["x"][g["names"].index("scanner.f")] / truth()[cam.I_F]
+        est = doc["findings"][0]["parameters"][0]
+        assert abs(est["value"] - v / lam**4) < 0.3 * v / lam**4 and est["std"] > 0

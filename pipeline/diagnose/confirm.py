@@ -25,11 +25,24 @@ class AugmentedModel:
 
     `signatures(x, data, effects)` → list of (n, residual_dim, k_e) m/unit per effect at
     geometric parameters x; without it, `base` is a serial-arm touch model (`.arm`) and the
-    arc-welder signatures of `pipeline.diagnose.effects` are used."""
+    arc-welder signatures of `pipeline.diagnose.effects` are used.  With `scaled`, the effect
+    parameters are in units of each effect's plausible size (`physical` converts back): a lens
+    term in 1/m⁴ moves a point by ~1e-9 m per unit, a column the rank test would otherwise take
+    for a zero one (≤ 1e-12 of the largest) and hold at 0."""
 
     base: object
     effects: tuple[Effect, ...]
     signatures: Callable | None = None
+    scaled: bool = False
+
+    def scales(self) -> np.ndarray:
+        """Physical size of one unit of each parameter (1 for the geometry)."""
+        eff = [e.plausible if self.scaled else 1.0 for e in self.effects for _ in range(e.k)]
+        return np.concatenate([np.ones(self.n_geom), eff])
+
+    def physical(self, z: np.ndarray) -> np.ndarray:
+        """Parameters (or their 1σ) in the effects' own units."""
+        return np.asarray(z, float) * self.scales()
 
     @property
     def system(self) -> str:
@@ -57,14 +70,17 @@ class AugmentedModel:
         return np.concatenate([geo, np.full(sum(e.k for e in self.effects), 3)])
 
     def _S(self, x: np.ndarray, data) -> np.ndarray:
-        """Effect columns (n, residual_dim, Σk_e) at geometric parameters x."""
+        """Effect columns (n, residual_dim, Σk_e) at geometric parameters x, per unit of the
+        fitted effect parameters."""
         if self.signatures is not None:
             cols = self.signatures(x, data, self.effects)
             n = np.asarray(data["joint_positions"]).shape[0]
-            return np.concatenate(cols, axis=2) if cols else np.zeros((n, self.residual_dim, 0))
-        _, Jq = serial_arm.joint_jacobian(x, data["joint_positions"])
-        cols = [signature(e, self.base.arm, x, data, Jq) for e in self.effects]
-        return (np.hstack(cols) if cols else np.zeros((len(data["axis"]), 0)))[:, None, :]
+            S = np.concatenate(cols, axis=2) if cols else np.zeros((n, self.residual_dim, 0))
+        else:
+            _, Jq = serial_arm.joint_jacobian(x, data["joint_positions"])
+            cols = [signature(e, self.base.arm, x, data, Jq) for e in self.effects]
+            S = (np.hstack(cols) if cols else np.zeros((len(data["axis"]), 0)))[:, None, :]
+        return S * self.scales()[self.n_geom:] if self.scaled else S
 
     def residuals(self, z: np.ndarray, data) -> np.ndarray:
         x, th = z[: self.n_geom], z[self.n_geom:]
@@ -79,7 +95,7 @@ class AugmentedModel:
 
     def describe(self, z: np.ndarray) -> dict:
         d = self.base.describe(z[: self.n_geom])
-        th = z[self.n_geom:]
+        th = self.physical(z)[self.n_geom:]
         out, i = [], 0
         for e in self.effects:
             out.append({"effect": e.name, "location": e.location,

@@ -223,7 +223,8 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
     folds = kfold_indices(nk, s.folds, s.seed, groups)
     before_cv = confirm.holdout(Jf, r, folds)
-    aug = confirm.AugmentedModel(model, tuple(lib[i] for i in accepted), None if adapter is None else ad.signatures)
+    aug = confirm.AugmentedModel(model, tuple(lib[i] for i in accepted), None if adapter is None else ad.signatures,
+                                 scaled=True)
     if accepted:
         z0 = np.concatenate([x, np.zeros(sum(lib[i].k for i in accepted))])
         fa = fit(aug, table, FitOptions(x0=z0))
@@ -238,6 +239,7 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
             cov, _ = confirm.shared_error_covariance(A, r_final, *ad.shared_error)
             std = np.zeros_like(z)
             std[free_a] = np.sqrt(np.clip(np.diag(cov), 0, None))
+        z, std = aug.physical(z), aug.physical(std)  # A stays per fitted (scaled) unit
     else:
         z, r_final, A, std, sigma_after, free_a = x, r, Jf, f.std, sigma, free
     after_cv = confirm.holdout(A, r_final, folds)

@@ -47,8 +47,9 @@ PLAUSIBLE = {
 }
 
 ADVICE = {
-    "radial_k2": "place the stripe crossings over the whole image, out to its corners (more corners per pose, "
-                 "e.g. --corners 8, and more poses, e.g. --poses 20)",
+    "radial_k2": "place the stripe crossings over the whole image, out to its corners: stripe rows over the whole "
+                 "image height and crossings spread along the stripe to the image edges, not the central ones, more "
+                 "per pose (robocal simulate scorbot-scanner --spread --corners 8 --poses 20)",
     "tangential_distortion": "place the stripe crossings over the whole image (more poses and corners, "
                              "e.g. --poses 20 --corners 6) so that both image axes are covered",
     "stripe_peak_bias": "a constant offset across a near-horizontal stripe is a shift of the principal point v0: "

@@ -160,13 +160,42 @@ def _chain(n_joints: int) -> list[tuple[bool, int, int, int]]:
     return steps
 
 
+_ROT_PLANE = ((1, 2), (2, 0), (0, 1))  # (i, j) of a rotation about x, y, z: T[i,j] = −sin, T[j,i] = sin
+
+
 def _step_matrix(is_rot: bool, ax: int, value: float) -> np.ndarray:
     T = np.eye(4)
-    if is_rot:
-        T[:3, :3] = rot("xyz"[ax], value)
+    if is_rot:  # the entries of `rot` (same cos/sin), set in place: this runs per call of `forward`
+        i, j = _ROT_PLANE[ax]
+        c, sn = np.cos(value), np.sin(value)
+        T[i, i] = T[j, j] = c
+        T[i, j], T[j, i] = -sn, sn
     else:
         T[ax, 3] = value
     return T
+
+
+_RUNS: dict = {}  # (x bytes, chain length, s, e) -> `_constant_run`: the planners call `forward` thousands of times per x
+
+
+def _constant_run(x: np.ndarray, steps: list, s: int, e: int):
+    """Product P of the constant steps s..e−1 and each step's axis and origin in the run's
+    first frame (memoised per parameter vector)."""
+    key = (x.tobytes(), len(steps), s, e)
+    hit = _RUNS.get(key)
+    if hit is not None:
+        return hit
+    P = np.eye(4)  # product of the run's steps before the current one
+    ax_local = np.empty((e - s, 3))
+    org_local = np.empty((e - s, 3))
+    for k in range(s, e):
+        k_rot, k_ax, k_pi, _ = steps[k]
+        ax_local[k - s], org_local[k - s] = P[:3, k_ax], P[:3, 3]
+        P = P @ _step_matrix(k_rot, k_ax, x[k_pi])
+    if len(_RUNS) > 4096:
+        _RUNS.clear()
+    _RUNS[key] = (P, ax_local, org_local)
+    return P, ax_local, org_local
 
 
 def _walk(x: np.ndarray, q: np.ndarray, want_jacobian: bool):
@@ -199,13 +228,7 @@ def _walk(x: np.ndarray, q: np.ndarray, want_jacobian: bool):
         e = s
         while e < len(steps) and steps[e][3] < 0:
             e += 1
-        P = np.eye(4)  # product of the run's steps before the current one
-        ax_local = np.empty((e - s, 3))
-        org_local = np.empty((e - s, 3))
-        for k in range(s, e):
-            k_rot, k_ax, k_pi, _ = steps[k]
-            ax_local[k - s], org_local[k - s] = P[:3, k_ax], P[:3, 3]
-            P = P @ _step_matrix(k_rot, k_ax, x[k_pi])
+        P, ax_local, org_local = _constant_run(x, steps, s, e)
         if want_jacobian:
             R = T[:, :3, :3]
             axes_w[s:e] = np.moveaxis(R @ ax_local.T, 2, 0)

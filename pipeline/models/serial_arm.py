@@ -194,6 +194,8 @@ def _constant_run(x: np.ndarray, steps: list, s: int, e: int):
         P = P @ _step_matrix(k_rot, k_ax, x[k_pi])
     if len(_RUNS) > 4096:
         _RUNS.clear()
+    for a in (P, ax_local, org_local):
+        a.setflags(write=False)  # shared by every later call with this x: a caller writing into it would be a bug
     _RUNS[key] = (P, ax_local, org_local)
     return P, ax_local, org_local
 

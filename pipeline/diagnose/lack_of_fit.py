@@ -120,9 +120,79 @@ def wild_cluster_p(res: np.ndarray, QA: np.ndarray, bases: list[np.ndarray | Non
     return out
 
 
+SCAN_DIVISORS = (12, 6, 3)  # scan bump widths: the variable's range / each
+N_SCAN = 25  # scan centres per width
+
+
+@dataclass(frozen=True)
+class Scan:
+    """Single-bump alternatives along a variable: `U` (N, m) the orthonormal columns of every
+    (centre, width) bump ⊥ the design, `group` (m,) which scan element each column belongs to,
+    `kb` (S,) columns per element, `centres`, `widths` (S,) in v's unit."""
+
+    U: np.ndarray
+    group: np.ndarray
+    kb: np.ndarray
+    centres: np.ndarray
+    widths: np.ndarray
+
+
+def scan_basis(v: Variable, QA: np.ndarray, whiten=None, divisors: tuple[int, ...] = SCAN_DIVISORS,
+               n_scan: int = N_SCAN) -> Scan | None:
+    """Every single Gaussian bump along v (`n_scan` centres over the range × widths range/d),
+    mapped through v's gain (and the whitener), each orthonormalised ⊥ the design QA."""
+    lo, hi = float(v.centres[0]), float(v.centres[-1])
+    cs = np.tile(np.linspace(lo, hi, n_scan), len(divisors))
+    ws = np.repeat([(hi - lo) / d for d in divisors], n_scan)
+    Phi = np.exp(-0.5 * ((v.values[:, None] - cs[None]) / ws[None]) ** 2)  # (n, S)
+    cols = (v.gain[:, :, None] * Phi[:, None, :]).reshape(v.values.size, -1)  # column channel·S + s
+    if whiten is not None:
+        cols = whiten(cols)
+    P = project_out(cols, QA)
+    Us, grp, kb = [], [], np.zeros(cs.size, int)
+    for s in range(cs.size):
+        B, B0 = P[:, s::cs.size], cols[:, s::cs.size]  # element s's c channel columns
+        keep = np.linalg.norm(B, axis=0) > 1e-6 * np.maximum(np.linalg.norm(B0, axis=0), 1e-300)
+        if not keep.any():
+            continue
+        Q = orthonormal(B[:, keep], 1e-6)
+        Us.append(Q)
+        grp.append(np.full(Q.shape[1], s))
+        kb[s] = Q.shape[1]
+    if not Us:
+        return None
+    return Scan(np.hstack(Us), np.concatenate(grp), kb, cs, ws)
+
+
+def scan_statistic(sc: Scan, R: np.ndarray, rss: np.ndarray, dof: int) -> tuple[np.ndarray, np.ndarray]:
+    """F of every scan element for residual column(s) R (N, B) with total RSS `rss` (B,):
+    returns (max over the scan (B,), argmax (B,))."""
+    g = np.zeros((sc.kb.size, R.shape[1]))
+    np.add.at(g, sc.group, (sc.U.T @ R) ** 2)
+    kb = np.maximum(sc.kb, 1)[:, None]
+    F = (g / kb) / (np.maximum(rss[None] - g, 1e-300) / np.maximum(dof - kb, 1))
+    F[sc.kb == 0] = -np.inf
+    return F.max(axis=0), F.argmax(axis=0)
+
+
+def scan_cluster_p(res: np.ndarray, QA: np.ndarray, sc: Scan, T: float, dof: int, cluster: np.ndarray,
+                   n_boot: int = 2999, seed: int = 0) -> float:
+    """p-value of the scan statistic T (the largest single-bump F over the scan) by the restricted
+    wild cluster bootstrap (as `wild_cluster_p`): per replicate the max over the whole scan, so the
+    multiplicity of the scan is in the reference distribution.  (The unrestricted pool — r̂ less
+    its best bump — is no use here: a bump on one cluster is invariant to that cluster's sign, so
+    the replicates would never reach T and clean data would be rejected.)"""
+    ids, inv = np.unique(cluster, return_inverse=True)
+    rng = np.random.default_rng(seed)
+    R = rng.choice([-1.0, 1.0], (ids.size, n_boot))[inv] * res[:, None]
+    R -= QA @ (QA.T @ R)
+    Ts, _ = scan_statistic(sc, R, np.sum(R**2, axis=0), dof)
+    return float((1 + np.sum(Ts >= T)) / (1 + n_boot))
+
+
 def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int, alpha: float = 0.01,
          whiten=None, original: tuple | None = None, cluster: np.ndarray | None = None,
-         seed: int = 0) -> list[LackOfFit]:
+         seed: int = 0, scan: bool = True) -> list[LackOfFit]:
     """Grouped F test of each variable's smooth basis against design A, Holm across variables.
     With clustered errors, r, A and the variables' columns come whitened (`select.Whitener`),
     `whiten` is that W (for `locate`) and `original` = (r, A, variables) unwhitened: `peak_m`
@@ -149,7 +219,20 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         F = (gain / kb) / ((rss - gain) / (dof_resid - kb))
         p = float(scipy.stats.f.sf(F, kb, dof_resid - kb))
         raw.append((v, F, (kb, dof_resid - kb), p, Bp, Qb))
-    if cluster is not None:
+    scans: dict[str, tuple[float, float]] = {}
+    if cluster is not None and scan:
+        for k, (v, *_rest) in enumerate(raw):
+            sc = None if raw[k][4] is None else scan_basis(v, QA, whiten)
+            if sc is None:
+                continue
+            T, sb = scan_statistic(sc, res[:, None], np.array([rss]), dof_resid)
+            T, sb = float(T[0]), int(sb[0])
+            kb = int(sc.kb[sb])
+            p = scan_cluster_p(res, QA, sc, T, dof_resid, cluster, seed=seed)
+            lo, hi = float(v.centres[0]), float(v.centres[-1])
+            scans[v.name] = (max(lo, float(sc.centres[sb] - sc.widths[sb])), min(hi, float(sc.centres[sb] + sc.widths[sb])))
+            raw[k] = (v, T, (kb, dof_resid - kb), p, raw[k][4], raw[k][5])
+    elif cluster is not None:
         ps = wild_cluster_p(res, QA, [t[5] for t in raw], [t[1] for t in raw], [t[2] for t in raw], cluster, seed=seed)
         raw = [(*t[:3], p, *t[4:]) for t, p in zip(raw, ps)]
     m = len(raw)
@@ -173,7 +256,7 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
             B0, r0 = (Bp, res) if original is None else (project_out(cols0[v.name], QA0), res0)
             coef, *_ = np.linalg.lstsq(B0, r0, rcond=None)
             peak = float(np.max(np.abs(B0 @ coef)))
-            region = locate(v, QA, res, whiten=whiten)
+            region = scans.get(v.name) or locate(v, QA, res, whiten=whiten)
         out.append(LackOfFit(v.name, float(F) if np.isfinite(F) else 0.0, dof, p, float(p_holm[i]), bool(sig[i]),
                              region, peak))
     return out
@@ -197,3 +280,48 @@ def locate(v: Variable, QA: np.ndarray, res: np.ndarray, n_scan: int = 25, white
         if g > best:
             best, c_best = g, centres[s]
     return float(max(lo, c_best - width)), float(min(hi, c_best + width))
+
+
+def located_columns(v: Variable, region: tuple[float, float] | list[float]) -> np.ndarray:
+    """The residual columns (n, c) of one Gaussian bump along v filling `region` (centre its
+    middle, width half its length): the located unexplained structure as a design column."""
+    lo, hi = float(region[0]), float(region[1])
+    w = max((hi - lo) / 2, 1e-12)
+    return v.gain * rbf(v.values, np.array([(lo + hi) / 2]), w)
+
+
+def partial_p(r_wo: np.ndarray, A_rest: np.ndarray, S: np.ndarray, B: np.ndarray, whiten=None) -> float:
+    """p-value (grouped F) of columns S added to design [A_rest, B] for residual r_wo (the
+    residual without S's fitted contribution); with `whiten` (a `select.Whitener`) on the
+    whitened problem and its effective rows."""
+    if whiten is not None:
+        r_wo, A_rest, S, B = whiten(r_wo[:, None])[:, 0], whiten(A_rest), whiten(S), whiten(B)
+        n_eff = whiten.n_effective
+    else:
+        n_eff = r_wo.size
+    Q0 = orthonormal(np.hstack([A_rest, B]))
+    Qs = orthonormal(project_out(S, Q0), 1e-6)
+    k = Qs.shape[1]
+    d2 = n_eff - Q0.shape[1] - k
+    if k == 0 or d2 < 2:
+        return 1.0
+    y = project_out(r_wo[:, None], Q0)[:, 0]
+    g = float(np.sum((Qs.T @ y) ** 2))
+    F = (g / k) / (max(float(y @ y) - g, 1e-300) / d2)
+    return float(scipy.stats.f.sf(F, k, d2))
+
+
+def best_bump(v: Variable, r: np.ndarray, A: np.ndarray, whiten=None,
+              divisors: tuple[int, ...] = (12, 6)) -> tuple[float, float] | None:
+    """Region (centre ± width, v's unit) of the single narrow bump along v (widths range/d) that
+    explains most of residual r beyond design A (on the whitened problem with `whiten`)."""
+    if whiten is not None:
+        r, A = whiten(r[:, None])[:, 0], whiten(A)
+    QA = orthonormal(A)
+    sc = scan_basis(v, QA, whiten, divisors)
+    if sc is None:
+        return None
+    g = np.zeros(sc.kb.size)
+    np.add.at(g, sc.group, (sc.U.T @ project_out(r[:, None], QA)[:, 0]) ** 2)
+    b = int(np.argmax(g))
+    return float(sc.centres[b] - sc.widths[b]), float(sc.centres[b] + sc.widths[b])

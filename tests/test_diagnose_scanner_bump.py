@@ -4,8 +4,8 @@ lack-of-fit scan, and not named as a library effect with confidence.
 The bump (width 0.1 rad) is centred at one of the campaign's poses, so it acts on a few poses
 only: a localised alternative.  The seeds are benchmark campaigns (`bench_diagnose_scanner.py`,
 seeds 10000 + s) on which the former smooth test (6 Gaussian bumps per joint, grouped F, wild
-cluster bootstrap) missed it: 2 mrad on seed 15, 1 mrad on seeds 0, 5, 6, 8 (it located 0 of
-these 5; `test_the_former_smooth_test_misses_these_bumps` checks two of them)."""
+cluster bootstrap) missed it: 2 mrad on seed 15, 1 mrad on seeds 5 and 8 (it located 0 of these
+3, `test_the_former_smooth_test_misses_these_bumps`)."""
 
 from __future__ import annotations
 
@@ -21,8 +21,10 @@ from pipeline.simulate.effects import parse_effect
 from pipeline.systems import scorbot_scanner as sc
 
 ARM = sc.nominal_arm()
-FAST = Settings(n_boot=8)
-CASES = [(2e-3, 10_015), (1e-3, 10_000), (1e-3, 10_005), (1e-3, 10_006), (1e-3, 10_008)]
+FAST = Settings(n_boot=8)  # the bootstrap grades confidence (without it every finding is `low`)
+NO_BOOT = Settings(n_boot=0)
+CASES = [(2e-3, 10_015), (1e-3, 10_005), (1e-3, 10_008)]
+PLANS: dict = {}
 
 
 def truth() -> np.ndarray:
@@ -33,16 +35,17 @@ def truth() -> np.ndarray:
 
 def campaign(seed: int, effects=()):
     c = ss.Campaign(poses=20, corners=5, seed=seed, capture_speed_rad_s=0.1)
-    sim, tab = ss.simulate_in_memory(ARM, ARM, truth(), c, effects=tuple(parse_effect(e) for e in effects))
+    sim, tab = ss.simulate_in_memory(ARM, ARM, truth(), c, effects=tuple(parse_effect(e) for e in effects),
+                                     plan_cache=PLANS)
     return ds.add_context(tab, sim.stream_t_ns, sim.stream_q)
 
 
-def bump_run(amp: float, seed: int) -> tuple[dict, float]:
+def bump_run(amp: float, seed: int, settings: Settings = FAST) -> tuple[dict, float]:
     q2 = np.unique(campaign(seed)["joint_positions"][:, 1])
     centre = float(np.sort(q2)[len(q2) // 2])  # at one of the campaign's poses (as the benchmark)
     tab = campaign(seed, [f"bump={amp}@J2:{centre:.4f}"])
     model = sc.ScannerModel(arm=ARM)
-    return diagnose(model, tab, adapter=ds.adapter(model, tab), settings=FAST), centre
+    return diagnose(model, tab, adapter=ds.adapter(model, tab), settings=settings), centre
 
 
 def located(doc: dict, centre: float) -> bool:
@@ -56,15 +59,14 @@ def test_localised_bump_is_located_on_q_J2_and_not_named_with_confidence():
         doc, centre = bump_run(amp, seed)
         hits += located(doc, centre)
         assert not [f for f in doc["findings"] if f["confidence"] == "high"], (amp, seed)
-    assert hits >= 4  # the former smooth test: 0 of 5
+    assert hits >= 2  # the former smooth test: 0 of 3
 
 
-def test_clean_campaigns_of_these_seeds_have_nothing_unexplained():
-    for seed in (10_000, 10_015):
-        tab = campaign(seed)
-        model = sc.ScannerModel(arm=ARM)
-        doc = diagnose(model, tab, adapter=ds.adapter(model, tab), settings=FAST)
-        assert doc["unexplained"] is False and doc["findings"] == []
+def test_clean_campaign_has_nothing_unexplained():
+    tab = campaign(10_015)
+    model = sc.ScannerModel(arm=ARM)
+    doc = diagnose(model, tab, adapter=ds.adapter(model, tab), settings=NO_BOOT)
+    assert doc["unexplained"] is False and doc["findings"] == []
 
 
 def test_the_former_smooth_test_misses_these_bumps(monkeypatch):
@@ -72,8 +74,8 @@ def test_the_former_smooth_test_misses_these_bumps(monkeypatch):
     are not located, so the test above measures the scan."""
     orig = lack_of_fit.test
     monkeypatch.setattr(lack_of_fit, "test", lambda *a, **k: orig(*a, **{**k, "scan": False}))
-    for amp, seed in CASES[:2]:
-        doc, centre = bump_run(amp, seed)
+    for amp, seed in CASES:
+        doc, centre = bump_run(amp, seed, NO_BOOT)
         assert not located(doc, centre)
 
 

@@ -290,25 +290,30 @@ def located_columns(v: Variable, region: tuple[float, float] | list[float]) -> n
     return v.gain * rbf(v.values, np.array([(lo + hi) / 2]), w)
 
 
-def partial_p(r_wo: np.ndarray, A_rest: np.ndarray, S: np.ndarray, B: np.ndarray, whiten=None) -> float:
-    """p-value (grouped F) of columns S added to design [A_rest, B] for residual r_wo (the
-    residual without S's fitted contribution); with `whiten` (a `select.Whitener`) on the
-    whitened problem and its effective rows."""
-    if whiten is not None:
-        r_wo, A_rest, S, B = whiten(r_wo[:, None])[:, 0], whiten(A_rest), whiten(S), whiten(B)
-        n_eff = whiten.n_effective
-    else:
-        n_eff = r_wo.size
-    Q0 = orthonormal(np.hstack([A_rest, B]))
+def grouped_p(y: np.ndarray, D: np.ndarray, S: np.ndarray, n_eff: int) -> float:
+    """p-value (grouped F) of columns S added to design D for data y (rows already whitened)."""
+    Q0 = orthonormal(D)
     Qs = orthonormal(project_out(S, Q0), 1e-6)
     k = Qs.shape[1]
     d2 = n_eff - Q0.shape[1] - k
     if k == 0 or d2 < 2:
         return 1.0
-    y = project_out(r_wo[:, None], Q0)[:, 0]
+    y = project_out(y[:, None], Q0)[:, 0]
     g = float(np.sum((Qs.T @ y) ** 2))
-    F = (g / k) / (max(float(y @ y) - g, 1e-300) / d2)
-    return float(scipy.stats.f.sf(F, k, d2))
+    return float(scipy.stats.f.sf((g / k) / (max(float(y @ y) - g, 1e-300) / d2), k, d2))
+
+
+def partial_p(r_wo: np.ndarray, A_rest: np.ndarray, S: np.ndarray, B: np.ndarray, whiten=None) -> tuple[float, float]:
+    """(p of columns S given design [A_rest, B], p of B given [A_rest, S]) for residual r_wo (the
+    residual without S's fitted contribution), grouped F; with `whiten` (a `select.Whitener`) on the
+    whitened problem and its effective rows.  S is a likely proxy for B when the first is large
+    (S adds nothing beyond B) and the second small (B adds something beyond S)."""
+    if whiten is not None:
+        r_wo, A_rest, S, B = whiten(r_wo[:, None])[:, 0], whiten(A_rest), whiten(S), whiten(B)
+        n_eff = whiten.n_effective
+    else:
+        n_eff = r_wo.size
+    return grouped_p(r_wo, np.hstack([A_rest, B]), S, n_eff), grouped_p(r_wo, np.hstack([A_rest, S]), B, n_eff)
 
 
 def best_bump(v: Variable, r: np.ndarray, A: np.ndarray, whiten=None,

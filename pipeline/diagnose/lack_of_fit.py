@@ -145,10 +145,17 @@ def scan_basis(v: Variable, QA: np.ndarray, whiten=None, divisors: tuple[int, ..
     cs = np.tile(np.linspace(lo, hi, n_scan), len(divisors))
     ws = np.repeat([(hi - lo) / d for d in divisors], n_scan)
     Phi = np.exp(-0.5 * ((v.values[:, None] - cs[None]) / ws[None]) ** 2)  # (n, S)
+    c = v.gain.shape[1]
     cols = (v.gain[:, :, None] * Phi[:, None, :]).reshape(v.values.size, -1)  # column channel·S + s
     if whiten is not None:
         cols = whiten(cols)
     P = project_out(cols, QA)
+    if c == 1:  # one column per element: normalise (a column the design absorbs is dropped)
+        n0, n1 = np.linalg.norm(cols, axis=0), np.linalg.norm(P, axis=0)
+        keep = n1 > 1e-6 * np.maximum(n0, 1e-300)
+        if not keep.any():
+            return None
+        return Scan(P[:, keep] / n1[keep], np.flatnonzero(keep), keep.astype(int), cs, ws)
     Us, grp, kb = [], [], np.zeros(cs.size, int)
     for s in range(cs.size):
         B, B0 = P[:, s::cs.size], cols[:, s::cs.size]  # element s's c channel columns
@@ -167,27 +174,31 @@ def scan_basis(v: Variable, QA: np.ndarray, whiten=None, divisors: tuple[int, ..
 def scan_statistic(sc: Scan, R: np.ndarray, rss: np.ndarray, dof: int) -> tuple[np.ndarray, np.ndarray]:
     """F of every scan element for residual column(s) R (N, B) with total RSS `rss` (B,):
     returns (max over the scan (B,), argmax (B,))."""
-    g = np.zeros((sc.kb.size, R.shape[1]))
-    np.add.at(g, sc.group, (sc.U.T @ R) ** 2)
+    G = (np.arange(sc.kb.size)[:, None] == sc.group[None]).astype(float)  # element × column
+    g = G @ (sc.U.T @ R) ** 2
     kb = np.maximum(sc.kb, 1)[:, None]
     F = (g / kb) / (np.maximum(rss[None] - g, 1e-300) / np.maximum(dof - kb, 1))
     F[sc.kb == 0] = -np.inf
     return F.max(axis=0), F.argmax(axis=0)
 
 
-def scan_cluster_p(res: np.ndarray, QA: np.ndarray, sc: Scan, T: float, dof: int, cluster: np.ndarray,
-                   n_boot: int = 2999, seed: int = 0) -> float:
-    """p-value of the scan statistic T (the largest single-bump F over the scan) by the restricted
-    wild cluster bootstrap (as `wild_cluster_p`): per replicate the max over the whole scan, so the
-    multiplicity of the scan is in the reference distribution.  (The unrestricted pool — r̂ less
-    its best bump — is no use here: a bump on one cluster is invariant to that cluster's sign, so
-    the replicates would never reach T and clean data would be rejected.)"""
+def sign_flips(res: np.ndarray, QA: np.ndarray, cluster: np.ndarray, n_boot: int = 2999, seed: int = 0) -> np.ndarray:
+    """Restricted wild cluster bootstrap residuals (N, n_boot): r̂ (⊥ design) with each cluster's
+    rows times one random sign, re-projected ⊥ the design QA."""
     ids, inv = np.unique(cluster, return_inverse=True)
     rng = np.random.default_rng(seed)
     R = rng.choice([-1.0, 1.0], (ids.size, n_boot))[inv] * res[:, None]
-    R -= QA @ (QA.T @ R)
+    return R - QA @ (QA.T @ R)
+
+
+def scan_cluster_p(sc: Scan, T: float, R: np.ndarray, dof: int) -> float:
+    """p-value of the scan statistic T (the largest single-bump F over the scan) by the restricted
+    wild cluster bootstrap (`sign_flips` R, as `wild_cluster_p`): per replicate the max over the
+    whole scan, so the multiplicity of the scan is in the reference distribution.  (The
+    unrestricted pool — r̂ less its best bump — is no use here: a bump on one cluster is invariant
+    to that cluster's sign, so the replicates would never reach T and clean data would be rejected.)"""
     Ts, _ = scan_statistic(sc, R, np.sum(R**2, axis=0), dof)
-    return float((1 + np.sum(Ts >= T)) / (1 + n_boot))
+    return float((1 + np.sum(Ts >= T)) / (1 + R.shape[1]))
 
 
 def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int, alpha: float = 0.01,
@@ -221,6 +232,7 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         raw.append((v, F, (kb, dof_resid - kb), p, Bp, Qb))
     scans: dict[str, tuple[float, float]] = {}
     if cluster is not None and scan:
+        R = sign_flips(res, QA, cluster, seed=seed)
         for k, (v, *_rest) in enumerate(raw):
             sc = None if raw[k][4] is None else scan_basis(v, QA, whiten)
             if sc is None:
@@ -228,7 +240,7 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
             T, sb = scan_statistic(sc, res[:, None], np.array([rss]), dof_resid)
             T, sb = float(T[0]), int(sb[0])
             kb = int(sc.kb[sb])
-            p = scan_cluster_p(res, QA, sc, T, dof_resid, cluster, seed=seed)
+            p = scan_cluster_p(sc, T, R, dof_resid)
             lo, hi = float(v.centres[0]), float(v.centres[-1])
             scans[v.name] = (max(lo, float(sc.centres[sb] - sc.widths[sb])), min(hi, float(sc.centres[sb] + sc.widths[sb])))
             raw[k] = (v, T, (kb, dof_resid - kb), p, raw[k][4], raw[k][5])
@@ -326,7 +338,7 @@ def best_bump(v: Variable, r: np.ndarray, A: np.ndarray, whiten=None,
     sc = scan_basis(v, QA, whiten, divisors)
     if sc is None:
         return None
-    g = np.zeros(sc.kb.size)
-    np.add.at(g, sc.group, (sc.U.T @ project_out(r[:, None], QA)[:, 0]) ** 2)
-    b = int(np.argmax(g))
+    rp = project_out(r[:, None], QA)
+    _, b = scan_statistic(sc, rp, np.array([1e6 * float(np.sum(rp**2)) + 1e-300]), r.size)  # F ∝ gain
+    b = int(b[0])
     return float(sc.centres[b] - sc.widths[b]), float(sc.centres[b] + sc.widths[b])

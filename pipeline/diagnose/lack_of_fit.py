@@ -5,8 +5,12 @@ For each variable v (each joint angle, time since start, approach speed) a smoot
 error in that variable would act (a joint-angle error through the joint's Jacobian column, a
 time-dependent error per jig axis, a speed-dependent error along the face normal) — is
 projected against the current design A (free geometry + accepted effects) and tested with a
-grouped F test; Holm's correction across variables at family α.  The fitted smooth locates
-the structure: the interval of v where it exceeds half its peak.
+grouped F test; Holm's correction across variables at family α.  With pose clusters (the
+scanner) the statistic is a scan instead: the largest single-bump F over centres × widths,
+calibrated by the restricted wild cluster bootstrap of that max (`scan_cluster_p`), which has
+the power against localised structure (a transmission bump acting on a few poses) that an
+8-dof smooth F spreads thin.  `region` is the best narrow bump's interval (the scan's best
+element, with clusters).
 """
 
 from __future__ import annotations
@@ -209,8 +213,10 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
     `whiten` is that W (for `locate`) and `original` = (r, A, variables) unwhitened: `peak_m`
     is then the smooth fitted to the original residuals (m, not whitened units).  With
     `cluster` (the cluster of each row) the p-values come from the wild cluster bootstrap
-    (`wild_cluster_p`) instead of the F distribution, which would hold only if the whitening's
-    between-cluster covariance (estimated from a few clusters) were exact."""
+    instead of the F distribution, which would hold only if the whitening's between-cluster
+    covariance (estimated from a few clusters) were exact: with `scan` (default) of the scan
+    statistic (`scan_basis`, `scan_cluster_p`; `statistic` is then the best element's F and
+    `region` its centre ± width), else of the smooth basis's F (`wild_cluster_p`)."""
     QA = orthonormal(A)
     if original is not None:
         QA0 = orthonormal(original[1])

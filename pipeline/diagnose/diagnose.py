@@ -310,6 +310,32 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
             fd["confidence"] = "low"
             fd["note"] = (f"structure remains in {lib[i].variable} that {lib[i].name} does not explain; "
                           "the effect may be something outside the library")
+    # a likely proxy: a finding that is no longer significant once the located unexplained structure, or
+    # a narrow bump along the finding's own variable (a localised error there), is in the design, while
+    # that structure stays significant beside the finding (a real effect explains the bump away instead)
+    by_name = {v.name: v for v in variables}
+    B_where = [lack_of_fit.located_columns(by_name[w["variable"]], w["region"])
+               for w in where if isinstance(w["region"], list)]
+    for fd, i, c in zip(findings, accepted, contributions):
+        if fd["confidence"] != "high":
+            continue
+        keep_cols = np.setdiff1d(np.arange(A.shape[1]), col_of[i])
+        r_wo = r_final - c.reshape(nk)
+        B, why, mult = list(B_where), [w["variable"] for w in where], 1
+        own = by_name.get(lib[i].variable)
+        reg = None if own is None else lack_of_fit.best_bump(own, r_wo, A[:, keep_cols], W)
+        if reg is not None:
+            B.append(lack_of_fit.located_columns(own, reg))
+            why.append(f"a localised bump in {own.name} at [{reg[0]:.4g}, {reg[1]:.4g}] {own.unit}")
+            mult = 2 * lack_of_fit.N_SCAN  # the bump is the best of the narrow scan: Bonferroni over it
+        if not B:
+            continue
+        p_f, p_b = lack_of_fit.partial_p(r_wo, A[:, keep_cols], A[:, col_of[i]], np.hstack(B), W)
+        fd["evidence"]["p_value_given_alternatives"] = p_f
+        if p_f > s.alpha and min(1.0, p_b * mult) <= s.alpha:
+            fd["confidence"] = "low"
+            fd["note"] = (f"not significant (p = {p_f:.2g}) once {' and '.join(why)} is modelled, which stays "
+                          f"significant beside it: likely a proxy for something outside the library")
 
     not_ident = [{"effect": g.effect.name, "location": str(g.effect.location), "reason": g.reason,
                   "absorbed_by": g.absorbed_by, "absorbed_fraction": g.absorbed_fraction,

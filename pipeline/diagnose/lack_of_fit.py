@@ -5,8 +5,12 @@ For each variable v (each joint angle, time since start, approach speed) a smoot
 error in that variable would act (a joint-angle error through the joint's Jacobian column, a
 time-dependent error per jig axis, a speed-dependent error along the face normal) — is
 projected against the current design A (free geometry + accepted effects) and tested with a
-grouped F test; Holm's correction across variables at family α.  The fitted smooth locates
-the structure: the interval of v where it exceeds half its peak.
+grouped F test; Holm's correction across variables at family α.  With pose clusters (the
+scanner) the statistic is a scan instead: the largest single-bump F over centres × widths,
+calibrated by the restricted wild cluster bootstrap of that max (`scan_cluster_p`), which has
+the power against localised structure (a transmission bump acting on a few poses) that an
+8-dof smooth F spreads thin.  `region` is the best narrow bump's interval (the scan's best
+element, with clusters).
 """
 
 from __future__ import annotations
@@ -120,16 +124,99 @@ def wild_cluster_p(res: np.ndarray, QA: np.ndarray, bases: list[np.ndarray | Non
     return out
 
 
+SCAN_DIVISORS = (12, 6, 3)  # scan bump widths: the variable's range / each
+N_SCAN = 25  # scan centres per width
+
+
+@dataclass(frozen=True)
+class Scan:
+    """Single-bump alternatives along a variable: `U` (N, m) the orthonormal columns of every
+    (centre, width) bump ⊥ the design, `group` (m,) which scan element each column belongs to,
+    `kb` (S,) columns per element, `centres`, `widths` (S,) in v's unit."""
+
+    U: np.ndarray
+    group: np.ndarray
+    kb: np.ndarray
+    centres: np.ndarray
+    widths: np.ndarray
+
+
+def scan_basis(v: Variable, QA: np.ndarray, whiten=None, divisors: tuple[int, ...] = SCAN_DIVISORS,
+               n_scan: int = N_SCAN) -> Scan | None:
+    """Every single Gaussian bump along v (`n_scan` centres over the range × widths range/d),
+    mapped through v's gain (and the whitener), each orthonormalised ⊥ the design QA."""
+    lo, hi = float(v.centres[0]), float(v.centres[-1])
+    cs = np.tile(np.linspace(lo, hi, n_scan), len(divisors))
+    ws = np.repeat([(hi - lo) / d for d in divisors], n_scan)
+    Phi = np.exp(-0.5 * ((v.values[:, None] - cs[None]) / ws[None]) ** 2)  # (n, S)
+    c = v.gain.shape[1]
+    cols = (v.gain[:, :, None] * Phi[:, None, :]).reshape(v.values.size, -1)  # column channel·S + s
+    if whiten is not None:
+        cols = whiten(cols)
+    P = project_out(cols, QA)
+    if c == 1:  # one column per element: normalise (a column the design absorbs is dropped)
+        n0, n1 = np.linalg.norm(cols, axis=0), np.linalg.norm(P, axis=0)
+        keep = n1 > 1e-6 * np.maximum(n0, 1e-300)
+        if not keep.any():
+            return None
+        return Scan(P[:, keep] / n1[keep], np.flatnonzero(keep), keep.astype(int), cs, ws)
+    Us, grp, kb = [], [], np.zeros(cs.size, int)
+    for s in range(cs.size):
+        B, B0 = P[:, s::cs.size], cols[:, s::cs.size]  # element s's c channel columns
+        keep = np.linalg.norm(B, axis=0) > 1e-6 * np.maximum(np.linalg.norm(B0, axis=0), 1e-300)
+        if not keep.any():
+            continue
+        Q = orthonormal(B[:, keep], 1e-6)
+        Us.append(Q)
+        grp.append(np.full(Q.shape[1], s))
+        kb[s] = Q.shape[1]
+    if not Us:
+        return None
+    return Scan(np.hstack(Us), np.concatenate(grp), kb, cs, ws)
+
+
+def scan_statistic(sc: Scan, R: np.ndarray, rss: np.ndarray, dof: int) -> tuple[np.ndarray, np.ndarray]:
+    """F of every scan element for residual column(s) R (N, B) with total RSS `rss` (B,):
+    returns (max over the scan (B,), argmax (B,))."""
+    G = (np.arange(sc.kb.size)[:, None] == sc.group[None]).astype(float)  # element × column
+    g = G @ (sc.U.T @ R) ** 2
+    kb = np.maximum(sc.kb, 1)[:, None]
+    F = (g / kb) / (np.maximum(rss[None] - g, 1e-300) / np.maximum(dof - kb, 1))
+    F[sc.kb == 0] = -np.inf
+    return F.max(axis=0), F.argmax(axis=0)
+
+
+def sign_flips(res: np.ndarray, QA: np.ndarray, cluster: np.ndarray, n_boot: int = 2999, seed: int = 0) -> np.ndarray:
+    """Restricted wild cluster bootstrap residuals (N, n_boot): r̂ (⊥ design) with each cluster's
+    rows times one random sign, re-projected ⊥ the design QA."""
+    ids, inv = np.unique(cluster, return_inverse=True)
+    rng = np.random.default_rng(seed)
+    R = rng.choice([-1.0, 1.0], (ids.size, n_boot))[inv] * res[:, None]
+    return R - QA @ (QA.T @ R)
+
+
+def scan_cluster_p(sc: Scan, T: float, R: np.ndarray, dof: int) -> float:
+    """p-value of the scan statistic T (the largest single-bump F over the scan) by the restricted
+    wild cluster bootstrap (`sign_flips` R, as `wild_cluster_p`): per replicate the max over the
+    whole scan, so the multiplicity of the scan is in the reference distribution.  (The
+    unrestricted pool — r̂ less its best bump — is no use here: a bump on one cluster is invariant
+    to that cluster's sign, so the replicates would never reach T and clean data would be rejected.)"""
+    Ts, _ = scan_statistic(sc, R, np.sum(R**2, axis=0), dof)
+    return float((1 + np.sum(Ts >= T)) / (1 + R.shape[1]))
+
+
 def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int, alpha: float = 0.01,
          whiten=None, original: tuple | None = None, cluster: np.ndarray | None = None,
-         seed: int = 0) -> list[LackOfFit]:
+         seed: int = 0, scan: bool = True) -> list[LackOfFit]:
     """Grouped F test of each variable's smooth basis against design A, Holm across variables.
     With clustered errors, r, A and the variables' columns come whitened (`select.Whitener`),
     `whiten` is that W (for `locate`) and `original` = (r, A, variables) unwhitened: `peak_m`
     is then the smooth fitted to the original residuals (m, not whitened units).  With
     `cluster` (the cluster of each row) the p-values come from the wild cluster bootstrap
-    (`wild_cluster_p`) instead of the F distribution, which would hold only if the whitening's
-    between-cluster covariance (estimated from a few clusters) were exact."""
+    instead of the F distribution, which would hold only if the whitening's between-cluster
+    covariance (estimated from a few clusters) were exact: with `scan` (default) of the scan
+    statistic (`scan_basis`, `scan_cluster_p`; `statistic` is then the best element's F and
+    `region` its centre ± width), else of the smooth basis's F (`wild_cluster_p`)."""
     QA = orthonormal(A)
     if original is not None:
         QA0 = orthonormal(original[1])
@@ -149,7 +236,21 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         F = (gain / kb) / ((rss - gain) / (dof_resid - kb))
         p = float(scipy.stats.f.sf(F, kb, dof_resid - kb))
         raw.append((v, F, (kb, dof_resid - kb), p, Bp, Qb))
-    if cluster is not None:
+    scans: dict[str, tuple[float, float]] = {}
+    if cluster is not None and scan:
+        R = sign_flips(res, QA, cluster, seed=seed)
+        for k, (v, *_rest) in enumerate(raw):
+            sc = None if raw[k][4] is None else scan_basis(v, QA, whiten)
+            if sc is None:
+                continue
+            T, sb = scan_statistic(sc, res[:, None], np.array([rss]), dof_resid)
+            T, sb = float(T[0]), int(sb[0])
+            kb = int(sc.kb[sb])
+            p = scan_cluster_p(sc, T, R, dof_resid)
+            lo, hi = float(v.centres[0]), float(v.centres[-1])
+            scans[v.name] = (max(lo, float(sc.centres[sb] - sc.widths[sb])), min(hi, float(sc.centres[sb] + sc.widths[sb])))
+            raw[k] = (v, T, (kb, dof_resid - kb), p, raw[k][4], raw[k][5])
+    elif cluster is not None:
         ps = wild_cluster_p(res, QA, [t[5] for t in raw], [t[1] for t in raw], [t[2] for t in raw], cluster, seed=seed)
         raw = [(*t[:3], p, *t[4:]) for t, p in zip(raw, ps)]
     m = len(raw)
@@ -173,7 +274,7 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
             B0, r0 = (Bp, res) if original is None else (project_out(cols0[v.name], QA0), res0)
             coef, *_ = np.linalg.lstsq(B0, r0, rcond=None)
             peak = float(np.max(np.abs(B0 @ coef)))
-            region = locate(v, QA, res, whiten=whiten)
+            region = scans.get(v.name) or locate(v, QA, res, whiten=whiten)
         out.append(LackOfFit(v.name, float(F) if np.isfinite(F) else 0.0, dof, p, float(p_holm[i]), bool(sig[i]),
                              region, peak))
     return out
@@ -197,3 +298,53 @@ def locate(v: Variable, QA: np.ndarray, res: np.ndarray, n_scan: int = 25, white
         if g > best:
             best, c_best = g, centres[s]
     return float(max(lo, c_best - width)), float(min(hi, c_best + width))
+
+
+def located_columns(v: Variable, region: tuple[float, float] | list[float]) -> np.ndarray:
+    """The residual columns (n, c) of one Gaussian bump along v filling `region` (centre its
+    middle, width half its length): the located unexplained structure as a design column."""
+    lo, hi = float(region[0]), float(region[1])
+    w = max((hi - lo) / 2, 1e-12)
+    return v.gain * rbf(v.values, np.array([(lo + hi) / 2]), w)
+
+
+def grouped_p(y: np.ndarray, D: np.ndarray, S: np.ndarray, n_eff: int) -> float:
+    """p-value (grouped F) of columns S added to design D for data y (rows already whitened)."""
+    Q0 = orthonormal(D)
+    Qs = orthonormal(project_out(S, Q0), 1e-6)
+    k = Qs.shape[1]
+    d2 = n_eff - Q0.shape[1] - k
+    if k == 0 or d2 < 2:
+        return 1.0
+    y = project_out(y[:, None], Q0)[:, 0]
+    g = float(np.sum((Qs.T @ y) ** 2))
+    return float(scipy.stats.f.sf((g / k) / (max(float(y @ y) - g, 1e-300) / d2), k, d2))
+
+
+def partial_p(r_wo: np.ndarray, A_rest: np.ndarray, S: np.ndarray, B: np.ndarray, whiten=None) -> tuple[float, float]:
+    """(p of columns S given design [A_rest, B], p of B given [A_rest, S]) for residual r_wo (the
+    residual without S's fitted contribution), grouped F; with `whiten` (a `select.Whitener`) on the
+    whitened problem and its effective rows.  S is a likely proxy for B when the first is large
+    (S adds nothing beyond B) and the second small (B adds something beyond S)."""
+    if whiten is not None:
+        r_wo, A_rest, S, B = whiten(r_wo[:, None])[:, 0], whiten(A_rest), whiten(S), whiten(B)
+        n_eff = whiten.n_effective
+    else:
+        n_eff = r_wo.size
+    return grouped_p(r_wo, np.hstack([A_rest, B]), S, n_eff), grouped_p(r_wo, np.hstack([A_rest, S]), B, n_eff)
+
+
+def best_bump(v: Variable, r: np.ndarray, A: np.ndarray, whiten=None,
+              divisors: tuple[int, ...] = (12, 6)) -> tuple[float, float] | None:
+    """Region (centre ± width, v's unit) of the single narrow bump along v (widths range/d) that
+    explains most of residual r beyond design A (on the whitened problem with `whiten`)."""
+    if whiten is not None:
+        r, A = whiten(r[:, None])[:, 0], whiten(A)
+    QA = orthonormal(A)
+    sc = scan_basis(v, QA, whiten, divisors)
+    if sc is None:
+        return None
+    rp = project_out(r[:, None], QA)
+    _, b = scan_statistic(sc, rp, np.array([1e6 * float(np.sum(rp**2)) + 1e-300]), r.size)  # F ∝ gain
+    b = int(b[0])
+    return float(sc.centres[b] - sc.widths[b]), float(sc.centres[b] + sc.widths[b])

@@ -125,30 +125,36 @@ def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> tup
     residual) get no weight.  With few clusters the variance estimate is itself noisy (in effect
     a sum of G squared scores, fewer when a parameter is carried by few clusters), so the
     interval is t-based with the Bell–McCaffrey (Satterthwaite) dof of each variance under the
-    working model of i.i.d. errors: ν = (Σλ)² / Σλ², λ the eigenvalues of CᵀC, where column g of
-    C (N, G) is (I − H)_{·g} M_g A_g B e_j (the estimate of Var θ_j is Σ_g (C_gᵀ e)²)."""
+    working model of i.i.d. errors: the estimate of Var θ_j is Σ_g (c_gᵀe)², c_g = (I − H)_{·g} u_g,
+    u_g = M_g A_g B e_j, so ν = (tr K)² / ‖K‖²_F with K_gh = c_gᵀc_h = δ_gh u_gᵀu_g − w_gᵀ B w_h,
+    w_g = A_gᵀ u_g (no N × N matrix is formed)."""
     ids, inv = np.unique(cluster, return_inverse=True)
-    G, p, N = ids.size, A.shape[1], A.shape[0]
+    G, p = ids.size, A.shape[1]
     cn = np.linalg.norm(A, axis=0)
     cn[cn == 0] = 1.0
     A = A / cn  # unit columns: parameters in very different units stay resolvable
     Binv = np.linalg.pinv(A.T @ A)
-    resid_maker = np.eye(N) - A @ Binv @ A.T
     sc = np.zeros((G, p))
-    C = np.zeros((G, N, p))  # C[g] = (I − H)_{·g} M_g A_g B
+    uu = np.zeros((G, p))  # u_gᵀu_g per parameter
+    Wt = np.zeros((G, p, p))  # Wt[g, :, j] = w_g of parameter j
     for g in range(G):
         rows = np.flatnonzero(inv == g)
         Ag = A[rows]
-        w, V = np.linalg.eigh(resid_maker[np.ix_(rows, rows)])
+        w, V = np.linalg.eigh(np.eye(rows.size) - Ag @ Binv @ Ag.T)
         keep = w > 1e-6
         Mg = (V[:, keep] / np.sqrt(w[keep])) @ V[:, keep].T
         sc[g] = Ag.T @ (Mg @ r[rows])
-        C[g] = resid_maker[:, rows] @ (Mg @ Ag @ Binv)
+        U = Mg @ Ag @ Binv  # (n_g, p): column j is u_g of parameter j
+        uu[g] = np.sum(U * U, axis=0)
+        Wt[g] = Ag.T @ U
     V = Binv @ (sc.T @ sc) @ Binv
-    K = np.einsum("gnj,hnj->jgh", C, C)  # (p, G, G): CᵀC per parameter
-    tr = np.trace(K, axis1=1, axis2=2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dof = np.where(tr > 0, tr**2 / np.sum(K * K, axis=(1, 2)), np.inf)
+    dof = np.full(p, np.inf)
+    for j in range(p):
+        Wj = Wt[:, :, j]  # (G, p)
+        K = np.diag(uu[:, j]) - Wj @ Binv @ Wj.T
+        tr = float(np.trace(K))
+        if tr > 0:
+            dof[j] = tr**2 / float(np.sum(K * K))
     return np.sqrt(np.clip(np.diag(V), 0, None)) / cn, dof
 
 

@@ -79,7 +79,7 @@ def main() -> None:
                     hit += 1
                     p = f[0]["parameters"][0]
                     rel.append(abs(p["value"] - value) / value)
-                    cover.append(abs(p["value"] - value) <= 1.96 * p["std"])
+                    cover.append(p["ci95"][0] <= value <= p["ci95"][1])  # the reported (t-based) 95 % interval
                     ratio.append(d["holdout_rms_after_m"] / floors.get(1000 + s, np.median(list(floors.values()))))
             row[f"{mult}x"] = {"found_named": hit / a.per, "median_rel_error": float(np.median(rel)) if rel else None,
                                "ci95_coverage": float(np.mean(cover)) if cover else None,

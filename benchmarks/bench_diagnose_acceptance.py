@@ -64,7 +64,7 @@ def measure(kind: str, cseed: int, seeds: int) -> dict:
             found += 1
             p = f[0]["parameters"][0]
             rel.append(abs(p["value"] - C_TRUE) / C_TRUE)
-            cover.append(abs(p["value"] - C_TRUE) <= 1.96 * p["std"])
+            cover.append(p["ci95"][0] <= C_TRUE <= p["ci95"][1])  # the reported (t-based) 95 % interval
     ratio = np.array(ratio)
     return {"campaign": kind, "campaign_seed": cseed, "seeds": seeds, "found_named": found / seeds,
             "holdout_after_over_floor_median": float(np.median(ratio)), "holdout_after_over_floor_max": float(ratio.max()),

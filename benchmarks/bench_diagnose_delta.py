@@ -76,7 +76,7 @@ def main() -> None:
                     hit += 1
                     p = f[0]["parameters"][0]
                     err.append(abs(p["value"] - val) / val)
-                    cover.append(abs(p["value"] - val) <= 1.96 * p["std"])
+                    cover.append(p["ci95"][0] <= val <= p["ci95"][1])  # the reported (t-based) 95 % interval
                     ratio.append(d["holdout_rms_after_m"] / floor)
             print(f"{name}@{loc} {mult}x MDS ({sp}): found+named {hit / a.per * 100:.0f} %, median rel. error "
                   f"{np.median(err) * 100 if err else np.nan:.1f} %, 95 % CI coverage "

@@ -215,7 +215,7 @@ def main() -> None:
                     p = f[0]["parameters"][0]
                     val = sp_val * in_fitted_gauge(name, d)
                     err.append(abs(p["value"] - val) / val)
-                    cover.append(abs(p["value"] - val) <= 1.96 * p["std"])
+                    cover.append(p["ci95"][0] <= val <= p["ci95"][1])  # the reported (t-based) 95 % interval
                     ratio.append(d["holdout_rms_after_m"] / floor)
             n_eff += n
             print(f"{name}@{loc} {mult}x MDS: found+named {hit / max(n, 1) * 100:.0f} % of {n}, median rel. error "

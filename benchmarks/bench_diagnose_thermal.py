@@ -84,7 +84,7 @@ def main() -> None:
             for p, g in zip(f["parameters"], G):
                 if g:
                     sens["rel"].append(abs(p["value"] - g) / g)
-                    sens["cover"] += abs(p["value"] - g) <= 1.96 * p["std"]
+                    sens["cover"] += p["ci95"][0] <= g <= p["ci95"][1]  # the reported (t-based) 95 % interval
                     sens["n_cover"] += 1
         sens["unexplained"] += bool(d["unexplained"])
         sens["ratio"].append(d["holdout_rms_after_m"] / floors[s])

@@ -16,6 +16,7 @@ import sys
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from pipeline.diagnose import scanner as ds
 from pipeline.diagnose.diagnose import Settings, diagnose
@@ -85,6 +86,10 @@ def test_each_effect_is_found_named_and_modelled(spec, expected, value):
     f = doc["findings"][0]
     est = f["parameters"][0]
     assert abs(est["value"] - value) < 0.2 * abs(value)
+    # t interval with the Bell–McCaffrey dof of the CR2 variance over 20 poses: 1 < dof ≤ 20, wider than ±1.96 std
+    assert 1 < est["dof"] <= 20
+    half = (est["ci95"][1] - est["ci95"][0]) / 2
+    assert abs(half / est["std"] - stats.t.ppf(0.975, est["dof"])) < 1e-9 and half > 1.96 * est["std"]
     ev = f["evidence"]
     assert ev["p_value"] < 0.01 and ev["delta_bic"] > 0 and ev["cv_rms_after_m"] < ev["cv_rms_before_m"]
     assert doc["holdout_rms_after_m"] < doc["holdout_rms_before_m"]

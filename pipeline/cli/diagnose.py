@@ -40,13 +40,15 @@ def diagnose_cmd(
     t = Table(title=f"robocal diagnose — {recording.name}")
     t.add_column("effect")
     t.add_column("location")
-    t.add_column("parameters (value ± 1σ)")
+    t.add_column("parameters (value ± 1σ [95 % CI])")
     t.add_column("p (Holm)", justify="right")
     t.add_column("CV RMS without → with", justify="right")
     t.add_column("boot", justify="right")
     for f in doc["findings"]:
         ev = f["evidence"]
-        pars = ", ".join(f"{p['name']}={p['value']:.4g}±{p['std']:.2g} {p['unit']}" for p in f["parameters"])
+        pars = ", ".join(f"{p['name']}={p['value']:.4g}±{p['std']:.2g}"
+                         + (f" [{p['ci95'][0]:.4g}, {p['ci95'][1]:.4g}]" if p.get("ci95") else "") + f" {p['unit']}"
+                         for p in f["parameters"])
         t.add_row(f["effect"] + ("" if f["confidence"] == "high" else " (low confidence)"), f["location"], pars,
                   f"{ev['p_value']:.2g}", f"{mm(ev['cv_rms_before_m'])} → {mm(ev['cv_rms_after_m'])}",
                   f"{ev['bootstrap_frequency']:.2f}")

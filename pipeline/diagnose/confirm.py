@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from scipy import stats
 
 from pipeline.diagnose.effects import Effect, signature
 from pipeline.diagnose.select import forward_select, orthonormal, project_out
@@ -105,30 +106,44 @@ class AugmentedModel:
         return d
 
 
-def shared_error_covariance(A: np.ndarray, r: np.ndarray, Z: np.ndarray, tau2: float) -> tuple[np.ndarray, float]:
+def shared_error_covariance(A: np.ndarray, r: np.ndarray, Z: np.ndarray,
+                            tau2: float) -> tuple[np.ndarray, float, np.ndarray]:
     """Covariance of least-squares parameters when errors are shared within groups.
 
     Model of the errors: e = ε + Z·u, ε ~ (0, σ²I) per row, u ~ (0, τ²I) per group (e.g. each
     jig face's machining error, τ² known from the jig's tolerance).  The estimator stays ordinary
     least squares; its covariance is the sandwich A⁺(σ²I + τ²ZZᵀ)A⁺ᵀ, with σ² from the residuals
     r (n,) less the part the group errors leave in them: E[rᵀr] = σ²·dof + τ²·tr(ZᵀP⊥Z).
-    A (n, p) the free columns at the solution, Z (n, g) 0/1 membership.  Returns (cov (p, p), σ)."""
+    A (n, p) the free columns at the solution, Z (n, g) 0/1 membership.  Returns (cov (p, p), σ,
+    dof (p,)): the Satterthwaite degrees of freedom of each variance, whose σ² part is estimated
+    with n − p dof and whose τ² part is known (dof = n − p · (v / v_σ)², ≥ n − p)."""
     Q = orthonormal(A)
     Zp = project_out(Z, Q)
     dof = max(r.size - Q.shape[1], 1)
     sig2 = max(float(r @ r) - tau2 * float(np.sum(Zp * Z)), 0.25 * float(r @ r)) / dof
     Ap = np.linalg.pinv(A)
     AZ = Ap @ Z
-    return sig2 * Ap @ Ap.T + tau2 * AZ @ AZ.T, float(np.sqrt(sig2))
+    v_sig = sig2 * np.sum(Ap * Ap, axis=1)
+    cov = sig2 * Ap @ Ap.T + tau2 * AZ @ AZ.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nu = np.where(v_sig > 0, dof * (np.diag(cov) / v_sig) ** 2, np.inf)
+    return cov, float(np.sqrt(sig2)), nu
 
 
-def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> np.ndarray:
+def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """1σ of least-squares parameters with design A (N, p) and residuals r (N,) when the errors
-    are correlated within clusters: the CR2 sandwich (Bell & McCaffrey 2002) B (Σ_g A_gᵀ M_g r_g
-    r_gᵀ M_g A_g) B, B = (AᵀA)⁻¹, M_g = (I − H_gg)^{-1/2}, H_gg = A_g B A_gᵀ: each cluster's residual
-    is un-shrunk by its own leverage, which CR1's single factor G/(G − 1)·(N − 1)/(N − p) does
-    not do with few clusters (20 poses: CR1 covered 75–88 %).  Directions a cluster's rows fit
-    exactly (leverage 1: no residual) get no weight."""
+    are correlated within clusters, and its degrees of freedom: (std (p,), dof (p,)).
+
+    The CR2 sandwich (Bell & McCaffrey 2002) B (Σ_g A_gᵀ M_g r_g r_gᵀ M_g A_g) B, B = (AᵀA)⁻¹,
+    M_g = (I − H_gg)^{-1/2}, H_gg = A_g B A_gᵀ: each cluster's residual is un-shrunk by its own
+    leverage, which CR1's single factor G/(G − 1)·(N − 1)/(N − p) does not do with few clusters
+    (20 poses: CR1 covered 75–88 %).  Directions a cluster's rows fit exactly (leverage 1: no
+    residual) get no weight.  With few clusters the variance estimate is itself noisy (in effect
+    a sum of G squared scores, fewer when a parameter is carried by few clusters), so the
+    interval is t-based with the Bell–McCaffrey (Satterthwaite) dof of each variance under the
+    working model of i.i.d. errors: the estimate of Var θ_j is Σ_g (c_gᵀe)², c_g = (I − H)_{·g} u_g,
+    u_g = M_g A_g B e_j, so ν = (tr K)² / ‖K‖²_F with K_gh = c_gᵀc_h = δ_gh u_gᵀu_g − w_gᵀ B w_h,
+    w_g = A_gᵀ u_g (no N × N matrix is formed)."""
     ids, inv = np.unique(cluster, return_inverse=True)
     G, p = ids.size, A.shape[1]
     cn = np.linalg.norm(A, axis=0)
@@ -136,6 +151,8 @@ def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> np.
     A = A / cn  # unit columns: parameters in very different units stay resolvable
     Binv = np.linalg.pinv(A.T @ A)
     sc = np.zeros((G, p))
+    uu = np.zeros((G, p))  # u_gᵀu_g per parameter
+    Wt = np.zeros((G, p, p))  # Wt[g, :, j] = w_g of parameter j
     for g in range(G):
         rows = np.flatnonzero(inv == g)
         Ag = A[rows]
@@ -143,8 +160,24 @@ def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> np.
         keep = w > 1e-6
         Mg = (V[:, keep] / np.sqrt(w[keep])) @ V[:, keep].T
         sc[g] = Ag.T @ (Mg @ r[rows])
+        U = Mg @ Ag @ Binv  # (n_g, p): column j is u_g of parameter j
+        uu[g] = np.sum(U * U, axis=0)
+        Wt[g] = Ag.T @ U
     V = Binv @ (sc.T @ sc) @ Binv
-    return np.sqrt(np.clip(np.diag(V), 0, None)) / cn
+    dof = np.full(p, np.inf)
+    for j in range(p):
+        Wj = Wt[:, :, j]  # (G, p)
+        K = np.diag(uu[:, j]) - Wj @ Binv @ Wj.T
+        tr = float(np.trace(K))
+        if tr > 0:
+            dof[j] = tr**2 / float(np.sum(K * K))
+    return np.sqrt(np.clip(np.diag(V), 0, None)) / cn, dof
+
+
+def t_interval(value: float, std: float, dof: float, level: float = 0.95) -> list[float]:
+    """Two-sided `level` interval value ± t_{(1+level)/2, dof}·std (the normal quantile at dof = ∞)."""
+    q = float(stats.t.ppf(0.5 + level / 2, dof)) if np.isfinite(dof) else float(stats.norm.ppf(0.5 + level / 2))
+    return [float(value - q * std), float(value + q * std)]
 
 
 def time_blocks(t: np.ndarray, size: int = 5) -> np.ndarray:

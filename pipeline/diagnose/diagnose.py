@@ -118,6 +118,10 @@ def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Eff
                    shared_error=(Zf, jig_tolerance_m**2 / 3))
 
 
+def _dof(v: float) -> float | None:
+    """A dof for JSON: None when infinite (a known variance: normal quantiles)."""
+    return float(v) if np.isfinite(v) else None
+
 
 def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | None = None,
              settings: Settings = Settings(), library: list[Effect] | None = None,
@@ -231,17 +235,21 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         z, r_final, free_a = fa.x, fa.residuals_after.reshape(nk), fa.free
         A = aug.jacobian(z, table)[:, :, free_a].reshape(nk, -1)
         std = fa.std
-        if cl is not None:  # errors correlated within a cluster: cluster-robust (CR1 sandwich) standard errors
+        # degrees of freedom of each variance estimate (the intervals are t-based): i.i.d. errors n − p
+        par_dof = np.full(z.size, float(max(nk - int(free_a.sum()), 1)))
+        if cl is not None:  # errors correlated within a cluster: cluster-robust (CR2 sandwich) standard errors
             std = np.zeros_like(fa.std)
-            std[free_a] = confirm.cluster_robust_std(A, r_final, cl)
+            std[free_a], par_dof[free_a] = confirm.cluster_robust_std(A, r_final, cl)
         sigma_after = fa.sigma
         if ad.shared_error is not None:  # errors shared within groups: sandwich covariance (honest std)
-            cov, _ = confirm.shared_error_covariance(A, r_final, *ad.shared_error)
+            cov, _, nu = confirm.shared_error_covariance(A, r_final, *ad.shared_error)
             std = np.zeros_like(z)
             std[free_a] = np.sqrt(np.clip(np.diag(cov), 0, None))
+            par_dof[free_a] = nu
         z, std = aug.physical(z), aug.physical(std)  # A stays per fitted (scaled) unit
     else:
         z, r_final, A, std, sigma_after, free_a = x, r, Jf, f.std, sigma, free
+        par_dof = np.full(z.size, float(max(dof, 1)))
     after_cv = confirm.holdout(A, r_final, folds)
 
     # 5. evidence per finding: ablation CV, ΔBIC, bootstrap
@@ -276,7 +284,9 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         cv_wo = confirm.holdout(A_wo, r_wo, folds)
         findings.append({
             "effect": e.name, "location": str(e.location),
-            "parameters": [{"name": p, "value": float(th[m]), "std": float(std[pos + m]), "unit": e.units[m]}
+            "parameters": [{"name": p, "value": float(th[m]), "std": float(std[pos + m]), "unit": e.units[m],
+                            "dof": _dof(par_dof[pos + m]),
+                            "ci95": confirm.t_interval(float(th[m]), float(std[pos + m]), par_dof[pos + m])}
                            for m, p in enumerate(e.parameters)],
             "evidence": {"statistic": st.statistic, "statistic_kind": "grouped F", "dof": list(st.dof),
                          "p_value": st.p_holm, "p_value_raw": st.p_value, "delta_bic": float(delta_bic),

@@ -146,7 +146,11 @@ def finding_rows(doc: dict) -> list[dict[str, str]]:
         for p in f.get("parameters", []) or []:
             if isinstance(p, dict):
                 v, s, u = p.get("value"), p.get("std"), p.get("unit", "")
-                params.append(f"{p.get('name', '?')} = {_fmt(v, u)}" + (f" ± {_fmt(s, u)}" if s is not None else ""))
+                ci = p.get("ci95")
+                ok = isinstance(ci, list) and len(ci) == 2
+                ci_txt = f", 95 % CI [{_fmt(ci[0], u)}, {_fmt(ci[1], u)}]" if ok else ""
+                params.append(f"{p.get('name', '?')} = {_fmt(v, u)}" + (f" ± {_fmt(s, u)}" if s is not None else "")
+                              + ci_txt)
         ev = f.get("evidence", {}) or {}
         rows.append({"effect": str(f.get("effect", f.get("name", "?"))), "location": _loc(f.get("location")),
                      "parameters": "; ".join(params),

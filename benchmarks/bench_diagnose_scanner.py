@@ -144,7 +144,7 @@ def spread_block(n_clean: int, per: int, corners: int) -> int:
                     val = sp_val * in_fitted_gauge(name, d)
                     for p in f[0]["parameters"]:
                         err.append(abs(p["value"] - val) / val)
-                        cover.append(abs(p["value"] - val) <= 1.96 * p["std"])
+                        cover.append(p["ci95"][0] <= val <= p["ci95"][1])  # the reported (t-based) 95 % interval
                     ratio.append(d["holdout_rms_after_m"] / floor)
             n_eff += m
             print(f"  {name}@camera {mult}x MDS: found+named {hit / max(m, 1) * 100:.0f} % of {m} (another effect "

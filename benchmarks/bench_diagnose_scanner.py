@@ -80,6 +80,21 @@ def in_fitted_gauge(name: str, doc: dict) -> float:
     return float(truth()[cam.I_F] / f_fit) ** power
 
 
+def tally(d: dict, name: str, loc: str, true_val: float, floor: float, err: list, cover: list, ratio: list) -> bool:
+    """Whether `name@loc` was found; if so append, for each of its parameters (all equal to
+    `true_val` when injected), the relative error and whether the reported (t-based) ci95 holds
+    the truth in the fitted gauge, and the held-out RMS after modelling / the clean floor."""
+    f = [f for f in d["findings"] if (f["effect"], f["location"]) == (name, loc)]
+    if not f:
+        return False
+    val = true_val * in_fitted_gauge(name, d)
+    for p in f[0]["parameters"]:
+        err.append(abs(p["value"] - val) / val)
+        cover.append(p["ci95"][0] <= val <= p["ci95"][1])
+    ratio.append(d["holdout_rms_after_m"] / floor)
+    return True
+
+
 def mds_of(doc):
     return {(c["effect"], c["location"]): c["min_detectable"] for c in doc["candidates"] if c["identifiable"]}
 
@@ -137,15 +152,8 @@ def spread_block(n_clean: int, per: int, corners: int) -> int:
                 sp, sp_val = spec(name, "camera", mult * mds[(name, "camera")])
                 d = run_spread([sp], seed, corners)
                 m += 1
-                f = [f for f in d["findings"] if (f["effect"], f["location"]) == (name, "camera")]
                 other += any((f["effect"], f["location"]) != (name, "camera") for f in d["findings"])
-                if f:
-                    hit += 1
-                    val = sp_val * in_fitted_gauge(name, d)
-                    for p in f[0]["parameters"]:
-                        err.append(abs(p["value"] - val) / val)
-                        cover.append(p["ci95"][0] <= val <= p["ci95"][1])  # the reported (t-based) 95 % interval
-                    ratio.append(d["holdout_rms_after_m"] / floor)
+                hit += tally(d, name, "camera", sp_val, floor, err, cover, ratio)
             n_eff += m
             print(f"  {name}@camera {mult}x MDS: found+named {hit / max(m, 1) * 100:.0f} % of {m} (another effect "
                   f"named in {other}), median rel. error {np.median(err) * 100 if err else np.nan:.1f} % (fitted "
@@ -209,14 +217,7 @@ def main() -> None:
                 sp, sp_val = spec(name, loc, mult * mds[(name, loc)])
                 d = run([sp], 10_000 + s % a.clean)
                 n += 1
-                f = [f for f in d["findings"] if (f["effect"], f["location"]) == (name, loc)]
-                if f:
-                    hit += 1
-                    p = f[0]["parameters"][0]
-                    val = sp_val * in_fitted_gauge(name, d)
-                    err.append(abs(p["value"] - val) / val)
-                    cover.append(p["ci95"][0] <= val <= p["ci95"][1])  # the reported (t-based) 95 % interval
-                    ratio.append(d["holdout_rms_after_m"] / floor)
+                hit += tally(d, name, loc, sp_val, floor, err, cover, ratio)
             n_eff += n
             print(f"{name}@{loc} {mult}x MDS: found+named {hit / max(n, 1) * 100:.0f} % of {n}, median rel. error "
                   f"{np.median(err) * 100 if err else np.nan:.1f} %, 95 % CI coverage "

@@ -30,6 +30,7 @@ EFFECTS = [("joint_compliance", "J2"), ("joint_compliance", "J3"), ("backlash", 
            ("joint_scale", "J3"), ("encoder_eccentricity", "J4"), ("transmission_error", "J3"),
            ("wrist_coupling", "J4->J5"), ("thermal_drift", "campaign"), ("trigger_pretravel", "touch sensor"),
            ("trigger_latency", "touch sensor"), ("face_offset", "top2")]
+K_PARAM = {"encoder_eccentricity": 2, "transmission_error": 2, "thermal_drift": 3}  # injected (value, 0, …)
 
 
 def one(targets, injected, seed):
@@ -65,7 +66,7 @@ def main() -> None:
     mds = {k: float(np.median([m[k] or np.inf for m in mds_runs])) for k in mds_runs[0]}
     report["clean"] = {"runs": a.clean, "false_finding_rate": clean / a.clean, "unexplained_rate": unexpl / a.clean}
     print(json.dumps(report["clean"]), flush=True)
-    k_param = {"encoder_eccentricity": 2, "transmission_error": 2, "thermal_drift": 3}
+    k_param = K_PARAM
     report["effects"] = {}
     for name, loc in EFFECTS:
         row = {"mds": mds[(name, loc)]}

@@ -5,11 +5,13 @@ the reported intervals (`ci95`, t-based with the parameter's `dof`) holding the 
 share inside ±1.96 std, with its binomial standard error.
 
 Arc welder (default): the benchmark campaign of `bench_diagnose.py`, compliance J2/J3 and
-pretravel at 4× MDS.  Scanner (`--system scanner`): the campaign of `bench_diagnose_scanner.py`
+pretravel at 4× MDS; `--effects NAME@LOC …` any library effect, injected as `bench_diagnose.py`
+injects it (first parameter `--mult`× MDS, the others 0), with the co-selected findings tallied.  Scanner (`--system scanner`): the campaign of `bench_diagnose_scanner.py`
 (MDS from each seed's clean diagnosis, as there), J4 scale, J2 scale and the
 time offset at 4×.
 
     .venv/bin/python benchmarks/bench_diagnose_coverage.py [--seeds 200] [--first-seed 1000]
+    .venv/bin/python benchmarks/bench_diagnose_coverage.py --effects encoder_eccentricity@J4 backlash@J3 --seeds 100
     .venv/bin/python benchmarks/bench_diagnose_coverage.py --system scanner --seeds 80 --first-seed 10000
 """
 
@@ -42,18 +44,47 @@ def row(p: dict, truth: float) -> tuple[float, bool, float | None]:
     return (p["value"] - truth) / p["std"], p["ci95"][0] <= truth <= p["ci95"][1], p["dof"]
 
 
+def clean_mds(targets, n_clean: int) -> dict:
+    """MDS per candidate: median over the clean diagnoses of seeds 0..n_clean−1 (bench_diagnose: 5)."""
+    runs = [{(c["effect"], c["location"]): c["min_detectable"] for c in b.one(targets, [], s)["candidates"]}
+            for s in range(n_clean)]
+    return {k: float(np.median([m[k] or np.inf for m in runs])) for k in runs[0]}
+
+
 def welder(a) -> None:
     targets = se.plan_targets(b.NOM, b.JIG, b.CAMPAIGN, truth=b.TRUE)
-    mds = {(c["effect"], c["location"]): c["min_detectable"] for c in b.one(targets, [], 0)["candidates"]}
-    for name, loc in CASES:
-        value = 4 * mds[(name, loc)]
-        rows = []
+    mds = clean_mds(targets, a.mds_clean)
+    cases = [tuple(c.split("@", 1)) for c in a.effects] if a.effects else CASES
+    if cases == [("all",)]:
+        cases = b.EFFECTS
+    pooled = []
+    for name, loc in cases:
+        value = a.mult * mds[(name, loc)]
+        k = b.K_PARAM.get(name, 1)  # as bench_diagnose: (value, 0, …)
+        rows, alone, extra = [], [], {}
         for seed in range(a.first_seed, a.first_seed + a.seeds):
-            d = b.one(targets, [b.inj(name, loc, value, 1)], seed)
+            d = b.one(targets, [b.inj(name, loc, value, k)], seed)
             f = [x for x in d["findings"] if (x["effect"], x["location"]) == (name, loc)]
-            if f:
-                rows.append(row(f[0]["parameters"][0], value))
-        print(summary(f"{name}@{loc} at 4x MDS", rows, a.seeds), flush=True)
+            if not f:
+                continue
+            others = [f"{x['effect']}@{x['location']}" for x in d["findings"] if x is not f[0]]
+            rw = row(f[0]["parameters"][0], value)
+            rows.append(rw)
+            if others:
+                for o in others:
+                    extra[o] = extra.get(o, 0) + 1
+            else:
+                alone.append(rw)
+            if a.verbose:
+                print(f"  seed {seed} z {rw[0]:+.2f} covered {rw[1]} dof {rw[2]} "
+                      f"others {others}", flush=True)
+        print(summary(f"{name}@{loc} at {a.mult:g}x MDS", rows, a.seeds), flush=True)
+        pooled += rows
+        if extra:
+            print(f"  co-selected: {extra}; alone: " + summary("runs with no other finding", alone, len(rows)),
+                  flush=True)
+    if len(cases) > 1:  # the effects share their noise seeds: not independent draws
+        print(summary(f"pooled over {len(cases)} effects", pooled, a.seeds * len(cases)), flush=True)
 
 
 def scanner(a) -> None:
@@ -80,6 +111,12 @@ def main() -> None:
     ap.add_argument("--system", choices=("arc-welder", "scanner"), default="arc-welder")
     ap.add_argument("--seeds", type=int, default=200)  # binomial 1σ of a 95 % coverage: ±1.5 % (80 seeds: ±2.4 %)
     ap.add_argument("--first-seed", type=int, default=None, help="default 1000 (arc welder), 10000 (scanner)")
+    ap.add_argument("--effects", nargs="*", default=None,
+                    help="arc welder: NAME@LOCATION of library effects (default compliance J2/J3, pretravel; all: the 12 of bench_diagnose)")
+    ap.add_argument("--mult", type=float, default=4.0, help="arc welder: injected size in MDS")
+    ap.add_argument("--mds-clean", type=int, default=1,
+                    help="arc welder: MDS = median over this many clean seeds from 0 (bench_diagnose: 5)")
+    ap.add_argument("--verbose", action="store_true", help="arc welder: one line per seed")
     a = ap.parse_args()
     if a.first_seed is None:
         a.first_seed = 10_000 if a.system == "scanner" else 1000

@@ -17,7 +17,7 @@ Then (`spread_block`) k2 and tangential on spread campaigns (`Campaign.spread`, 
 along the stripe — what k2's advice asks for): clean rates, k2's MDS, each at 4x and 2x MDS.
 
     .venv/bin/python benchmarks/bench_diagnose_scanner.py [--clean 200] [--per 16] [--spread-clean 40]
-        [--spread-per 8] [--spread-corners 8] [--spread-only]
+        [--spread-per 8] [--spread-corners 8] [--spread-only] [--bump-only FIRST_SEED N]
 """
 
 from __future__ import annotations
@@ -163,6 +163,27 @@ def spread_block(n_clean: int, per: int, corners: int) -> int:
     return n_eff
 
 
+def bump_block(cases) -> int:
+    """The out-of-library bump (J2 transmission, width `ss.BUMP_WIDTH_RAD`, centred at the campaign's
+    median J2 pose) at each of `BUMPS_RAD`, for `cases` [(seed, clean table)]: located by `unexplained`
+    (q_J2, region holding the centre) and a library effect named with high confidence.  Returns the
+    runs made."""
+    for amp in BUMPS_RAD:
+        loc_ok, named_hi = 0, 0
+        for seed, tab in cases:
+            q2 = np.unique(tab["joint_positions"][:, 1])
+            centre = float(np.sort(q2)[len(q2) // 2])  # at one of the campaign's poses
+            d = run([f"bump={amp}@J2:{centre:.4f}"], seed, n_boot=BUMP_BOOT)
+            w = d["unexplained_where"]
+            loc_ok += bool(w) and w[0]["variable"] == "q_J2" and w[0]["region"][0] <= centre <= w[0]["region"][1]
+            named_hi += any(f["confidence"] == "high" for f in d["findings"])
+        nb = len(cases)
+        print(f"out-of-library bump {amp} rad (width {ss.BUMP_WIDTH_RAD} rad) on J2: located by unexplained "
+              f"(q_J2, region holding the centre) {loc_ok / nb * 100:.0f} % ({loc_ok}/{nb}), a library effect named "
+              f"with high confidence {named_hi / nb * 100:.0f} % ({named_hi}/{nb})", flush=True)
+    return len(BUMPS_RAD) * len(cases)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--clean", type=int, default=200)
@@ -171,9 +192,15 @@ def main() -> None:
     ap.add_argument("--spread-per", type=int, default=8, help="spread runs per effect and size")
     ap.add_argument("--spread-corners", type=int, default=8)
     ap.add_argument("--spread-only", action="store_true", help="only the spread block")
+    ap.add_argument("--bump-only", nargs=2, type=int, metavar=("FIRST_SEED", "N"),
+                    help="only the bump block, on campaigns FIRST_SEED .. FIRST_SEED+N-1 (an independent set: 10032 64)")
     a = ap.parse_args()
     if a.spread_only:
         spread_block(a.spread_clean, a.spread_per, a.spread_corners)
+        return
+    if a.bump_only:
+        first, n = a.bump_only
+        bump_block([(s, run([], s, True)[1]) for s in range(first, first + n)])
         return
     t0 = time.perf_counter()
     clean, tabs = zip(*[run([], 10_000 + s, True) for s in range(a.clean)])
@@ -235,20 +262,7 @@ def main() -> None:
         n_eff += n
         print(f"pair {p1[0]}@{p1[1]} + {p2[0]}@{p2[1]} at 4x MDS: both found {both / max(n, 1) * 100:.0f} % of {n}",
               flush=True)
-    nb = 2 * a.per
-    for amp in BUMPS_RAD:
-        loc_ok, named_hi = 0, 0
-        for s in range(nb):
-            q2 = np.unique(tabs[s % a.clean]["joint_positions"][:, 1])
-            centre = float(np.sort(q2)[len(q2) // 2])  # at one of the campaign's poses
-            d = run([f"bump={amp}@J2:{centre:.4f}"], 10_000 + s % a.clean, n_boot=BUMP_BOOT)
-            w = d["unexplained_where"]
-            loc_ok += bool(w) and w[0]["variable"] == "q_J2" and w[0]["region"][0] <= centre <= w[0]["region"][1]
-            named_hi += any(f["confidence"] == "high" for f in d["findings"])
-        n_eff += nb
-        print(f"out-of-library bump {amp} rad (width {ss.BUMP_WIDTH_RAD} rad) on J2: located by unexplained "
-              f"(q_J2, region holding the centre) {loc_ok / nb * 100:.0f} %, a library effect named with high "
-              f"confidence {named_hi / nb * 100:.0f} %", flush=True)
+    n_eff += bump_block([(10_000 + s % a.clean, tabs[s % a.clean]) for s in range(2 * a.per)])
     if a.spread_clean:
         n_eff += spread_block(a.spread_clean, a.spread_per, a.spread_corners)
     print(f"total {a.clean} clean + {n_eff} with effects, {time.perf_counter() - t0:.0f} s")

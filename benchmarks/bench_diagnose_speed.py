@@ -3,8 +3,9 @@
 Run: .venv/bin/python benchmarks/bench_diagnose_speed.py
 Simulates a clean campaign and one with two effects (payload 0/6 kg, three search speeds), then times (best of 3)
 - the diagnosis core (geometric fit, gating, selection, confirmation, lack of fit);
-- the `diagnose` stage of `robocal run`: recording metadata + contacts, the encoder stream from
-  ingest's `encoder.parquet`, motion context, diagnosis;
+- the `diagnose` stage of `robocal run` (`pipeline.diagnose.stage.run` after ingest): the recording
+  without its encoder stream, the stream from ingest's `encoder.parquet`, motion context, diagnosis,
+  diagnosis.json;
 - standalone `robocal diagnose REC.mcap`: the same, decoding the MCAP's JSON encoder batches
   itself (≈ 0.8 M samples here; ingest pays this once in a run).
 """
@@ -21,7 +22,7 @@ from pipeline.diagnose.diagnose import diagnose
 from pipeline.diagnose.stage import diagnose_recording, settings_of
 from pipeline.diagnose.table import from_recording
 from pipeline.recording.reader import read_recording
-from pipeline.stages.ingest import read_encoder
+from pipeline.diagnose import stage as diagnose_stage
 from pipeline.stages.runner import run_pipeline
 
 
@@ -48,7 +49,7 @@ def one(label: str, extra: list[str]) -> None:
             doc = diagnose(model, table, jig_tolerance_m=info.get("jig_tolerance_m", 2e-5))
             core.append(time.perf_counter() - t)
             t = time.perf_counter()
-            diagnose_recording(read_recording(rec_path), settings_of({}), stream=read_encoder(Path(d) / "run"))
+            diagnose_stage.run(Path(d) / "run", {})  # what `robocal run` does: writes run/diagnose/diagnosis.json
             stage.append(time.perf_counter() - t)
             t = time.perf_counter()
             diagnose_recording(read_recording(rec_path), settings_of({}))

@@ -178,3 +178,20 @@ def test_diagnose_stage_reuses_the_decoded_encoder_stream(first_run, tmp_path):
     pq.write_table(t.slice(0, t.num_rows - 1), stale / "ingest/encoder.parquet")
     with pytest.raises(RobocalError, match="encoder.parquet: does not match .*recording.json"):
         read_encoder(stale)
+
+
+def test_later_stages_read_the_recording_without_the_encoder_stream(first_run):
+    """Ingest decoded the encoder stream once; later stages re-read only the rest of the MCAP
+    (every other channel's messages, metadata and model unchanged)."""
+    from pipeline.ingest.streams import JOINT_STATE
+    from pipeline.recording.reader import read_recording
+    from pipeline.stages.ingest import load_system
+
+    full = read_recording(BUNDLED)
+    _, model, rec = load_system(first_run)
+    assert full.messages.raw[JOINT_STATE] and rec.messages.raw[JOINT_STATE] == []
+    assert {t: m for t, m in full.messages.raw.items() if t != JOINT_STATE} == \
+        {t: m for t, m in rec.messages.raw.items() if t != JOINT_STATE}
+    assert rec.metadata == full.metadata and rec.complete and model.parameter_names()
+    _, _, rec_s = load_system(first_run, with_stream=True)
+    assert rec_s.messages.raw[JOINT_STATE] == full.messages.raw[JOINT_STATE]

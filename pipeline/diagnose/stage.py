@@ -74,7 +74,8 @@ def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
     out = run_dir / NAME
     out.mkdir(parents=True, exist_ok=True)
-    system, model, rec = load_system(run_dir)
+    stream = read_encoder(run_dir)
+    system, model, rec = load_system(run_dir, with_stream=stream is None)
     if system.SYSTEM not in SUPPORTED:
         doc = {"system": system.SYSTEM, "supported": False, "findings": [], "not_identifiable": [],
                "unexplained": None, "unexplained_where": [], "holdout_rms_before_m": None,
@@ -86,7 +87,7 @@ def run(run_dir: Path, params: dict) -> dict:
             fj = read_json(fit_path)
             x0 = np.asarray(fj["x"], float)
             drop = fj.get("rejected_records") or None
-        doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=read_encoder(run_dir))
+        doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=stream)
         doc["supported"] = True
     write_json(out / "diagnosis.json", doc)
     return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],

@@ -93,8 +93,8 @@ class Recording:
         return self.metadata[name]
 
 
-def read_recording(path: str | Path, topics: set[str] | None = None) -> Recording:
-    """Read every complete record (messages of `topics`, or all) and the metadata."""
+def read_recording(path: str | Path, topics: set[str] | None = None, skip: frozenset[str] = frozenset()) -> Recording:
+    """Read every complete record (messages of `topics`, or all, less those of `skip`) and the metadata."""
     path = Path(path)
     if not path.is_file():
         raise RobocalError(f"{path}: no such file")
@@ -114,7 +114,7 @@ def read_recording(path: str | Path, topics: set[str] | None = None) -> Recordin
                     ch = channels.get(r.channel_id)
                     if ch is None:
                         raise RobocalError(f"{where(path, None, n)}: message on unknown channel id {r.channel_id}")
-                    if topics is not None and ch.topic not in topics:
+                    if (topics is not None and ch.topic not in topics) or ch.topic in skip:
                         continue
                     rec.messages.raw.setdefault(ch.topic, []).append(r.data)
                     rec.log_times.setdefault(ch.topic, []).append(r.log_time)

@@ -118,13 +118,14 @@ def read_encoder(run_dir: Path):
                        message_index=np.asarray(tab["record"], np.int64))
 
 
-def load_system(run_dir: Path):
+def load_system(run_dir: Path, with_stream: bool = False):
     """(system module, measurement model, recording) of a run: the model comes from the
-    recording's own metadata via the system's `load`."""
+    recording's own metadata via the system's `load`.  The encoder stream's messages are left
+    out unless `with_stream` (ingest decoded them into `encoder.parquet`: `read_encoder`)."""
     from pipeline.systems.registry import SYSTEMS
 
     info = recording_info(run_dir)
-    rec = read_recording(info["source"]["path"])
+    rec = read_recording(info["source"]["path"], skip=frozenset() if with_stream else frozenset({JOINT_STATE}))
     system = SYSTEMS[info["system"]]
     model, _ = system.load(rec)
     return system, model, rec

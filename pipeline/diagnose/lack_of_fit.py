@@ -107,11 +107,7 @@ def wild_cluster_p(res: np.ndarray, QA: np.ndarray, bases: list[np.ndarray | Non
     ⊥ the design); p = (1 + #{F* ≥ F}) / (1 + n_boot).  Each cluster keeps its own error
     covariance, whatever it is: no estimate of the between-cluster covariance from a few
     clusters enters the reference distribution (Cameron, Gelbach & Miller 2008)."""
-    ids, inv = np.unique(cluster, return_inverse=True)
-    rng = np.random.default_rng(seed)
-    sg = rng.choice([-1.0, 1.0], (ids.size, n_boot))[inv]  # (N, B)
-    R = sg * res[:, None]
-    R -= QA @ (QA.T @ R)
+    R = sign_flips(res, QA, cluster, n_boot, seed)
     rss = np.sum(R**2, axis=0)
     out = []
     for Qb, f, (kb, d2) in zip(bases, F, dofs):
@@ -175,11 +171,23 @@ def scan_basis(v: Variable, QA: np.ndarray, whiten=None, divisors: tuple[int, ..
     return Scan(np.hstack(Us), np.concatenate(grp), kb, cs, ws)
 
 
+def scan_gains(sc: Scan, R: np.ndarray) -> np.ndarray:
+    """Sum of squares of residual column(s) R (N, B) each scan element explains: (S, B)."""
+    G = (np.arange(sc.kb.size)[:, None] == sc.group[None]).astype(float)  # element × column
+    return G @ (sc.U.T @ R) ** 2
+
+
+def best_element(sc: Scan, r: np.ndarray) -> int:
+    """The scan element explaining most of residual r (N,) per direction it adds."""
+    g = scan_gains(sc, r[:, None])[:, 0] / np.maximum(sc.kb, 1)
+    g[sc.kb == 0] = -np.inf
+    return int(np.argmax(g))
+
+
 def scan_statistic(sc: Scan, R: np.ndarray, rss: np.ndarray, dof: int) -> tuple[np.ndarray, np.ndarray]:
     """F of every scan element for residual column(s) R (N, B) with total RSS `rss` (B,):
     returns (max over the scan (B,), argmax (B,))."""
-    G = (np.arange(sc.kb.size)[:, None] == sc.group[None]).astype(float)  # element × column
-    g = G @ (sc.U.T @ R) ** 2
+    g = scan_gains(sc, R)
     kb = np.maximum(sc.kb, 1)[:, None]
     F = (g / kb) / (np.maximum(rss[None] - g, 1e-300) / np.maximum(dof - kb, 1))
     F[sc.kb == 0] = -np.inf
@@ -280,24 +288,14 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
     return out
 
 
-def locate(v: Variable, QA: np.ndarray, res: np.ndarray, n_scan: int = 25, whiten=None) -> tuple[float, float]:
-    """Where along v the structure is: a matched-filter scan of single narrow bumps (width
-    range/12) at `n_scan` centres, each projected against the design; the interval ±1 width
-    around the centre whose bump explains most of the residual."""
+def locate(v: Variable, QA: np.ndarray, res: np.ndarray, n_scan: int = N_SCAN, whiten=None) -> tuple[float, float]:
+    """Where along v the structure is: of single narrow bumps (width range/12) at `n_scan`
+    centres, each projected against the design (`scan_basis`), the one that explains most of
+    the residual; the interval ±1 width around its centre, clipped to v's range."""
     lo, hi = float(v.centres[0]), float(v.centres[-1])
-    width = (hi - lo) / 12
-    centres = np.linspace(lo, hi, n_scan)
-    Phi = rbf(v.values, centres, width)  # (n, S)
-    best, c_best = -1.0, lo
-    for s in range(n_scan):
-        cols = v.gain * Phi[:, s:s + 1]  # (n, c)
-        if whiten is not None:
-            cols = whiten(cols)
-        Qb = orthonormal(project_out(cols, QA), 1e-6)
-        g = float(np.sum((Qb.T @ res) ** 2)) if Qb.shape[1] else 0.0
-        if g > best:
-            best, c_best = g, centres[s]
-    return float(max(lo, c_best - width)), float(min(hi, c_best + width))
+    sc = scan_basis(v, QA, whiten, (12,), n_scan)
+    c, w = (lo, (hi - lo) / 12) if sc is None else (float(sc.centres[best_element(sc, res)]), float(sc.widths[0]))
+    return float(max(lo, c - w)), float(min(hi, c + w))
 
 
 def located_columns(v: Variable, region: tuple[float, float] | list[float]) -> np.ndarray:
@@ -344,7 +342,5 @@ def best_bump(v: Variable, r: np.ndarray, A: np.ndarray, whiten=None,
     sc = scan_basis(v, QA, whiten, divisors)
     if sc is None:
         return None
-    rp = project_out(r[:, None], QA)
-    _, b = scan_statistic(sc, rp, np.array([1e6 * float(np.sum(rp**2)) + 1e-300]), r.size)  # F ∝ gain
-    b = int(b[0])
+    b = best_element(sc, project_out(r[:, None], QA)[:, 0])
     return float(sc.centres[b] - sc.widths[b]), float(sc.centres[b] + sc.widths[b])

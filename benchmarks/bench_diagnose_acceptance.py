@@ -35,11 +35,15 @@ C_TRUE = 3.56e-6  # rad/(N·m): 0.2 mm RMS tip deflection over this campaign
 KEY = ("joint_compliance", "J2")
 
 
+GEOMETRY_WEIGHT = 0.0
+
+
 def campaign(kind: str, seed: int):
     """(campaign, targets, variations) of the plain or the payload-paired campaign."""
     c = Campaign(contacts=100, seed=seed)
     if kind == "paired":
-        return c, se.plan_targets(NOM, JIG, c, truth=TRUE, payloads_kg=PAYLOADS), \
+        return c, se.plan_targets(NOM, JIG, c, truth=TRUE, payloads_kg=PAYLOADS,
+                                 geometry_weight=GEOMETRY_WEIGHT), \
             se.Variations(payloads_kg=PAYLOADS, payload_pairs=True)
     return c, se.plan_targets(NOM, JIG, c, truth=TRUE), se.Variations(payloads_kg=PAYLOADS)
 
@@ -80,7 +84,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=30)
     ap.add_argument("--campaigns", default="3,11")
     ap.add_argument("--only", default="", help="plain or paired (default: both)")
+    ap.add_argument("--geometry-weight", type=float, default=0.0,
+                    help="paired campaign: blend of D-optimality into the Ds design (effects.compliance_design)")
     a = ap.parse_args()
+    global GEOMETRY_WEIGHT
+    GEOMETRY_WEIGHT = a.geometry_weight
     t0 = time.time()
     kinds = [a.only] if a.only else ["plain", "paired"]
     rows = []

@@ -98,7 +98,8 @@ def _plan_batch(nominal: SerialArm, jig: Jig, campaign: Campaign, n_try: int, rn
 
 
 def plan_targets(nominal: SerialArm, jig: Jig, campaign: Campaign, truth: SerialArm | None = None,
-                 spare: float = 1.25, payloads_kg: tuple[float, ...] = (), pool: float = 3.0) -> Targets:
+                 spare: float = 1.25, payloads_kg: tuple[float, ...] = (), pool: float = 3.0,
+                 geometry_weight: float = 0.0) -> Targets:
     """Approach poses (the expensive IK), seeded by campaign.seed.  With `truth`, targets whose
     search would miss the true face are screened out and batches are added until there are
     `spare`× the wanted contacts.  With `payloads_kg` (a payload-paired campaign, each point
@@ -107,7 +108,8 @@ def plan_targets(nominal: SerialArm, jig: Jig, campaign: Campaign, truth: Serial
     if payloads_kg:
         n_points = -(-campaign.contacts // len(payloads_kg))
         wide = plan_targets(nominal, jig, replace(campaign, contacts=int(np.ceil(n_points * pool))), truth, spare)
-        pick = compliance_design(nominal, wide, payloads_kg, int(np.ceil(n_points * spare)), campaign.approach_offset_m)
+        pick = compliance_design(nominal, wide, payloads_kg, int(np.ceil(n_points * spare)), campaign.approach_offset_m,
+                                 geometry_weight=geometry_weight)
         return Targets(*(getattr(wide, k)[np.sort(pick)] for k in ("faces", "q_a", "dq", "axis", "sign")))
     rng = np.random.default_rng(campaign.seed)
     want = int(np.ceil(campaign.contacts * spare))

@@ -82,13 +82,26 @@ class Gate:
     projected: np.ndarray  # S⊥ against geometry (and confounders when they are what hides it)
 
 
+def _unit(Sp: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Sp's non-zero columns unit-scaled, and their total square (None: no such column)."""
+    n = np.linalg.norm(Sp, axis=0)
+    if not np.any(n > 0):
+        return None
+    U = Sp[:, n > 0] / n[n > 0]
+    return U, np.sum(U**2)
+
+
+def _share(unit: tuple[np.ndarray, float] | None, Qo: np.ndarray) -> float:
+    """`_explained` of a signature already unit-scaled by `_unit`."""
+    if unit is None or Qo.shape[1] == 0:
+        return 0.0
+    U, uu = unit
+    return float(np.sum((Qo.T @ U) ** 2) / uu)
+
+
 def _explained(Sp: np.ndarray, Qo: np.ndarray) -> float:
     """Share of ‖Sp‖² (columns unit-scaled) in span(Qo)."""
-    n = np.linalg.norm(Sp, axis=0)
-    if not np.any(n > 0) or Qo.shape[1] == 0:
-        return 0.0
-    U = Sp[:, n > 0] / n[n > 0]
-    return float(np.sum((Qo.T @ U) ** 2) / np.sum(U**2))
+    return _share(_unit(Sp), Qo)
 
 
 def absorbing_parameters(S: np.ndarray, Jf: np.ndarray, names: list[str], top: int = 3) -> str:
@@ -137,7 +150,7 @@ def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free
             if smin < RANK_REL * np.sqrt(tot):
                 smin = 0.0
         per.append((tot, absorbed, absorbed_by, conf_label, smin))
-    return {"proj": proj, "basis": basis, "per": per}
+    return {"proj": proj, "basis": basis, "per": per, "unit": [_unit(p) for p in proj]}
 
 
 def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names: list[str], sigma: float,
@@ -162,7 +175,7 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
         tot, absorbed, absorbed_by, conf_label, smin = parts["per"][i]
         # pairwise: an earlier (simpler) identifiable candidate that reproduces this one
         for j in kept:
-            if _explained(sp, basis[j]) > CONFOUND:
+            if _share(parts["unit"][i], basis[j]) > CONFOUND:
                 smin = 0.0
                 conf_label = effects[j].label
                 break

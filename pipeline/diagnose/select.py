@@ -243,6 +243,12 @@ def _batches(edges: np.ndarray, groups) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 @functools.lru_cache(maxsize=16)
+def _single_batches(k: tuple[int, ...]) -> list:
+    """The batches of the single blocks of widths k (every resample of the bootstrap has the same)."""
+    return _batches(np.concatenate([[0], np.cumsum(k)]).astype(int), [(c,) for c in range(len(k))])
+
+
+@functools.lru_cache(maxsize=16)
 def _pair_batches(k: tuple[int, ...]) -> tuple[np.ndarray, list]:
     """Every pair of blocks (c < d) of widths k and their batches (the bootstrap reuses them)."""
     nc = len(k)
@@ -272,7 +278,7 @@ class _Design:
         self.nb = B.shape[1]
         self.G, self.g, self.rr = C.T @ C, C.T @ r, float(r @ r)
         self.tol = np.asarray(tolerances, float)
-        self.singles = self._batches([(c,) for c in range(self.nc)])
+        self.singles = _single_batches(tuple(int(k) for k in self.k))
         self._pairs = None
 
     def _batches(self, groups: list[tuple[int, ...]]) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -4,13 +4,14 @@ Run: .venv/bin/python benchmarks/bench_diagnose_speed.py
 Simulates a clean campaign and one with two effects (payload 0/6 kg, three search speeds), then times (best of 3)
 - the diagnosis core (geometric fit, gating, selection, confirmation, lack of fit);
 - the `diagnose` stage of `robocal run` (`pipeline.diagnose.stage.run` after ingest): the recording
-  without its encoder stream, the stream from ingest's `encoder.parquet`, motion context, diagnosis,
-  diagnosis.json;
+  less its encoder stream (ingest's `messages.parquet`), the stream from ingest's `encoder.parquet`,
+  motion context, diagnosis, diagnosis.json;
 - standalone `robocal diagnose REC.mcap`: the same, decoding the MCAP's JSON encoder batches
   itself (≈ 0.8 M samples here; ingest pays this once in a run);
 and, per phase (best of 3 each): reading the MCAP, decoding the encoder stream, the stage's
 reading of ingest's artefacts (`messages.parquet`, `encoder.parquet`), the diagnosis table
-(contacts + motion context), the core, writing diagnosis.json.
+(contacts + motion context), the core, writing diagnosis.json.  Wall-clock times, and the CPU
+time of core / stage / standalone (on a shared box the wall time includes waiting for a core).
 """
 
 from __future__ import annotations
@@ -69,25 +70,27 @@ def one(label: str, extra: list[str]) -> None:
                 "stage reads ingest artefacts": best(lambda _: (load_system(run_dir), read_encoder(run_dir))),
                 "table": best(lambda _: from_recording(rec, stream)),
                 "write diagnosis.json": best(lambda _: write_json(Path(d) / "diagnosis.json", doc))}
-        core, stage, whole, lms = [], [], [], []
+        lms = best(lambda _: last_motion_sign(stream.t_ns, stream.q, table["timestamp_ns"]))
+        runs = {"core": lambda: diagnose(model, table, jig_tolerance_m=info.get("jig_tolerance_m", 2e-5)),
+                # what `robocal run` does: writes run/diagnose/diagnosis.json
+                "stage": lambda: diagnose_stage.run(run_dir, {}),
+                "standalone": lambda: diagnose_recording(read_recording(rec_path), settings_of({}))}
+        wall: dict[str, list[float]] = {k: [] for k in runs}
+        cpu: dict[str, list[float]] = {k: [] for k in runs}
         for _ in range(3):
-            t = time.perf_counter()
-            last_motion_sign(stream.t_ns, stream.q, table["timestamp_ns"])
-            lms.append(time.perf_counter() - t)
-            t = time.perf_counter()
-            doc = diagnose(model, table, jig_tolerance_m=info.get("jig_tolerance_m", 2e-5))
-            core.append(time.perf_counter() - t)
-            t = time.perf_counter()
-            diagnose_stage.run(Path(d) / "run", {})  # what `robocal run` does: writes run/diagnose/diagnosis.json
-            stage.append(time.perf_counter() - t)
-            t = time.perf_counter()
-            diagnose_recording(read_recording(rec_path), settings_of({}))
-            whole.append(time.perf_counter() - t)
-    print(f"300 contacts, {label}: diagnosis core {min(core):.2f} s, diagnose stage (stream from ingest) "
-          f"{min(stage):.2f} s, standalone with stream decoding {min(whole):.2f} s (of which the last-motion "
-          f"signs over {len(stream)} samples {min(lms):.3f} s); "
+            for k, f in runs.items():
+                t, c = time.perf_counter(), time.process_time()
+                f()
+                wall[k].append(time.perf_counter() - t)
+                cpu[k].append(time.process_time() - c)
+    w, c = ({k: min(v) for k, v in x.items()} for x in (wall, cpu))
+    print(f"300 contacts, {label}: diagnosis core {w['core']:.2f} s, diagnose stage (stream from ingest) "
+          f"{w['stage']:.2f} s, standalone with stream decoding {w['standalone']:.2f} s (of which the last-motion "
+          f"signs over {len(stream)} samples {lms:.3f} s); "
           f"findings {[f['effect'] for f in doc['findings']]}, unexplained {doc['unexplained']}")
-    print(f"  phases: {', '.join(f'{k} {v:.3f} s' for k, v in took.items())}, core {min(core):.3f} s")
+    print(f"  CPU time (this process, all threads; wall > CPU when the box is busy): core {c['core']:.2f} s, "
+          f"stage {c['stage']:.2f} s, standalone {c['standalone']:.2f} s")
+    print(f"  phases (wall): {', '.join(f'{k} {v:.3f} s' for k, v in took.items())}, core {w['core']:.3f} s")
 
 
 if __name__ == "__main__":

@@ -280,6 +280,7 @@ class _Design:
         self.tol = np.asarray(tolerances, float)
         self.singles = _single_batches(tuple(int(k) for k in self.k))
         self._pairs = None
+        self._memo: dict = {}  # the selection revisits the same sets: (set, …) -> results
 
     def _batches(self, groups: list[tuple[int, ...]]) -> list[tuple[np.ndarray, np.ndarray]]:
         return _batches(self.edges, groups)
@@ -292,7 +293,13 @@ class _Design:
 
     def given(self, S, only: int | None = None) -> tuple[float, int, np.ndarray, np.ndarray]:
         """(RSS, rank) of the fit of blocks S, and (G, g) of all columns (or of block `only`'s)
-        with S partialled out."""
+        with S partialled out (memoised per (S in order, only); read them, do not write)."""
+        key = ("given", tuple(S), only)
+        if key not in self._memo:
+            self._memo[key] = self._given(S, only)
+        return self._memo[key]
+
+    def _given(self, S, only: int | None) -> tuple[float, int, np.ndarray, np.ndarray]:
         cols = slice(None) if only is None else self.ix[only]
         if not len(S):
             return self.rr, 0, self.G[np.ix_(cols, cols)] if only is not None else self.G, self.g[cols]
@@ -337,6 +344,16 @@ class _Design:
             gains[pos] = np.sum(np.where(keep, proj**2, 0.0), axis=1)
             ranks[pos] = keep.sum(axis=1)
         return gains, ranks
+
+    def tests_given(self, S: list[int], dof0: int, groups=None):
+        """(RSS, rank) of the fit of blocks S and `tests` of every block (or pair) against it,
+        with dof0 − rank residual dof; memoised per (S in order, dof0, groups), fresh arrays."""
+        key = (tuple(S), dof0, groups)
+        if key not in self._memo:
+            rss, rk, G, g = self.given(S)
+            self._memo[key] = (rss, rk, self.tests(G, g, rss, dof0 - rk, groups))
+        rss, rk, out = self._memo[key]
+        return (rss, rk, *(a.copy() for a in out))
 
     def tests(self, G: np.ndarray, g: np.ndarray, rss: float, dof: int, groups=None):
         """Grouped F of every block (or every pair: groups="pairs") against the fit with Gram
@@ -385,8 +402,7 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         (block, p, F, rank, gain, residual dof) of each."""
         added = []
         while len(A) < min(max_terms, m):
-            rss, rk, G, g = D.given(A)
-            p, F, kc, gain = D.tests(G, g, rss, dof0 - rk)
+            rss, rk, p, F, kc, gain = D.tests_given(A, dof0)
             p[A] = 2.0
             c = int(np.lexsort((-F, p))[0])  # smallest p; ties (p underflows to 0) by the larger F
             tie = np.flatnonzero((np.abs(F - F[c]) <= 1e-9 * F[c]) & (kc == kc[c]) & (p <= p[c] * (1 + 1e-9)))
@@ -455,8 +471,7 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         free = ~np.isin(pl, A).any(axis=1)
         if not free.any():
             return False
-        rss, rk, G, g = D.given(A)
-        p, F, _, _ = D.tests(G, g, rss, dof0 - rk, "pairs")
+        rss, rk, p, F, _, _ = D.tests_given(A, dof0, "pairs")
         p = np.where(free, p, 2.0)
         i = int(np.lexsort((-F, p))[0])
         if p[i] > alpha / (m - len(A)) / int(free.sum()):
@@ -473,8 +488,7 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         best = None
         for b in A:
             rest = [c for c in A if c != b]
-            rss, rk, G, g = D.given(rest)
-            _, _, kc, gain = D.tests(G, g, rss, dof0 - rk)
+            rss, rk, _, _, kc, gain = D.tests_given(rest, dof0)
             ok = (kc > 0) & (kc <= kc[b])
             ok[A] = False
             new = np.where(ok, rss - gain, np.inf)

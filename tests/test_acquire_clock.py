@@ -100,3 +100,16 @@ def test_lower_hull_and_late_outliers():
 def test_strictly_increasing():
     assert strictly_increasing(np.array([5, 5, 4, 10]), None).tolist() == [5, 6, 7, 10]
     assert strictly_increasing(np.array([5, 9]), 7).tolist() == [8, 9]
+
+
+def test_acquired_stream_decodes_on_the_canonical_path(drifted):
+    """The acquisition's layout (device and host time lists after the positions) is the writer's
+    canonical JSON: the fast decoding path takes it, bit-identical to the message-by-message check."""
+    from pipeline.ingest import streams
+
+    rec = drifted[3]
+    fast = streams._joint_stream_canonical(rec.messages.raw[streams.JOINT_STATE])
+    slow = streams._joint_stream_checked(rec)
+    assert fast is not None and fast.names == slow.names
+    assert np.array_equal(fast.t_ns, slow.t_ns) and np.array_equal(fast.message_index, slow.message_index)
+    assert np.array_equal(fast.q.view(np.int64), slow.q.view(np.int64))

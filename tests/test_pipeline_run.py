@@ -193,5 +193,10 @@ def test_later_stages_read_the_recording_without_the_encoder_stream(first_run):
     assert {t: m for t, m in full.messages.raw.items() if t != JOINT_STATE} == \
         {t: m for t, m in rec.messages.raw.items() if t != JOINT_STATE}
     assert rec.metadata == full.metadata and rec.complete and model.parameter_names()
+    # rebuilt from ingest's messages.parquet, not by decompressing the MCAP again
+    assert (first_run / "ingest" / "messages.parquet").is_file()
+    assert rec.log_times == {t: v for t, v in full.log_times.items() if t != JOINT_STATE}
+    assert rec.schemas == full.schemas and list(rec.messages.raw) == list(full.messages.raw)
+    assert rec.path == full.path and rec.profile == full.profile and rec.warnings == full.warnings
     _, _, rec_s = load_system(first_run, with_stream=True)
     assert rec_s.messages.raw[JOINT_STATE] == full.messages.raw[JOINT_STATE]

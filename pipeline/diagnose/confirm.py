@@ -9,7 +9,7 @@ the full-data solution, which is exact to first order and costs a few small leas
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -35,6 +35,7 @@ class AugmentedModel:
     effects: tuple[Effect, ...]
     signatures: Callable | None = None
     scaled: bool = False
+    _last: dict = field(default_factory=dict, compare=False, repr=False)  # memo of `_S`
 
     def scales(self) -> np.ndarray:
         """Physical size of one unit of each parameter (1 for the geometry)."""
@@ -72,7 +73,18 @@ class AugmentedModel:
 
     def _S(self, x: np.ndarray, data) -> np.ndarray:
         """Effect columns (n, residual_dim, Σk_e) at geometric parameters x, per unit of the
-        fitted effect parameters."""
+        fitted effect parameters (read-only).  The refit asks for residuals and Jacobian at the
+        same x: the last x's columns are kept."""
+        key = np.asarray(x, float).tobytes()
+        last = self._last.get("S")
+        if last is not None and last[0] == key and last[1] is data:
+            return last[2]
+        S = self._S_at(x, data)
+        S.setflags(write=False)
+        self._last["S"] = (key, data, S)
+        return S
+
+    def _S_at(self, x: np.ndarray, data) -> np.ndarray:
         if self.signatures is not None:
             cols = self.signatures(x, data, self.effects)
             n = np.asarray(data["joint_positions"]).shape[0]

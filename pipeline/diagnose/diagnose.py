@@ -20,6 +20,7 @@ from typing import Callable
 
 import numpy as np
 
+from pipeline.blas import one_thread
 from pipeline.diagnose import confirm, lack_of_fit, visual
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
 from pipeline.diagnose.select import (Whitener, cluster_whitener, forward_select, gate, measurement_whitener,
@@ -130,7 +131,14 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     diagnosis table.  Without `adapter`, `model` is an arc-welder TouchModel and the table a
     touch diagnosis table (`pipeline.diagnose.table`).  Vector residuals (residual_dim k > 1)
     are flattened measurement-major; cross-validation and bootstrap keep a measurement's k
-    rows together."""
+    rows together.  Runs with one BLAS thread (`pipeline.blas`: small matrices)."""
+    with one_thread():
+        return _diagnose(model, table, jig_tolerance_m=jig_tolerance_m, x0=x0, settings=settings,
+                         library=library, geometry_fit=geometry_fit, adapter=adapter)
+
+
+def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, settings: Settings,
+              library: list[Effect] | None, geometry_fit: Fit | None, adapter: Adapter | None) -> dict:
     s = settings
     ad = adapter or touch_adapter(model, table, jig_tolerance_m, library)
     if geometry_fit is None and ad.held:

@@ -75,13 +75,31 @@ class Effect:
 
 
 # ----- physics helpers ------------------------------------------------------------------
+_TORQUES: dict = {}  # (arm id, x, q, payload) bytes -> (arm, torques): the compliance candidates of all joints share them
+
+
 def gravity_torque(arm: SerialArm, x: np.ndarray, q: np.ndarray, payload_kg: np.ndarray | float) -> np.ndarray:
-    """Gravity torque about each joint axis, (n, n_joints) N·m.
+    """Gravity torque about each joint axis, (n, n_joints) N·m (read-only: memoised on the inputs).
 
     Lumped masses of `arm.masses` (link of joint index j, centre of mass in that link's
     frame) and the payload (kg, per row or scalar) at the tool tip; gravity is −z of {W}.
     """
-    q = np.atleast_2d(q)
+    x = np.asarray(x, float)
+    q = np.atleast_2d(np.asarray(q, float))
+    pl = np.asarray(payload_kg, float)
+    key = (id(arm), x.tobytes(), q.shape, q.tobytes(), pl.shape, pl.tobytes())
+    hit = _TORQUES.get(key)
+    if hit is not None and hit[0] is arm:
+        return hit[1]
+    tau = _gravity_torque(arm, x, q, pl)
+    tau.setflags(write=False)
+    if len(_TORQUES) >= 8:
+        _TORQUES.pop(next(iter(_TORQUES)))
+    _TORQUES[key] = (arm, tau)
+    return tau
+
+
+def _gravity_torque(arm: SerialArm, x: np.ndarray, q: np.ndarray, payload_kg: np.ndarray) -> np.ndarray:
     n, nj = q.shape
     F = serial_arm.frames(x, q)  # (n, nj+2, 4, 4): F[:, k] is the frame joint k rotates in
     z = F[:, :nj, :3, 2]

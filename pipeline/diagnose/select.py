@@ -82,13 +82,26 @@ class Gate:
     projected: np.ndarray  # S⊥ against geometry (and confounders when they are what hides it)
 
 
+def _unit(Sp: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Sp's non-zero columns unit-scaled, and their total square (None: no such column)."""
+    n = np.linalg.norm(Sp, axis=0)
+    if not np.any(n > 0):
+        return None
+    U = Sp[:, n > 0] / n[n > 0]
+    return U, np.sum(U**2)
+
+
+def _share(unit: tuple[np.ndarray, float] | None, Qo: np.ndarray) -> float:
+    """`_explained` of a signature already unit-scaled by `_unit`."""
+    if unit is None or Qo.shape[1] == 0:
+        return 0.0
+    U, uu = unit
+    return float(np.sum((Qo.T @ U) ** 2) / uu)
+
+
 def _explained(Sp: np.ndarray, Qo: np.ndarray) -> float:
     """Share of ‖Sp‖² (columns unit-scaled) in span(Qo)."""
-    n = np.linalg.norm(Sp, axis=0)
-    if not np.any(n > 0) or Qo.shape[1] == 0:
-        return 0.0
-    U = Sp[:, n > 0] / n[n > 0]
-    return float(np.sum((Qo.T @ U) ** 2) / np.sum(U**2))
+    return _share(_unit(Sp), Qo)
 
 
 def absorbing_parameters(S: np.ndarray, Jf: np.ndarray, names: list[str], top: int = 3) -> str:
@@ -137,7 +150,7 @@ def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free
             if smin < RANK_REL * np.sqrt(tot):
                 smin = 0.0
         per.append((tot, absorbed, absorbed_by, conf_label, smin))
-    return {"proj": proj, "basis": basis, "per": per}
+    return {"proj": proj, "basis": basis, "per": per, "unit": [_unit(p) for p in proj]}
 
 
 def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names: list[str], sigma: float,
@@ -162,7 +175,7 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
         tot, absorbed, absorbed_by, conf_label, smin = parts["per"][i]
         # pairwise: an earlier (simpler) identifiable candidate that reproduces this one
         for j in kept:
-            if _explained(sp, basis[j]) > CONFOUND:
+            if _share(parts["unit"][i], basis[j]) > CONFOUND:
                 smin = 0.0
                 conf_label = effects[j].label
                 break
@@ -230,6 +243,12 @@ def _batches(edges: np.ndarray, groups) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 @functools.lru_cache(maxsize=16)
+def _single_batches(k: tuple[int, ...]) -> list:
+    """The batches of the single blocks of widths k (every resample of the bootstrap has the same)."""
+    return _batches(np.concatenate([[0], np.cumsum(k)]).astype(int), [(c,) for c in range(len(k))])
+
+
+@functools.lru_cache(maxsize=16)
 def _pair_batches(k: tuple[int, ...]) -> tuple[np.ndarray, list]:
     """Every pair of blocks (c < d) of widths k and their batches (the bootstrap reuses them)."""
     nc = len(k)
@@ -259,8 +278,9 @@ class _Design:
         self.nb = B.shape[1]
         self.G, self.g, self.rr = C.T @ C, C.T @ r, float(r @ r)
         self.tol = np.asarray(tolerances, float)
-        self.singles = self._batches([(c,) for c in range(self.nc)])
+        self.singles = _single_batches(tuple(int(k) for k in self.k))
         self._pairs = None
+        self._memo: dict = {}  # the selection revisits the same sets: (set, …) -> results
 
     def _batches(self, groups: list[tuple[int, ...]]) -> list[tuple[np.ndarray, np.ndarray]]:
         return _batches(self.edges, groups)
@@ -273,7 +293,13 @@ class _Design:
 
     def given(self, S, only: int | None = None) -> tuple[float, int, np.ndarray, np.ndarray]:
         """(RSS, rank) of the fit of blocks S, and (G, g) of all columns (or of block `only`'s)
-        with S partialled out."""
+        with S partialled out (memoised per (S in order, only); read them, do not write)."""
+        key = ("given", tuple(S), only)
+        if key not in self._memo:
+            self._memo[key] = self._given(S, only)
+        return self._memo[key]
+
+    def _given(self, S, only: int | None) -> tuple[float, int, np.ndarray, np.ndarray]:
         cols = slice(None) if only is None else self.ix[only]
         if not len(S):
             return self.rr, 0, self.G[np.ix_(cols, cols)] if only is not None else self.G, self.g[cols]
@@ -318,6 +344,16 @@ class _Design:
             gains[pos] = np.sum(np.where(keep, proj**2, 0.0), axis=1)
             ranks[pos] = keep.sum(axis=1)
         return gains, ranks
+
+    def tests_given(self, S: list[int], dof0: int, groups=None):
+        """(RSS, rank) of the fit of blocks S and `tests` of every block (or pair) against it,
+        with dof0 − rank residual dof; memoised per (S in order, dof0, groups), fresh arrays."""
+        key = (tuple(S), dof0, groups)
+        if key not in self._memo:
+            rss, rk, G, g = self.given(S)
+            self._memo[key] = (rss, rk, self.tests(G, g, rss, dof0 - rk, groups))
+        rss, rk, out = self._memo[key]
+        return (rss, rk, *(a.copy() for a in out))
 
     def tests(self, G: np.ndarray, g: np.ndarray, rss: float, dof: int, groups=None):
         """Grouped F of every block (or every pair: groups="pairs") against the fit with Gram
@@ -366,8 +402,7 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         (block, p, F, rank, gain, residual dof) of each."""
         added = []
         while len(A) < min(max_terms, m):
-            rss, rk, G, g = D.given(A)
-            p, F, kc, gain = D.tests(G, g, rss, dof0 - rk)
+            rss, rk, p, F, kc, gain = D.tests_given(A, dof0)
             p[A] = 2.0
             c = int(np.lexsort((-F, p))[0])  # smallest p; ties (p underflows to 0) by the larger F
             tie = np.flatnonzero((np.abs(F - F[c]) <= 1e-9 * F[c]) & (kc == kc[c]) & (p <= p[c] * (1 + 1e-9)))
@@ -436,8 +471,7 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         free = ~np.isin(pl, A).any(axis=1)
         if not free.any():
             return False
-        rss, rk, G, g = D.given(A)
-        p, F, _, _ = D.tests(G, g, rss, dof0 - rk, "pairs")
+        rss, rk, p, F, _, _ = D.tests_given(A, dof0, "pairs")
         p = np.where(free, p, 2.0)
         i = int(np.lexsort((-F, p))[0])
         if p[i] > alpha / (m - len(A)) / int(free.sum()):
@@ -454,8 +488,7 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         best = None
         for b in A:
             rest = [c for c in A if c != b]
-            rss, rk, G, g = D.given(rest)
-            _, _, kc, gain = D.tests(G, g, rss, dof0 - rk)
+            rss, rk, _, _, kc, gain = D.tests_given(rest, dof0)
             ok = (kc > 0) & (kc <= kc[b])
             ok[A] = False
             new = np.where(ok, rss - gain, np.inf)

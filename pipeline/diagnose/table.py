@@ -26,10 +26,11 @@ def approach_velocity(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, lead_s: fl
     t_ns = np.asarray(t_ns, np.int64)
     ts = (t - t[0]) * 1e-9
     tm = (t_ns - t[0]) * 1e-9
+    qc = np.ascontiguousarray(np.asarray(q, float).T)  # np.interp would copy a strided column at every call
 
     def over(span):
         a, b = tm - lead_s - span, tm - lead_s
-        return np.stack([(np.interp(b, ts, q[:, j]) - np.interp(a, ts, q[:, j])) / span
+        return np.stack([(np.interp(b, ts, qc[j]) - np.interp(a, ts, qc[j])) / span
                          for j in range(q.shape[1])], axis=1)
 
     long_, short = over(span_s), over(short_s)

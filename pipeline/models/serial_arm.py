@@ -200,7 +200,28 @@ def _constant_run(x: np.ndarray, steps: list, s: int, e: int):
     return P, ax_local, org_local
 
 
+_WALKS: dict = {}  # (x, q, want_jacobian) bytes -> _walk's arrays (read-only)
+
+
 def _walk(x: np.ndarray, q: np.ndarray, want_jacobian: bool):
+    """`_walk_chain`, memoised on its inputs: a fit and the diagnosis ask for the same chain at
+    the same parameters several times (residuals and Jacobian, tip and joint Jacobians).  The
+    arrays returned are read-only; the public functions hand out copies."""
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    key = (x.tobytes(), q.shape, q.tobytes(), want_jacobian)
+    hit = _WALKS.get(key)
+    if hit is None:
+        hit = _walk_chain(x, q, want_jacobian)
+        for a in hit:
+            if isinstance(a, np.ndarray):
+                a.setflags(write=False)
+        if len(_WALKS) >= 8:
+            _WALKS.pop(next(iter(_WALKS)))
+        _WALKS[key] = hit
+    return hit
+
+
+def _walk_chain(x: np.ndarray, q: np.ndarray, want_jacobian: bool):
     """Walk the chain.  Runs of constant steps are folded into one 4×4 product and joint
     rotations are applied as column operations, so the batch cost is a few small array
     operations per joint.  With `want_jacobian`, the world axis and origin of every
@@ -243,7 +264,7 @@ def _walk(x: np.ndarray, q: np.ndarray, want_jacobian: bool):
 def forward(x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Tool pose in the jig frame: rotations (N,3,3) and tip positions (N,3) in m."""
     R, o, *_ = _walk(np.asarray(x, dtype=float), q, False)
-    return R, o
+    return R.copy(), o.copy()
 
 
 def tip_position(x: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -268,7 +289,7 @@ def tip_jacobian(x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                              a[..., 0] * d[..., 1] - a[..., 1] * d[..., 0]], axis=-1)
     J = np.zeros((p.shape[0], 3, x.shape[0]))
     J[:, :, pidx] = cols.transpose(1, 2, 0)  # every parameter drives exactly one step
-    return p, J
+    return p.copy(), J
 
 
 def joint_jacobian(x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -280,7 +301,7 @@ def joint_jacobian(x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray
     for s, (is_rot, _ax, _pi, ji) in enumerate(steps):
         if ji >= 0:
             J[:, :, ji] = np.cross(axes_w[s], p - origins[s])
-    return p, J
+    return p.copy(), J
 
 
 def frames(x: np.ndarray, q: np.ndarray) -> np.ndarray:

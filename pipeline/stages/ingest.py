@@ -1,16 +1,19 @@
 """Stage ingest: MCAP → Parquet (see docs/pipeline-artefacts.md).
 
 Writes `encoder.parquet`, one `<channel>.parquet` per measurement channel, `measurements.parquet`
-(the system's measurement table joined with motion context) and `recording.json`.  A record
+(the system's measurement table joined with motion context), `messages.parquet` (the recording less
+the encoder stream, which later stages read instead of the MCAP) and `recording.json`.  A record
 the system cannot decode does not stop ingest: the error goes to `recording.json` (`errors`)
 and the validate stage fails on it with the record named.
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 
 from pipeline.errors import RobocalError
@@ -21,6 +24,7 @@ from pipeline.recording.reader import read_recording
 from pipeline.stages.artefacts import read_json, read_table, sha256_file, write_json, write_table
 
 NAME = "ingest"
+MESSAGES = "messages.parquet"
 
 
 def channel_file(topic: str) -> str:
@@ -49,6 +53,7 @@ def run(run_dir: Path, params: dict) -> dict:
             continue
         pq.write_table(channel_table(msgs, rec.log_times.get(topic)), out / channel_file(topic), compression="zstd")
         channels[topic] = {"file": channel_file(topic), "messages": len(msgs)}
+    write_messages(out / MESSAGES, rec)
     stream = None
     try:
         stream = joint_stream(rec)
@@ -118,14 +123,55 @@ def read_encoder(run_dir: Path):
                        message_index=np.asarray(tab["record"], np.int64))
 
 
+def write_messages(path: Path, rec) -> None:
+    """`messages.parquet`: the recording less the encoder stream, as it was read — every other
+    message's raw JSON body (`topic`, `log_time_ns`, `body` binary, in file order per channel) and,
+    in the Parquet schema metadata `robocal.recording`, what else the reader found (channel order,
+    schemas, metadata records, complete, warnings, profile).  Later stages rebuild the `Recording`
+    from it (`load_system`) instead of decompressing the whole MCAP again."""
+    topics = [t for t in rec.messages.raw if t != JOINT_STATE]
+    rows = [(t, lt, b) for t in topics for lt, b in zip(rec.log_times.get(t, []), rec.messages.raw[t])]
+    doc = {"topics": list(rec.messages.raw), "schemas": rec.schemas, "metadata": rec.metadata,
+           "complete": rec.complete, "warnings": rec.warnings, "profile": rec.profile}
+    table = pa.table({"topic": pa.array([r[0] for r in rows], pa.string()),
+                      "log_time_ns": pa.array([r[1] for r in rows], pa.int64()),
+                      "body": pa.array([r[2] for r in rows], pa.binary())},
+                     metadata={"robocal.recording": json.dumps(doc)})
+    pq.write_table(table, path, compression="zstd")
+
+
+def read_messages(run_dir: Path, info: dict):
+    """The `Recording` (without the encoder stream's messages) that ingest kept in
+    `messages.parquet`, or None when the run predates it."""
+    from pipeline.recording.reader import Recording
+
+    p = Path(run_dir) / NAME / MESSAGES
+    if not p.is_file():
+        return None
+    table = pq.read_table(p)
+    doc = json.loads(table.schema.metadata[b"robocal.recording"])
+    rec = Recording(path=Path(info["source"]["path"]), metadata=doc["metadata"],
+                    schemas={t: tuple(v) for t, v in doc["schemas"].items()}, warnings=doc["warnings"],
+                    complete=doc["complete"], profile=doc["profile"])
+    for t in doc["topics"]:
+        rec.messages.raw[t] = []
+    for t, lt, b in zip(*(table.column(c).to_pylist() for c in ("topic", "log_time_ns", "body"))):
+        rec.messages.raw[t].append(b)
+        rec.log_times.setdefault(t, []).append(lt)
+    return rec
+
+
 def load_system(run_dir: Path, with_stream: bool = False):
     """(system module, measurement model, recording) of a run: the model comes from the
     recording's own metadata via the system's `load`.  The encoder stream's messages are left
-    out unless `with_stream` (ingest decoded them into `encoder.parquet`: `read_encoder`)."""
+    out unless `with_stream` (ingest decoded them into `encoder.parquet`: `read_encoder`); the
+    rest comes from ingest's `messages.parquet` (`read_messages`), or from the MCAP again."""
     from pipeline.systems.registry import SYSTEMS
 
     info = recording_info(run_dir)
-    rec = read_recording(info["source"]["path"], skip=frozenset() if with_stream else frozenset({JOINT_STATE}))
+    rec = None if with_stream else read_messages(run_dir, info)
+    if rec is None:
+        rec = read_recording(info["source"]["path"], skip=frozenset() if with_stream else frozenset({JOINT_STATE}))
     system = SYSTEMS[info["system"]]
     model, _ = system.load(rec)
     return system, model, rec

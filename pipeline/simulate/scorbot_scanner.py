@@ -35,6 +35,10 @@ class Noise:
     repeatability_3sigma_m: float = 2e-4  # SCORBOT-ER VII: ±0.2 mm
     print_sigma_m: float = 5e-5  # printed corner position, 1σ per in-plane axis
     scale: float = 1.0
+    # Alternative repeatability mechanisms (0 = off, the default draws nothing extra), for
+    # testing the diagnosis against error models other than the isotropic flange error above:
+    joint_repeatability_rad: float = 0.0  # 1σ per joint: the arm stands at q + δq at the capture
+    flange_anisotropy: tuple[float, float, float] = (1.0, 1.0, 1.0)  # per-{B}-axis factors on δt and δω
 
 
 @dataclass(frozen=True)
@@ -362,9 +366,12 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
             q_enc = q - fx["joint_offset"] - fx["joint_scale"] * q_enc - w * fx["time_offset"] - _bumps(fx, q_enc)
         # repeatability: the flange is not exactly where the encoders say
         sig = k * noise.repeatability_3sigma_m / 3
-        dR = rot("x", rng.normal(0, sig / 0.3)) @ rot("y", rng.normal(0, sig / 0.3)) @ rot("z", rng.normal(0, sig / 0.3))
-        dt = rng.normal(0, sig, 3)
-        R_c, C = _camera_pose(xa, s, q[None], (dR, dt))
+        ax, ay, az = noise.flange_anisotropy
+        dR = rot("x", ax * rng.normal(0, sig / 0.3)) @ rot("y", ay * rng.normal(0, sig / 0.3)) \
+            @ rot("z", az * rng.normal(0, sig / 0.3))
+        dt = np.asarray(noise.flange_anisotropy) * rng.normal(0, sig, 3)
+        q_cap = q + rng.normal(0, k * noise.joint_repeatability_rad, q.size) if noise.joint_repeatability_rad else q
+        R_c, C = _camera_pose(xa, s, q_cap[None], (dR, dt))
         p0, dvec = _floor_line(R_c, C, s, pattern.origin[2])
         # the stripe point nearest each printed corner, seen through the actual camera
         X = P_true[idx]

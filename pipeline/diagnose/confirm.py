@@ -29,12 +29,16 @@ class AugmentedModel:
     arc-welder signatures of `pipeline.diagnose.effects` are used.  With `scaled`, the effect
     parameters are in units of each effect's plausible size (`physical` converts back): a lens
     term in 1/m⁴ moves a point by ~1e-9 m per unit, a column the rank test would otherwise take
-    for a zero one (≤ 1e-12 of the largest) and hold at 0."""
+    for a zero one (≤ 1e-12 of the largest) and hold at 0.  With `exact(x, θ, data, effects,
+    jac)` (θ in the effects' own units) the residual (n, residual_dim) and, with jac, the
+    Jacobian (n, residual_dim, n_geom + Σk) come from it instead: a system whose effects are not
+    all small enough for the additive term (the scanner's lens terms)."""
 
     base: object
     effects: tuple[Effect, ...]
     signatures: Callable | None = None
     scaled: bool = False
+    exact: Callable | None = None
 
     def scales(self) -> np.ndarray:
         """Physical size of one unit of each parameter (1 for the geometry)."""
@@ -85,10 +89,15 @@ class AugmentedModel:
 
     def residuals(self, z: np.ndarray, data) -> np.ndarray:
         x, th = z[: self.n_geom], z[self.n_geom:]
+        if self.exact is not None:
+            return self.exact(x, self.physical(z)[self.n_geom:], data, self.effects)
         return self.base.residuals(x, data) + np.einsum("nkc,c->nk", self._S(x, data), th)
 
     def jacobian(self, z: np.ndarray, data) -> np.ndarray:
         x = z[: self.n_geom]
+        if self.exact is not None:
+            _, J = self.exact(x, self.physical(z)[self.n_geom:], data, self.effects, jac=True)
+            return J * self.scales()
         return np.concatenate([self.base.jacobian(x, data), self._S(x, data)], axis=2)
 
     def points(self, z: np.ndarray, data):

@@ -76,6 +76,9 @@ class Adapter:
     noise_shape: Callable[[np.ndarray], np.ndarray] | None = None
     shared_error: tuple[np.ndarray, float] | None = None
     held: tuple[str, ...] = ()  # weak-gauge parameters the geometric baseline holds at the model's nominal
+    # refit(effects): the joint refit's exact model of those effects when some are not additive
+    # enough (`confirm.AugmentedModel.exact`), or None (the additive model)
+    refit: Callable[[tuple], Callable | None] | None = None
 
 
 def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None) -> Adapter:
@@ -227,8 +230,9 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
     folds = kfold_indices(nk, s.folds, s.seed, groups)
     before_cv = confirm.holdout(Jf, r, folds)
-    aug = confirm.AugmentedModel(model, tuple(lib[i] for i in accepted), None if adapter is None else ad.signatures,
-                                 scaled=True)
+    acc_eff = tuple(lib[i] for i in accepted)
+    aug = confirm.AugmentedModel(model, acc_eff, None if adapter is None else ad.signatures, scaled=True,
+                                 exact=None if ad.refit is None else ad.refit(acc_eff))
     if accepted:
         z0 = np.concatenate([x, np.zeros(sum(lib[i].k for i in accepted))])
         fa = fit(aug, table, FitOptions(x0=z0))

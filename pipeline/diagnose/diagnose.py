@@ -22,8 +22,8 @@ import numpy as np
 
 from pipeline.diagnose import confirm, lack_of_fit, visual
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
-from pipeline.diagnose.select import (Whitener, cluster_whitener, forward_select, gate, measurement_whitener,
-                                      noise_components, orthonormal, project_out, sigma_given)
+from pipeline.diagnose.select import (Whitener, cluster_whitener, forward_select, gate, measurement_covariance,
+                                      measurement_whitener, noise_components, orthonormal, project_out, sigma_given)
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
 from pipeline.models import serial_arm
 
@@ -243,7 +243,9 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         par_dof = np.full(z.size, float(max(nk - int(free_a.sum()), 1)))
         if cl is not None:  # errors correlated within a cluster: cluster-robust (CR2 sandwich) standard errors
             std = np.zeros_like(fa.std)
-            std[free_a], par_dof[free_a] = confirm.cluster_robust_std(A, r_final, cl)
+            # under the noise model of the selection (each measurement's noise shape) when there is one
+            work = None if nm is None else measurement_covariance(src, nm.variances)
+            std[free_a], par_dof[free_a] = confirm.cluster_robust_std(A, r_final, cl, work)
         sigma_after = fa.sigma
         if ad.shared_error is not None:  # errors shared within groups: sandwich covariance (honest std)
             cov, _, nu = confirm.shared_error_covariance(A, r_final, *ad.shared_error)

@@ -235,7 +235,10 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
                                  exact=None if ad.refit is None else ad.refit(acc_eff))
     if accepted:
         z0 = np.concatenate([x, np.zeros(sum(lib[i].k for i in accepted))])
-        fa = fit(aug, table, FitOptions(x0=z0))
+        # the weak gauges the baseline held stay held: an exact lens term (`Adapter.refit`) lifts their
+        # exact degeneracy slightly, and freed they would absorb part of the lens effect
+        held = tuple(h for h in ad.held if h in names and not free[names.index(h)])
+        fa = fit(aug, table, FitOptions(x0=z0, fixed=held))
         z, r_final, free_a = fa.x, fa.residuals_after.reshape(nk), fa.free
         A = aug.jacobian(z, table)[:, :, free_a].reshape(nk, -1)
         std = fa.std

@@ -23,7 +23,9 @@ analytic chain rule through the reconstruction (sign conventions shared with
 - ``joint_offset@J<i>`` (rad, when the geometric model has no joint offsets) and
   ``joint_scale@J<i>`` (1): true angle q_i + δ (+ ε·q_i) → S = ∂P/∂q_i (· q_i).
 
-∂P/∂q_i = z_i × (P − o_i) (joint i's axis z_i through o_i in {B}).  `adapter(model, table)`
+∂P/∂q_i = z_i × (P − o_i) (joint i's axis z_i through o_i in {B}).  The joint refit does not add the lens
+effects as S·θ: `refit_terms` reconstructs the points through the lens with them (the reconstruction is
+not linear in (u, v); the additive term biased p2 by ≈ 1 % at 4× its MDS on spread campaigns).  `adapter(model, table)`
 returns the `diagnose.Adapter` (library, signatures, lack-of-fit variables: each joint angle
 through ∂P/∂q_i, time per axis of {B}, image column U through ∂P/∂(U, V)).
 """

@@ -22,9 +22,9 @@ _crs = confirm.cluster_robust_std
 LAST: dict = {}
 
 
-def _keep(A, r, cl):
+def _keep(A, r, cl, working=None):
     LAST.update(A=A, r=r, cl=cl)
-    return _crs(A, r, cl)
+    return _crs(A, r, cl, working)
 
 
 confirm.cluster_robust_std = _keep

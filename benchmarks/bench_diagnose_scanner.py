@@ -158,7 +158,9 @@ def spread_block(n_clean: int, per: int, corners: int) -> int:
             print(f"  {name}@camera {mult}x MDS: found+named {hit / max(m, 1) * 100:.0f} % of {m} (another effect "
                   f"named in {other}), median rel. error {np.median(err) * 100 if err else np.nan:.1f} % (fitted "
                   f"gauge), 95 % CI coverage {np.mean(cover) * 100 if cover else np.nan:.0f} %, held-out/floor "
-                  f"{np.median(ratio) if ratio else np.nan:.2f}", flush=True)
+                  f"{np.median(ratio) if ratio else np.nan:.2f}"
+                  + (f" (p1 {np.mean(cover[0::2]) * 100:.0f} %, p2 {np.mean(cover[1::2]) * 100:.0f} %)"
+                     if name == "tangential_distortion" and cover else ""), flush=True)
     print(f"  spread block: {time.perf_counter() - t0:.0f} s", flush=True)
     return n_eff
 

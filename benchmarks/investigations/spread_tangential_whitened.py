@@ -14,8 +14,8 @@ from pipeline.systems import scorbot_scanner as sc
 NOISE = {"full": ss.Noise(), "img": ss.Noise(repeatability_3sigma_m=0, print_sigma_m=0)}
 _crs = confirm.cluster_robust_std
 LAST = {}
-def _wrap(A, r, cl):
-    s, d = _crs(A, r, cl)
+def _wrap(A, r, cl, working=None):
+    s, d = _crs(A, r, cl, working)
     LAST.update(A=A, r=r, cl=cl, s=s, d=d)
     return s, d
 confirm.cluster_robust_std = _wrap

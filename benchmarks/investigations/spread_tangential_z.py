@@ -20,9 +20,9 @@ _crs = confirm.cluster_robust_std
 LAST: dict = {}
 
 
-def _wrap(A, r, cl):
+def _wrap(A, r, cl, working=None):
     """CR2 as the diagnosis computes it, and the ratio of its std to the i.i.d. std of the last two columns."""
-    s, d = _crs(A, r, cl)
+    s, d = _crs(A, r, cl, working)
     cn = np.linalg.norm(A, axis=0)
     cn[cn == 0] = 1
     B = np.linalg.pinv((A / cn).T @ (A / cn)) / np.outer(cn, cn)

@@ -3,7 +3,7 @@ import json, sys
 import numpy as np
 from scipy import stats
 R = [json.loads(l) for f in sys.argv[1:] for l in open(f)]
-for m in ("img", "full"):
+for m in [m for m in ("img", "full", "rep", "print", "zero") if any(r["mode"] == m for r in R)]:
     Q = [r for r in R if r["mode"] == m and r["found"] and r["cr2_over_iid"]]
     for j, nm in enumerate(("p1", "p2")):
         t = np.array([r["val"] * r["gauge"] for r in Q]); v = np.array([r["pars"][j]["value"] for r in Q])

@@ -29,12 +29,16 @@ class AugmentedModel:
     arc-welder signatures of `pipeline.diagnose.effects` are used.  With `scaled`, the effect
     parameters are in units of each effect's plausible size (`physical` converts back): a lens
     term in 1/m⁴ moves a point by ~1e-9 m per unit, a column the rank test would otherwise take
-    for a zero one (≤ 1e-12 of the largest) and hold at 0."""
+    for a zero one (≤ 1e-12 of the largest) and hold at 0.  With `exact(x, θ, data, effects,
+    jac)` (θ in the effects' own units) the residual (n, residual_dim) and, with jac, the
+    Jacobian (n, residual_dim, n_geom + Σk) come from it instead: a system whose effects are not
+    all small enough for the additive term (the scanner's lens terms)."""
 
     base: object
     effects: tuple[Effect, ...]
     signatures: Callable | None = None
     scaled: bool = False
+    exact: Callable | None = None
     _last: dict = field(default_factory=dict, compare=False, repr=False)  # memo of `_S`
 
     def scales(self) -> np.ndarray:
@@ -97,10 +101,15 @@ class AugmentedModel:
 
     def residuals(self, z: np.ndarray, data) -> np.ndarray:
         x, th = z[: self.n_geom], z[self.n_geom:]
+        if self.exact is not None:
+            return self.exact(x, self.physical(z)[self.n_geom:], data, self.effects)
         return self.base.residuals(x, data) + np.einsum("nkc,c->nk", self._S(x, data), th)
 
     def jacobian(self, z: np.ndarray, data) -> np.ndarray:
         x = z[: self.n_geom]
+        if self.exact is not None:
+            _, J = self.exact(x, self.physical(z)[self.n_geom:], data, self.effects, jac=True)
+            return J * self.scales()
         return np.concatenate([self.base.jacobian(x, data), self._S(x, data)], axis=2)
 
     def points(self, z: np.ndarray, data):
@@ -142,7 +151,15 @@ def shared_error_covariance(A: np.ndarray, r: np.ndarray, Z: np.ndarray,
     return cov, float(np.sqrt(sig2)), nu
 
 
-def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _psd_power(S: np.ndarray, p: float, tol: float = 1e-10) -> np.ndarray:
+    """S^p of a symmetric positive semi-definite matrix on its range (eigenvalues ≤ tol·max dropped)."""
+    w, V = np.linalg.eigh(0.5 * (S + S.T))
+    keep = w > tol * max(float(w.max()), 1e-300)
+    return (V[:, keep] * w[keep] ** p) @ V[:, keep].T
+
+
+def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray,
+                       working: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """1σ of least-squares parameters with design A (N, p) and residuals r (N,) when the errors
     are correlated within clusters, and its degrees of freedom: (std (p,), dof (p,)).
 
@@ -155,7 +172,18 @@ def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> tup
     interval is t-based with the Bell–McCaffrey (Satterthwaite) dof of each variance under the
     working model of i.i.d. errors: the estimate of Var θ_j is Σ_g (c_gᵀe)², c_g = (I − H)_{·g} u_g,
     u_g = M_g A_g B e_j, so ν = (tr K)² / ‖K‖²_F with K_gh = c_gᵀc_h = δ_gh u_gᵀu_g − w_gᵀ B w_h,
-    w_g = A_gᵀ u_g (no N × N matrix is formed)."""
+    w_g = A_gᵀ u_g (no N × N matrix is formed).
+
+    With `working` (n, k, k), each measurement's error covariance up to a common scale (the N
+    rows are n measurements of k rows, none split between clusters), both are taken under that
+    working model Φ instead of i.i.d. errors (Bell & McCaffrey's bias-reduced linearisation with
+    a working covariance): M_g = Φ_g^{1/2}(Φ_g^{1/2} E_g Φ_g^{1/2})^{-1/2}Φ_g^{1/2}, E_g =
+    (I − H)_{g·} Φ (I − H)_{g·}ᵀ, so the variance is unbiased when Φ is right, and ν = (tr K)²/‖K‖²_F
+    with K_gh = c_gᵀ Φ c_h.  With rows of very unequal noise (the scanner's 3-D points: pixel
+    noise through ∂P/∂pixel, rank 2, growing with range) the i.i.d. dof overstates how many
+    clusters carry a parameter's variance."""
+    if working is not None:
+        return _cr2_working(A, r, cluster, np.asarray(working, float))
     ids, inv = np.unique(cluster, return_inverse=True)
     G, p = ids.size, A.shape[1]
     cn = np.linalg.norm(A, axis=0)
@@ -180,6 +208,45 @@ def cluster_robust_std(A: np.ndarray, r: np.ndarray, cluster: np.ndarray) -> tup
     for j in range(p):
         Wj = Wt[:, :, j]  # (G, p)
         K = np.diag(uu[:, j]) - Wj @ Binv @ Wj.T
+        tr = float(np.trace(K))
+        if tr > 0:
+            dof[j] = tr**2 / float(np.sum(K * K))
+    return np.sqrt(np.clip(np.diag(V), 0, None)) / cn, dof
+
+
+def _cr2_working(A: np.ndarray, r: np.ndarray, cluster: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`cluster_robust_std` under the working covariance blocks C (n, k, k) (its docstring)."""
+    n, k = C.shape[:2]
+    N, p = A.shape
+    cn = np.linalg.norm(A, axis=0)
+    cn[cn == 0] = 1.0
+    X = A / cn
+    B = np.linalg.pinv(X.T @ X)
+    IH = np.eye(N) - X @ B @ X.T
+
+    def phi(Y: np.ndarray) -> np.ndarray:  # Φ·Y for Y (N, c), Φ block-diagonal by measurement
+        return np.einsum("nij,njc->nic", C, Y.reshape(n, k, -1)).reshape(Y.shape)
+
+    ids = np.unique(cluster)
+    sc = np.zeros((ids.size, p))
+    c_all = np.zeros((ids.size, N, p))  # c_g of every parameter
+    PhiIH = phi(IH.T)  # Φ (I − H)ᵀ, (N, N)
+    for a, g in enumerate(ids):
+        rows = np.flatnonzero(cluster == g)
+        meas = rows.reshape(-1, k)[:, 0] // k
+        Pg = np.zeros((rows.size, rows.size))
+        for b, m in enumerate(meas):
+            Pg[k * b:k * b + k, k * b:k * b + k] = C[m]
+        Ph = _psd_power(Pg, 0.5)
+        Eg = IH[rows] @ PhiIH[:, rows]
+        Mg = Ph @ _psd_power(Ph @ Eg @ Ph, -0.5) @ Ph
+        sc[a] = X[rows].T @ (Mg @ r[rows])
+        c_all[a] = IH[rows].T @ (Mg @ X[rows] @ B)
+    V = B @ (sc.T @ sc) @ B
+    dof = np.full(p, np.inf)
+    for j in range(p):
+        c = c_all[:, :, j].T  # (N, G)
+        K = c.T @ phi(c)
         tr = float(np.trace(K))
         if tr > 0:
             dof[j] = tr**2 / float(np.sum(K * K))

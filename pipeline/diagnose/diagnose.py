@@ -23,8 +23,8 @@ import numpy as np
 from pipeline.blas import one_thread
 from pipeline.diagnose import confirm, lack_of_fit, visual
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
-from pipeline.diagnose.select import (Whitener, cluster_whitener, forward_select, gate, measurement_whitener,
-                                      noise_components, orthonormal, project_out, sigma_given)
+from pipeline.diagnose.select import (Whitener, cluster_whitener, forward_select, gate, measurement_covariance,
+                                      measurement_whitener, noise_components, orthonormal, project_out, sigma_given)
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
 from pipeline.models import serial_arm
 
@@ -77,6 +77,9 @@ class Adapter:
     noise_shape: Callable[[np.ndarray], np.ndarray] | None = None
     shared_error: tuple[np.ndarray, float] | None = None
     held: tuple[str, ...] = ()  # weak-gauge parameters the geometric baseline holds at the model's nominal
+    # refit(effects): the joint refit's exact model of those effects when some are not additive
+    # enough (`confirm.AugmentedModel.exact`), or None (the additive model)
+    refit: Callable[[tuple], Callable | None] | None = None
 
 
 def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None) -> Adapter:
@@ -235,11 +238,15 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
     folds = kfold_indices(nk, s.folds, s.seed, groups)
     before_cv = confirm.holdout(Jf, r, folds)
-    aug = confirm.AugmentedModel(model, tuple(lib[i] for i in accepted), None if adapter is None else ad.signatures,
-                                 scaled=True)
+    acc_eff = tuple(lib[i] for i in accepted)
+    aug = confirm.AugmentedModel(model, acc_eff, None if adapter is None else ad.signatures, scaled=True,
+                                 exact=None if ad.refit is None else ad.refit(acc_eff))
     if accepted:
         z0 = np.concatenate([x, np.zeros(sum(lib[i].k for i in accepted))])
-        fa = fit(aug, table, FitOptions(x0=z0))
+        # the weak gauges the baseline held stay held: an exact lens term (`Adapter.refit`) lifts their
+        # exact degeneracy slightly, and freed they would absorb part of the lens effect
+        held = tuple(h for h in ad.held if h in names and not free[names.index(h)])
+        fa = fit(aug, table, FitOptions(x0=z0, fixed=held))
         z, r_final, free_a = fa.x, fa.residuals_after.reshape(nk), fa.free
         A = aug.jacobian(z, table)[:, :, free_a].reshape(nk, -1)
         std = fa.std
@@ -247,7 +254,9 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         par_dof = np.full(z.size, float(max(nk - int(free_a.sum()), 1)))
         if cl is not None:  # errors correlated within a cluster: cluster-robust (CR2 sandwich) standard errors
             std = np.zeros_like(fa.std)
-            std[free_a], par_dof[free_a] = confirm.cluster_robust_std(A, r_final, cl)
+            # under the noise model of the selection (each measurement's noise shape) when there is one
+            work = None if nm is None else measurement_covariance(src, nm.variances)
+            std[free_a], par_dof[free_a] = confirm.cluster_robust_std(A, r_final, cl, work)
         sigma_after = fa.sigma
         if ad.shared_error is not None:  # errors shared within groups: sandwich covariance (honest std)
             cov, _, nu = confirm.shared_error_covariance(A, r_final, *ad.shared_error)

@@ -23,7 +23,9 @@ analytic chain rule through the reconstruction (sign conventions shared with
 - ``joint_offset@J<i>`` (rad, when the geometric model has no joint offsets) and
   ``joint_scale@J<i>`` (1): true angle q_i + δ (+ ε·q_i) → S = ∂P/∂q_i (· q_i).
 
-∂P/∂q_i = z_i × (P − o_i) (joint i's axis z_i through o_i in {B}).  `adapter(model, table)`
+∂P/∂q_i = z_i × (P − o_i) (joint i's axis z_i through o_i in {B}).  The joint refit does not add the lens
+effects as S·θ: `refit_terms` reconstructs the points through the lens with them (the reconstruction is
+not linear in (u, v); the additive term biased p2 by ≈ 1 % at 4× its MDS on spread campaigns).  `adapter(model, table)`
 returns the `diagnose.Adapter` (library, signatures, lack-of-fit variables: each joint angle
 through ∂P/∂q_i, time per axis of {B}, image column U through ∂P/∂(U, V)).
 """
@@ -96,9 +98,22 @@ def stripe_normals(px: np.ndarray, pose: np.ndarray) -> np.ndarray:
     return out
 
 
-def context(model, x: np.ndarray, data) -> dict:
+def lens_excess_jacobian(ut: np.ndarray, vt: np.ndarray, k2: float, p1: float, p2: float) -> np.ndarray:
+    """∂(Δu, Δv)/∂(ũ, ṽ) (n,2,2) of `lens_excess`."""
+    r2 = ut**2 + vt**2
+    J = np.empty((ut.size, 2, 2))
+    J[:, 0, 0] = k2 * (r2**2 + 4 * r2 * ut**2) + 2 * p1 * vt + 6 * p2 * ut
+    J[:, 0, 1] = J[:, 1, 0] = 4 * k2 * r2 * ut * vt + 2 * p1 * ut + 2 * p2 * vt
+    J[:, 1, 1] = k2 * (r2**2 + 4 * r2 * vt**2) + 6 * p1 * vt + 2 * p2 * ut
+    return J
+
+
+def context(model, x: np.ndarray, data, lens: tuple[float, float, float] | None = None) -> dict:
     """What the signatures are made of, at geometric parameters x: reconstructed points P,
-    ∂P/∂(u, v) (n,3,2), ∂(u, v)/∂(U, V) (n,2,2), sensor coordinates, ∂P/∂q (n,3,n_joints)."""
+    ∂P/∂(u, v) (n,3,2), ∂(u, v)/∂(U, V) (n,2,2), sensor coordinates, ∂P/∂q (n,3,n_joints).
+    With `lens` (k2 1/m⁴, p1, p2 1/m) the camera's lens has those terms too (`lens_excess`):
+    everything is evaluated through the exact reconstruction with them, and ``dP_dx`` (n,3,P)
+    is the geometric Jacobian of that reconstruction."""
     x = np.asarray(x, float)
     s = x[:cam.N_SCANNER]
     px = np.asarray(data["pixel"], float)
@@ -107,6 +122,11 @@ def context(model, x: np.ndarray, data) -> dict:
     k = s[cam.I_K]
     g = 1 + k * (ut**2 + vt**2)
     u, v = ut * g, vt * g
+    dD = np.zeros((ut.size, 2, 2))
+    if lens is not None:
+        du, dv = lens_excess(ut, vt, *lens)
+        u, v = u + du, v + dv
+        dD = lens_excess_jacobian(ut, vt, *lens)
     f, th, b = s[cam.I_F], s[cam.I_TH], s[cam.I_B]
     den = v + f * np.tan(th)
     rho = b / den
@@ -123,12 +143,18 @@ def context(model, x: np.ndarray, data) -> dict:
     duv_dt[:, 0, 0] = g + 2 * k * ut**2
     duv_dt[:, 0, 1] = duv_dt[:, 1, 0] = 2 * k * ut * vt
     duv_dt[:, 1, 1] = g + 2 * k * vt**2
+    duv_dt += dD
     duv_dpx = duv_dt * np.array([s[cam.I_SU], s[cam.I_SV]])[None, None, :]
-    P = model.residuals(x, data) + np.asarray(data["corner"], float)
+    dP_dx = None
+    if lens is None:
+        P = model.residuals(x, data) + np.asarray(data["corner"], float)
+    else:
+        P, dP_dx = model.points(x, data, (du, dv, dD))
     F = serial_arm.frames(xa, q)
     nj = q.shape[1]
     dP_dq = np.stack([np.cross(F[:, i, :3, 2], P - F[:, i, :3, 3]) for i in range(nj)], axis=2)
-    return {"ut": ut, "vt": vt, "dP_duv": dP_duv, "dP_dpx": np.einsum("nij,njk->nik", dP_duv, duv_dpx),
+    return {"ut": ut, "vt": vt, "P": P, "dP_dx": dP_dx, "dP_duv": dP_duv,
+            "dP_dpx": np.einsum("nij,njk->nik", dP_duv, duv_dpx),
             "dP_dq": dP_dq, "q": q, "qdot": np.asarray(data.get("joint_velocity", np.zeros_like(q)), float),
             "normal": stripe_normals(px, np.asarray(data.get("pose", np.zeros(n)), int))}
 
@@ -207,6 +233,48 @@ def signatures(model, x: np.ndarray, data, effects) -> list[np.ndarray]:
     return [np.asarray(e.basis(c), float) for e in effects]
 
 
+LENS = {"radial_k2": (0,), "tangential_distortion": (1, 2)}  # effect → its slots in (k2, p1, p2)
+
+
+def refit_terms(model, x: np.ndarray, theta: np.ndarray, data, effects, jac: bool = False):
+    """Residual (n,3) m of the geometry x plus `effects` with parameters `theta` (their own
+    units, concatenated), and with `jac` the Jacobian (n,3,P + Σk) per unit of (x, theta).
+
+    The lens effects (k2, p1, p2) enter exactly: the points are reconstructed through the lens
+    with those terms (u = ũ(1 + k r̃²) + Δ(ũ, ṽ)), as the simulator's camera images them, not as
+    S·θ — the reconstruction is not linear in (u, v), and the additive term leaves a bias
+    of ≈ 1 % of p2 at 4× its MDS on the spread campaign (docs/diagnose.md).  The other effects
+    stay additive, their signatures evaluated through that lens."""
+    theta = np.asarray(theta, float)
+    lens = np.zeros(3)
+    i = 0
+    for e in effects:
+        if e.name in LENS:
+            lens[list(LENS[e.name])] += theta[i:i + e.k]
+        i += e.k
+    has_lens = any(e.name in LENS for e in effects)
+    c = context(model, x, data, tuple(lens) if has_lens else None)
+    S = [np.asarray(e.basis(c), float) for e in effects]
+    r = c["P"] - np.asarray(data["corner"], float)
+    i = 0
+    for e, Se in zip(effects, S):
+        if e.name not in LENS:
+            r = r + np.einsum("nkc,c->nk", Se, theta[i:i + e.k])
+        i += e.k
+    if not jac:
+        return r
+    Jx = c["dP_dx"] if c["dP_dx"] is not None else model.jacobian(x, data)
+    return r, np.concatenate([Jx] + S, axis=2)
+
+
+def exact_refit(model, effects):
+    """The joint refit's model of `effects` (`confirm.AugmentedModel.exact`): `refit_terms` when a
+    lens effect is among them, else None (the additive model is exact to first order there)."""
+    if not any(e.name in LENS for e in effects):
+        return None
+    return lambda x, th, data, eff, jac=False: refit_terms(model, x, th, data, eff, jac)
+
+
 def variables(model, x: np.ndarray, table) -> list[lack_of_fit.Variable]:
     """Lack-of-fit variables (rows = flattened residual rows, n·3): each joint angle through
     ∂P/∂q_i, the image column U through ∂P/∂(U, V) (a pixel error varying along the stripe),
@@ -280,7 +348,8 @@ def adapter(model, table, lib: list[Effect] | None = None):
                    cluster=np.asarray(table["pose"]) if "pose" in table else None,
                    cluster_basis=(lambda x: pose_basis(model, x, table)) if "pose" in table else None,
                    noise_shape=lambda x: [context(model, x, table)["dP_dpx"], stripe_directions(table)],
-                   held=WEAK_GAUGES)
+                   held=WEAK_GAUGES,
+                   refit=lambda effects: exact_refit(model, effects))
 
 
 def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray) -> dict:

@@ -631,6 +631,19 @@ def noise_components(r: np.ndarray, Z: np.ndarray, cluster: np.ndarray, sources:
     return NoiseModel(np.append(sj, s_iso), {c: (rk if structural else m) for c, (rk, m) in eff.items()})
 
 
+def measurement_covariance(sources: list[np.ndarray], variances: np.ndarray, floor: float = 1e-3) -> np.ndarray:
+    """Each measurement's noise covariance (n, k, k) m²: Σ_i = Σ_j s_j N_ij N_ijᵀ + s_iso I
+    (`noise_components`), the isotropic part at least `floor` × the median largest eigenvalue
+    (a guard for directions no source reaches; as in `measurement_whitener`)."""
+    n, k = sources[0].shape[:2]
+    C = np.zeros((n, k, k))
+    for N, v in zip(sources, variances):
+        N = np.asarray(N, float)
+        C += v * np.einsum("nic,njc->nij", N, N)
+    lam_med = float(np.median(np.linalg.eigvalsh(C + variances[-1] * np.eye(k))[:, -1]))
+    return C + max(variances[-1], floor * lam_med) * np.eye(k)
+
+
 def measurement_whitener(sources: list[np.ndarray], variances: np.ndarray, floor: float = 1e-3):
     """Row map (nk, c) → (nk, c) that whitens each measurement's k residual rows by its noise
     covariance Σ_i = Σ_j s_j N_ij N_ijᵀ + s_iso I (`noise_components`).  `floor` (relative to the

@@ -90,13 +90,18 @@ def camera_points(s: np.ndarray, px: np.ndarray) -> np.ndarray:
     return rho[:, None] * np.stack([v, u, np.full_like(u, s[I_F])], axis=1)
 
 
-def camera_points_jacobian(s: np.ndarray, px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """p_C (n,3) and d p_C / d(f, s_u, s_v, u0, v0, k, b, θ), (n,3,8), analytic."""
+def camera_points_jacobian(s: np.ndarray, px: np.ndarray, excess=None) -> tuple[np.ndarray, np.ndarray]:
+    """p_C (n,3) and d p_C / d(f, s_u, s_v, u0, v0, k, b, θ), (n,3,8), analytic.  `excess`
+    (Δu (n,), Δv (n,), ∂(Δu, Δv)/∂(ũ, ṽ) (n,2,2)): further lens terms added to the ideal
+    coordinates, u = ũ(1 + k r²) + Δu (m; a lens richer than eq. 2's, e.g. the diagnosis's
+    k2 and tangential terms); None: eq. 2 alone."""
     f, su, sv, u0, v0, k, b, th = s[:8]
     ut, vt = sensor_coords(px, s)
     r2 = ut**2 + vt**2
     g = 1.0 + k * r2
     u, v = ut * g, vt * g
+    if excess is not None:
+        u, v = u + excess[0], v + excess[1]
     t = np.tan(th)
     den = v + f * t
     rho = b / den
@@ -106,6 +111,10 @@ def camera_points_jacobian(s: np.ndarray, px: np.ndarray) -> tuple[np.ndarray, n
     # d(u, v) / d(ũ, ṽ) and / dk
     du_dut, du_dvt = g + 2 * k * ut**2, 2 * k * ut * vt
     dv_dut, dv_dvt = 2 * k * ut * vt, g + 2 * k * vt**2
+    if excess is not None:
+        dD = excess[2]
+        du_dut, du_dvt = du_dut + dD[:, 0, 0], du_dvt + dD[:, 0, 1]
+        dv_dut, dv_dvt = dv_dut + dD[:, 1, 0], dv_dvt + dD[:, 1, 1]
     # ũ depends on s_u, u0; ṽ on s_v, v0
     dut = {1: px[:, 0] - u0, 3: np.full(n, -su)}
     dvt = {2: px[:, 1] - v0, 4: np.full(n, -sv)}

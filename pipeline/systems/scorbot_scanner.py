@@ -157,13 +157,14 @@ class ScannerModel:
         """Flange rotations (n,3,3) and positions (n,3) m in {B}."""
         return serial_arm.forward(self._arm_vector(np.asarray(x, float)), q)
 
-    def points(self, x: np.ndarray, data: Table) -> tuple[np.ndarray, np.ndarray]:
-        """Reconstructed stripe points P (n,3) m in {B} (eq. 13) and dP/dx (n,3,P)."""
+    def points(self, x: np.ndarray, data: Table, excess=None) -> tuple[np.ndarray, np.ndarray]:
+        """Reconstructed stripe points P (n,3) m in {B} (eq. 13) and dP/dx (n,3,P); `excess`:
+        further lens terms (`camera.camera_points_jacobian`)."""
         x = np.asarray(x, float)
         s = x[:cam.N_SCANNER]
         px = np.asarray(data["pixel"], float)
         q = np.asarray(data["joint_positions"], float)
-        p_c, Jc = cam.camera_points_jacobian(s, px)
+        p_c, Jc = cam.camera_points_jacobian(s, px, excess)
         R_he = cam.hand_eye_rotation(s[cam.I_W], s[cam.I_PHI], s[cam.I_PSI])
         p_f = p_c @ R_he.T + s[cam.I_TX:cam.I_TZ + 1]
         J_f = np.empty((px.shape[0], 3, cam.N_SCANNER))

@@ -436,7 +436,10 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
         **({} if W is None else {"clustered_inference": {
             "clusters": W.n_clusters, "sigma_within_m": W.sigma_within, "effective_rows": W.n_effective,
             "noise_variances": None if nm is None else [float(v) for v in nm.variances],
-            "method": "random-effects whitening per cluster (select.cluster_whitener), iterated; within noise from the maximal model"}}),
+            "method": "random-effects whitening per cluster (select.cluster_whitener), iterated; within noise from the maximal model",
+            "lack_of_fit_reference": ("parametric bootstrap under the adapter's physical cluster-error model (REML variances; "
+                                      "diagnose.physical_lack_of_fit)" if ad.cluster_model is not None and nm is not None
+                                      else "restricted wild cluster bootstrap (sign flips)")}}),
         "findings": findings,
         "not_identifiable": not_ident,
         "unexplained": bool(where),

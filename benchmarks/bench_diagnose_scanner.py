@@ -170,6 +170,8 @@ def bump_block(cases) -> int:
     median J2 pose) at each of `BUMPS_RAD`, for `cases` [(seed, clean table)]: located by `unexplained`
     (q_J2, region holding the centre) and a library effect named with high confidence.  Returns the
     runs made."""
+    if not cases:
+        return 0
     for amp in BUMPS_RAD:
         loc_ok, named_hi = 0, 0
         for seed, tab in cases:

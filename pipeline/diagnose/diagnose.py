@@ -19,12 +19,14 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+import scipy.stats
 
 from pipeline.blas import one_thread
 from pipeline.diagnose import confirm, lack_of_fit, visual
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
-from pipeline.diagnose.select import (Whitener, cluster_whitener, forward_select, gate, measurement_covariance,
-                                      measurement_whitener, noise_components, orthonormal, project_out, sigma_given)
+from pipeline.diagnose.select import (PhysicalModel, Whitener, cluster_whitener, forward_select, gate,
+                                      measurement_covariance, measurement_whitener, noise_components, orthonormal,
+                                      physical_components, physical_whitener, project_out, sigma_given)
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
 from pipeline.models import serial_arm
 
@@ -62,6 +64,10 @@ class Adapter:
       (n, residual_dim, p): how a pose's error reaches each residual (None: a shift per
       residual axis) — the tests are then made under the random-effects model of
       `select.cluster_whitener` (pose-clustered inference, docs/diagnose.md);
+    - `cluster_model(x)`: (B (n, residual_dim, p), column groups) — a physical model of the cluster
+      error (B_g e_g, e_g ~ N(0, diag θ), θ shared within each group, estimated from the data):
+      the lack-of-fit test then whitens by it and takes its p-values from a parametric bootstrap
+      under it (`physical_reference`) instead of the sign flips;
     - `shared_error`: (Z (n·residual_dim, g) group membership, τ² m²) — an error shared by the
       rows of a group with a variance known a priori (a jig face's machining error within the
       jig's tolerance); the refit's parameter std then use `confirm.shared_error_covariance`.
@@ -75,11 +81,63 @@ class Adapter:
     cluster: np.ndarray | None = None
     cluster_basis: Callable[[np.ndarray], np.ndarray] | None = None
     noise_shape: Callable[[np.ndarray], np.ndarray] | None = None
+    cluster_model: Callable[[np.ndarray], tuple[np.ndarray, list[np.ndarray]]] | None = None
     shared_error: tuple[np.ndarray, float] | None = None
     held: tuple[str, ...] = ()  # weak-gauge parameters the geometric baseline holds at the model's nominal
     # refit(effects): the joint refit's exact model of those effects when some are not additive
     # enough (`confirm.AugmentedModel.exact`), or None (the additive model)
     refit: Callable[[tuple], Callable | None] | None = None
+
+
+N_DRAWS = 2999  # parametric bootstrap draws of the lack-of-fit reference
+
+
+def physical_reference(ad: Adapter, x: np.ndarray, r: np.ndarray, A: np.ndarray, src: list, nm, cl: np.ndarray,
+                       M, W: Whitener, seed: int) -> tuple[Whitener, np.ndarray]:
+    """(whitener, whitened null draws (nk, N_DRAWS)) of the adapter's physical cluster-error model
+    (`Adapter.cluster_model`) for residual r of design A: the error's variances θ by REML on the
+    measurement-whitened problem (`select.physical_components`, within σ_w from W), each cluster
+    whitened by its own covariance (`select.physical_whitener`), and residuals drawn from the
+    fitted model (measurement noise `nm` + B_g e_g) through the same whitener."""
+    Bm, groups = ad.cluster_model(x)
+    Bm = np.asarray(Bm, float).reshape(r.size, -1)
+    s2 = W.sigma_within**2
+    theta = physical_components(r, A, Bm, groups, cl, s2, pre=M)
+    pm = PhysicalModel(src, nm.variances, Bm, groups, theta, cl)
+    Wp = physical_whitener(pm, s2, M, W.n_effective)
+    return Wp, Wp(pm.draw(N_DRAWS, seed))
+
+
+def physical_lack_of_fit(ad: Adapter, x: np.ndarray, r: np.ndarray, A: np.ndarray, variables: list, src: list, nm,
+                         cl: np.ndarray, M, W: Whitener, alpha: float, seed: int) -> list:
+    """Lack of fit under the adapter's physical cluster-error model (`physical_reference`), stepwise:
+    test every variable (scan statistic, parametric bootstrap, Holm); when several are significant
+    the most extreme one (smallest p, then smallest nominal F tail of its best scan element) is
+    taken, its located bump (`lack_of_fit.located_columns`) joins the design, the model is refitted
+    and the others are tested again given it (Holm over those left; p never below the step
+    before).  Structure in one variable (a bump in J2's transmission) also shows, before it is
+    accounted for, in every variable whose scan can partly imitate it; given it, those are no
+    longer significant.  Returns one `LackOfFit` per variable, in order."""
+    by_name = {v.name: v for v in variables}
+    done: dict = {}
+    rest, D, floor = list(variables), A, 0.0
+    while rest:
+        rr = r - D @ np.linalg.lstsq(D, r, rcond=None)[0]
+        Wl, draws = physical_reference(ad, x, rr, D, src, nm, cl, M, W, seed)
+        vw = [dataclasses.replace(v, columns=Wl(v.columns)) for v in rest]
+        lof = lack_of_fit.test(Wl(rr), Wl(D), vw, Wl.n_effective - D.shape[1], alpha, whiten=Wl,
+                               original=(rr, D, rest), cluster=cl, seed=seed, draws=draws)
+        lof = [dataclasses.replace(t, p_holm=max(t.p_holm, floor)) for t in lof]
+        sig = [t for t in lof if t.significant]
+        if len(sig) <= 1:
+            done.update({t.variable: t for t in lof})
+            break
+        best = min(sig, key=lambda t: (t.p_value, scipy.stats.f.sf(t.statistic, *t.dof)))
+        done[best.variable] = best
+        floor = best.p_holm
+        D = np.hstack([D, lack_of_fit.located_columns(by_name[best.variable], best.region)])
+        rest = [v for v in rest if v.name != best.variable]
+    return [done[v.name] for v in variables]
 
 
 def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None) -> Adapter:
@@ -320,13 +378,16 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     if W is None:
         lof = lack_of_fit.test(r_final, A, variables, nk - A.shape[1], s.alpha)
     else:
-        vw = [dataclasses.replace(v, columns=W(v.columns)) for v in variables]
-        lof = lack_of_fit.test(W(r_final), W(A), vw, W.n_effective - A.shape[1], s.alpha, whiten=W,
-                               original=(r_final, A, variables),
-                               cluster=cl, seed=s.seed)
+        if ad.cluster_model is not None and nm is not None:  # parametric reference (physical cluster error)
+            lof = physical_lack_of_fit(ad, z[:ng], r_final, A, variables, src, nm, cl, M, W, s.alpha, s.seed)
+        else:
+            vw = [dataclasses.replace(v, columns=W(v.columns)) for v in variables]
+            lof = lack_of_fit.test(W(r_final), W(A), vw, W.n_effective - A.shape[1], s.alpha, whiten=W,
+                                   original=(r_final, A, variables), cluster=cl, seed=s.seed)
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
               "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m}
-             for t in sorted(lof, key=lambda t: t.p_value) if t.significant]
+             for t in sorted(lof, key=lambda t: (t.p_value, scipy.stats.f.sf(t.statistic, *t.dof) if t.dof[0] else 1.0))
+             if t.significant]
     flagged = {w["variable"] for w in where}
     for fd, i in zip(findings, accepted):
         ev = fd["evidence"]
@@ -392,7 +453,10 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         **({} if W is None else {"clustered_inference": {
             "clusters": W.n_clusters, "sigma_within_m": W.sigma_within, "effective_rows": W.n_effective,
             "noise_variances": None if nm is None else [float(v) for v in nm.variances],
-            "method": "random-effects whitening per cluster (select.cluster_whitener), iterated; within noise from the maximal model"}}),
+            "method": "random-effects whitening per cluster (select.cluster_whitener), iterated; within noise from the maximal model",
+            "lack_of_fit_reference": ("parametric bootstrap under the adapter's physical cluster-error model (REML variances; "
+                                      "diagnose.physical_lack_of_fit)" if ad.cluster_model is not None and nm is not None
+                                      else "restricted wild cluster bootstrap (sign flips)")}}),
         "findings": findings,
         "not_identifiable": not_ident,
         "unexplained": bool(where),

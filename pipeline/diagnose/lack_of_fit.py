@@ -215,7 +215,7 @@ def scan_cluster_p(sc: Scan, T: float, R: np.ndarray, dof: int) -> float:
 
 def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int, alpha: float = 0.01,
          whiten=None, original: tuple | None = None, cluster: np.ndarray | None = None,
-         seed: int = 0, scan: bool = True) -> list[LackOfFit]:
+         seed: int = 0, scan: bool = True, draws: np.ndarray | None = None) -> list[LackOfFit]:
     """Grouped F test of each variable's smooth basis against design A, Holm across variables.
     With clustered errors, r, A and the variables' columns come whitened (`select.Whitener`),
     `whiten` is that W (for `locate`) and `original` = (r, A, variables) unwhitened: `peak_m`
@@ -224,7 +224,9 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
     instead of the F distribution, which would hold only if the whitening's between-cluster
     covariance (estimated from a few clusters) were exact: with `scan` (default) of the scan
     statistic (`scan_basis`, `scan_cluster_p`; `statistic` is then the best element's F and
-    `region` its centre ± width), else of the smooth basis's F (`wild_cluster_p`)."""
+    `region` its centre ± width), else of the smooth basis's F (`wild_cluster_p`).  `draws` (N, B):
+    residuals drawn from a parametric null model (whitened like r, e.g. `select.PhysicalModel.draw`)
+    replace the sign flips as the scan statistic's reference (a parametric bootstrap)."""
     QA = orthonormal(A)
     if original is not None:
         QA0 = orthonormal(original[1])
@@ -246,7 +248,7 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         raw.append((v, F, (kb, dof_resid - kb), p, Bp, Qb))
     scans: dict[str, tuple[float, float]] = {}
     if cluster is not None and scan:
-        R = sign_flips(res, QA, cluster, seed=seed)
+        R = sign_flips(res, QA, cluster, seed=seed) if draws is None else draws - QA @ (QA.T @ draws)
         for k, (v, *_rest) in enumerate(raw):
             sc = None if raw[k][4] is None else scan_basis(v, QA, whiten)
             if sc is None:

@@ -319,6 +319,65 @@ def pose_basis(model, x: np.ndarray, table) -> np.ndarray:
     return Z
 
 
+def repeatability_basis(model, x: np.ndarray, table) -> np.ndarray:
+    """How a pose's repeatability error reaches its residuals (n, 3, 6), linearised: the flange
+    stands (δt, δω) (m, rad; {B}) away from where the encoders say (R_f → (I + [δω]×) R_f, t_f →
+    t_f + δt, the simulator's model).  The laser stripe then lands beside the grid line: the
+    crossing of corner X slides in the target plane, along m (⟂ the stripe there), by −s/(n·m),
+    s = δω·(n × (X − t_f)) − n·δt the corner's distance to the moved laser plane (n its normal
+    in {B}); and the model, which places the camera where the encoders say, reconstructs that
+    crossing moved back by δt + δω × (X − t_f).  Both are rigid motions of the pose's points,
+    so span ⊂ `pose_basis`; what this adds is their covariance under a physical model
+    (δt, δω isotropic, independent between poses)."""
+    x = np.asarray(x, float)
+    s = x[:cam.N_SCANNER]
+    q = np.asarray(table["joint_positions"], float)
+    X = np.asarray(table["corner"], float)
+    R_f, t_f = model.flange(x, q)
+    R_he = cam.hand_eye_rotation(s[cam.I_W], s[cam.I_PHI], s[cam.I_PSI])
+    n_c, _ = cam.laser_plane(s)
+    nrm = np.einsum("nij,jk,k->ni", R_f, R_he, n_c)  # laser plane normal in {B}
+    _, _, Vt = np.linalg.svd(X - X.mean(axis=0), full_matrices=False)
+    ez = Vt[2]  # the target plane's normal
+    ell = np.cross(nrm, ez)
+    ell /= np.linalg.norm(ell, axis=1, keepdims=True)
+    m = np.cross(ez[None], ell)  # in the target plane, across the stripe
+    nm = np.sum(nrm * m, axis=1)
+    d = X - t_f
+    n = X.shape[0]
+    B = np.zeros((n, 3, 6))
+    # slide: −s/(n·m)·m with s = δω·(n × d) − n·δt
+    B[:, :, :3] += (m / nm[:, None])[:, :, None] * nrm[:, None, :]
+    B[:, :, 3:] -= (m / nm[:, None])[:, :, None] * np.cross(nrm, d)[:, None, :]
+    # moved back: −δt − δω × d = −δt + [d]× δω
+    B[:, :, :3] -= np.eye(3)
+    dx = np.zeros((n, 3, 3))
+    dx[:, 0, 1], dx[:, 0, 2] = -d[:, 2], d[:, 1]
+    dx[:, 1, 0], dx[:, 1, 2] = d[:, 2], -d[:, 0]
+    dx[:, 2, 0], dx[:, 2, 1] = -d[:, 1], d[:, 0]
+    B[:, :, 3:] += dx
+    return B
+
+
+def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The pose error of a scanner campaign as two physical mechanisms (n, 3, 12), each a flange
+    error (δt, δω) with isotropic translation and rotation variances (4 column groups): the flange
+    displaced after the stripe was put on the grid line (`repeatability_basis`: the crossing slides,
+    the points move back) and the encoders misreading a flange that is where the stripe says (the
+    points move back only: a pure rigid motion, which also reaches the off-plane rows that carry no
+    measurement noise).  The data decide the four variances (`select.physical_components`)."""
+    B = repeatability_basis(model, x, table)
+    R_f, t_f = model.flange(x, np.asarray(table["joint_positions"], float))
+    d = np.asarray(table["corner"], float) - t_f
+    n = d.shape[0]
+    Br = np.zeros((n, 3, 6))
+    Br[:, :, :3] = -np.eye(3)
+    Br[:, 0, 4], Br[:, 0, 5] = d[:, 2], -d[:, 1]  # −δω × d = [d]× δω
+    Br[:, 1, 3], Br[:, 1, 5] = -d[:, 2], d[:, 0]
+    Br[:, 2, 3], Br[:, 2, 4] = d[:, 1], -d[:, 0]
+    return np.concatenate([B, Br], axis=2), [np.arange(3 * i, 3 * i + 3) for i in range(4)]
+
+
 def stripe_directions(table) -> np.ndarray:
     """Unit direction (n, 3, 1) in {B} of the grid line each pose's corners lie on: the printed
     corner's error along the stripe (the part across it only moves the crossing along the line)
@@ -348,6 +407,7 @@ def adapter(model, table, lib: list[Effect] | None = None):
                    cluster=np.asarray(table["pose"]) if "pose" in table else None,
                    cluster_basis=(lambda x: pose_basis(model, x, table)) if "pose" in table else None,
                    noise_shape=lambda x: [context(model, x, table)["dP_dpx"], stripe_directions(table)],
+                   cluster_model=(lambda x: repeatability_model(model, x, table)) if "pose" in table else None,
                    held=WEAK_GAUGES,
                    refit=lambda effects: exact_refit(model, effects))
 

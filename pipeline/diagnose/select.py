@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.optimize
 import scipy.special
 import scipy.stats
 
@@ -714,3 +715,108 @@ def cluster_whitener(r: np.ndarray, Z: np.ndarray, cluster: np.ndarray, n_fitted
         blocks.append((rows, (Vec / np.sqrt(np.clip(w, 1e-12, None))) @ Vec.T))
     n_eff = sum(effective_rows.values()) if effective_rows is not None else Z.shape[0]
     return Whitener(blocks, float(np.sqrt(s2)), psi, len(ids), pre, int(n_eff))
+
+
+# ----- parametric (physical) model of the cluster errors ---------------------------------------
+@dataclass
+class PhysicalModel:
+    """Null model of a clustered residual with a physical cluster error: each measurement's k rows
+    carry the independent noise of `sources` (Σ_i = Σ_j s_j N_ij N_ijᵀ + s_iso I, `variances` as
+    `noise_components`), and cluster g's rows B_g e_g, e_g ~ N(0, diag θ) with θ constant within
+    each column group of `groups` (for the scanner's repeatability: δt and δω of the flange, each
+    isotropic).  `draw` simulates residuals from it (for a parametric bootstrap)."""
+
+    sources: list[np.ndarray]
+    variances: np.ndarray
+    B: np.ndarray  # (nk, p) how a cluster's error reaches each row
+    groups: list[np.ndarray]  # column indices of B sharing one variance
+    theta: np.ndarray  # (len(groups),) variance of each group's components
+    cluster: np.ndarray  # (nk,) cluster of each row
+
+    def column_variances(self) -> np.ndarray:
+        v = np.zeros(self.B.shape[1])
+        for g, t in zip(self.groups, self.theta):
+            v[g] = t
+        return v
+
+    def draw(self, n_draw: int, seed: int = 0) -> np.ndarray:
+        """Residual draws (nk, n_draw) from the model (Gaussian)."""
+        rng = np.random.default_rng(seed)
+        n, k = self.sources[0].shape[:2]
+        out = np.sqrt(self.variances[-1]) * rng.standard_normal((n, k, n_draw))
+        for N, v in zip(self.sources, self.variances):
+            out += np.sqrt(v) * np.einsum("nkc,ncb->nkb", np.asarray(N, float), rng.standard_normal((n, N.shape[2], n_draw)))
+        out = out.reshape(n * k, n_draw)
+        ids, inv = np.unique(self.cluster, return_inverse=True)
+        e = rng.standard_normal((ids.size, self.B.shape[1], n_draw)) * np.sqrt(self.column_variances())[None, :, None]
+        return out + np.einsum("rp,rpb->rb", self.B, e[inv])
+
+
+def _cluster_gram(Bj: np.ndarray, cluster: np.ndarray) -> np.ndarray:
+    """Block-diagonal Σ_g B_gj B_gjᵀ (nk, nk): the covariance of one group of cluster errors per unit θ."""
+    return (Bj @ Bj.T) * (cluster[:, None] == cluster[None, :])
+
+
+def _block_columns(Bj: np.ndarray, cluster: np.ndarray) -> np.ndarray:
+    """(nk, G·c): cluster g's rows of Bj (nk, c) in its own c columns, so that Σ_g B_gj B_gjᵀ = out outᵀ."""
+    ids, inv = np.unique(cluster, return_inverse=True)
+    c = Bj.shape[1]
+    out = np.zeros((Bj.shape[0], ids.size * c))
+    cols = inv[:, None] * c + np.arange(c)[None]
+    np.put_along_axis(out, cols, Bj, axis=1)
+    return out
+
+
+def physical_components(r: np.ndarray, A: np.ndarray, B: np.ndarray, groups: list[np.ndarray],
+                        cluster: np.ndarray, sigma2: float, pre=None, iterations: int = 12) -> np.ndarray:
+    """Variances θ (one per column group of B) of the cluster errors by REML (Fisher scoring, θ ≥ 0),
+    from residual r of design A (both unwhitened; on the `pre`-whitened problem, in which the
+    measurement noise is σ_w² = `sigma2` per row, held fixed): V = σ_w² I + Σ_j θ_j V_j, V_j =
+    Σ_g B_gj B_gjᵀ, P = V⁻¹ − V⁻¹Q(QᵀV⁻¹Q)⁻¹QᵀV⁻¹ (Q spans A, so the fit's share of the
+    between-cluster dimensions is accounted for); score_j = ½(rᵀPV_jPr − tr PV_j), information
+    ½ tr(PV_jPV_k).  Started from the moment estimate (E eᵀV_je, e = (I − QQᵀ)r, solved by
+    non-negative least squares).  REML rather than moments: when several mechanisms overlap, the
+    moments weight the directions only one of them reaches poorly and misplace the variance."""
+    if pre is not None:
+        r, A, B = pre(np.asarray(r, float)[:, None])[:, 0], pre(A), pre(B)
+    Q = orthonormal(A)
+    e = project_out(r[:, None], Q)[:, 0]
+    Bb = [_block_columns(B[:, g], cluster) for g in groups]
+    PB = [project_out(b, Q) for b in Bb]
+    y = np.array([np.sum((b.T @ e) ** 2) for b in Bb])
+    c0 = np.array([sigma2 * np.sum(b * pb) for b, pb in zip(Bb, PB)])
+    G = np.array([[np.sum((b.T @ pl) ** 2) for pl in PB] for b in Bb])
+    theta, _ = scipy.optimize.nnls(G, y - c0)
+    n = r.size
+    for _ in range(iterations):
+        V = sigma2 * np.eye(n) + sum(t * (b @ b.T) for t, b in zip(theta, Bb))
+        Vi = np.linalg.inv(V)
+        ViQ = Vi @ Q
+        P = Vi - ViQ @ np.linalg.solve(Q.T @ ViQ, ViQ.T)
+        Pr = P @ r
+        PBb = [P @ b for b in Bb]
+        score = np.array([0.5 * (np.sum((b.T @ Pr) ** 2) - np.sum(b * pb)) for b, pb in zip(Bb, PBb)])
+        info = np.array([[0.5 * np.sum((bj.T @ pk) ** 2) for pk in PBb] for bj in Bb])
+        step = np.linalg.lstsq(info, score, rcond=None)[0]
+        new = np.clip(theta + step, 0.0, None)
+        if np.allclose(new, theta, rtol=1e-4, atol=1e-6 * max(float(np.max(theta)), 1e-300)):
+            theta = new
+            break
+        theta = new
+    return theta
+
+
+def physical_whitener(model: PhysicalModel, sigma2: float, pre=None, n_effective: int = 0) -> Whitener:
+    """`Whitener` of a `PhysicalModel`: per cluster Σ_g = σ_w² I + B_g diag θ B_gᵀ on the `pre`-whitened
+    rows (each cluster's own covariance, from the physical map B_g — not one Ψ for all clusters)."""
+    B = model.B if pre is None else pre(model.B)
+    cv = model.column_variances()
+    blocks = []
+    ids = np.unique(model.cluster)
+    for c in ids:
+        rows = np.flatnonzero(model.cluster == c)
+        Bg = B[rows]
+        Sg = np.eye(rows.size) + (Bg * cv) @ Bg.T / sigma2
+        w, Vec = np.linalg.eigh(Sg)
+        blocks.append((rows, (Vec / np.sqrt(np.clip(w, 1e-12, None))) @ Vec.T))
+    return Whitener(blocks, float(np.sqrt(sigma2)), np.diag(cv), ids.size, pre, int(n_effective))

@@ -114,7 +114,8 @@ def run_spread(specs, seed, corners):
     return diagnose(m, tab, adapter=ds.adapter(m, tab), settings=Settings(n_boot=0))
 
 
-def spread_block(n_clean: int, per: int, corners: int) -> int:
+def spread_block(n_clean: int, per: int, corners: int,
+                 names: tuple[str, ...] = ("radial_k2", "tangential_distortion")) -> int:
     """k2 (and tangential, as a check) on spread campaigns: clean false findings / `unexplained`,
     k2's MDS and verdict, each injected at 4x and 2x its MDS (found and named, median relative
     error in the fitted gauge, 95 % CI coverage, held-out / floor).  Returns the effect runs made."""
@@ -140,7 +141,7 @@ def spread_block(n_clean: int, per: int, corners: int) -> int:
           f"elsewhere not_identifiable with advice {sum(bool(x and x['advice']) for x in ni)} of "
           f"{n - sum(ident)}", flush=True)
     n_eff = 0
-    for name in ("radial_k2", "tangential_distortion"):
+    for name in names:
         for mult in (4, 2):
             hit, other, err, cover, ratio, m = 0, 0, [], [], [], 0
             for seed, d0 in zip(seeds, clean):
@@ -196,11 +197,13 @@ def main() -> None:
     ap.add_argument("--spread-per", type=int, default=8, help="spread runs per effect and size")
     ap.add_argument("--spread-corners", type=int, default=8)
     ap.add_argument("--spread-only", action="store_true", help="only the spread block")
+    ap.add_argument("--spread-effects", nargs="+", default=["radial_k2", "tangential_distortion"],
+                    help="effects injected in the spread block")
     ap.add_argument("--bump-only", nargs=2, type=int, metavar=("FIRST_SEED", "N"),
                     help="only the bump block, on campaigns FIRST_SEED .. FIRST_SEED+N-1 (an independent set: 10032 64)")
     a = ap.parse_args()
     if a.spread_only:
-        spread_block(a.spread_clean, a.spread_per, a.spread_corners)
+        spread_block(a.spread_clean, a.spread_per, a.spread_corners, tuple(a.spread_effects))
         return
     if a.bump_only:
         first, n = a.bump_only
@@ -268,7 +271,7 @@ def main() -> None:
               flush=True)
     n_eff += bump_block([(10_000 + s % a.clean, tabs[s % a.clean]) for s in range(2 * a.per)])
     if a.spread_clean:
-        n_eff += spread_block(a.spread_clean, a.spread_per, a.spread_corners)
+        n_eff += spread_block(a.spread_clean, a.spread_per, a.spread_corners, tuple(a.spread_effects))
     print(f"total {a.clean} clean + {n_eff} with effects, {time.perf_counter() - t0:.0f} s")
 
 

@@ -372,7 +372,7 @@ def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[n
     n = d.shape[0]
     Br = np.zeros((n, 3, 6))
     Br[:, :, :3] = -np.eye(3)
-    Br[:, 0, 4], Br[:, 0, 5] = d[:, 2], -d[:, 1]  # −δω × d = [d]× δω
+    Br[:, 0, 4], Br[:, 0, 5] = d[:, 2], -d[:, 1]  # δω × d = −[d]× δω (a column's sign is immaterial to θ's covariance)
     Br[:, 1, 3], Br[:, 1, 5] = -d[:, 2], d[:, 0]
     Br[:, 2, 3], Br[:, 2, 4] = d[:, 1], -d[:, 0]
     return np.concatenate([B, Br], axis=2), [np.arange(3 * i, 3 * i + 3) for i in range(4)]

@@ -632,17 +632,23 @@ def noise_components(r: np.ndarray, Z: np.ndarray, cluster: np.ndarray, sources:
     return NoiseModel(np.append(sj, s_iso), {c: (rk if structural else m) for c, (rk, m) in eff.items()})
 
 
-def measurement_covariance(sources: list[np.ndarray], variances: np.ndarray, floor: float = 1e-3) -> np.ndarray:
-    """Each measurement's noise covariance (n, k, k) m²: Σ_i = Σ_j s_j N_ij N_ijᵀ + s_iso I
-    (`noise_components`), the isotropic part at least `floor` × the median largest eigenvalue
-    (a guard for directions no source reaches; as in `measurement_whitener`)."""
+def _covariance_and_scale(sources: list[np.ndarray], variances: np.ndarray, floor: float) -> tuple[np.ndarray, float]:
+    """(Σ (n, k, k) of `measurement_covariance`, the median largest eigenvalue before the floor)."""
     n, k = sources[0].shape[:2]
     C = np.zeros((n, k, k))
     for N, v in zip(sources, variances):
         N = np.asarray(N, float)
         C += v * np.einsum("nic,njc->nij", N, N)
     lam_med = float(np.median(np.linalg.eigvalsh(C + variances[-1] * np.eye(k))[:, -1]))
-    return C + max(variances[-1], floor * lam_med) * np.eye(k)
+    C += max(variances[-1], floor * lam_med) * np.eye(k)
+    return C, lam_med
+
+
+def measurement_covariance(sources: list[np.ndarray], variances: np.ndarray, floor: float = 1e-3) -> np.ndarray:
+    """Each measurement's noise covariance (n, k, k) m²: Σ_i = Σ_j s_j N_ij N_ijᵀ + s_iso I
+    (`noise_components`), the isotropic part at least `floor` × the median largest eigenvalue
+    (a guard for directions no source reaches; as in `measurement_whitener`)."""
+    return _covariance_and_scale(sources, variances, floor)[0]
 
 
 def measurement_whitener(sources: list[np.ndarray], variances: np.ndarray, floor: float = 1e-3):
@@ -651,12 +657,7 @@ def measurement_whitener(sources: list[np.ndarray], variances: np.ndarray, floor
     median largest eigenvalue of Σ_i) only guards directions no source reaches against a zero
     variance estimate; the output keeps the residual's units (scaled by √median λ_max)."""
     n, k = sources[0].shape[:2]
-    C = np.zeros((n, k, k))
-    for N, v in zip(sources, variances):
-        N = np.asarray(N, float)
-        C += v * np.einsum("nic,njc->nij", N, N)
-    lam_med = float(np.median(np.linalg.eigvalsh(C + variances[-1] * np.eye(k))[:, -1]))
-    C += max(variances[-1], floor * lam_med) * np.eye(k)
+    C, lam_med = _covariance_and_scale(sources, variances, floor)
     w, V = np.linalg.eigh(C)
     T = np.einsum("nij,nj,nkj->nik", V, np.sqrt(lam_med) / np.sqrt(w), V)
 

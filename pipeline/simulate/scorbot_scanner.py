@@ -39,6 +39,7 @@ class Noise:
     # testing the diagnosis against error models other than the isotropic flange error above:
     joint_repeatability_rad: float = 0.0  # 1σ per joint: the arm stands at q + δq at the capture
     flange_anisotropy: tuple[float, float, float] = (1.0, 1.0, 1.0)  # per-{B}-axis factors on δt and δω
+    encoder_repeatability_rad: float = 0.0  # 1σ per joint: the arm is where the stripe says, the encoders read δq off
 
 
 @dataclass(frozen=True)
@@ -364,6 +365,8 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
         q_enc = q.copy()  # encoders: true = enc + offset + scale·enc, and the image is δ late
         for _ in range(8):
             q_enc = q - fx["joint_offset"] - fx["joint_scale"] * q_enc - w * fx["time_offset"] - _bumps(fx, q_enc)
+        if noise.encoder_repeatability_rad:
+            q_enc = q_enc + rng.normal(0, k * noise.encoder_repeatability_rad, q.size)
         # repeatability: the flange is not exactly where the encoders say
         sig = k * noise.repeatability_3sigma_m / 3
         ax, ay, az = noise.flange_anisotropy

@@ -1,6 +1,8 @@
 """Benchmark: time to diagnose a 300-contact arc-welder recording (target < 1 s).
 
-Run: .venv/bin/python benchmarks/bench_diagnose_speed.py
+Run: .venv/bin/python benchmarks/bench_diagnose_speed.py [--default-blas]
+(`--default-blas`: the diagnosis with the BLAS's own thread count instead of `pipeline.blas.one_thread`,
+the comparison behind that module's docstring.)
 Simulates a clean campaign and one with two effects (payload 0/6 kg, three search speeds), then times (best of 3)
 - the diagnosis core (geometric fit, gating, selection, confirmation, lack of fit);
 - the `diagnose` stage of `robocal run` (`pipeline.diagnose.stage.run` after ingest): the recording
@@ -38,6 +40,13 @@ CASES = {"clean": [], "two effects": ["--effect", "backlash=5e-4@J3", "--effect"
 
 
 def main() -> None:
+    if "--default-blas" in sys.argv[1:]:
+        import contextlib
+
+        import pipeline.diagnose.diagnose as dd
+
+        dd.one_thread = contextlib.nullcontext
+        print("BLAS threads: library default (not limited to one)")
     for label, extra in CASES.items():
         one(label, extra)
 

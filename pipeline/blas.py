@@ -4,7 +4,8 @@ The diagnosis does thousands of products, QRs and eigendecompositions of matrice
 hundred rows by tens of columns.  Multi-threaded OpenBLAS gains nothing at these sizes and, on
 a machine whose cores are busy, its worker threads spin-wait for a core: the 300-contact
 diagnosis took 2.0 s wall (1.3 s CPU) with OpenBLAS's default threads on a loaded 2-core box
-and 0.46 s (0.46 s CPU) with one, bit-identical (`benchmarks/bench_diagnose_speed.py`).
+and 0.46 s (0.46 s CPU) with one, bit-identical (`benchmarks/bench_diagnose_speed.py
+[--default-blas]`; the gap depends on how busy the cores are).
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import bench_diagnose_scanner as b
+from spread_cases import tangential_cases
 from pipeline.diagnose import confirm
 from pipeline.diagnose import scanner as ds
 from pipeline.diagnose.diagnose import Settings, diagnose
@@ -30,14 +31,7 @@ def _keep(A, r, cl, working=None):
 confirm.cluster_robust_std = _keep
 start, n, mode, mult, out = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], float(sys.argv[4]), sys.argv[5]
 os.makedirs(out, exist_ok=True)
-for seed in range(30_000 + start, 30_000 + start + n):
-    d0 = b.run_spread([], seed, 8)
-    if d0 is None:
-        continue
-    mds = b.mds_of(d0).get(("tangential_distortion", "camera"))
-    if mds is None:
-        continue
-    sp, val = b.spec("tangential_distortion", "camera", mult * mds)
+for seed, sp, val in tangential_cases(start, n, mult):
     c = ss.Campaign(poses=20, corners=8, seed=seed, capture_speed_rad_s=0.1, spread=True)
     sim, tab = ss.simulate_in_memory(b.ARM, b.ARM, b.truth(), c, noise=NOISE[mode], effects=(parse_effect(sp),),
                                      plan_cache=b.CACHE)

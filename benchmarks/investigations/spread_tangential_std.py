@@ -54,14 +54,19 @@ def psd_power(S, p, tol=1e-10):
     return (Q[:, keep] * w[keep] ** p) @ Q[:, keep].T
 
 
-def wcr2(A, r, cl, Phi):
-    """CR2 with working covariance Phi (N,N), block-diagonal by cluster; BM dof under Phi."""
+def _scaled_hat(A):
+    """(column norms, unit-scaled X, (XᵀX)⁺, I − H) of design A."""
     cn = np.linalg.norm(A, axis=0)
     cn[cn == 0] = 1
     X = A / cn
-    N, p = X.shape
     M = np.linalg.pinv(X.T @ X)
-    IH = np.eye(N) - X @ M @ X.T
+    return cn, X, M, np.eye(X.shape[0]) - X @ M @ X.T
+
+
+def wcr2(A, r, cl, Phi):
+    """CR2 with working covariance Phi (N,N), block-diagonal by cluster; BM dof under Phi."""
+    cn, X, M, IH = _scaled_hat(A)
+    N, p = X.shape
     ids = np.unique(cl)
     sc = np.zeros((len(ids), p))
     Cg = []  # c_g for all parameters: (N, p)
@@ -86,12 +91,8 @@ def cr2_multiway(A, r, ways):
     """Multiway cluster-robust variance (Cameron, Gelbach & Miller 2011) with CR2 adjustments per way:
     V = Σ_w sign_w Σ_g M X_gᵀ A_g r_g r_gᵀ A_g X_g M, A_g = (I − H)_gg^{-1/2}; `ways` = [(labels (N,), sign)].
     dof per parameter: Satterthwaite of the quadratic form eᵀCe under i.i.d. errors (as Bell–McCaffrey)."""
-    cn = np.linalg.norm(A, axis=0)
-    cn[cn == 0] = 1
-    X = A / cn
+    cn, X, M, IH = _scaled_hat(A)
     N, p = X.shape
-    M = np.linalg.pinv(X.T @ X)
-    IH = np.eye(N) - X @ M @ X.T
     V = np.zeros((p, p))
     C = np.zeros((p, N, N))
     for labels, sign in ways:

@@ -4,6 +4,7 @@ usage: PYTHONPATH=.:benchmarks python THIS SEED_OFFSET N img,full MULT > w.jsonl
 import sys, json
 import numpy as np
 import bench_diagnose_scanner as b
+from spread_cases import tangential_cases
 from pipeline.diagnose import confirm
 from pipeline.diagnose import scanner as ds
 from pipeline.diagnose.diagnose import Settings, diagnose
@@ -21,14 +22,7 @@ def _wrap(A, r, cl, working=None):
 confirm.cluster_robust_std = _wrap
 
 start, n, modes, mult = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3].split(","), float(sys.argv[4])
-for seed in range(30_000 + start, 30_000 + start + n):
-    d0 = b.run_spread([], seed, 8)
-    if d0 is None:
-        continue
-    mds = b.mds_of(d0).get(("tangential_distortion", "camera"))
-    if mds is None:
-        continue
-    sp, val = b.spec("tangential_distortion", "camera", mult * mds)
+for seed, sp, val in tangential_cases(start, n, mult):
     for mode in modes:
         c = ss.Campaign(poses=20, corners=8, seed=seed, capture_speed_rad_s=0.1, spread=True)
         sim, tab = ss.simulate_in_memory(b.ARM, b.ARM, b.truth(), c, noise=NOISE[mode], effects=(parse_effect(sp),), plan_cache=b.CACHE)

@@ -6,6 +6,7 @@ import sys, json
 
 import numpy as np
 import bench_diagnose_scanner as b
+from spread_cases import tangential_cases
 from pipeline.diagnose import confirm
 from pipeline.diagnose import scanner as ds
 from pipeline.diagnose.diagnose import Settings, diagnose
@@ -46,14 +47,7 @@ def run(specs, seed, noise):
 
 start, n, modes, mult = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3].split(","), float(sys.argv[4])
 out = []
-for seed in range(30_000 + start, 30_000 + start + n):
-    d0 = b.run_spread([], seed, 8)
-    if d0 is None:
-        continue
-    mds = b.mds_of(d0).get(("tangential_distortion", "camera"))
-    if mds is None:
-        continue
-    sp, val = b.spec("tangential_distortion", "camera", mult * mds)
+for seed, sp, val in tangential_cases(start, n, mult):
     for mode in modes:
         d = run([sp], seed, NOISE[mode])
         f = [f for f in d["findings"] if f["effect"] == "tangential_distortion"]

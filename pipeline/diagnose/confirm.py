@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
+import scipy.linalg
 from scipy import stats
 
 from pipeline.diagnose.effects import Effect, signature
@@ -234,10 +235,7 @@ def _cr2_working(A: np.ndarray, r: np.ndarray, cluster: np.ndarray, C: np.ndarra
     for a, g in enumerate(ids):
         rows = np.flatnonzero(cluster == g)
         meas = rows.reshape(-1, k)[:, 0] // k
-        Pg = np.zeros((rows.size, rows.size))
-        for b, m in enumerate(meas):
-            Pg[k * b:k * b + k, k * b:k * b + k] = C[m]
-        Ph = _psd_power(Pg, 0.5)
+        Ph = _psd_power(scipy.linalg.block_diag(*C[meas]), 0.5)
         Eg = IH[rows] @ PhiIH[:, rows]
         Mg = Ph @ _psd_power(Ph @ Eg @ Ph, -0.5) @ Ph
         sc[a] = X[rows].T @ (Mg @ r[rows])

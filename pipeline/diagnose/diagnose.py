@@ -108,6 +108,12 @@ def physical_reference(ad: Adapter, x: np.ndarray, r: np.ndarray, A: np.ndarray,
     return Wp, Wp(pm.draw(N_DRAWS, seed))
 
 
+def _extremeness(t) -> tuple[float, float]:
+    """Order of lack-of-fit results, most extreme first: p-value, then the nominal F tail of the
+    statistic (bootstrap p-values tie at their floor)."""
+    return t.p_value, float(scipy.stats.f.sf(t.statistic, *t.dof)) if t.dof[0] else 1.0
+
+
 def physical_lack_of_fit(ad: Adapter, x: np.ndarray, r: np.ndarray, A: np.ndarray, variables: list, src: list, nm,
                          cl: np.ndarray, M, W: Whitener, alpha: float, seed: int) -> list:
     """Lack of fit under the adapter's physical cluster-error model (`physical_reference`), stepwise:
@@ -132,7 +138,7 @@ def physical_lack_of_fit(ad: Adapter, x: np.ndarray, r: np.ndarray, A: np.ndarra
         if len(sig) <= 1:
             done.update({t.variable: t for t in lof})
             break
-        best = min(sig, key=lambda t: (t.p_value, scipy.stats.f.sf(t.statistic, *t.dof)))
+        best = min(sig, key=_extremeness)
         done[best.variable] = best
         floor = best.p_holm
         D = np.hstack([D, lack_of_fit.located_columns(by_name[best.variable], best.region)])
@@ -386,7 +392,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
                                    original=(r_final, A, variables), cluster=cl, seed=s.seed)
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
               "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m}
-             for t in sorted(lof, key=lambda t: (t.p_value, scipy.stats.f.sf(t.statistic, *t.dof) if t.dof[0] else 1.0))
+             for t in sorted(lof, key=_extremeness)
              if t.significant]
     flagged = {w["variable"] for w in where}
     for fd, i in zip(findings, accepted):

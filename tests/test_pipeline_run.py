@@ -200,3 +200,23 @@ def test_later_stages_read_the_recording_without_the_encoder_stream(first_run):
     assert rec.path == full.path and rec.profile == full.profile and rec.warnings == full.warnings
     _, _, rec_s = load_system(first_run, with_stream=True)
     assert rec_s.messages.raw[JOINT_STATE] == full.messages.raw[JOINT_STATE]
+
+
+def test_a_damaged_messages_parquet_is_a_one_line_error(first_run, tmp_path):
+    """Ingest's `messages.parquet` with a message missing, or not Parquet at all: the stage that
+    reads it names the file and says to re-run ingest (no traceback, nothing silently dropped)."""
+    from pipeline.errors import RobocalError
+    from pipeline.stages.ingest import read_messages, recording_info
+
+    run = tmp_path / "run"
+    shutil.copytree(first_run / "ingest", run / "ingest")
+    info = recording_info(run)
+    p = run / "ingest" / "messages.parquet"
+    assert read_messages(run, info) is not None
+    t = pq.read_table(p)
+    pq.write_table(t.slice(0, t.num_rows - 1), p)
+    with pytest.raises(RobocalError, match=r"messages\.parquet: \d+ messages on .*recording\.json says \d+"):
+        read_messages(run, info)
+    p.write_bytes(b"not parquet")
+    with pytest.raises(RobocalError, match=r"messages\.parquet: unreadable .*re-run ingest"):
+        read_messages(run, info)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from pipeline.errors import RobocalError
@@ -148,8 +149,16 @@ def read_messages(run_dir: Path, info: dict):
     p = Path(run_dir) / NAME / MESSAGES
     if not p.is_file():
         return None
-    table = pq.read_table(p)
-    doc = json.loads(table.schema.metadata[b"robocal.recording"])
+    try:
+        table = pq.read_table(p)
+        doc = json.loads(table.schema.metadata[b"robocal.recording"])
+    except (pa.ArrowException, OSError, KeyError, TypeError, ValueError) as e:
+        raise RobocalError(f"{p}: unreadable ({type(e).__name__}: {e}); re-run ingest") from None
+    counts = {v["values"]: v["counts"] for v in pc.value_counts(table.column("topic")).to_pylist()}
+    for topic, ch in info.get("channels", {}).items():
+        if topic != JOINT_STATE and counts.get(topic, 0) != ch["messages"]:
+            raise RobocalError(f"{p}: {counts.get(topic, 0)} messages on {topic}, "
+                               f"{Path(run_dir) / NAME / 'recording.json'} says {ch['messages']} (re-run ingest)")
     rec = Recording(path=Path(info["source"]["path"]), metadata=doc["metadata"],
                     schemas={t: tuple(v) for t, v in doc["schemas"].items()}, warnings=doc["warnings"],
                     complete=doc["complete"], profile=doc["profile"])

@@ -263,3 +263,20 @@ def test_tangential_on_a_spread_campaign_is_unbiased_without_noise():
     true = v * truth()[cam.I_F] / g["x"][g["names"].index("scanner.f")]
     for p in f[0]["parameters"]:
         assert abs(p["value"] - true) < 2e-3 * true
+
+
+def test_a_false_finding_under_encoder_type_pose_errors_is_dropped_by_the_sign_flips():
+    """Encoder-type pose errors (the arm where the stripe was placed, the encoders δq off: each
+    pose's error shaped by its own Jacobian) break the one-Ψ whitener's F test: this clean
+    campaign reads a J3 scale error.  The cluster-robust check (sign flips per pose) drops it."""
+    c = ss.Campaign(poses=20, corners=5, seed=10066, capture_speed_rad_s=0.1)
+    noise = ss.Noise(repeatability_3sigma_m=0.0, encoder_repeatability_rad=1e-4)
+    sim, tab = ss.simulate_in_memory(ARM, ARM, truth(), c, noise)
+    tab = ds.add_context(tab, sim.stream_t_ns, sim.stream_q)
+    model = sc.ScannerModel(arm=ARM)
+    ad = ds.adapter(model, tab)
+    unchecked = diagnose(model, tab, adapter=ad, settings=Settings(n_boot=0, sign_flips=0))
+    assert named(unchecked) == {("joint_scale", "J3")}
+    doc = diagnose(model, tab, adapter=ad, settings=Settings(n_boot=0))
+    assert doc["findings"] == []
+    assert doc["clustered_inference"]["dropped_by_check"] == [{"effect": "joint_scale", "location": "J3"}]

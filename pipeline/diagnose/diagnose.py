@@ -24,7 +24,8 @@ import scipy.stats
 from pipeline.blas import one_thread
 from pipeline.diagnose import confirm, lack_of_fit, visual
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
-from pipeline.diagnose.select import (PhysicalModel, Whitener, cluster_whitener, forward_select, gate,
+from pipeline.diagnose.select import (PhysicalModel, Whitener, cluster_sign_flip_p, cluster_whitener,
+                                      conditional_steps, forward_select, gate,
                                       measurement_covariance, measurement_whitener, noise_components, orthonormal,
                                       physical_components, physical_whitener, project_out, sigma_given)
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
@@ -45,6 +46,7 @@ class Settings:
     n_boot: int = 40
     seed: int = 0
     max_terms: int = 8
+    sign_flips: int = 9999  # with clusters: draws of the findings' cluster-robust check (0: off)
 
 
 @dataclass(frozen=True)
@@ -186,6 +188,25 @@ def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Eff
                    shared_error=(Zf, jig_tolerance_m**2 / 3))
 
 
+def _sign_flip_check(W: Whitener, r: np.ndarray, Jw: np.ndarray, S: list[np.ndarray], accepted: list[int],
+                     cluster: np.ndarray, m: int, s: Settings) -> tuple[list[int], dict, list[int]]:
+    """Backward elimination of the accepted blocks under the restricted wild cluster bootstrap
+    (`select.cluster_sign_flip_p`, whitened problem): while Holm's step-down over a family of m
+    does not reject every block given the others, drop the least significant.  Returns (kept,
+    {kept block: Holm-adjusted p}, dropped blocks)."""
+    rw = W(r)
+    Sw = {i: W(S[i]) for i in accepted}
+    A, dropped = list(accepted), []
+    while A:
+        p = cluster_sign_flip_p(rw, [Sw[i] for i in A], Jw, cluster, s.sign_flips, s.seed)
+        order = np.argsort(p, kind="stable")
+        adj = np.maximum.accumulate(np.minimum(1.0, p[order] * (m - np.arange(len(A)))))
+        if np.all(adj <= s.alpha):
+            return A, {A[o]: float(a) for o, a in zip(order, adj)}, dropped
+        dropped.append(A.pop(int(np.argmax(p))))
+    return A, {}, dropped
+
+
 def _dof(v: float) -> float | None:
     """A dof for JSON: None when infinite (a known variance: normal quantiles)."""
     return float(v) if np.isfinite(v) else None
@@ -298,6 +319,15 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         if done:
             break
 
+    # 3b. with clusters, the F tests rest on the whitener's model of the error within a pose; a
+    # finding must also pass the cluster-robust sign-flip test (Holm), or it is dropped
+    robust_p, dropped = {}, []
+    if W is not None and accepted and s.sign_flips:
+        accepted, robust_p, dropped = _sign_flip_check(W, r, Jf_w, S, accepted, cl, len(testable), s)
+        if dropped:
+            steps = conditional_steps(r_w, Sp, dof, [testable.index(i) for i in accepted], tols, len(testable))
+            accepted = [testable[st.index] for st in steps]
+
     # 4. joint refit
     groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
     folds = kfold_indices(nk, s.folds, s.seed, groups)
@@ -370,7 +400,9 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
                             "ci95": confirm.t_interval(float(th[m]), float(std[pos + m]), par_dof[pos + m])}
                            for m, p in enumerate(e.parameters)],
             "evidence": {"statistic": st.statistic, "statistic_kind": "grouped F", "dof": list(st.dof),
-                         "p_value": st.p_holm, "p_value_raw": st.p_value, "delta_bic": float(delta_bic),
+                         "p_value": st.p_holm, "p_value_raw": st.p_value,
+                         **({"p_value_sign_flips": robust_p[i]} if i in robust_p else {}),
+                         "delta_bic": float(delta_bic),
                          "cv_rms_before_m": confirm.rms(cv_wo), "cv_rms_after_m": confirm.rms(after_cv),
                          "bootstrap_frequency": float(boot[testable.index(i)])},
             "absorbed_fraction": gates[i].absorbed_fraction,
@@ -460,6 +492,9 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             "clusters": W.n_clusters, "sigma_within_m": W.sigma_within, "effective_rows": W.n_effective,
             "noise_variances": None if nm is None else [float(v) for v in nm.variances],
             "method": "random-effects whitening per cluster (select.cluster_whitener), iterated; within noise from the maximal model",
+            "findings_check": (f"restricted wild cluster bootstrap ({s.sign_flips} sign draws per cluster) of each finding given "
+                               "the others, Holm (select.cluster_sign_flip_p)" if s.sign_flips else None),
+            "dropped_by_check": [{"effect": lib[i].name, "location": str(lib[i].location)} for i in dropped],
             "lack_of_fit_reference": ("parametric bootstrap under the adapter's physical cluster-error model (REML variances; "
                                       "diagnose.physical_lack_of_fit)" if ad.cluster_model is not None and nm is not None
                                       else "restricted wild cluster bootstrap (sign flips)")}}),

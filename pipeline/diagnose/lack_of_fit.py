@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.stats
 
-from pipeline.diagnose.select import orthonormal, project_out
+from pipeline.diagnose.select import orthonormal, project_out, wild_cluster_p
 from pipeline.models import serial_arm
 
 
@@ -97,27 +97,6 @@ class LackOfFit:
     significant: bool
     region: tuple[float, float] | str
     peak_m: float  # largest fitted residual structure, m
-
-
-def wild_cluster_p(res: np.ndarray, QA: np.ndarray, bases: list[np.ndarray | None], F: list[float],
-                   dofs: list[tuple[int, int]], cluster: np.ndarray, n_boot: int = 2999, seed: int = 0) -> list[float]:
-    """p-values of the grouped F statistics `F` by the restricted wild cluster bootstrap: the
-    residual r̂ (⊥ design, null model) with each cluster's rows multiplied by one random sign,
-    re-projected against the design, gives F* for every variable (orthonormal basis `bases[i]`
-    ⊥ the design); p = (1 + #{F* ≥ F}) / (1 + n_boot).  Each cluster keeps its own error
-    covariance, whatever it is: no estimate of the between-cluster covariance from a few
-    clusters enters the reference distribution (Cameron, Gelbach & Miller 2008)."""
-    R = sign_flips(res, QA, cluster, n_boot, seed)
-    rss = np.sum(R**2, axis=0)
-    out = []
-    for Qb, f, (kb, d2) in zip(bases, F, dofs):
-        if Qb is None or not np.isfinite(f):
-            out.append(1.0)
-            continue
-        g = np.sum((Qb.T @ R) ** 2, axis=0)
-        Fs = (g / kb) / (np.maximum(rss - g, 1e-300) / d2)
-        out.append(float((1 + np.sum(Fs >= f)) / (1 + n_boot)))
-    return out
 
 
 SCAN_DIVISORS = (12, 6, 3)  # scan bump widths: the variable's range / each
@@ -205,7 +184,7 @@ def sign_flips(res: np.ndarray, QA: np.ndarray, cluster: np.ndarray, n_boot: int
 
 def scan_cluster_p(sc: Scan, T: float, R: np.ndarray, dof: int) -> float:
     """p-value of the scan statistic T (the largest single-bump F over the scan) by the restricted
-    wild cluster bootstrap (`sign_flips` R, as `wild_cluster_p`): per replicate the max over the
+    wild cluster bootstrap (`sign_flips` R, as `select.wild_cluster_p`): per replicate the max over the
     whole scan, so the multiplicity of the scan is in the reference distribution.  (The
     unrestricted pool — r̂ less its best bump — is no use here: a bump on one cluster is invariant
     to that cluster's sign, so the replicates would never reach T and clean data would be rejected.)"""
@@ -224,7 +203,7 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
     instead of the F distribution, which would hold only if the whitening's between-cluster
     covariance (estimated from a few clusters) were exact: with `scan` (default) of the scan
     statistic (`scan_basis`, `scan_cluster_p`; `statistic` is then the best element's F and
-    `region` its centre ± width), else of the smooth basis's F (`wild_cluster_p`).  `draws` (N, B):
+    `region` its centre ± width), else of the smooth basis's F (`select.wild_cluster_p`).  `draws` (N, B):
     residuals drawn from a parametric null model (whitened like r, e.g. `select.PhysicalModel.draw`)
     replace the sign flips as the scan statistic's reference (a parametric bootstrap)."""
     QA = orthonormal(A)
@@ -261,8 +240,9 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
             scans[v.name] = (max(lo, float(sc.centres[sb] - sc.widths[sb])), min(hi, float(sc.centres[sb] + sc.widths[sb])))
             raw[k] = (v, T, (kb, dof_resid - kb), p, raw[k][4], raw[k][5])
     elif cluster is not None:
-        ps = wild_cluster_p(res, QA, [t[5] for t in raw], [t[1] for t in raw], [t[2] for t in raw], cluster, seed=seed)
-        raw = [(*t[:3], p, *t[4:]) for t, p in zip(raw, ps)]
+        ok = [i for i, t in enumerate(raw) if t[5] is not None]
+        ps = dict(zip(ok, wild_cluster_p(res, QA, [raw[i][5] for i in ok], cluster, seed=seed)))
+        raw = [(*t[:3], ps.get(i, 1.0), *t[4:]) for i, t in enumerate(raw)]
     m = len(raw)
     order = np.argsort([t[3] for t in raw])
     p_holm = np.ones(m)

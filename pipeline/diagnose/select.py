@@ -377,6 +377,40 @@ class _Design:
         return p, F, kc, gain
 
 
+def _conditional(D: _Design, A: list[int], dof0: int) -> list[tuple[float, float, int, float, int]]:
+    """Each block of A tested given all the others (`dof0` residual dof before A): (p, F, rank,
+    gain, residual dof).  With M = G_AA⁻¹ and β = M g_A, block b's gain given the others is β_bᵀ M_bb⁻¹ β_b (one inverse
+    for all blocks); the general path (a block with fewer directions than columns) refits."""
+    if not A:
+        return []
+    ix = np.concatenate([D.ix[c] for c in A])
+    w, V = np.linalg.eigh(D.G[np.ix_(ix, ix)])
+    if w[0] > RANK_REL:
+        M = (V / w) @ V.T
+        beta = M @ D.g[ix]
+        dof = dof0 - ix.size
+        rss = max(D.rr - float(D.g[ix] @ beta), 1e-300)
+        out, at = [], 0
+        for b in A:
+            sl = slice(at, at + D.k[b])
+            at += D.k[b]
+            raw = gain = float(beta[sl] @ np.linalg.solve(M[sl, sl], beta[sl]))
+            if D.tol[b] > 0 and D.k[b] == 1:
+                theta = abs(float(beta[sl][0])) / D.cn[D.edges[b]]  # parameter units
+                gain *= (max(theta - D.tol[b], 0.0) / theta if theta > 0 else 0.0) ** 2
+            kc = int(D.k[b])
+            F = (gain / kc) / (max(rss + raw - gain, 1e-300) / dof) if dof >= 1 else 0.0
+            p = float(scipy.special.fdtrc(kc, dof, F)) if dof >= 1 else 1.0
+            out.append((p, float(F), kc, gain, dof))
+        return out
+    out = []
+    for b in A:
+        rss, rk, G, g = D.given([c for c in A if c != b], b)
+        p, F, kc, gain = D.test(b, G, g, rss, dof0 - rk)
+        out.append((p, F, kc, gain, dof0 - rk - kc))
+    return out
+
+
 def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, alpha: float = 0.01,
                    tolerances: list[float] | None = None, max_terms: int = 8, n_family: int | None = None,
                    base: np.ndarray | None = None, refine: bool = True) -> list[Step]:
@@ -416,37 +450,7 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         return added
 
     def conditional(A: list[int]) -> list[tuple[float, float, int, float, int]]:
-        """Each block of A tested given all the others: (p, F, rank, gain, residual dof).  With
-        M = G_AA⁻¹ and β = M g_A, block b's gain given the others is β_bᵀ M_bb⁻¹ β_b (one inverse
-        for all blocks); the general path (a block with fewer directions than columns) refits."""
-        if not A:
-            return []
-        ix = np.concatenate([D.ix[c] for c in A])
-        w, V = np.linalg.eigh(D.G[np.ix_(ix, ix)])
-        if w[0] > RANK_REL:
-            M = (V / w) @ V.T
-            beta = M @ D.g[ix]
-            dof = dof0 - ix.size
-            rss = max(D.rr - float(D.g[ix] @ beta), 1e-300)
-            out, at = [], 0
-            for b in A:
-                sl = slice(at, at + D.k[b])
-                at += D.k[b]
-                raw = gain = float(beta[sl] @ np.linalg.solve(M[sl, sl], beta[sl]))
-                if D.tol[b] > 0 and D.k[b] == 1:
-                    theta = abs(float(beta[sl][0])) / D.cn[D.edges[b]]  # parameter units
-                    gain *= (max(theta - D.tol[b], 0.0) / theta if theta > 0 else 0.0) ** 2
-                kc = int(D.k[b])
-                F = (gain / kc) / (max(rss + raw - gain, 1e-300) / dof) if dof >= 1 else 0.0
-                p = float(scipy.special.fdtrc(kc, dof, F)) if dof >= 1 else 1.0
-                out.append((p, float(F), kc, gain, dof))
-            return out
-        out = []
-        for b in A:
-            rss, rk, G, g = D.given([c for c in A if c != b], b)
-            p, F, kc, gain = D.test(b, G, g, rss, dof0 - rk)
-            out.append((p, F, kc, gain, dof0 - rk - kc))
-        return out
+        return _conditional(D, A, dof0)
 
     def holm_fails(ps: list[float]) -> bool:
         """Does Holm's step-down (thresholds α/(m − j)) leave any of these p-values unrejected?"""
@@ -520,6 +524,12 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
             break
         seen.add(frozenset(A))
     A, cond = backward(A)
+    return _holm_steps(A, cond, m)
+
+
+def _holm_steps(A: list[int], cond: list, m: int) -> list[Step]:
+    """Steps of blocks A from their `_conditional` tests, most significant first, Holm-adjusted
+    over a family of m."""
     order = np.argsort([t[0] for t in cond], kind="stable")
     steps, adj = [], 0.0
     for j, i in enumerate(order):
@@ -527,6 +537,57 @@ def forward_select(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, 
         adj = max(adj, min(1.0, p * (m - j)))
         steps.append(Step(A[i], F, (kc, dof), p, adj, gain))
     return steps
+
+
+def conditional_steps(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, A: list[int],
+                      tolerances: list[float] | None = None, n_family: int | None = None) -> list[Step]:
+    """The grouped F test of each block of A given the others (as `forward_select` reports its
+    final set), for a set chosen otherwise (`cluster_sign_flip_p` dropped some)."""
+    if not A:
+        return []
+    D = _Design(r, candidates, None, tolerances or [0.0] * len(candidates))
+    return _holm_steps(list(A), _conditional(D, list(A), dof_resid), n_family or len(candidates))
+
+
+def wild_cluster_p(res: np.ndarray, QA: np.ndarray, bases: list[np.ndarray], cluster: np.ndarray,
+                   n_boot: int = 2999, seed: int = 0) -> np.ndarray:
+    """p-value of each block's grouped F against a design by the restricted wild cluster bootstrap:
+    the residual r̂ of the design (orthonormal QA; r̂ ⊥ QA, the null model) with each cluster's rows
+    times one random sign (Rademacher), re-projected ⊥ QA; `bases` orthonormal (⊥ QA) columns of
+    each block.  Each cluster keeps its own error covariance, whatever it is: no estimate of it
+    enters the reference (Cameron, Gelbach & Miller 2008) — valid so long as the clusters are
+    independent and their errors symmetric.  A draw's RSS is ‖r̂‖² − ‖QAᵀD_s r̂‖² and a block's
+    gain ‖QbᵀD_s r̂‖²; Qᵀ D_s r̂ = C s with C the per-cluster contributions (columns × clusters),
+    so every draw is algebra in the number of clusters.  Statistic gain/(RSS − gain) (F up to its
+    dof); p = (1 + #{T* ≥ T}) / (n_boot + 1), seeded (reproducible)."""
+    ids, inv = np.unique(cluster, return_inverse=True)
+    Rh = np.asarray(res, float)[:, None] * (inv[:, None] == np.arange(ids.size)[None, :])  # (N, G)
+    signs = np.random.default_rng(seed).choice([-1.0, 1.0], size=(ids.size, n_boot))
+    rr = float(np.asarray(res, float) @ np.asarray(res, float))
+    rss = rr - np.sum((QA.T @ Rh @ signs) ** 2, axis=0)
+    p = np.ones(len(bases))
+    for b, Qb in enumerate(bases):
+        if Qb.shape[1] == 0:
+            continue
+        Cb = Qb.T @ Rh
+        g_obs = float(np.sum(Cb.sum(axis=1) ** 2))
+        t_obs = g_obs / max(rr - g_obs, 1e-300)
+        g = np.sum((Cb @ signs) ** 2, axis=0)
+        p[b] = (1 + np.count_nonzero(g / np.maximum(rss - g, 1e-300) >= t_obs * (1 - 1e-12))) / (n_boot + 1)
+    return p
+
+
+def cluster_sign_flip_p(r: np.ndarray, blocks: list[np.ndarray], base: np.ndarray, cluster: np.ndarray,
+                        n_draw: int = 9999, seed: int = 0) -> np.ndarray:
+    """p-value of each block (N, k_b) given `base` and the other blocks (the last-in grouped F) by
+    the restricted wild cluster bootstrap (`wild_cluster_p`): the check on a selection whose F
+    tests assume one model of the error within a cluster (`cluster_whitener`)."""
+    p = np.ones(len(blocks))
+    for b in range(len(blocks)):
+        Q0 = orthonormal(np.hstack([base] + [blocks[c] for c in range(len(blocks)) if c != b]))
+        r0 = project_out(np.asarray(r, float)[:, None], Q0)[:, 0]
+        p[b] = wild_cluster_p(r0, Q0, [orthonormal(project_out(blocks[b], Q0))], cluster, n_draw, seed)[0]
+    return p
 
 
 # ----- pose-clustered inference -------------------------------------------------------------

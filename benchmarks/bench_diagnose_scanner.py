@@ -40,6 +40,7 @@ EFFECTS = [("time_offset", "camera"), ("tangential_distortion", "camera"), ("joi
 PAIRS = [(("time_offset", "camera"), ("joint_scale", "J2")), (("tangential_distortion", "camera"), ("joint_offset", "J1"))]
 BUMPS_RAD = (2e-3, 1e-3)  # out-of-library bump amplitudes (≈ 10× and 5× J2's offset MDS), width ss.BUMP_WIDTH_RAD
 CACHE: dict = {}
+SIGN_FLIPS = Settings().sign_flips  # --sign-flips: draws of the findings' pose sign-flip check (0: off)
 BUMP_BOOT = 20  # the bump runs grade confidence (bootstrap), else every finding would be `low`
 
 
@@ -56,7 +57,7 @@ def run(specs, seed, with_table=False, n_boot=0):
     tab = ds.add_context(tab, sim.stream_t_ns, sim.stream_q)
     m = sc.ScannerModel(arm=ARM)
     t = time.perf_counter()
-    doc = diagnose(m, tab, adapter=ds.adapter(m, tab), settings=Settings(n_boot=n_boot))
+    doc = diagnose(m, tab, adapter=ds.adapter(m, tab), settings=Settings(n_boot=n_boot, sign_flips=SIGN_FLIPS))
     doc["elapsed_s"] = time.perf_counter() - t  # timed here: diagnosis.json carries no wall-clock time
     return (doc, tab) if with_table else doc
 
@@ -111,7 +112,7 @@ def run_spread(specs, seed, corners):
         return None
     tab = ds.add_context(tab, sim.stream_t_ns, sim.stream_q)
     m = sc.ScannerModel(arm=ARM)
-    return diagnose(m, tab, adapter=ds.adapter(m, tab), settings=Settings(n_boot=0))
+    return diagnose(m, tab, adapter=ds.adapter(m, tab), settings=Settings(n_boot=0, sign_flips=SIGN_FLIPS))
 
 
 def spread_block(n_clean: int, per: int, corners: int,
@@ -199,9 +200,13 @@ def main() -> None:
     ap.add_argument("--spread-only", action="store_true", help="only the spread block")
     ap.add_argument("--spread-effects", nargs="+", default=["radial_k2", "tangential_distortion"],
                     help="effects injected in the spread block")
+    ap.add_argument("--sign-flips", type=int, default=Settings().sign_flips,
+                    help="draws of the findings' cluster-robust check (0: off, the F tests alone; for comparison)")
     ap.add_argument("--bump-only", nargs=2, type=int, metavar=("FIRST_SEED", "N"),
                     help="only the bump block, on campaigns FIRST_SEED .. FIRST_SEED+N-1 (an independent set: 10032 64)")
     a = ap.parse_args()
+    global SIGN_FLIPS
+    SIGN_FLIPS = a.sign_flips
     if a.spread_only:
         spread_block(a.spread_clean, a.spread_per, a.spread_corners, tuple(a.spread_effects))
         return

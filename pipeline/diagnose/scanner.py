@@ -360,12 +360,15 @@ def repeatability_basis(model, x: np.ndarray, table) -> np.ndarray:
 
 
 def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[np.ndarray]]:
-    """The pose error of a scanner campaign as two physical mechanisms (n, 3, 12), each a flange
-    error (δt, δω) with isotropic translation and rotation variances (4 column groups): the flange
+    """The pose error of a scanner campaign as three physical mechanisms (n, 3, 12 + n_joints) with
+    five variances (column groups).  Two are flange errors (δt, δω) with isotropic translation and
+    rotation variances: the flange
     displaced after the stripe was put on the grid line (`repeatability_basis`: the crossing slides,
     the points move back) and the encoders misreading a flange that is where the stripe says (the
     points move back only: a pure rigid motion, which also reaches the off-plane rows that carry no
-    measurement noise).  The data decide the four variances (`select.physical_components`)."""
+    measurement noise).  The third is the encoders misreading the joints (`encoder_basis`: the
+    same pure rigid motion, but shaped by the arm's Jacobian, δq with one variance for all joints).
+    The data decide the five variances (`select.physical_components`)."""
     B = repeatability_basis(model, x, table)
     R_f, t_f = model.flange(x, np.asarray(table["joint_positions"], float))
     d = np.asarray(table["corner"], float) - t_f
@@ -375,7 +378,23 @@ def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[n
     Br[:, 0, 4], Br[:, 0, 5] = d[:, 2], -d[:, 1]  # δω × d = −[d]× δω (a column's sign is immaterial to θ's covariance)
     Br[:, 1, 3], Br[:, 1, 5] = -d[:, 2], d[:, 0]
     Br[:, 2, 3], Br[:, 2, 4] = d[:, 1], -d[:, 0]
-    return np.concatenate([B, Br], axis=2), [np.arange(3 * i, 3 * i + 3) for i in range(4)]
+    Bq = encoder_basis(model, x, table)
+    groups = [np.arange(3 * i, 3 * i + 3) for i in range(4)] + [np.arange(12, 12 + Bq.shape[2])]
+    return np.concatenate([B, Br, Bq], axis=2), groups
+
+
+def encoder_basis(model, x: np.ndarray, table) -> np.ndarray:
+    """How encoder misreadings reach a pose's residuals (n, 3, n_joints): the arm stands where the
+    stripe was placed but the encoders read q + δq, so the model places the flange (camera and
+    laser) at F(q + δq) and every reconstructed point moves rigidly by Σ_j δq_j ω_j × (X − o_j)
+    (ω_j, o_j joint j's axis and origin in {B}).  Unlike the isotropic flange motion of
+    `repeatability_model`'s second mechanism, this motion is anisotropic and pose-dependent (the
+    arm's Jacobian): δq ~ N(0, θ I) per pose, one variance shared by all joints — a per-joint
+    variance would let a structured error in one joint (a transmission bump) pass as noise."""
+    q = np.asarray(table["joint_positions"], float)
+    X = np.asarray(table["corner"], float)
+    F = serial_arm.frames(model._arm_vector(np.asarray(x, float)), q)
+    return np.stack([np.cross(F[:, i, :3, 2], X - F[:, i, :3, 3]) for i in range(q.shape[1])], axis=2)
 
 
 def stripe_directions(table) -> np.ndarray:

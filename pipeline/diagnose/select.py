@@ -733,6 +733,7 @@ class PhysicalModel:
     groups: list[np.ndarray]  # column indices of B sharing one variance
     theta: np.ndarray  # (len(groups),) variance of each group's components
     cluster: np.ndarray  # (nk,) cluster of each row
+    scale_dof: float = np.inf  # θ's common scale drawn as χ²_ν/ν per draw (its estimation error); ∞: fixed
 
     def column_variances(self) -> np.ndarray:
         v = np.zeros(self.B.shape[1])
@@ -750,6 +751,8 @@ class PhysicalModel:
         out = out.reshape(n * k, n_draw)
         ids, inv = np.unique(self.cluster, return_inverse=True)
         e = rng.standard_normal((ids.size, self.B.shape[1], n_draw)) * np.sqrt(self.column_variances())[None, :, None]
+        if np.isfinite(self.scale_dof):
+            e *= np.sqrt(rng.chisquare(self.scale_dof, n_draw) / self.scale_dof)[None, None, :]
         return out + np.einsum("rp,rpb->rb", self.B, e[inv])
 
 
@@ -769,7 +772,8 @@ def _block_columns(Bj: np.ndarray, cluster: np.ndarray) -> np.ndarray:
 
 
 def physical_components(r: np.ndarray, A: np.ndarray, B: np.ndarray, groups: list[np.ndarray],
-                        cluster: np.ndarray, sigma2: float, pre=None, iterations: int = 40) -> np.ndarray:
+                        cluster: np.ndarray, sigma2: float, pre=None, iterations: int = 40,
+                        information: bool = False):
     """Variances θ (one per column group of B) of the cluster errors by REML, from residual r of
     design A (both unwhitened; on the `pre`-whitened problem, in which the measurement noise is
     σ_w² = `sigma2` per row, held fixed): V = σ_w² I + Σ_j θ_j V_j, V_j = Σ_g B_gj B_gjᵀ,
@@ -781,7 +785,8 @@ def physical_components(r: np.ndarray, A: np.ndarray, B: np.ndarray, groups: lis
     restricted likelihood rises.  The plain step (all variances, clipped) oscillated between two
     states when mechanisms overlap (5 variances, a localised bump in the residual) and could stop
     at θ = 0.  REML rather than moments: when several mechanisms overlap, the moments weight the
-    directions only one of them reaches poorly and misplace the variance."""
+    directions only one of them reaches poorly and misplace the variance.  With `information`,
+    returns (θ, the REML information matrix ½ tr(PV_jPV_k) at θ)."""
     if pre is not None:
         r, A, B = pre(np.asarray(r, float)[:, None])[:, 0], pre(A), pre(B)
     Q = orthonormal(A)
@@ -827,7 +832,10 @@ def physical_components(r: np.ndarray, A: np.ndarray, B: np.ndarray, groups: lis
         theta, (ll, Pr, c, ViQ, cq) = new, out
         if done:
             break
-    return theta
+    if not information:
+        return theta
+    PBb = [scipy.linalg.cho_solve(c, b) - ViQ @ scipy.linalg.cho_solve(cq, ViQ.T @ b) for b in Bb]
+    return theta, np.array([[0.5 * np.sum((bj.T @ pk) ** 2) for pk in PBb] for bj in Bb])
 
 
 def physical_whitener(model: PhysicalModel, sigma2: float, pre=None, n_effective: int = 0) -> Whitener:

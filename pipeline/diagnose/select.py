@@ -725,7 +725,8 @@ class PhysicalModel:
     carry the independent noise of `sources` (Σ_i = Σ_j s_j N_ij N_ijᵀ + s_iso I, `variances` as
     `noise_components`), and cluster g's rows B_g e_g, e_g ~ N(0, diag θ) with θ constant within
     each column group of `groups` (for the scanner's repeatability: δt and δω of the flange, each
-    isotropic).  `draw` simulates residuals from it (for a parametric bootstrap)."""
+    isotropic, and the encoders' δq).  `draw` simulates residuals from it (for a parametric
+    bootstrap; with a finite `scale_dof` the variances' common scale is drawn per draw)."""
 
     sources: list[np.ndarray]
     variances: np.ndarray

@@ -360,15 +360,16 @@ def repeatability_basis(model, x: np.ndarray, table) -> np.ndarray:
 
 
 def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[np.ndarray]]:
-    """The pose error of a scanner campaign as three physical mechanisms (n, 3, 12 + n_joints) with
-    five variances (column groups).  Two are flange errors (δt, δω) with isotropic translation and
-    rotation variances: the flange
-    displaced after the stripe was put on the grid line (`repeatability_basis`: the crossing slides,
-    the points move back) and the encoders misreading a flange that is where the stripe says (the
-    points move back only: a pure rigid motion, which also reaches the off-plane rows that carry no
-    measurement noise).  The third is the encoders misreading the joints (`encoder_basis`: the
-    same pure rigid motion, but shaped by the arm's Jacobian, δq with one variance for all joints).
-    The data decide the five variances (`select.physical_components`)."""
+    """The pose error of a scanner campaign as four physical mechanisms (n, 3, 12 + 2·n_joints) with
+    six variances (column groups).  Two are flange errors (δt, δω) with isotropic translation and
+    rotation variances: the flange displaced after the stripe was put on the grid line
+    (`repeatability_basis`: the crossing slides, the points move back) and the encoders misreading
+    a flange that is where the stripe says (the points move back only: a pure rigid motion, which
+    also reaches the off-plane rows that carry no measurement noise).  Two are joint-level, δq with
+    one variance for all joints, shaped by the arm's Jacobian (anisotropic, pose-dependent): the
+    encoders misreading the joints (`encoder_basis`: the pure rigid motion) and the arm standing δq
+    off at the capture (the flange displaced by its twist J_f δq: the slide mechanism).  The data
+    decide the six variances (`select.physical_components`)."""
     B = repeatability_basis(model, x, table)
     R_f, t_f = model.flange(x, np.asarray(table["joint_positions"], float))
     d = np.asarray(table["corner"], float) - t_f
@@ -379,8 +380,15 @@ def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[n
     Br[:, 1, 3], Br[:, 1, 5] = -d[:, 2], d[:, 0]
     Br[:, 2, 3], Br[:, 2, 4] = d[:, 1], -d[:, 0]
     Bq = encoder_basis(model, x, table)
-    groups = [np.arange(3 * i, 3 * i + 3) for i in range(4)] + [np.arange(12, 12 + Bq.shape[2])]
-    return np.concatenate([B, Br, Bq], axis=2), groups
+    # the arm standing δq off at the capture: the flange displaced by its twist J_f δq, the slide mechanism
+    F = serial_arm.frames(model._arm_vector(np.asarray(x, float)), np.asarray(table["joint_positions"], float))
+    nj = Bq.shape[2]
+    w, o = F[:, :nj, :3, 2], F[:, :nj, :3, 3]  # joint axes and origins in {B} (n, n_joints, 3)
+    Bs = (np.einsum("nkc,njc->nkj", B[:, :, :3], np.cross(w, t_f[:, None, :] - o))
+          + np.einsum("nkc,njc->nkj", B[:, :, 3:], w))
+    nq = 12 + nj
+    groups = [np.arange(3 * i, 3 * i + 3) for i in range(4)] + [np.arange(12, nq), np.arange(nq, nq + nj)]
+    return np.concatenate([B, Br, Bq, Bs], axis=2), groups
 
 
 def encoder_basis(model, x: np.ndarray, table) -> np.ndarray:

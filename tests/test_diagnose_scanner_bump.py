@@ -14,6 +14,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from pipeline.blas import one_thread
 from pipeline.diagnose import lack_of_fit
 from pipeline.diagnose import scanner as ds
 from pipeline.diagnose.diagnose import Settings, diagnose
@@ -143,9 +144,38 @@ def test_repeatability_basis_is_the_simulators_pose_error_to_first_order():
         assert np.linalg.norm(r - B[i].reshape(-1, 6) @ e) < 1e-3 * np.linalg.norm(r)
 
 
+def test_joint_level_mechanisms_are_the_simulators_to_first_order():
+    """`repeatability_model`'s joint-level columns against the simulator: the arm standing δq off at the
+    capture (slide, last n_joints columns) and the encoders reading δq off (pure rigid, `encoder_basis`);
+    residuals at the true geometry, no other noise."""
+    c = ss.Campaign(poses=4, corners=5, seed=10_000, capture_speed_rad_s=0.1)
+    sim, tab = ss.simulate_in_memory(ARM, ARM, truth(), c, noise=ss.Noise(scale=0))
+    model = sc.ScannerModel(arm=ARM)
+    s = truth()
+    x = np.concatenate([s, np.zeros(len(model.parameter_names()) - s.size)])
+    B, groups = ds.repeatability_model(model, x, tab)
+    Bq, Bs = B[:, :, groups[4]], B[:, :, groups[5]]
+    rng = np.random.default_rng(2)
+    for g in range(4):
+        i = np.flatnonzero(tab["pose"] == g)
+        dq = rng.normal(0, 1e-5, Bq.shape[2])
+        q = tab["joint_positions"][i[:1]]
+        R_c, C = ss._camera_pose(ARM.vector(), s, q + dq, (np.eye(3), np.zeros(3)))
+        p0, dvec = ss._floor_line(R_c, C, s, 0.0)
+        X = tab["corner"][i]
+        Y = p0 + ((X - p0) @ dvec[0])[:, None] * dvec
+        px, _ = ss._project(np.repeat(R_c, i.size, 0), np.repeat(C, i.size, 0), s, Y)
+        sub = {k: v[i] for k, v in tab.items()}
+        r = model.residuals(x, {**sub, "pixel": px}).ravel()  # slide: the arm at q + δq, the encoders read q
+        assert np.linalg.norm(r - Bs[i].reshape(-1, Bs.shape[2]) @ dq) < 1e-3 * np.linalg.norm(r)
+        r = model.residuals(x, {**sub, "joint_positions": sub["joint_positions"] + dq}).ravel()  # encoders off
+        assert np.linalg.norm(r - Bq[i].reshape(-1, Bq.shape[2]) @ dq) < 1e-3 * np.linalg.norm(r)
+
+
 def test_physical_components_recover_the_variances():
-    """REML estimates of the repeatability model's four variances on residuals drawn from it
-    (geometry fitted out): unbiased to within their spread over 12 draws (all four inside the boundary θ ≥ 0)."""
+    """REML estimates of the repeatability model's six variances on residuals drawn from it (geometry
+    fitted out): the pose covariance they imply is unbiased (mean over 12 draws within 15 %) and each
+    draw's within 30 % (median)."""
     from pipeline.diagnose import select
     tab = campaign(10_000)
     model = sc.ScannerModel(arm=ARM)
@@ -157,9 +187,60 @@ def test_physical_components_recover_the_variances():
     A = model.jacobian(x, tab).reshape(nk, -1)
     A = A[:, np.linalg.norm(A, axis=0) > 0]
     src = [np.zeros((nk // 3, 3, 1))]
-    true = np.array([2e-9, 5e-8, 1e-9, 2e-8])  # slide: δt, δω; rigid: δt, δω (m², rad²)
+    true = np.array([2e-9, 5e-8, 1e-9, 2e-8, 1e-8, 4e-8])  # flange slide: δt, δω; rigid: δt, δω; δq rigid, slide
     pm = select.PhysicalModel(src, np.array([0.0, 1e-10]), B, groups, true, cl)  # isotropic 1e-5 m noise
     Y = pm.draw(12, 2)
-    est = np.array([select.physical_components(Y[:, j], A, B, groups, cl, 1e-10) for j in range(12)])
-    m, sd = est.mean(axis=0), est.std(axis=0)
-    assert np.all(np.abs(m - true) <= 3 * sd / np.sqrt(12) + 0.1 * true + 1e-11), (m, sd)
+    with one_thread():  # small dense algebra: OpenBLAS's threads only spin-wait on a busy box
+        est = np.array([select.physical_components(Y[:, j], A, B, groups, cl, 1e-10) for j in range(12)])
+    # the mechanisms overlap (a flange rotation and the joints' rotations reach the points alike), so
+    # single variances trade off against each other; what the reference uses is the covariance they imply
+    def cov(theta):
+        cv = select.PhysicalModel(src, np.zeros(2), B, groups, theta, cl).column_variances()
+        return np.einsum("rp,sp,p->rs", B, B, cv) * (cl[:, None] == cl[None, :])
+    Vt = cov(true)
+    err = [np.linalg.norm(cov(e) - Vt) / np.linalg.norm(Vt) for e in est]
+    bias = np.linalg.norm(np.mean([cov(e) for e in est], axis=0) - Vt) / np.linalg.norm(Vt)
+    assert bias < 0.15 and np.median(err) < 0.3, (bias, err)  # measured: 0.095, 0.21
+
+
+# ----- encoder-type pose errors (the arm where the stripe was placed, the encoders δq off) -------
+ENCODER = ss.Noise(repeatability_3sigma_m=0.0, encoder_repeatability_rad=1e-4)
+ENCODER_FALSE_ALARMS = [10_002, 10_005, 10_020]  # clean; `unexplained` (q_J3, q_J2, q_J2) before the encoder mechanism
+
+
+def noisy_run(seed: int, effects=(), noise: ss.Noise = ENCODER) -> tuple[dict, dict]:
+    """Diagnosis (no bootstrap) of a benchmark campaign simulated with `noise`, and its table."""
+    c = ss.Campaign(poses=20, corners=5, seed=seed, capture_speed_rad_s=0.1)
+    sim, tab = ss.simulate_in_memory(ARM, ARM, truth(), c, noise, effects=tuple(parse_effect(e) for e in effects),
+                                     plan_cache=PLANS)
+    tab = ds.add_context(tab, sim.stream_t_ns, sim.stream_q)
+    model = sc.ScannerModel(arm=ARM)
+    return diagnose(model, tab, adapter=ds.adapter(model, tab), settings=NO_BOOT), tab
+
+
+def test_reference_holds_its_size_under_encoder_type_pose_errors():
+    """Encoder misreadings move a pose's points rigidly, shaped by the arm's Jacobian (anisotropic,
+    pose-dependent): with only isotropic flange mechanisms the reference was too narrow and these
+    clean campaigns read `unexplained` (3 of seeds 10000–10079); `scanner.encoder_basis` models them.  And a J2
+    bump under the same noise is still located (one variance for all joints does not absorb it)."""
+    for seed in ENCODER_FALSE_ALARMS:
+        doc, _ = noisy_run(seed)
+        assert not doc["unexplained"], (seed, doc["unexplained_where"])
+    _, tab = noisy_run(10_000)
+    q2 = np.unique(tab["joint_positions"][:, 1])
+    centre = float(np.sort(q2)[len(q2) // 2])
+    doc, _ = noisy_run(10_000, [f"bump=1e-3@J2:{centre:.4f}"])
+    assert located(doc, centre), doc["unexplained_where"]
+
+
+SCALE_MISSES = [(ss.Noise(), 10_035), (ss.Noise(joint_repeatability_rad=1.5e-4), 10_026),
+                (ss.Noise(joint_repeatability_rad=1.5e-4), 10_055)]  # clean; `unexplained` with θ̂ plugged in
+
+
+def test_reference_carries_the_variances_estimation_error():
+    """The REML variances of 20 poses are ~20–30 % uncertain; plugged in as known, the reference read these
+    clean campaigns (default flange error; joint-level + flange) as `unexplained`.  Each draw scales them
+    by χ²_ν/ν (`PhysicalModel.scale_dof`), and they are clean."""
+    for noise, seed in SCALE_MISSES:
+        doc, _ = noisy_run(seed, noise=noise)
+        assert not doc["unexplained"], (seed, doc["unexplained_where"])

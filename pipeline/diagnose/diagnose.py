@@ -104,8 +104,11 @@ def physical_reference(ad: Adapter, x: np.ndarray, r: np.ndarray, A: np.ndarray,
     Bm, groups = ad.cluster_model(x)
     Bm = np.asarray(Bm, float).reshape(r.size, -1)
     s2 = W.sigma_within**2
-    theta = physical_components(r, A, Bm, groups, cl, s2, pre=M)
-    pm = PhysicalModel(src, nm.variances, Bm, groups, theta, cl)
+    theta, info = physical_components(r, A, Bm, groups, cl, s2, pre=M, information=True)
+    # the variances are estimated (20 poses: ~20 % error): each draw scales them by χ²_ν/ν, ν = 2 I_λ
+    # from the REML information of their common scale λ (θ = λθ̂), so the reference carries that error
+    i_scale = float(theta @ info @ theta)
+    pm = PhysicalModel(src, nm.variances, Bm, groups, theta, cl, scale_dof=2 * i_scale if i_scale > 0 else np.inf)
     Wp = physical_whitener(pm, s2, M, W.n_effective)
     return Wp, Wp(pm.draw(N_DRAWS, seed))
 

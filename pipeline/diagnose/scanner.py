@@ -360,12 +360,16 @@ def repeatability_basis(model, x: np.ndarray, table) -> np.ndarray:
 
 
 def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[np.ndarray]]:
-    """The pose error of a scanner campaign as two physical mechanisms (n, 3, 12), each a flange
-    error (δt, δω) with isotropic translation and rotation variances (4 column groups): the flange
-    displaced after the stripe was put on the grid line (`repeatability_basis`: the crossing slides,
-    the points move back) and the encoders misreading a flange that is where the stripe says (the
-    points move back only: a pure rigid motion, which also reaches the off-plane rows that carry no
-    measurement noise).  The data decide the four variances (`select.physical_components`)."""
+    """The pose error of a scanner campaign as four physical mechanisms (n, 3, 12 + 2·n_joints) with
+    six variances (column groups).  Two are flange errors (δt, δω) with isotropic translation and
+    rotation variances: the flange displaced after the stripe was put on the grid line
+    (`repeatability_basis`: the crossing slides, the points move back) and the encoders misreading
+    a flange that is where the stripe says (the points move back only: a pure rigid motion, which
+    also reaches the off-plane rows that carry no measurement noise).  Two are joint-level, δq with
+    one variance for all joints, shaped by the arm's Jacobian (anisotropic, pose-dependent): the
+    encoders misreading the joints (`encoder_basis`: the pure rigid motion) and the arm standing δq
+    off at the capture (the flange displaced by its twist J_f δq: the slide mechanism).  The data
+    decide the six variances (`select.physical_components`)."""
     B = repeatability_basis(model, x, table)
     R_f, t_f = model.flange(x, np.asarray(table["joint_positions"], float))
     d = np.asarray(table["corner"], float) - t_f
@@ -375,7 +379,30 @@ def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[n
     Br[:, 0, 4], Br[:, 0, 5] = d[:, 2], -d[:, 1]  # δω × d = −[d]× δω (a column's sign is immaterial to θ's covariance)
     Br[:, 1, 3], Br[:, 1, 5] = -d[:, 2], d[:, 0]
     Br[:, 2, 3], Br[:, 2, 4] = d[:, 1], -d[:, 0]
-    return np.concatenate([B, Br], axis=2), [np.arange(3 * i, 3 * i + 3) for i in range(4)]
+    Bq = encoder_basis(model, x, table)
+    # the arm standing δq off at the capture: the flange displaced by its twist J_f δq, the slide mechanism
+    F = serial_arm.frames(model._arm_vector(np.asarray(x, float)), np.asarray(table["joint_positions"], float))
+    nj = Bq.shape[2]
+    w, o = F[:, :nj, :3, 2], F[:, :nj, :3, 3]  # joint axes and origins in {B} (n, n_joints, 3)
+    Bs = (np.einsum("nkc,njc->nkj", B[:, :, :3], np.cross(w, t_f[:, None, :] - o))
+          + np.einsum("nkc,njc->nkj", B[:, :, 3:], w))
+    nq = 12 + nj
+    groups = [np.arange(3 * i, 3 * i + 3) for i in range(4)] + [np.arange(12, nq), np.arange(nq, nq + nj)]
+    return np.concatenate([B, Br, Bq, Bs], axis=2), groups
+
+
+def encoder_basis(model, x: np.ndarray, table) -> np.ndarray:
+    """How encoder misreadings reach a pose's residuals (n, 3, n_joints): the arm stands where the
+    stripe was placed but the encoders read q + δq, so the model places the flange (camera and
+    laser) at F(q + δq) and every reconstructed point moves rigidly by Σ_j δq_j ω_j × (X − o_j)
+    (ω_j, o_j joint j's axis and origin in {B}).  Unlike the isotropic flange motion of
+    `repeatability_model`'s second mechanism, this motion is anisotropic and pose-dependent (the
+    arm's Jacobian): δq ~ N(0, θ I) per pose, one variance shared by all joints — a per-joint
+    variance would let a structured error in one joint (a transmission bump) pass as noise."""
+    q = np.asarray(table["joint_positions"], float)
+    X = np.asarray(table["corner"], float)
+    F = serial_arm.frames(model._arm_vector(np.asarray(x, float)), q)
+    return np.stack([np.cross(F[:, i, :3, 2], X - F[:, i, :3, 3]) for i in range(q.shape[1])], axis=2)
 
 
 def stripe_directions(table) -> np.ndarray:

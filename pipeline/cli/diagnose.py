@@ -54,6 +54,10 @@ def diagnose_cmd(
                   f"{ev['bootstrap_frequency']:.2f}")
     con = Console()
     con.print(t if doc["findings"] else "no effect found beyond the geometric model")
+    dropped = (doc.get("clustered_inference") or {}).get("dropped_by_check") or []
+    if dropped:
+        con.print("accepted by the F tests but not by the pose sign-flip check (not reported as findings): "
+                  + ", ".join(f"{d['effect']}@{d['location']}" for d in dropped), highlight=False)
     if doc["unexplained"]:
         for w in doc["unexplained_where"]:
             reg = w["region"]

@@ -138,6 +138,13 @@ def test_diagnosis_section(report_run, tmp_path):  # noqa: F811
     assert re.search(r'<figure id="fig-diagnosis-improvement" class="plot"><svg', html)
     assert re.search(r'<figure id="fig-diagnosis-0" class="plot"><svg', html)
     assert "added-variable plot: J2 torque" in html
+    assert "sign-flip check" not in html
+
+    # a finding the pose sign-flip check dropped (scanner) is named as such
+    doc["clustered_inference"] = {"dropped_by_check": [{"effect": "joint_scale", "location": "J3"}]}
+    (d / "diagnose" / "diagnosis.json").write_text(json.dumps(doc))
+    html = diagnosis_section(load_run(d))
+    assert "not confirmed by the pose sign-flip check" in html and "joint_scale@J3" in html
 
     # without plot data, the report draws the residuals against the located variable itself
     (d / "diagnose" / "diagnosis.json").write_text(json.dumps(DIAGNOSIS))

@@ -186,6 +186,11 @@ def diagnosis_section(art) -> str:
                                      "confidence")] for r in rows])
     else:
         html += '<p class="note">No finding: no left-out effect was detected.</p>'
+    dropped = [d for d in (doc.get("clustered_inference") or {}).get("dropped_by_check") or [] if isinstance(d, dict)]
+    if dropped:
+        html += ('<p class="note">Accepted by the F tests but not confirmed by the pose sign-flip check (so not '
+                 "reported as findings): " + escape(", ".join(f"{d.get('effect')}@{d.get('location')}" for d in dropped))
+                 + "</p>")
     b, a = doc.get("holdout_rms_before_m"), doc.get("holdout_rms_after_m")
     if isinstance(b, (int, float)) and isinstance(a, (int, float)):
         html += _figure(plots.bars(["before", "after"], [b * 1e3, a * 1e3], "held-out RMS (mm)",

@@ -96,3 +96,25 @@ def test_refined_selection_is_a_subset_of_nothing_on_noise_unless_greedy_errs(se
     f = forward_select(r, cands, 120, 0.01)
     assert g or not f
     assert all(s.p_holm <= 0.01 for s in f)
+
+
+def test_look_alikes_name_the_candidate_the_data_cannot_reject():
+    """Truth a; c nearly collinear with a (cos 0.995) at a size where the two fit about equally:
+    c is listed as a look-alike of the accepted block, an orthogonal distractor never is."""
+    from pipeline.diagnose.select import look_alikes
+
+    listed = far = 0
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        Q, _ = np.linalg.qr(rng.normal(size=(N, 3)))
+        a, d, e = Q[:, 0], Q[:, 1], Q[:, 2]
+        c = 0.995 * a + np.sqrt(1 - 0.995**2) * d
+        r = 8.0 * a + rng.normal(size=N)
+        cands = [a[:, None], c[:, None], e[:, None]]
+        A = [st.index for st in forward_select(r, cands, N, 0.01)]
+        alike = look_alikes(r, cands, N, A)
+        for b in A:
+            names = [k for k, _ in alike[b]]
+            listed += ({0, 1} - {b}) <= set(names)
+            far += 2 in names
+    assert listed >= 14 and far == 0

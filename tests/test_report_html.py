@@ -140,6 +140,12 @@ def test_diagnosis_section(report_run, tmp_path):  # noqa: F811
     assert "added-variable plot: J2 torque" in html
     assert "sign-flip check" not in html
 
+    # a look-alike the campaign cannot reject is named beside the finding
+    doc["findings"] = [dict(doc["findings"][0], look_alikes=[{"effect": "joint_compliance", "location": "J3",
+                                                             "delta_chi2": 1.5}])]
+    (d / "diagnose" / "diagnosis.json").write_text(json.dumps(doc))
+    assert "can hardly tell it from joint_compliance@J3" in diagnosis_section(load_run(d))
+
     # a finding the pose sign-flip check dropped (scanner) is named as such
     doc["clustered_inference"] = {"dropped_by_check": [{"effect": "joint_scale", "location": "J3"}]}
     (d / "diagnose" / "diagnosis.json").write_text(json.dumps(doc))

@@ -49,7 +49,9 @@ def diagnose_cmd(
         pars = ", ".join(f"{p['name']}={p['value']:.4g}±{p['std']:.2g}"
                          + (f" [{p['ci95'][0]:.4g}, {p['ci95'][1]:.4g}]" if p.get("ci95") else "") + f" {p['unit']}"
                          for p in f["parameters"])
-        t.add_row(f["effect"] + ("" if f["confidence"] == "high" else " (low confidence)"), f["location"], pars,
+        alike = ", ".join(f"{a['effect']}@{a['location']}" for a in f.get("look_alikes", []))
+        t.add_row(f["effect"] + ("" if f["confidence"] == "high" else " (low confidence)")
+                  + (f" (or {alike}: the campaign can hardly tell)" if alike else ""), f["location"], pars,
                   f"{ev['p_value']:.2g}", f"{mm(ev['cv_rms_before_m'])} → {mm(ev['cv_rms_after_m'])}",
                   f"{ev['bootstrap_frequency']:.2f}")
     con = Console()

@@ -25,7 +25,7 @@ from pipeline.blas import one_thread
 from pipeline.diagnose import confirm, lack_of_fit, visual
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
 from pipeline.diagnose.select import (PhysicalModel, Whitener, cluster_sign_flip_p, cluster_whitener,
-                                      conditional_steps, forward_select, gate,
+                                      conditional_steps, forward_select, gate, look_alikes,
                                       measurement_covariance, measurement_whitener, noise_components, orthonormal,
                                       physical_components, physical_whitener, project_out, sigma_given)
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
@@ -331,6 +331,9 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             steps = conditional_steps(r_w, Sp, dof, [testable.index(i) for i in accepted], tols, len(testable))
             accepted = [testable[st.index] for st in steps]
 
+    # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
+    alikes = look_alikes(r_w, Sp, dof, [testable.index(i) for i in accepted], tols) if accepted else {}
+
     # 4. joint refit
     groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
     folds = kfold_indices(nk, s.folds, s.seed, groups)
@@ -409,6 +412,8 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
                          "cv_rms_before_m": confirm.rms(cv_wo), "cv_rms_after_m": confirm.rms(after_cv),
                          "bootstrap_frequency": float(boot[testable.index(i)])},
             "absorbed_fraction": gates[i].absorbed_fraction,
+            "look_alikes": [{"effect": lib[testable[c]].name, "location": str(lib[testable[c]].location),
+                             "delta_chi2": dl} for c, dl in alikes.get(testable.index(i), [])],
             "min_detectable": gates[i].min_detectable,
             "confidence": "high",
         })

@@ -577,6 +577,29 @@ def wild_cluster_p(res: np.ndarray, QA: np.ndarray, bases: list[np.ndarray], clu
     return p
 
 
+def look_alikes(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, A: list[int],
+                tolerances: list[float] | None = None, level: float = 0.95) -> dict[int, list[tuple[int, float]]]:
+    """Candidates the data can hardly tell from each accepted block: for b in A and every c not in A
+    with no more directions, Δ = (RSS with c in b's place − RSS of A)/σ̂² (σ̂² = RSS of A / its residual
+    dof; r and the candidates as `forward_select` takes them).  The swap fits worse by Δ (a
+    likelihood-ratio distance, χ²-scaled); those with Δ < χ²_{k_b}(level) are returned per block,
+    closest first, as [(c, Δ)] — a name the campaign cannot reject beside b's."""
+    if not A:
+        return {}
+    D = _Design(r, candidates, None, tolerances or [0.0] * len(candidates))
+    rss_A, rk = D.given(A)[:2]
+    s2 = rss_A / max(dof_resid - rk, 1)
+    out = {}
+    for b in A:
+        rss, _, _, _, kc, gain = D.tests_given([c for c in A if c != b], dof_resid)
+        ok = (kc > 0) & (kc <= D.k[b])
+        ok[A] = False
+        delta = np.where(ok, (rss - gain - rss_A) / max(s2, 1e-300), np.inf)
+        near = np.flatnonzero(delta < scipy.stats.chi2.ppf(level, D.k[b]))
+        out[b] = [(int(c), float(delta[c])) for c in near[np.argsort(delta[near], kind="stable")]]
+    return out
+
+
 def cluster_sign_flip_p(r: np.ndarray, blocks: list[np.ndarray], base: np.ndarray, cluster: np.ndarray,
                         n_draw: int = 9999, seed: int = 0) -> np.ndarray:
     """p-value of each block (N, k_b) given `base` and the other blocks (the last-in grouped F) by

@@ -157,8 +157,18 @@ def finding_rows(doc: dict) -> list[dict[str, str]]:
                      "evidence": "; ".join(f"{k} = {_fmt(v, 'm' if k.endswith('_m') else '')}"
                                            for k, v in ev.items()) if isinstance(ev, dict) else str(ev),
                      "absorbed_fraction": _fmt(f.get("absorbed_fraction"), ""),
-                     "confidence": str(f.get("confidence", "")) + (f" ({f['note']})" if f.get("note") else "")})
+                     "confidence": str(f.get("confidence", "")) + (f" ({f['note']})" if f.get("note") else "")
+                     + _alikes(f.get("look_alikes"))})
     return rows
+
+
+def _alikes(v: Any) -> str:
+    """'; the campaign can hardly tell it from X (Δχ² …)' for a finding's look-alikes."""
+    items = [a for a in v or [] if isinstance(a, dict)]
+    if not items:
+        return ""
+    return "; the campaign can hardly tell it from " + ", ".join(
+        f"{a.get('effect')}@{a.get('location')} (Δχ² {_fmt(a.get('delta_chi2'), '')})" for a in items)
 
 
 def _loc(v: Any) -> str:

@@ -90,6 +90,7 @@ def welder(a) -> None:
 def scanner(a) -> None:
     rows: dict = {c: [] for c in SCANNER_CASES}
     runs = dict.fromkeys(SCANNER_CASES, 0)
+    misnamed = {c: [0, 0] for c in SCANNER_CASES}  # [runs naming another effect instead, of which listing the truth as a look-alike]
     for seed in range(a.first_seed, a.first_seed + a.seeds):
         mds = bs.mds_of(bs.run([], seed))
         for c in SCANNER_CASES:
@@ -102,8 +103,14 @@ def scanner(a) -> None:
             f = [x for x in d["findings"] if (x["effect"], x["location"]) == (name, loc)]
             if f:
                 rows[c].append(row(f[0]["parameters"][0], val * bs.in_fitted_gauge(name, d)))
+            elif d["findings"]:
+                misnamed[c][0] += 1
+                misnamed[c][1] += any((a["effect"], a["location"]) == (name, loc)
+                                      for x in d["findings"] for a in x.get("look_alikes", []))
     for c in SCANNER_CASES:
-        print(summary(f"{c[0]}@{c[1]} at {c[2]}x MDS", rows[c], runs[c]), flush=True)
+        print(summary(f"{c[0]}@{c[1]} at {c[2]}x MDS", rows[c], runs[c])
+              + f"; another effect named instead in {misnamed[c][0]} (the truth among its look-alikes in {misnamed[c][1]})",
+              flush=True)
 
 
 def main() -> None:

@@ -94,14 +94,14 @@ class Adapter:
 N_DRAWS = 2999  # parametric bootstrap draws of the lack-of-fit reference
 
 
-def physical_reference(ad: Adapter, x: np.ndarray, r: np.ndarray, A: np.ndarray, src: list, nm, cl: np.ndarray,
+def physical_reference(model_of_x: tuple, r: np.ndarray, A: np.ndarray, src: list, nm, cl: np.ndarray,
                        M, W: Whitener, seed: int) -> tuple[Whitener, np.ndarray]:
     """(whitener, whitened null draws (nk, N_DRAWS)) of the adapter's physical cluster-error model
-    (`Adapter.cluster_model`) for residual r of design A: the error's variances θ by REML on the
+    (`model_of_x` = `Adapter.cluster_model(x)`: (B, column groups)) for residual r of design A: the error's variances θ by REML on the
     measurement-whitened problem (`select.physical_components`, within σ_w from W), each cluster
     whitened by its own covariance (`select.physical_whitener`), and residuals drawn from the
     fitted model (measurement noise `nm` + B_g e_g) through the same whitener."""
-    Bm, groups = ad.cluster_model(x)
+    Bm, groups = model_of_x
     Bm = np.asarray(Bm, float).reshape(r.size, -1)
     s2 = W.sigma_within**2
     theta, info = physical_components(r, A, Bm, groups, cl, s2, pre=M, information=True)
@@ -132,9 +132,10 @@ def physical_lack_of_fit(ad: Adapter, x: np.ndarray, r: np.ndarray, A: np.ndarra
     by_name = {v.name: v for v in variables}
     done: dict = {}
     rest, D, floor = list(variables), A, 0.0
+    model_of_x = ad.cluster_model(x)  # the same x at every step
     while rest:
         rr = r - D @ np.linalg.lstsq(D, r, rcond=None)[0]
-        Wl, draws = physical_reference(ad, x, rr, D, src, nm, cl, M, W, seed)
+        Wl, draws = physical_reference(model_of_x, rr, D, src, nm, cl, M, W, seed)
         vw = [dataclasses.replace(v, columns=Wl(v.columns)) for v in rest]
         lof = lack_of_fit.test(Wl(rr), Wl(D), vw, Wl.n_effective - D.shape[1], alpha, whiten=Wl,
                                original=(rr, D, rest), cluster=cl, seed=seed, draws=draws)

@@ -152,7 +152,7 @@ def context(model, x: np.ndarray, data, lens: tuple[float, float, float] | None 
         P, dP_dx = model.points(x, data, (du, dv, dD))
     F = serial_arm.frames(xa, q)
     nj = q.shape[1]
-    dP_dq = np.stack([np.cross(F[:, i, :3, 2], P - F[:, i, :3, 3]) for i in range(nj)], axis=2)
+    dP_dq = joint_motion(F, P, nj)
     return {"ut": ut, "vt": vt, "P": P, "dP_dx": dP_dx, "dP_duv": dP_duv,
             "dP_dpx": np.einsum("nij,njk->nik", dP_duv, duv_dpx),
             "dP_dq": dP_dq, "q": q, "qdot": np.asarray(data.get("joint_velocity", np.zeros_like(q)), float),
@@ -351,11 +351,7 @@ def repeatability_basis(model, x: np.ndarray, table) -> np.ndarray:
     B[:, :, 3:] -= (m / nm[:, None])[:, :, None] * np.cross(nrm, d)[:, None, :]
     # moved back: −δt − δω × d = −δt + [d]× δω
     B[:, :, :3] -= np.eye(3)
-    dx = np.zeros((n, 3, 3))
-    dx[:, 0, 1], dx[:, 0, 2] = -d[:, 2], d[:, 1]
-    dx[:, 1, 0], dx[:, 1, 2] = d[:, 2], -d[:, 0]
-    dx[:, 2, 0], dx[:, 2, 1] = -d[:, 1], d[:, 0]
-    B[:, :, 3:] += dx
+    B[:, :, 3:] += _skew(d)
     return B
 
 
@@ -371,21 +367,19 @@ def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[n
     off at the capture (the flange displaced by its twist J_f δq: the slide mechanism).  The data
     decide the six variances (`select.physical_components`)."""
     B = repeatability_basis(model, x, table)
-    R_f, t_f = model.flange(x, np.asarray(table["joint_positions"], float))
-    d = np.asarray(table["corner"], float) - t_f
-    n = d.shape[0]
+    q = np.asarray(table["joint_positions"], float)
+    X = np.asarray(table["corner"], float)
+    R_f, t_f = model.flange(x, q)
+    n, nj = X.shape[0], q.shape[1]
     Br = np.zeros((n, 3, 6))
     Br[:, :, :3] = -np.eye(3)
-    Br[:, 0, 4], Br[:, 0, 5] = d[:, 2], -d[:, 1]  # δω × d = −[d]× δω (a column's sign is immaterial to θ's covariance)
-    Br[:, 1, 3], Br[:, 1, 5] = -d[:, 2], d[:, 0]
-    Br[:, 2, 3], Br[:, 2, 4] = d[:, 1], -d[:, 0]
-    Bq = encoder_basis(model, x, table)
-    # the arm standing δq off at the capture: the flange displaced by its twist J_f δq, the slide mechanism
-    F = serial_arm.frames(model._arm_vector(np.asarray(x, float)), np.asarray(table["joint_positions"], float))
-    nj = Bq.shape[2]
-    w, o = F[:, :nj, :3, 2], F[:, :nj, :3, 3]  # joint axes and origins in {B} (n, n_joints, 3)
-    Bs = (np.einsum("nkc,njc->nkj", B[:, :, :3], np.cross(w, t_f[:, None, :] - o))
-          + np.einsum("nkc,njc->nkj", B[:, :, 3:], w))
+    Br[:, :, 3:] = -_skew(X - t_f)  # δω × d = −[d]× δω (a column's sign is immaterial to θ's covariance)
+    F = serial_arm.frames(model._arm_vector(np.asarray(x, float)), q)
+    Bq = joint_motion(F, X, nj)  # `encoder_basis`
+    # the arm standing δq off at the capture: the flange displaced by its twist J_f δq (δt = ω_j × (t_f − o_j),
+    # δω = ω_j per unit δq_j), the slide mechanism
+    Bs = (np.einsum("nkc,ncj->nkj", B[:, :, :3], joint_motion(F, t_f, nj))
+          + np.einsum("nkc,njc->nkj", B[:, :, 3:], F[:, :nj, :3, 2]))
     nq = 12 + nj
     groups = [np.arange(3 * i, 3 * i + 3) for i in range(4)] + [np.arange(12, nq), np.arange(nq, nq + nj)]
     return np.concatenate([B, Br, Bq, Bs], axis=2), groups
@@ -400,9 +394,23 @@ def encoder_basis(model, x: np.ndarray, table) -> np.ndarray:
     arm's Jacobian): δq ~ N(0, θ I) per pose, one variance shared by all joints — a per-joint
     variance would let a structured error in one joint (a transmission bump) pass as noise."""
     q = np.asarray(table["joint_positions"], float)
-    X = np.asarray(table["corner"], float)
     F = serial_arm.frames(model._arm_vector(np.asarray(x, float)), q)
-    return np.stack([np.cross(F[:, i, :3, 2], X - F[:, i, :3, 3]) for i in range(q.shape[1])], axis=2)
+    return joint_motion(F, np.asarray(table["corner"], float), q.shape[1])
+
+
+def joint_motion(F: np.ndarray, X: np.ndarray, nj: int) -> np.ndarray:
+    """Velocity (n, 3, nj) of points X (n, 3) in {B} per unit rotation of each of the first nj
+    joints: ω_j × (X − o_j), ω_j and o_j joint j's axis and origin in {B} (`serial_arm.frames` F)."""
+    return np.cross(F[:, :nj, :3, 2], X[:, None, :] - F[:, :nj, :3, 3]).transpose(0, 2, 1)
+
+
+def _skew(d: np.ndarray) -> np.ndarray:
+    """[d]× (n, 3, 3) of vectors d (n, 3): [d]× v = d × v."""
+    S = np.zeros((d.shape[0], 3, 3))
+    S[:, 0, 1], S[:, 0, 2] = -d[:, 2], d[:, 1]
+    S[:, 1, 0], S[:, 1, 2] = d[:, 2], -d[:, 0]
+    S[:, 2, 0], S[:, 2, 1] = -d[:, 1], d[:, 0]
+    return S
 
 
 def stripe_directions(table) -> np.ndarray:

@@ -74,6 +74,22 @@ class Composed:
             g["registration"] = g.get("registration", []) + self.extra_names()
         return g
 
+    def uncalibrated(self, data: Table) -> np.ndarray:
+        """The reference of "RMS before": the nominal robot with only the registration fitted
+        (instrument frame, tool / targets, planes, points), as a user without a calibration has."""
+        from pipeline.identify.complexity import fixed_for
+        from pipeline.identify.least_squares import FitOptions, fit
+
+        if "registration" not in self.groups():
+            return self.nominal()
+        return fit(self, data, FitOptions(fixed=fixed_for(self, ["registration"]), before=False)).x
+
+    def exports(self, x: np.ndarray) -> dict[str, str]:
+        """The calibrated robot as a URDF (when the kinematics come from one)."""
+        if not hasattr(self.kin, "urdf_text"):
+            return {}
+        return {"model.urdf": self.kin.urdf_text(self.split(x)[0])}
+
     def split(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x = np.asarray(x, float)
         return x[:self.n_kin], x[self.n_kin:]

@@ -31,6 +31,14 @@ def channel_of(measure: str) -> str:
     return f"/measure/{measure}"
 
 
+def channel_for(rec) -> str:
+    """The measurement channel of this recording (by its campaign's measurement type)."""
+    try:
+        return channel_of(campaign_measure(rec))
+    except RobocalError:
+        return MEASUREMENT_CHANNEL
+
+
 def campaign_measure(rec) -> str:
     m = rec.meta(META_CAMPAIGN).get("measure")
     if m not in MEASURES:

@@ -95,6 +95,8 @@ def import_csv(
             except ValueError:
                 raise RobocalError(f"--distance {d!r}: expected A:B:METRES") from None
         campaign["distances"] = ds
+    for w in extras.get("import_warnings", []):
+        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
     n = write_urdf_recording(out, desc, measure, campaign, table)
     err.print(f"imported {n} {measure} measurements of {len(desc.joint_names)} joints "
               f"({desc.root} → {desc.tip}) into {out}", highlight=False, soft_wrap=True)

@@ -18,11 +18,13 @@ from pipeline.identify.least_squares import FitOptions, cross_validate
 from pipeline.identify.model import MeasurementModel, Table
 
 MIN_GAIN = 0.02  # a group must lower the held-out RMS by 2 % to be kept
+SINGLE_MAX_RESIDUALS = 200  # small campaigns: then try single parameters of the groups not kept
+SINGLE_MAX_ROUNDS = 6
 
 
 @dataclass(frozen=True)
 class Selection:
-    kept: list[str]  # group names kept (registration first)
+    kept: list[str]  # group names kept (registration first), then single parameters kept
     fixed: tuple[str, ...]  # parameter names held at their start values
     rounds: list[dict]  # [{"candidate": group, "holdout_rms_m": …, "kept": bool}, …]
     holdout_registration_m: float
@@ -34,8 +36,9 @@ def _rms(r: np.ndarray) -> float:
 
 
 def fixed_for(model: MeasurementModel, kept: list[str]) -> tuple[str, ...]:
+    """Grouped parameters to hold fixed when `kept` (group names or single parameter names) are fitted."""
     groups = model.groups()
-    free = {n for g in kept for n in groups.get(g, [])}
+    free = {n for g in kept for n in groups.get(g, [g])}
     grouped = {n for v in groups.values() for n in v}
     return tuple(n for n in model.parameter_names() if n in grouped and n not in free)
 
@@ -43,7 +46,7 @@ def fixed_for(model: MeasurementModel, kept: list[str]) -> tuple[str, ...]:
 def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, options: FitOptions = FitOptions(),
            min_gain: float = MIN_GAIN, groups_of_rows: np.ndarray | None = None) -> Selection:
     """Forward selection of parameter groups by k-fold held-out RMS (see module docstring)."""
-    candidates = [g for g in model.groups() if g != "registration"]
+    candidates = [g for g in model.groups() if g != "registration" and not g.startswith("_")]
     kept = ["registration"]
 
     def score(groups: list[str]) -> float:
@@ -65,6 +68,20 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
         kept.append(g)
         candidates.remove(g)
         best = trial[g]
+    # a small campaign may support a few parameters of a group but not the whole group
+    n_res = len(next(iter(data.values()))) * model.residual_dim
+    singles = [n for g in candidates for n in model.groups()[g]] if n_res <= SINGLE_MAX_RESIDUALS else []
+    for _ in range(SINGLE_MAX_ROUNDS if singles else 0):
+        trial = {n: score(kept + [n]) for n in singles}
+        n = min(trial, key=trial.get)
+        if not trial[n] < best * (1 - min_gain):
+            rounds.append({"candidate": f"best single parameter {n}", "holdout_rms_m": trial[n], "kept": False,
+                           "against_m": best})
+            break
+        rounds.append({"candidate": n, "holdout_rms_m": trial[n], "kept": True, "against_m": best})
+        kept.append(n)
+        singles.remove(n)
+        best = trial[n]
     return Selection(kept=kept, fixed=fixed_for(model, kept), rounds=rounds, holdout_registration_m=reg,
                      holdout_rms_m=best)
 

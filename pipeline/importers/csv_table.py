@@ -21,7 +21,10 @@ from scipy.spatial.transform import Rotation
 from pipeline.errors import RobocalError
 from pipeline.models.urdf import RobotDescription
 
-LIMIT_SLACK = 1e-6  # rad or m beyond a limit that still counts as inside (rounding in the file)
+# A reading beyond its URDF limit by more than this fraction of the joint's range (or, for a joint
+# without limits, beyond ±4π) is an error — the usual sign of degrees declared as radians.  Real
+# robots do read a little past their URDF limits: less than that is a warning.
+LIMIT_SLACK = 0.25
 
 
 @dataclass(frozen=True)
@@ -90,6 +93,7 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
     lo, hi = np.array([j.lower for j in joints]), np.array([j.upper for j in joints])
     rows: dict[str, list] = {}
     planes = []
+    warnings: list[str] = []
     for path in paths:
         path = Path(path)
         cols = _read(path, spec)
@@ -99,11 +103,19 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
         used = set(spec.position) | {c for t in spec.targets for c in t} | set(spec.orientation)
         _need(path, cols, names, "joint", used)
         q = np.stack([_numeric(path, cols, c) for c in names], axis=1) * jscale
-        out_of = (q < lo - LIMIT_SLACK) | (q > hi + LIMIT_SLACK)
+        finite = np.isfinite(hi - lo)
+        slack = np.where(finite, LIMIT_SLACK * np.where(finite, hi - lo, 0.0), 0.0)
+        lo_e = np.where(finite, lo - slack, np.where(ang, -4 * np.pi, -np.inf))
+        hi_e = np.where(finite, hi + slack, np.where(ang, 4 * np.pi, np.inf))
+        out_of = (q < lo_e) | (q > hi_e)
+        beyond = ((q < lo) | (q > hi)) & ~out_of
+        for k in np.flatnonzero(beyond.any(0)):
+            warnings.append(f"{path}: column {names[k]!r}: {int(beyond[:, k].sum())} row(s) beyond the URDF limits "
+                            f"[{lo[k]:.6g}, {hi[k]:.6g}] (at most {np.max(np.maximum(lo[k] - q[:, k], q[:, k] - hi[k])):.3g})")
         if out_of.any():
             i, k = np.argwhere(out_of)[0]
             hint = " (degrees declared as radians? use --joint-units deg)" if ang[k] and spec.joint_units == "rad" else ""
-            raise RobocalError(f"{path}: row {i + 2}: column {names[k]!r}: {q[i, k]:.6g} is outside the joint's "
+            raise RobocalError(f"{path}: row {i + 2}: column {names[k]!r}: {q[i, k]:.6g} is far outside the joint's "
                                f"limits [{lo[k]:.6g}, {hi[k]:.6g}]{hint}")
         part: dict[str, np.ndarray] = {"joint_positions": q}
         if spec.measure in ("point", "pose"):
@@ -143,7 +155,7 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
         for k, v in part.items():
             rows.setdefault(k, []).append(v)
     table = {k: np.concatenate(v) for k, v in rows.items()}
-    extras: dict = {}
+    extras: dict = {"import_warnings": warnings} if warnings else {}
     if planes:
         extras["planes"] = planes
     if spec.measure == "point":

@@ -68,10 +68,17 @@ class Composed:
     def priority(self) -> np.ndarray:
         return np.concatenate([self.kin.priority(), self.extra_priority()])
 
+    fit_tool = True  # False: the tool frame is known (held at its URDF / given value)
+
     def groups(self) -> dict[str, list[str]]:
+        """Parameter groups for model selection; "registration" is always fitted, groups whose
+        name starts with "_" never are."""
         g = dict(self.kin.groups()) if hasattr(self.kin, "groups") else {}
         if self.extra_names():
             g["registration"] = g.get("registration", []) + self.extra_names()
+        if not self.fit_tool and "registration" in g:
+            g["_known tool"] = [n for n in g["registration"] if n.startswith("tool.")]
+            g["registration"] = [n for n in g["registration"] if not n.startswith("tool.")]
         return g
 
     def uncalibrated(self, data: Table) -> np.ndarray:

@@ -34,6 +34,7 @@ def _perp(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @dataclass(frozen=True)
 class PlaneModel(Composed):
     planes: tuple[Plane, ...] = field(default_factory=tuple)
+    fit_tool: bool = False  # a tool point free to move can collapse onto a point the joints cannot move
 
     residual_dim = 1
 

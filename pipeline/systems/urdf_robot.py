@@ -68,7 +68,7 @@ def model_for(arm: UrdfArm, measure: str, campaign: dict, labels: list[str] | No
         planes = tuple(Plane(str(p["name"]), tuple(float(v) for v in p.get("normal", (0, 0, 1))),
                              float(p.get("offset", 0.0)), bool(p.get("known", True)))
                        for p in campaign.get("planes", []))
-        return PlaneModel(arm, planes=planes)
+        return PlaneModel(arm, planes=planes, fit_tool=bool(campaign.get("fit_tool", False)))
     groups = tuple(labels or [str(g) for g in campaign.get("groups", [])])
     return CoincidenceModel(arm, groups_=groups)
 

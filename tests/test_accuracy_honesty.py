@@ -1,0 +1,173 @@
+"""Honest accuracy (issue 16): priors of fixed parameters propagated, the workspace map, the
+`insufficient` verdict, --strict, --tolerance, --previous."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from conftest import run_cli
+from pipeline.accuracy import assess, prior, propagate as P, workspace
+from pipeline.errors import RobocalError
+from pipeline.identify.least_squares import covariance, fit
+from pipeline.identify.model import take
+from pipeline.models.jig import stepped_block
+from pipeline.plan.arc_welder import measured
+from pipeline.systems import arc_welder as aw
+from tests.pipeline_support import BUNDLED, base_campaign, write
+
+FIXTURE = stepped_block().to_dict()
+
+
+# ----- functional core ------------------------------------------------------------------
+def test_consider_covariance_matches_monte_carlo_of_a_linear_model():
+    """Fixed parameters drawn from their prior and noise drawn at σ: the empirical covariance of
+    the calibrated point error equals the predicted fit + prior covariance."""
+    rng = np.random.default_rng(0)
+    m, p, n = 60, 8, 5
+    Jm, Jp = rng.normal(size=(m, p)), rng.normal(size=(n, 3, p))
+    free = np.array([1, 1, 1, 1, 1, 0, 0, 0], bool)
+    sig_prior, sigma = np.array([0, 0, 0, 0, 0, 0.3, 0.1, 0.2]), 0.05
+    A = P.absorption(Jm, free)
+    pred = P.predict(Jp, free, covariance(Jm[:, free], sigma), sig_prior, A)
+    K = 40_000
+    delta = rng.normal(size=(K, p)) * sig_prior  # true − nominal; fixed ones kept at nominal
+    y = delta @ Jm.T + rng.normal(0, sigma, (K, m))  # measurement deviations
+    est = np.zeros((K, p))
+    est[:, free] = y @ np.linalg.pinv(Jm[:, free]).T
+    err = np.einsum("nip,kp->kni", Jp, est - delta)
+    emp = np.einsum("kni,knj->nij", err, err) / K
+    assert np.allclose(emp, pred.cov, rtol=0.05, atol=0.02 * np.abs(pred.cov).max())
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 10_000))
+def test_a_fixed_parameter_the_fit_absorbs_contributes_nothing(seed):
+    """A fixed column equal to a combination of free ones (in measurements and points alike,
+    like J1.θ ≡ base.rz) adds no predicted error; an unmeasured one adds its full effect."""
+    rng = np.random.default_rng(seed)
+    Jm, Jp = rng.normal(size=(30, 5)), rng.normal(size=(4, 3, 5))
+    c = rng.normal(size=4)
+    Jm = np.column_stack([Jm[:, :4], Jm[:, :4] @ c])
+    Jp = np.concatenate([Jp[:, :, :4], (Jp[:, :, :4] @ c)[:, :, None]], axis=2)
+    free = np.array([1, 1, 1, 1, 0], bool)
+    A = P.absorption(Jm, free)
+    assert np.allclose(P.fixed_contributions(Jp, free, np.full(5, 1.0), A), 0, atol=1e-9)
+    Jm[:, 4] = 0  # never measured: its whole effect on the point remains
+    A = P.absorption(Jm, free)
+    eff = np.sqrt(np.mean(np.sum(Jp[:, :, 4] ** 2, axis=1)))
+    assert np.isclose(P.fixed_contributions(Jp, free, np.full(5, 2.0), A)[0], 2 * eff)
+
+
+def test_95_percent_bound_of_the_error_norm():
+    rng = np.random.default_rng(1)
+    for lam in ([1.0, 1.0, 1.0], [4.0, 1.0, 0.01], [1.0, 0.0, 0.0]):
+        cov = np.diag(lam)[None]
+        b = P.norm_quantile(cov, 0.95)[0]
+        e = rng.normal(size=(200_000, 3)) * np.sqrt(lam)
+        assert abs(np.mean(np.linalg.norm(e, axis=1) <= b) - 0.95) < 0.01, lam
+
+
+def test_prior_defaults_by_kind_and_overrides():
+    model = aw.TouchModel(aw.nominal_arm())
+    s, kinds, src = prior.prior_sigma(model)
+    names = model.parameter_names()
+    k = dict(zip(names, kinds))
+    assert k["base.x"] == "frame_translation" and k["J2.a"] == "length" and k["J3.theta_offset"] == "angle"
+    assert k["base.rz"] == "frame_rotation"
+    s, _, src = prior.prior_sigma(model, {"J*.beta": 0.001}, prior.parse_overrides(["base.x=0.5mm", "angle=0.2deg"]))
+    d = dict(zip(names, s))
+    assert d["base.x"] == pytest.approx(5e-4) and d["J2.beta"] == pytest.approx(0.2 * np.pi / 180)  # CLI wins
+    assert d["J2.a"] == prior.DEFAULTS["length"]
+    with pytest.raises(RobocalError, match="matches no parameter"):
+        prior.prior_sigma(model, None, {"nosuch": 1.0})
+    with pytest.raises(RobocalError, match="cannot read"):
+        prior.parse_overrides(["base.x=5 furlongs"])
+    assert prior.parse_quantity("0.1mm") == pytest.approx(1e-4)
+
+
+# ----- the verdict on simulated campaigns (truth known) -------------------------------------
+def _verdict(table, model):
+    f = fit(model, table)
+    s, _, _ = prior.prior_sigma(model)
+    mt, _ = workspace.map_table(model, f.x, table, fixture=FIXTURE)
+    doc = assess.evaluate(model, f.x, f.free, f.cov, table, s, mt, model.nominal(),
+                          direction_advice=assess.touch_advice(FIXTURE))
+    truth = aw.random_truth(aw.nominal_arm(), np.random.default_rng(3 + 1_000_003)).vector()
+    true = np.linalg.norm(model.points(f.x, mt)[0] - model.points(truth, mt)[0], axis=1)
+    return doc, true
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    return measured(100, 3, random_errors=True)
+
+
+def test_normal_campaign_passes_and_prediction_matches_truth(campaign):
+    doc, true = _verdict(campaign[1], campaign[0])
+    assert doc["status"] == "pass" and doc["reason"] == ""
+    ratio = np.sqrt(np.mean(true**2)) / doc["map_rms_1sigma_m"]
+    assert 0.6 < ratio < 1.6, ratio
+    assert len(doc["map"]["sigma_m"]) == len(doc["map"]["bound95_m"]) == len(doc["map"]["points_m"]) >= 60
+    assert np.all(doc["map"]["bound95_m"] > doc["map"]["sigma_m"])
+
+
+def test_no_x_facing_face_is_insufficient_and_names_the_faces(campaign):
+    model, table = campaign
+    doc, true = _verdict(take(table, np.asarray(table["axis"]) != 0), model)
+    assert doc["status"] == "insufficient" and "along x" in doc["reason"]
+    assert "riser12" in doc["advice"] and "end_low" in doc["advice"]
+    assert doc["fixed_parameter_contributions"][0]["name"] == "base.x"
+    assert np.sqrt(np.mean(true**2)) < np.sqrt(np.mean(doc["map"]["bound95_m"] ** 2))
+
+
+def test_eight_contacts_are_insufficient_and_bounded(campaign):
+    model, table = campaign
+    doc, true = _verdict(take(table, np.arange(8)), model)
+    assert doc["status"] == "insufficient"
+    assert "8 residuals for 8 identified parameters" in doc["reason"] and "more measurements" in doc["advice"]
+    assert np.sqrt(np.mean(true**2)) < np.sqrt(np.mean(doc["map"]["bound95_m"] ** 2))
+
+
+# ----- command line on real recordings --------------------------------------------------
+@pytest.fixture(scope="module")
+def thin_recording(tmp_path_factory):
+    meta, js, contacts = base_campaign(12)
+    return write(tmp_path_factory.mktemp("thin") / "thin.mcap", meta, js, contacts[:8])
+
+
+def test_strict_exits_non_zero_on_thin_data(thin_recording, tmp_path):
+    p = run_cli("calibrate", thin_recording, "--out", tmp_path / "c", "--strict", "--folds", "2")
+    assert p.returncode == 1, p.stderr
+    assert "Traceback" not in p.stderr and "insufficient:" in p.stderr and "advice:" in p.stderr
+    doc = json.loads((tmp_path / "c" / "results.json").read_text())
+    assert doc["status"] == "insufficient" and doc["status_advice"]
+    p = run_cli("calibrate", thin_recording, "--out", tmp_path / "d", "--folds", "2")  # without --strict: reported, exit 0
+    assert p.returncode == 0 and "insufficient" in p.stderr
+
+
+def test_tolerance_previous_and_bad_prior(tmp_path):
+    a = tmp_path / "a"
+    p = run_cli("calibrate", BUNDLED, "--out", a, "--tolerance", "1mm", "--strict", "--folds", "2")
+    assert p.returncode == 0, p.stderr
+    doc = json.loads((a / "results.json").read_text())
+    assert doc["status"] == "pass" and doc["accuracy"]["tolerance"]["status"] == "pass"
+    assert doc["rms_after_m"] == pytest.approx(3.5e-5, rel=0.02)  # the bundled figures do not change
+    p = run_cli("calibrate", BUNDLED, "--out", tmp_path / "b", "--tolerance", "0.05mm", "--strict",
+                "--previous", a, "--folds", "2")
+    assert p.returncode == 1
+    doc = json.loads((tmp_path / "b" / "results.json").read_text())
+    assert doc["status"] == "fail" and "exceeds the tolerance" in doc["status_reason"]
+    assert doc["accuracy"]["previous"]["compared"] == 27 and doc["accuracy"]["previous"]["moved"] == []
+    p = run_cli("calibrate", BUNDLED, "--out", tmp_path / "c", "--prior", "nosuch=1mm")
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert len([ln for ln in p.stderr.splitlines() if ln.strip()]) == 1 and "nosuch" in p.stderr
+
+
+def test_version():
+    p = run_cli("--version")
+    assert p.returncode == 0 and p.stdout.startswith("robocal ")

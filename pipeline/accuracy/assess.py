@@ -99,7 +99,7 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
                 "sigma_prior_m": amap.sigma_prior, "uncalibrated_sigma_m": before},
         "map_rms_1sigma_m": rms(sig), "map_max_1sigma_m": float(sig.max()), "map_max_bound95_m": float(b95.max()),
         "map_uncalibrated_rms_1sigma_m": rms(before),
-        "fixed_parameter_contributions": [{"name": n, "rms_m": float(c)} for n, c in top if c > 0],
+        "fixed_parameter_contributions": [{"name": n, "rms_m": float(c)} for n, c in top if c > 1e-9],
         "tolerance": tol,
     }
 

@@ -57,9 +57,12 @@ def _num(v: float | None, digits: int = 4) -> str:
 
 
 def _sig(v: float | None, digits: int = 5) -> str:
-    """Significant figures, whatever the magnitude (a pixel pitch of 6.6e-06 m/px stays readable)."""
+    """4 decimals in the usual range; significant figures outside it (a pixel pitch of 6.6e-06 m/px or a
+    σ of 4e-05 mm stays readable instead of printing 0.0000)."""
     if v is None or (isinstance(v, float) and not np.isfinite(v)):
         return "–"
+    if v == 0 or 1e-3 <= abs(v) < 1e6:
+        return f"{v:.4f}"
     return f"{v:.{digits}g}"
 
 

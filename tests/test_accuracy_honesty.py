@@ -146,8 +146,6 @@ def test_strict_exits_non_zero_on_thin_data(thin_recording, tmp_path):
     assert "Traceback" not in p.stderr and "insufficient:" in p.stderr and "advice:" in p.stderr
     doc = json.loads((tmp_path / "c" / "results.json").read_text())
     assert doc["status"] == "insufficient" and doc["status_advice"]
-    p = run_cli("calibrate", thin_recording, "--out", tmp_path / "d", "--folds", "2")  # without --strict: reported, exit 0
-    assert p.returncode == 0 and "insufficient" in p.stderr
 
 
 def test_tolerance_previous_and_bad_prior(tmp_path):
@@ -171,3 +169,28 @@ def test_tolerance_previous_and_bad_prior(tmp_path):
 def test_version():
     p = run_cli("--version")
     assert p.returncode == 0 and p.stdout.startswith("robocal ")
+
+
+# ----- the pipeline: robocal run --strict, the report and run.rrd ------------------------
+def test_run_strict_on_thin_data_reports_insufficient_everywhere(thin_recording, tmp_path):
+    import hashlib
+    import re
+
+    from rerun.chunk import RrdReader
+
+    out = tmp_path / "run"
+    p = run_cli("run", thin_recording, "--out", out, "--folds", "2", "--strict")
+    assert p.returncode == 1, p.stderr[-2000:]
+    assert "Traceback" not in p.stderr and "insufficient:" in p.stderr and "advice:" in p.stderr
+    assert f"report: {out / 'report.html'}" in p.stderr and f"run: {out / 'run.rrd'}" in p.stderr
+    s = json.loads((out / "results.json").read_text())["summary"]
+    assert s["status"] == "insufficient" and "identified parameters" in s["status_reason"]
+    acc = json.loads((out / "accuracy" / "accuracy.json").read_text())
+    assert len(acc["map"]["sigma_m"]) == len(acc["map"]["bound95_m"]) == len(acc["map"]["points_m"]) > 20
+    html = (out / "report.html").read_text()
+    assert re.search(r'id="accuracy-status">insufficient<', html) and "Advice:" in html
+    for fig in ("fig-accuracy-map", "fig-histograms", "fig-joints-before-after"):
+        m = re.search(rf'<figure id="{fig}" class="plot">(.*?)</figure>', html, re.S)
+        assert m and m.group(1).count("<path") + m.group(1).count("<use") > 10, fig
+    sha = hashlib.sha256(thin_recording.read_bytes()).hexdigest()[:16]
+    assert RrdReader(out / "run.rrd").recordings()[0].recording_id == f"robocal-arc-welder-{sha}"

@@ -172,17 +172,22 @@ def test_version():
 
 
 # ----- the pipeline: robocal run --strict, the report and run.rrd ------------------------
-def test_run_strict_on_thin_data_reports_insufficient_everywhere(thin_recording, tmp_path):
+@pytest.fixture(scope="module")
+def thin_run(thin_recording, tmp_path_factory):
+    out = tmp_path_factory.mktemp("thinrun") / "run"
+    return out, run_cli("run", thin_recording, "--out", out, "--folds", "2", "--strict")
+
+
+def test_run_strict_on_thin_data_reports_insufficient_everywhere(thin_recording, thin_run):
     import hashlib
     import re
 
     from rerun.chunk import RrdReader
 
-    out = tmp_path / "run"
-    p = run_cli("run", thin_recording, "--out", out, "--folds", "2", "--strict")
+    out, p = thin_run
     assert p.returncode == 1, p.stderr[-2000:]
     assert "Traceback" not in p.stderr and "insufficient:" in p.stderr and "advice:" in p.stderr
-    assert f"report: {out / 'report.html'}" in p.stderr and f"run: {out / 'run.rrd'}" in p.stderr
+    assert f"report: {out / 'report.html'}" in p.stderr and f"rerun: {out / 'run.rrd'}" in p.stderr
     s = json.loads((out / "results.json").read_text())["summary"]
     assert s["status"] == "insufficient" and "identified parameters" in s["status_reason"]
     acc = json.loads((out / "accuracy" / "accuracy.json").read_text())
@@ -194,3 +199,69 @@ def test_run_strict_on_thin_data_reports_insufficient_everywhere(thin_recording,
         assert m and m.group(1).count("<path") + m.group(1).count("<use") > 10, fig
     sha = hashlib.sha256(thin_recording.read_bytes()).hexdigest()[:16]
     assert RrdReader(out / "run.rrd").recordings()[0].recording_id == f"robocal-arc-welder-{sha}"
+
+
+def test_rerun_viewer_renders_the_panels(thin_run, tmp_path):
+    """The real rerun viewer, headless under Xvfb with Mesa's software Vulkan (Debian xvfb,
+    mesa-vulkan-drivers): its screenshot shows the 3-D scene with the accuracy map (viridis
+    spheres), the robot (blue), and drawn time-series panels on the right."""
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from matplotlib.image import imread
+
+    xvfb = shutil.which("xvfb-run")
+    rerun = Path(sys.executable).with_name("rerun")
+    if xvfb is None or not rerun.is_file():
+        pytest.skip("xvfb-run or the rerun viewer not installed (apt-get install xvfb mesa-vulkan-drivers)")
+    out, _ = thin_run
+    shot = tmp_path / "viewer.png"
+    r = subprocess.run([xvfb, "-a", "-s", "-screen 0 1600x1000x24", str(rerun), str(out / "run.rrd"),
+                        "--window-size", "1600x1000", "--screenshot-to", str(shot)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and shot.is_file(), r.stderr[-2000:]
+    img = imread(shot)[..., :3]
+    h, w = img.shape[:2]
+    R, G, B = img[..., 0], img[..., 1], img[..., 2]
+    scene = (slice(int(0.05 * h), int(0.75 * h)), slice(int(0.13 * w), int(0.53 * w)))
+    yellow = (R > 0.6) & (G > 0.6) & (B < 0.35)  # the largest-σ end of viridis
+    teal = (R < 0.3) & (G > 0.35) & (B > 0.4) & (G < 0.75)  # its middle
+    blue = (B > 0.6) & (R < 0.35) & (G < 0.35)  # the calibrated arm
+    assert yellow[scene].mean() > 5e-5 and (yellow | teal)[scene].mean() > 1e-3, "no accuracy map in the 3-D view"
+    assert blue[scene].mean() > 1e-3, "no robot in the 3-D view"
+    plots = (slice(int(0.05 * h), int(0.27 * h)), slice(int(0.55 * w), int(0.81 * w)))
+    colourful = (img.max(axis=2) - img.min(axis=2)) > 0.3
+    assert colourful[plots].mean() > 2e-3, "encoder time series not drawn"
+    assert img.std() > 0.05
+
+
+def test_report_renders_in_headless_chromium(thin_run, tmp_path):
+    """The report's Accuracy section in a real browser: the map and histograms drawn, the red
+    `insufficient` badge on screen near the top of the page."""
+    import re
+    import shutil
+    import subprocess
+
+    from matplotlib.image import imread
+
+    exe = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+    if exe is None:
+        pytest.skip("chromium not found (make chromium)")
+    out, _ = thin_run
+    url = (out / "report.html").resolve().as_uri()
+    base = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
+            "--disable-component-update", "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}"]
+    dom = subprocess.run(base + ["--dump-dom", url], capture_output=True, text=True, timeout=120)
+    assert dom.returncode == 0
+    for fig in ("fig-accuracy-map", "fig-histograms", "fig-joints-before-after"):
+        m = re.search(rf'<figure id="{fig}" class="plot">(.*?)</figure>', dom.stdout, re.S)
+        assert m and m.group(1).count("<path") + m.group(1).count("<use") > 10, fig
+    shot = tmp_path / "top.png"
+    r = subprocess.run(base + [f"--screenshot={shot}", "--window-size=1280,900", url], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0 and shot.is_file()
+    img = imread(shot)[..., :3]
+    red = (img[..., 0] > 0.7) & (img[..., 1] < 0.25) & (img[..., 2] < 0.25)  # the badge, #c62828
+    assert red.sum() > 50, "the insufficient badge is not on the first screen"

@@ -72,7 +72,7 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
         i = int(np.argmax(sig - before))
         reasons.append(f"predicted worse than the uncalibrated model at {int(worse.sum())} of {len(sig)} map points "
                        f"(e.g. {sig[i] * 1e3:.3g} vs {before[i] * 1e3:.3g} mm at "
-                       f"({', '.join(f'{c * 1e3:.0f}' for c in inp.points_map[i])}) mm)")
+                       f"({', '.join(f'{c * 1e3 + 0.0:.0f}' for c in inp.points_map[i])}) mm)")
         if not advice:
             advice.append("record more measurements near the worst map points")
     status = "insufficient" if reasons else "pass"

@@ -56,9 +56,10 @@ def _summary(run_dir: Path) -> None:
         err.print(f"[{colour}]{s.get('status')}:[/] {s['status_reason']}", highlight=False, soft_wrap=True)
     if s.get("status_advice"):
         err.print(f"advice: {s['status_advice']}", highlight=False, soft_wrap=True)
-    for f in ("report.html", "run.rrd"):
+    for label, f in (("report", "report.html"), ("rerun", "run.rrd")):
         if (run_dir / f).is_file():
-            err.print(f"{f.split('.')[0]}: {run_dir / f}", highlight=False, soft_wrap=True)
+            err.print(f"{label}: {run_dir / f}" + (f"  (open with: robocal view {run_dir})" if label == "rerun" else ""),
+                      highlight=False, soft_wrap=True)
 
 
 def accuracy_params(prior: list[str] | None, tolerance: str | None, previous: Path | None,

@@ -148,20 +148,36 @@ def test_strict_exits_non_zero_on_thin_data(thin_recording, tmp_path):
     assert doc["status"] == "insufficient" and doc["status_advice"]
 
 
-def test_tolerance_previous_and_bad_prior(tmp_path):
-    a = tmp_path / "a"
-    p = run_cli("calibrate", BUNDLED, "--out", a, "--tolerance", "1mm", "--strict", "--folds", "2")
-    assert p.returncode == 0, p.stderr
-    doc = json.loads((a / "results.json").read_text())
-    assert doc["status"] == "pass" and doc["accuracy"]["tolerance"]["status"] == "pass"
-    assert doc["rms_after_m"] == pytest.approx(3.5e-5, rel=0.02)  # the bundled figures do not change
+def test_tolerance_verdict_over_the_map(campaign):
+    model, table = campaign
+    f = fit(model, table)
+    s, _, _ = prior.prior_sigma(model)
+    mt, _ = workspace.map_table(model, f.x, table, fixture=FIXTURE)
+    ok = assess.evaluate(model, f.x, f.free, f.cov, table, s, mt, model.nominal(), tolerance_m=1e-3)
+    assert ok["status"] == "pass" and ok["tolerance"]["points_within"] == ok["tolerance"]["points"]
+    tight = assess.evaluate(model, f.x, f.free, f.cov, table, s, mt, model.nominal(), tolerance_m=5e-5)
+    assert tight["status"] == "fail" and "exceeds the tolerance" in tight["reason"]
+    assert tight["tolerance"]["points_within"] < tight["tolerance"]["points"]
+
+
+def test_calibrate_tolerance_and_previous_on_the_bundled_recording(thin_run, tmp_path):
+    prev, _ = thin_run
     p = run_cli("calibrate", BUNDLED, "--out", tmp_path / "b", "--tolerance", "0.05mm", "--strict",
-                "--previous", a, "--folds", "2")
-    assert p.returncode == 1
+                "--previous", prev, "--folds", "2")
+    assert p.returncode == 1 and "Traceback" not in p.stderr
     doc = json.loads((tmp_path / "b" / "results.json").read_text())
     assert doc["status"] == "fail" and "exceeds the tolerance" in doc["status_reason"]
-    assert doc["accuracy"]["previous"]["compared"] == 27 and doc["accuracy"]["previous"]["moved"] == []
-    p = run_cli("calibrate", BUNDLED, "--out", tmp_path / "c", "--prior", "nosuch=1mm")
+    assert doc["rms_after_m"] == pytest.approx(3.495e-5, rel=0.02)  # the bundled figures do not change
+    assert doc["accuracy"]["tolerance"]["status"] == "fail"
+    # the 8-contact calibration's parameters are far from these: they show up as moved
+    cmp = doc["accuracy"]["previous"]
+    names = {r["name"] for r in doc["parameters"] if r["identifiable"]}
+    assert 5 <= cmp["compared"] <= 8 and cmp["moved"] and {m["name"] for m in cmp["moved"]} <= names
+    assert all(abs(m["z"]) > 3 for m in cmp["moved"]) and "moved since" in p.stderr
+
+
+def test_bad_prior_is_one_line(thin_recording, tmp_path):
+    p = run_cli("calibrate", thin_recording, "--out", tmp_path / "c", "--prior", "nosuch=1mm")
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert len([ln for ln in p.stderr.splitlines() if ln.strip()]) == 1 and "nosuch" in p.stderr
 

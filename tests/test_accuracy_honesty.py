@@ -203,6 +203,9 @@ def test_run_strict_on_thin_data_reports_insufficient_everywhere(thin_recording,
     out, p = thin_run
     assert p.returncode == 1, p.stderr[-2000:]
     assert "Traceback" not in p.stderr and "insufficient:" in p.stderr and "advice:" in p.stderr
+    # one line each, however long (no hard wrap at 80 columns off a terminal)
+    assert any(ln.startswith("insufficient: ") and ln.rstrip().endswith("mm)") and len(ln) > 100
+               for ln in p.stderr.splitlines()), p.stderr[-1500:]
     assert f"report: {out / 'report.html'}" in p.stderr and f"rerun: {out / 'run.rrd'}" in p.stderr
     s = json.loads((out / "results.json").read_text())["summary"]
     assert s["status"] == "insufficient" and "identified parameters" in s["status_reason"]

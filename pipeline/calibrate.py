@@ -78,9 +78,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
-    from pipeline.accuracy.stage import accuracy_document
+    from pipeline.accuracy.stage import guarded_document
 
-    acc = accuracy_document(model, rec, f.x, f.free, f.cov, table, accuracy or {})
+    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {})
     if (accuracy or {}).get("previous"):
         from pipeline.accuracy.previous import compare, read_parameters
 
@@ -114,8 +114,9 @@ def summary_rows(doc: dict) -> list[tuple[str, str]]:
         ("max |residual| after", mm(doc["max_abs_after_m"])),
         ("predicted 3-D point accuracy (1σ, RMS)", mm(acc["rms_1sigma_m"])),
         *([("predicted over the workspace (1σ RMS / worst 95 %)",
-            f"{mm(doc['accuracy']['map_rms_1sigma_m'])} / {mm(doc['accuracy']['map_max_bound95_m'])}"),
-           ("status", doc["status"])] if "accuracy" in doc else []),
+            f"{mm(doc['accuracy']['map_rms_1sigma_m'])} / {mm(doc['accuracy']['map_max_bound95_m'])}")]
+          if "map_rms_1sigma_m" in doc.get("accuracy", {}) else []),
+        *([("status", doc["status"])] if "status" in doc else []),
         ("parameters identified / total", f"{doc['n_identifiable']} / {doc['n_parameters']}"),
         ("solve time", f"{doc['solve_time_s']:.3f} s"),
     ]

@@ -73,6 +73,18 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict) -> dict:
     return doc
 
 
+def guarded_document(model, rec, x, free, cov, data, params: dict) -> dict:
+    """`accuracy_document`, but a model this module cannot map (a new measurement type) gives status
+    `not_assessed` with the reason instead of losing the calibration; bad user input still raises."""
+    try:
+        return accuracy_document(model, rec, x, free, cov, data, params)
+    except RobocalError:
+        raise
+    except Exception as e:  # noqa: BLE001 — reported in results.json, never silent
+        return {"status": "not_assessed", "reason": f"accuracy not assessed: {type(e).__name__}: {e}",
+                "advice": "report this model to the robocal maintainers", "map": {}}
+
+
 def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
     _, model, rec = load_system(run_dir)
@@ -81,14 +93,14 @@ def run(run_dir: Path, params: dict) -> dict:
     used = read_table(run_dir / IDENTIFY / "residuals.parquet")["used"].astype(bool)
     data = take(model_columns(table), used)
     x, free = np.asarray(fit["x"], float), np.asarray(fit["free"], bool)
-    doc = accuracy_document(model, rec, x, free, fit["cov"], data, params)
+    doc = guarded_document(model, rec, x, free, fit["cov"], data, params)
     if params.get("previous"):
         doc["previous"] = {"run": str(params["previous"]),
                            **compare(fit["parameters"], read_parameters(Path(params["previous"])))}
     write_json(run_dir / NAME / "accuracy.json", doc)
     out = {k: doc[k] for k in ("status", "reason", "advice", "map_rms_1sigma_m", "map_max_1sigma_m",
-                               "map_max_bound95_m", "map_uncalibrated_rms_1sigma_m", "tolerance")}
-    out["status"] = {"pass": "pass", "insufficient": "insufficient", "fail": "tolerance_fail"}[doc["status"]]
+                               "map_max_bound95_m", "map_uncalibrated_rms_1sigma_m", "tolerance") if k in doc}
+    out["status"] = {"pass": "pass", "insufficient": "insufficient", "fail": "tolerance_fail"}.get(doc["status"], "warn")
     if "previous" in doc:
         out["moved_parameters"] = [m["name"] for m in doc["previous"]["moved"]]
     return out

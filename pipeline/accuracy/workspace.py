@@ -87,7 +87,7 @@ def _delta(model, x: np.ndarray, data: dict, targets: np.ndarray | None, n: tupl
     return {"joint_positions": th[ok]}, what + (f"; {int((~ok).sum())} unreachable dropped" if (~ok).any() else "")
 
 
-def _scanner(model, data: dict, targets, n: tuple[int, int, int]):
+def _scanner(model, x: np.ndarray, data: dict, targets, n: tuple[int, int, int]):
     if targets is not None:
         raise RobocalError("accuracy map: the scanner maps its image over the measured poses; user targets "
                            "are not supported for it")
@@ -97,7 +97,18 @@ def _scanner(model, data: dict, targets, n: tuple[int, int, int]):
     u, v = np.meshgrid(np.linspace(lo[0], hi[0], n[0]), np.linspace(lo[1], hi[1], n[1]))
     px = np.stack([u.ravel(), v.ravel()], axis=1)
     table = {"joint_positions": np.repeat(q, len(px), axis=0), "pixel": np.tile(px, (len(q), 1))}
-    return table, (f"{len(q)} measured poses × {len(px)} image points (grid over the measured pixels' box)")
+    # a pixel off the stripe meets the laser plane anywhere (near-parallel rays: metres away): keep the points
+    # inside the measured points' box grown by half its size and 20 mm
+    p_meas, _ = model.points(x, data)
+    p_map, _ = model.points(x, table)
+    lo, hi = p_meas.min(axis=0), p_meas.max(axis=0)
+    pad = 0.5 * (hi - lo) + 0.02  # m; the target pattern is flat
+    keep = np.all((p_map >= lo - pad) & (p_map <= hi + pad), axis=1)
+    if not keep.any():
+        return {k: np.asarray(data[k]) for k in ("joint_positions", "pixel")}, "measured image points"
+    table = {k: v[keep] for k, v in table.items()}
+    return table, (f"{len(q)} measured poses × {len(px)} image points (grid over the measured pixels' box), "
+                   f"{int(keep.sum())} inside the measured volume grown by half its size + 20 mm")
 
 
 def map_table(model, x: np.ndarray, data: dict, targets: np.ndarray | None = None, fixture: dict | None = None,
@@ -112,7 +123,7 @@ def map_table(model, x: np.ndarray, data: dict, targets: np.ndarray | None = Non
     if system == "delta-tracker":
         return _delta(model, x, data, targets, n)
     if system == "scorbot-scanner":
-        return _scanner(model, data, targets, n)
+        return _scanner(model, x, data, targets, n)
     if targets is not None:
         raise RobocalError(f"accuracy map: system {system} cannot place user targets; omit --targets")
     return dict(data), "measured configurations (no workspace map for this system)"

@@ -284,3 +284,18 @@ def test_report_renders_in_headless_chromium(thin_run, tmp_path):
     img = imread(shot)[..., :3]
     red = (img[..., 0] > 0.7) & (img[..., 1] < 0.25) & (img[..., 2] < 0.25)  # the badge, #c62828
     assert red.sum() > 50, "the insufficient badge is not on the first screen"
+
+
+def test_priors_from_the_robot_model_file(tmp_path):
+    from pipeline.recording.schemas import META_ROBOT
+
+    meta, js, contacts = base_campaign(12)
+    meta[META_ROBOT]["prior_sigma"] = {"base.x": 1e-3, "J*.beta": 2e-3}
+    rec = write(tmp_path / "priors.mcap", meta, js, contacts[:8])
+    p = run_cli("calibrate", rec, "--out", tmp_path / "c", "--folds", "2", "--prior", "J2.beta=0.1deg")
+    assert p.returncode == 0, p.stderr[-1500:]
+    pri = {r["name"]: r for r in json.loads((tmp_path / "c" / "results.json").read_text())["accuracy"]["priors"]}
+    assert pri["base.x"]["sigma"] == 1e-3 and pri["base.x"]["source"] == "robot model file prior_sigma"
+    assert pri["J3.beta"]["sigma"] == 2e-3 and pri["J2.beta"]["source"] == "--prior"
+    assert pri["J2.beta"]["sigma"] == pytest.approx(0.1 * np.pi / 180)
+    assert pri["J2.a"]["source"] == "default:length"

@@ -23,7 +23,7 @@ def log_accuracy(rec: rr.RecordingStream, acc: dict) -> list[str]:
     if len(pts) and sig.size == len(pts):
         span = max(float(sig.max() - sig.min()), 1e-300)
         labels = [f"1σ {s * 1e3:.3g} mm, 95 % {b * 1e3:.3g} mm" for s, b in zip(sig, b95)]
-        radii = 4e-3  # m; the colour carries the 1σ, the label both figures
+        radii = 6e-3  # m; the colour carries the 1σ, the label both figures
         rec.log("world/accuracy_map", rr.Points3D(pts, colors=_viridis((sig - sig.min()) / span), radii=radii,
                                                   labels=labels, show_labels=False), static=True)
         out.append("world/accuracy_map")

@@ -299,3 +299,19 @@ def test_priors_from_the_robot_model_file(tmp_path):
     assert pri["J3.beta"]["sigma"] == 2e-3 and pri["J2.beta"]["source"] == "--prior"
     assert pri["J2.beta"]["sigma"] == pytest.approx(0.1 * np.pi / 180)
     assert pri["J2.a"]["source"] == "default:length"
+
+
+def test_user_targets_are_reached_and_bad_targets_named(campaign, tmp_path):
+    from pipeline.accuracy.stage import read_targets
+
+    model, table = campaign
+    f = fit(model, table)
+    targets = np.array([[0.10, 0.05, 0.16], [0.20, 0.10, 0.18], [0.25, 0.15, 0.20]])
+    csv = tmp_path / "targets.csv"
+    csv.write_text("x,y,z\n" + "\n".join(",".join(map(str, t)) for t in targets) + "\n")
+    mt, what = workspace.map_table(model, f.x, table, read_targets(csv), FIXTURE)
+    pts, _ = model.points(f.x, mt)
+    assert "3 user targets" in what and np.allclose(pts, targets, atol=1e-8)
+    (tmp_path / "bad.csv").write_text("x,y,z\n0.1,0.2,0.3\n0.1,oops,0.3\n")
+    with pytest.raises(RobocalError, match=r"bad.csv: row 3"):
+        read_targets(tmp_path / "bad.csv")

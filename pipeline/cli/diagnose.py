@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, err
+from pipeline.cli import app, console, err
 
 
 @app.command("diagnose")
@@ -18,7 +18,6 @@ def diagnose_cmd(
     n_boot: int = typer.Option(40, "--bootstrap", min=0, help="Bootstrap resamples for selection stability."),
 ) -> None:
     """Locate residual structure, name the effect from the library, model it, show the held-out fit improve."""
-    from rich.console import Console
     from rich.table import Table
 
     from pipeline.diagnose.diagnose import Settings
@@ -54,7 +53,7 @@ def diagnose_cmd(
                   + (f" (or {alike}: the campaign can hardly tell)" if alike else ""), f["location"], pars,
                   f"{ev['p_value']:.2g}", f"{mm(ev['cv_rms_before_m'])} → {mm(ev['cv_rms_after_m'])}",
                   f"{ev['bootstrap_frequency']:.2f}")
-    con = Console()
+    con = console()
     con.print(t if doc["findings"] else "no effect found beyond the geometric model")
     dropped = (doc.get("clustered_inference") or {}).get("dropped_by_check") or []
     if dropped:

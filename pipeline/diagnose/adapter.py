@@ -55,6 +55,8 @@ class Adapter:
     # refit(effects): the joint refit's exact model of those effects when some are not additive
     # enough (`confirm.AugmentedModel.exact`), or None (the additive model)
     refit: Callable[[tuple], Callable | None] | None = None
+    # floor_variance(x) (n·residual_dim,) m²: the noise floor the campaign supports (`verdict.floor_check`)
+    floor_variance: Callable[[np.ndarray], np.ndarray] | None = None
 
 
 N_DRAWS = 2999  # parametric bootstrap draws of the lack-of-fit reference

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.blas import one_thread
-from pipeline.diagnose import confirm, lack_of_fit, visual
+from pipeline.diagnose import confirm, lack_of_fit, outliers, verdict, visual
 from pipeline.diagnose.adapter import Adapter, _extremeness, physical_lack_of_fit, physical_reference  # noqa: F401
-from pipeline.diagnose.effects import Effect
+from pipeline.diagnose.effects import Effect, tip_speed_vector
 from pipeline.diagnose.select import (Whitener, cluster_sign_flip_p, cluster_whitener,
                                       conditional_steps, forward_select, gate, look_alikes,
                                       measurement_covariance, measurement_whitener, noise_components, orthonormal,
@@ -46,6 +46,9 @@ class Settings:
     seed: int = 0
     max_terms: int = 8
     sign_flips: int = 9999  # with clusters: draws of the findings' cluster-robust check (0: off)
+    # the robot's declared repeatability (3σ, m; ISO 9283 datasheet figure): the noise floor the
+    # residuals are compared with (None: not declared, the back-to-the-floor check is not made)
+    repeatability_3sigma_m: float | None = None
 
 
 def _sign_flip_check(W: Whitener, r: np.ndarray, Jw: np.ndarray, S: list[np.ndarray], accepted: list[int],
@@ -81,14 +84,25 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
     are flattened measurement-major; cross-validation and bootstrap keep a measurement's k
     rows together.  Runs with one BLAS thread (`pipeline.blas`: small matrices)."""
     with one_thread():
-        return _diagnose(model, table, jig_tolerance_m=jig_tolerance_m, x0=x0, settings=settings,
-                         library=library, geometry_fit=geometry_fit, adapter=adapter)
+        if adapter is not None:
+            return _diagnose(model, table, jig_tolerance_m=jig_tolerance_m, x0=x0, settings=settings,
+                             library=library, geometry_fit=geometry_fit, adapter=adapter)
+
+        def run(tab, gf, x_start):
+            return _diagnose(model, tab, jig_tolerance_m=jig_tolerance_m, x0=x_start, settings=settings,
+                             library=library, geometry_fit=gf, adapter=None, influence=True)
+
+        speed = ((lambda x, t: np.linalg.norm(tip_speed_vector(x, t), axis=1))
+                 if "approach_joint_velocity" in table else None)
+        return outliers.screened(run, model, table, x0=x0, geometry_fit=geometry_fit, alpha=settings.alpha,
+                                 speed=speed)
 
 
 def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, settings: Settings,
-              library: list[Effect] | None, geometry_fit: Fit | None, adapter: Adapter | None) -> dict:
+              library: list[Effect] | None, geometry_fit: Fit | None, adapter: Adapter | None,
+              influence: bool = False) -> dict:
     s = settings
-    ad = adapter or touch_adapter(model, table, jig_tolerance_m, library)
+    ad = adapter or touch_adapter(model, table, jig_tolerance_m, library, s.repeatability_3sigma_m)
     if geometry_fit is None and ad.held:
         # the baseline every campaign gets (the clean one): a weak gauge freed because an effect
         # lowers the cost would absorb that effect before it is tested
@@ -276,6 +290,38 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         })
         pos += e.k
 
+    # 5b. the held-out arbiter: a finding is found only if modelling it lowers the grouped CV RMS, and
+    # the final model is never worse out of sample than geometry alone (else nothing is found)
+    all_cv, rejected, worse = confirm.rms(after_cv), [], False
+    rej = [j for j, fd in enumerate(findings)
+           if fd["evidence"]["cv_rms_after_m"] >= fd["evidence"]["cv_rms_before_m"]]
+    drop = np.array([c for j in rej for c in col_of[accepted[j]]], int)
+    A_k, r_k = verdict.linearised_subset(A, r_final, drop, [contributions[j] for j in rej])
+    cv_k = confirm.holdout(A_k, r_k, folds) if rej else after_cv
+    if findings and len(rej) < len(findings) and confirm.rms(cv_k) > confirm.rms(before_cv):
+        worse, rej = True, list(range(len(findings)))
+    if rej:
+        why = ("the model with the selected effects is worse out of sample than geometry alone" if worse else
+               "modelling it does not lower the grouped cross-validated RMS")
+        rejected = [{**findings[j], "confidence": "rejected", "note": why} for j in rej]
+        kept = [j for j in range(len(findings)) if j not in rej]
+        if len(kept) == 0:  # the final model is the geometry
+            A, r_final, after_cv = Jf, r, before_cv
+        else:
+            new = {int(c): m for m, c in enumerate(np.setdiff1d(np.arange(A.shape[1]), drop))}
+            col_of = {accepted[j]: [new[c] for c in col_of[accepted[j]]] for j in kept}
+            A, r_final, after_cv = A_k, r_k, cv_k
+        findings, contributions = [findings[j] for j in kept], [contributions[j] for j in kept]
+        accepted = [accepted[j] for j in kept]
+    # influence: a finding that loses its significance with one or two records left out is theirs
+    carried = {}
+    if influence and W is None:
+        for fd, i, c in zip(findings, accepted, contributions):
+            rest = np.setdiff1d(np.arange(A.shape[1]), col_of[i])
+            rows = verdict.carried_by(r_final - c.reshape(nk), A[:, rest], A[:, col_of[i]], s.alpha)
+            if rows is not None:
+                carried[f"{fd['effect']}@{fd['location']}"] = sorted({int(q) // k for q in rows})
+
     # 6. lack of fit
     variables = ad.variables(z[:ng])
     if W is None:
@@ -301,6 +347,16 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             fd["confidence"] = "low"
             fd["note"] = (f"structure remains in {lib[i].variable} that {lib[i].name} does not explain; "
                           "the effect may be something outside the library")
+    # misspecification: a flexible basis along the finding's own variable still adds to the final design
+    if W is None:
+        for fd, i in zip(findings, accepted):
+            bad = verdict.misspecified(r_final, A, verdict.related(lib[i].variable, str(lib[i].location), variables),
+                                       s.alpha)
+            if bad is not None:
+                fd["evidence"]["p_value_own_variable_structure"] = bad[0]
+                fd["confidence"] = "low"
+                fd["note"] = (f"a flexible function of {bad[1]} still adds to it (p = {bad[0]:.2g}): "
+                              f"its functional form does not capture what acts along that variable")
     # a likely proxy: a finding that is no longer significant once the located unexplained structure, or
     # a narrow bump along the finding's own variable (a localised error there), is in the design, while
     # that structure stays significant beside the finding (a real effect explains the bump away instead)
@@ -328,6 +384,17 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             fd["note"] = (f"not significant (p = {p_f:.2g}) once {' and '.join(why)} is modelled, which stays "
                           f"significant beside it: likely a proxy for something outside the library")
 
+    # back to the noise floor the campaign supports, or say what is left
+    floor = None
+    if ad.floor_variance is not None:
+        floor = verdict.floor_check(r_final, nk - A.shape[1], ad.floor_variance(z[:ng]), s.alpha)
+        floor["holdout_rms_over_floor"] = confirm.rms(after_cv) / floor["sigma_floor_m"]
+    st_name, st_reason = verdict.status(len(findings), bool(where), floor, worse)
+    if st_name == "partially_explained":
+        for fd in findings:
+            if fd["confidence"] == "high":
+                fd["confidence"] = "medium"
+                fd["note"] = f"named, but the diagnosis is only partial: {st_reason.split('; left: ')[-1]}"
     not_ident = [{"effect": g.effect.name, "location": str(g.effect.location), "reason": g.reason,
                   "absorbed_by": g.absorbed_by, "absorbed_fraction": g.absorbed_fraction,
                   "min_detectable": g.min_detectable if np.isfinite(g.min_detectable) else None,
@@ -363,7 +430,12 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             "lack_of_fit_reference": ("parametric bootstrap under the adapter's physical cluster-error model (REML variances; "
                                       "diagnose.physical_lack_of_fit)" if ad.cluster_model is not None and nm is not None
                                       else "restricted wild cluster bootstrap (sign flips)")}}),
+        "status": st_name,
+        "status_reason": st_reason,
+        "noise_floor": floor,
         "findings": findings,
+        "rejected_findings": rejected,
+        **({"_carried": carried} if influence else {}),
         "not_identifiable": not_ident,
         "unexplained": bool(where),
         "unexplained_where": where,
@@ -371,6 +443,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
                         for t in lof],
         "holdout_rms_before_m": confirm.rms(before_cv),
         "holdout_rms_after_m": confirm.rms(after_cv),
+        "holdout_rms_with_all_selected_m": all_cv,
         "cross_validation": {"folds": s.folds, "groups": f"time blocks of {s.block} consecutive measurements",
                              "seed": s.seed, "linearised_at": "the full-data solution"},
         "candidates": candidates,

@@ -7,11 +7,14 @@ import numpy as np
 from pipeline.diagnose import lack_of_fit
 from pipeline.diagnose.adapter import Adapter
 from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
+from pipeline.diagnose.verdict import touch_floor_variance
 from pipeline.models import serial_arm
 
 
-def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None) -> Adapter:
-    """The arc-welder touch campaign's adapter (`effects.touch_library`, joint/time/speed lack of fit)."""
+def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None,
+                  repeatability_3sigma_m: float | None = None) -> Adapter:
+    """The arc-welder touch campaign's adapter (`effects.touch_library`, joint/time/speed lack of fit);
+    with the robot's declared repeatability, the noise floor (`verdict.touch_floor_variance`)."""
     arm = model.arm
     lib = library if library is not None else touch_library(arm, table, jig_tolerance_m)
     jn = [j.name for j in arm.joints]
@@ -46,5 +49,11 @@ def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Eff
     # each face's machining error is shared by its contacts: uniform within ± the jig tolerance
     faces = np.asarray(table["face"]).astype(str)
     Zf = (faces[:, None] == np.unique(faces)[None, :]).astype(float)
+    floor = None
+    if repeatability_3sigma_m is not None:
+        def floor(x):
+            _, Jq = serial_arm.joint_jacobian(x, table["joint_positions"])
+            ax = np.asarray(table["axis"], int)
+            return touch_floor_variance(Jq[np.arange(ax.size), ax], repeatability_3sigma_m, jig_tolerance_m)
     return Adapter(lib, sigs, variables, np.asarray(table["time_since_start_s"], float), located,
-                   shared_error=(Zf, jig_tolerance_m**2 / 3))
+                   shared_error=(Zf, jig_tolerance_m**2 / 3), floor_variance=floor)

@@ -43,7 +43,13 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
             out.append(_entry(table, i, r, f"derived approach speed {sp[i]:.3g} m/s is beyond any touch search "
                                            f"(> {verdict.MAX_SEARCH_SPEED_M_S} m/s): a fault of this record"))
     Jf = model.jacobian(f.x, table)[:, :, f.free].reshape(n, -1)
-    for i, t in verdict.studentized_outliers(Jf, r, alpha):
+    flagged = verdict.studentized_outliers(Jf, r, alpha)
+    if flagged and hasattr(model, "points") and "face" in table:  # a local structure is not an outlier
+        t_all = verdict.studentized(Jf, r)
+        tip = model.points(f.x, table)[0]
+        flagged = [(i, t) for i, t in flagged
+                   if not verdict.has_like_neighbours(i, tip, np.asarray(table["face"]).astype(str), t_all)]
+    for i, t in flagged:
         if i not in bad:
             bad.append(i)
             out.append(_entry(table, i, r, f"{t:+.1f} studentized σ off the geometric fit (beyond the Bonferroni "

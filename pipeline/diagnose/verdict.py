@@ -78,6 +78,29 @@ def studentized_outliers(J: np.ndarray, r: np.ndarray, alpha: float, max_out: in
     return out
 
 
+def studentized(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Externally studentized residuals (n,) of r against design J."""
+    Q = orthonormal(J)
+    e = project_out(np.asarray(r, float)[:, None], Q)[:, 0]
+    h = np.clip(np.sum(Q**2, axis=1), 0, 1 - 1e-12)
+    dof = max(e.size - Q.shape[1] - 1, 1)
+    s2 = (float(e @ e) - e**2 / (1 - h)) / dof
+    return e / np.sqrt(np.maximum(s2, 1e-300) * (1 - h))
+
+
+NEIGHBOUR_RADIUS_M = 0.025  # contacts this close on the same face see the same local face shape
+NEIGHBOUR_T = 2.0
+
+
+def has_like_neighbours(i: int, tip: np.ndarray, faces: np.ndarray, t: np.ndarray) -> bool:
+    """Whether another contact on row i's face within NEIGHBOUR_RADIUS_M has a studentized
+    residual of the same sign beyond NEIGHBOUR_T: a local structure (a dent, a bump on the face),
+    located by the lack of fit, rather than one bad record."""
+    near = (faces == faces[i]) & (np.linalg.norm(tip - tip[i], axis=1) < NEIGHBOUR_RADIUS_M)
+    near[i] = False
+    return bool(np.any(near & (np.sign(t) == np.sign(t[i])) & (np.abs(t) > NEIGHBOUR_T)))
+
+
 def implausible_speed(speed_m_s: np.ndarray, limit: float = MAX_SEARCH_SPEED_M_S) -> np.ndarray:
     """Rows whose derived approach speed (m/s) is beyond what a touch search can be."""
     return np.flatnonzero(~np.isfinite(speed_m_s) | (np.asarray(speed_m_s, float) > limit))

@@ -12,7 +12,7 @@ outside the diagnosis's library:
 - ``quad_coupling``: δq_3 = k·(q_2 − q̄_2)² (a nonlinear coupling of J3 on J2's angle);
 - ``thermal_growth``: a2 and d4 grow by α·L·(1 − e^(−t/τ)) (a warm-up acting through the kinematics);
 - ``wild``:        one contact latched `size` metres further along its search (a bad latch);
-- in-library forms: ``coupling`` δq_3 = k·q_2 (linear), ``linear_growth`` a2, d4 grow by α·L·t.
+- in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` a2, d4 grow by α·L·t.
 
 Only the numbers of the nominal/true arm are read from `pipeline.systems.arc_welder` (base,
 D-H + Hayati joint terms, tool) and the jig's faces from `pipeline.models.jig`.  The diagnosis
@@ -180,8 +180,9 @@ def _joint_error(effects, q: np.ndarray, qbar: np.ndarray) -> np.ndarray:
             dq[:, j] += e.size * np.exp(-0.5 * ((q[:, j] - e.where["centre"]) / e.where.get("width", 0.1)) ** 2)
         elif e.kind == "quad_coupling":
             dq[:, 2] += e.size * (q[:, 1] - qbar[1]) ** 2
-        elif e.kind == "coupling":
-            dq[:, 2] += e.size * q[:, 1]
+        elif e.kind == "coupling":  # δq_dst = k·q_src (default J2 -> J3)
+            src, dst = e.where.get("pair", (1, 2))
+            dq[:, dst] += e.size * q[:, src]
     return dq
 
 

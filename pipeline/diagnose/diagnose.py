@@ -348,15 +348,28 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             fd["note"] = (f"structure remains in {lib[i].variable} that {lib[i].name} does not explain; "
                           "the effect may be something outside the library")
     # misspecification: a flexible basis along the finding's own variable still adds to the final design
+    misfit = []
     if W is None:
         for fd, i in zip(findings, accepted):
             bad = verdict.misspecified(r_final, A, verdict.related(lib[i].variable, str(lib[i].location), variables),
                                        s.alpha)
             if bad is not None:
                 fd["evidence"]["p_value_own_variable_structure"] = bad[0]
+                misfit.append(bad[1])
                 fd["confidence"] = "low"
                 fd["note"] = (f"a flexible function of {bad[1]} still adds to it (p = {bad[0]:.2g}): "
                               f"its functional form does not capture what acts along that variable")
+    # a name the campaign cannot make unique: a library candidate the gate found indistinguishable from it
+    for fd in findings:
+        twins = [g.effect for g in gates if not g.identifiable
+                 and g.reason == f"indistinguishable from {fd['effect']}@{fd['location']} in this campaign"]
+        if twins:
+            fd["indistinguishable_from"] = [{"effect": e.name, "location": str(e.location), "advice": e.advice}
+                                            for e in twins]
+            if fd["confidence"] == "high":
+                fd["confidence"] = "medium"
+                fd["note"] = (f"this campaign cannot tell it from {', '.join(e.label for e in twins)} "
+                              f"(> 95 % of the signature shared): {twins[0].advice}")
     # a likely proxy: a finding that is no longer significant once the located unexplained structure, or
     # a narrow bump along the finding's own variable (a localised error there), is in the design, while
     # that structure stays significant beside the finding (a real effect explains the bump away instead)
@@ -389,7 +402,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     if ad.floor_variance is not None:
         floor = verdict.floor_check(r_final, nk - A.shape[1], ad.floor_variance(z[:ng]), s.alpha)
         floor["holdout_rms_over_floor"] = confirm.rms(after_cv) / floor["sigma_floor_m"]
-    st_name, st_reason = verdict.status(len(findings), bool(where), floor, worse)
+    st_name, st_reason = verdict.status(len(findings), bool(where), floor, worse, misfit)
     if st_name == "partially_explained":
         for fd in findings:
             if fd["confidence"] == "high":

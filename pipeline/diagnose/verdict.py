@@ -157,14 +157,18 @@ def linearised_subset(A: np.ndarray, r_final: np.ndarray, drop_cols: np.ndarray,
     return A[:, keep], r
 
 
-def status(n_findings: int, located: bool, floor: dict | None, worse: bool) -> tuple[str, str]:
-    """(status, reason) of a diagnosis (module docstring)."""
+def status(n_findings: int, located: bool, floor: dict | None, worse: bool,
+           misfit: list[str] = ()) -> tuple[str, str]:
+    """(status, reason) of a diagnosis (module docstring); `misfit`: the variables along which a
+    named effect's form leaves structure (`misspecified`)."""
     above = bool(floor and floor.get("above_floor"))
     if worse:
         return ("model_worse_out_of_sample", "modelling the selected effects made the cross-validated RMS worse than "
                 "geometry alone: nothing is reported as found")
     left = " and ".join(w for w, b in (("structure located by the lack-of-fit test", located),
-                                       ("residuals above the noise floor", above)) if b)
+                                       ("residuals above the noise floor", above),
+                                       (f"structure along {', '.join(misfit)} that the named form misses",
+                                        bool(misfit))) if b)
     if n_findings and left:
         return "partially_explained", f"findings explain part of the residual; left: {left}"
     if n_findings:

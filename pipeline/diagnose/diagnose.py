@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.blas import one_thread
-from pipeline.diagnose import confirm, lack_of_fit, outliers, verdict, visual
+from pipeline.diagnose import confirm, judge, lack_of_fit, outliers, verdict, visual
 from pipeline.diagnose.adapter import Adapter, _extremeness, physical_lack_of_fit, physical_reference  # noqa: F401
 from pipeline.diagnose.effects import Effect, tip_speed_vector
 from pipeline.diagnose.select import (Whitener, cluster_sign_flip_p, cluster_whitener,
@@ -290,37 +290,12 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         })
         pos += e.k
 
-    # 5b. the held-out arbiter: a finding is found only if modelling it lowers the grouped CV RMS, and
-    # the final model is never worse out of sample than geometry alone (else nothing is found)
-    all_cv, rejected, worse = confirm.rms(after_cv), [], False
-    rej = [j for j, fd in enumerate(findings)
-           if fd["evidence"]["cv_rms_after_m"] >= fd["evidence"]["cv_rms_before_m"]]
-    drop = np.array([c for j in rej for c in col_of[accepted[j]]], int)
-    A_k, r_k = verdict.linearised_subset(A, r_final, drop, [contributions[j] for j in rej])
-    cv_k = confirm.holdout(A_k, r_k, folds) if rej else after_cv
-    if findings and len(rej) < len(findings) and confirm.rms(cv_k) > confirm.rms(before_cv):
-        worse, rej = True, list(range(len(findings)))
-    if rej:
-        why = ("the model with the selected effects is worse out of sample than geometry alone" if worse else
-               "modelling it does not lower the grouped cross-validated RMS")
-        rejected = [{**findings[j], "confidence": "rejected", "note": why} for j in rej]
-        kept = [j for j in range(len(findings)) if j not in rej]
-        if len(kept) == 0:  # the final model is the geometry
-            A, r_final, after_cv = Jf, r, before_cv
-        else:
-            new = {int(c): m for m, c in enumerate(np.setdiff1d(np.arange(A.shape[1]), drop))}
-            col_of = {accepted[j]: [new[c] for c in col_of[accepted[j]]] for j in kept}
-            A, r_final, after_cv = A_k, r_k, cv_k
-        findings, contributions = [findings[j] for j in kept], [contributions[j] for j in kept]
-        accepted = [accepted[j] for j in kept]
-    # influence: a finding that loses its significance with one or two records left out is theirs
-    carried = {}
-    if influence and W is None:
-        for fd, i, c in zip(findings, accepted, contributions):
-            rest = np.setdiff1d(np.arange(A.shape[1]), col_of[i])
-            rows = verdict.carried_by(r_final - c.reshape(nk), A[:, rest], A[:, col_of[i]], s.alpha)
-            if rows is not None:
-                carried[f"{fd['effect']}@{fd['location']}"] = sorted({int(q) // k for q in rows})
+    # 5b. the held-out arbiter (judge.arbiter) and the influence of single records (judge.carried)
+    fin = judge.Final(findings, accepted, contributions, col_of, A, r_final, after_cv)
+    fin, rejected, worse, all_cv = judge.arbiter(fin, folds, Jf, r, before_cv)
+    findings, accepted, contributions, col_of, A, r_final, after_cv = (
+        fin.findings, fin.accepted, fin.contributions, fin.col_of, fin.A, fin.r_final, fin.after_cv)
+    carried = judge.carried(fin, k, s.alpha) if influence and W is None else {}
 
     # 6. lack of fit
     variables = ad.variables(z[:ng])
@@ -348,28 +323,10 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             fd["note"] = (f"structure remains in {lib[i].variable} that {lib[i].name} does not explain; "
                           "the effect may be something outside the library")
     # misspecification: a flexible basis along the finding's own variable still adds to the final design
-    misfit = []
-    if W is None:
-        for fd, i in zip(findings, accepted):
-            bad = verdict.misspecified(r_final, A, verdict.related(lib[i].variable, str(lib[i].location), variables),
-                                       s.alpha)
-            if bad is not None:
-                fd["evidence"]["p_value_own_variable_structure"] = bad[0]
-                misfit.append(bad[1])
-                fd["confidence"] = "low"
-                fd["note"] = (f"a flexible function of {bad[1]} still adds to it (p = {bad[0]:.2g}): "
-                              f"its functional form does not capture what acts along that variable")
-    # a name the campaign cannot make unique: a library candidate the gate found indistinguishable from it
-    for fd in findings:
-        twins = [g.effect for g in gates if not g.identifiable
-                 and g.reason == f"indistinguishable from {fd['effect']}@{fd['location']} in this campaign"]
-        if twins:
-            fd["indistinguishable_from"] = [{"effect": e.name, "location": str(e.location), "advice": e.advice}
-                                            for e in twins]
-            if fd["confidence"] == "high":
-                fd["confidence"] = "medium"
-                fd["note"] = (f"this campaign cannot tell it from {', '.join(e.label for e in twins)} "
-                              f"(> 95 % of the signature shared): {twins[0].advice}")
+    # misspecification along each finding's own variable, and names the campaign cannot make unique
+    misfit = judge.misspecification(findings, [lib[i] for i in accepted], r_final, A, variables, s.alpha) \
+        if W is None else []
+    judge.twins(findings, gates)
     # a likely proxy: a finding that is no longer significant once the located unexplained structure, or
     # a narrow bump along the finding's own variable (a localised error there), is in the design, while
     # that structure stays significant beside the finding (a real effect explains the bump away instead)

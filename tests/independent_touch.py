@@ -12,7 +12,8 @@ outside the diagnosis's library:
 - ``quad_coupling``: δq_3 = k·(q_2 − q̄_2)² (a nonlinear coupling of J3 on J2's angle);
 - ``thermal_growth``: a2 and d4 grow by α·L·(1 − e^(−t/τ)) (a warm-up acting through the kinematics);
 - ``wild``:        one contact latched `size` metres further along its search (a bad latch);
-- in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` a2, d4 grow by α·L·t.
+- in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` every D-H a, d
+  grows by α·L·t.
 
 Only the numbers of the nominal/true arm are read from `pipeline.systems.arc_welder` (base,
 D-H + Hayati joint terms, tool) and the jig's faces from `pipeline.models.jig`.  The diagnosis
@@ -74,7 +75,8 @@ class Arm:
 
 
 def pose(arm: Arm, q: np.ndarray, link_scale: np.ndarray | None = None) -> np.ndarray:
-    """W_T_E (n, 4, 4) at joint angles q (n, 6); `link_scale` (n, 2) multiplies (a2, d4)."""
+    """W_T_E (n, 4, 4) at joint angles q (n, 6); `link_scale` (n, 2) multiplies (a2, d4), or
+    (n, 6) every joint's a and d."""
     q = np.atleast_2d(q)
     n = q.shape[0]
     x, y, z, rz, rx, ry = arm.base
@@ -82,9 +84,11 @@ def pose(arm: Arm, q: np.ndarray, link_scale: np.ndarray | None = None) -> np.nd
     for i, (th, d, a, al, be) in enumerate(arm.joints):
         a_i = np.full(n, a)
         d_i = np.full(n, d)
-        if link_scale is not None and i == 1:
+        if link_scale is not None and link_scale.shape[1] == 6:
+            a_i, d_i = a * link_scale[:, i], d * link_scale[:, i]
+        elif link_scale is not None and i == 1:
             a_i = a * link_scale[:, 0]
-        if link_scale is not None and i == 3:
+        elif link_scale is not None and i == 3:
             d_i = d * link_scale[:, 1]
         T = T @ _rot("z", q[:, i] + th) @ _trans(a_i, np.zeros(n), d_i, (n,)) @ _rot("x", al) @ _rot("y", be)
     tx, ty, tz, trz, tr_y, trx = arm.tool
@@ -187,16 +191,13 @@ def _joint_error(effects, q: np.ndarray, qbar: np.ndarray) -> np.ndarray:
 
 
 def _link_scale(effects, t: np.ndarray) -> np.ndarray | None:
-    s = np.ones((t.size, 2))
-    hit = False
+    """thermal_growth: (a2, d4) scale (n, 2); linear_growth: every a and d (n, 6)."""
     for e in effects:
         if e.kind == "thermal_growth":
-            s += e.size * (1 - np.exp(-t / e.where.get("tau_s", 600.0)))[:, None]
-            hit = True
-        elif e.kind == "linear_growth":
-            s += e.size * t[:, None]
-            hit = True
-    return s if hit else None
+            return 1 + e.size * np.repeat((1 - np.exp(-t / e.where.get("tau_s", 600.0)))[:, None], 2, axis=1)
+        if e.kind == "linear_growth":
+            return 1 + e.size * np.repeat(t[:, None], 6, axis=1)
+    return None
 
 
 def _face_shift(effects, face_idx: np.ndarray, uv: np.ndarray, jig: Jig) -> np.ndarray:

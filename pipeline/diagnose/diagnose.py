@@ -292,7 +292,10 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
 
     # 5b. the held-out arbiter (judge.arbiter) and the influence of single records (judge.carried)
     fin = judge.Final(findings, accepted, contributions, col_of, A, r_final, after_cv)
-    fin, rejected, worse, all_cv = judge.arbiter(fin, folds, Jf, r, before_cv)
+    # (pose-clustered campaigns: the unweighted CV ignores the shared pose errors, so there the findings
+    # rest on the pose sign-flip check instead and a finding without CV improvement is graded `low`)
+    fin, rejected, worse, all_cv = (judge.arbiter(fin, folds, Jf, r, before_cv) if W is None
+                                    else (fin, [], False, confirm.rms(after_cv)))
     findings, accepted, contributions, col_of, A, r_final, after_cv = (
         fin.findings, fin.accepted, fin.contributions, fin.col_of, fin.A, fin.r_final, fin.after_cv)
     carried = judge.carried(fin, k, s.alpha) if influence and W is None else {}

@@ -12,6 +12,8 @@ outside the diagnosis's library:
 - ``quad_coupling``: δq_3 = k·(q_2 − q̄_2)² (a nonlinear coupling of J3 on J2's angle);
 - ``thermal_growth``: a2 and d4 grow by α·L·(1 − e^(−t/τ)) (a warm-up acting through the kinematics);
 - ``wild``:        one contact latched `size` metres further along its search (a bad latch);
+- ``glitch``:      J1's encoder stream reads `size` rad off over the 30 ms before one latch (the latch
+                   itself is right; the approach speed derived from the stream is not);
 - in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` every D-H a, d
   grows by α·L·t.
 
@@ -171,7 +173,7 @@ def plan(nominal: Arm, jig: Jig, m: int = 160, seed: int = 0, offset: float = 0.
 # ----- effects (own forms) ----------------------------------------------------------------
 @dataclass(frozen=True)
 class Effect:
-    kind: str  # bump | dent | quad_coupling | thermal_growth | wild | coupling | linear_growth
+    kind: str  # bump | dent | quad_coupling | thermal_growth | wild | glitch | coupling | linear_growth
     size: float
     where: dict = field(default_factory=dict)
 
@@ -293,6 +295,11 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
         prev, t0 = q_a[i], t_contact[i] + 1.2
     t_stream = np.concatenate(ts)
     q_stream = np.concatenate(qs)
+    for e in effects:  # an encoder glitch: J1 reads `size` rad off over the 30 ms before one latch
+        if e.kind == "glitch":
+            i = int(e.where.get("record", n // 2))
+            hit = (t_stream >= t_contact[i] - 0.03) & (t_stream < t_contact[i])
+            q_stream[hit, 0] += e.size
     o = np.argsort(t_stream, kind="stable")
     t_stream, q_stream = t_stream[o], q_stream[o]
     keep = np.r_[True, np.diff(t_stream) > 1e-6]

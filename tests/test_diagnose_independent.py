@@ -73,3 +73,14 @@ def test_a_library_coupling_is_named_and_back_to_the_floor(world):
     assert [(f["effect"], f["location"]) for f in d["findings"]] == [("joint_coupling", "J3->J2")]
     assert d["holdout_rms_after_m"] <= 1.2 * clean["holdout_rms_before_m"]
     assert d["status"] == "explained"
+
+
+def test_an_impossible_derived_approach_speed_marks_the_record(world):
+    """An encoder glitch just before one latch: the approach speed derived from the stream is metres per
+    second (a touch search runs at mm/s): that record is set aside and named, nothing is named from it."""
+    nom, tru, targets, _ = world
+    c = it.run(nom, tru, targets, (it.Effect("glitch", 0.05, {"record": 52}),), seed=103)
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table, settings=SETTINGS)
+    assert [o["record"] for o in d["outlier_records"]] == [52]
+    assert "approach speed" in d["outlier_records"][0]["reason"]
+    assert not d["findings"] and d["status"] == "clean"

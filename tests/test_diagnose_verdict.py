@@ -112,3 +112,10 @@ def test_status_names_what_is_left():
     assert verdict.status(0, False, fl, False)[0] == "unexplained"
     assert verdict.status(0, False, None, False)[0] == "clean"
     assert verdict.status(2, False, None, True)[0] == "model_worse_out_of_sample"
+
+
+def test_advice_names_what_to_do_where_structure_is_left():
+    assert "top2" in verdict.advice_for("face top2 position")
+    assert "J2 alone" in verdict.advice_for("q_J2→J3")
+    assert "temperature" in verdict.advice_for("time_since_start_s→growth")
+    assert "J5" in verdict.advice_for("q_J5")

@@ -315,7 +315,8 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             lof = lack_of_fit.test(W(r_final), W(A), vw, W.n_effective - A.shape[1], s.alpha, whiten=W,
                                    original=(r_final, A, variables), cluster=cl, seed=s.seed)
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
-              "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m}
+              "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m,
+              "advice": verdict.advice_for(t.variable)}
              for t in sorted(lof, key=_extremeness)
              if t.significant]
     flagged = {w["variable"] for w in where}

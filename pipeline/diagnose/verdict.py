@@ -157,6 +157,27 @@ def linearised_subset(A: np.ndarray, r_final: np.ndarray, drop_cols: np.ndarray,
     return A[:, keep], r
 
 
+def advice_for(variable: str) -> str:
+    """What to do about structure located along a lack-of-fit variable (no library term names it)."""
+    if variable.startswith("face ") and variable.endswith(" position"):
+        return (f"inspect {variable[5:-9]} (flatness, a dent or a bump: a surface plate and dial gauge), or touch it "
+                "at more points spread over it")
+    if variable.endswith("→growth"):
+        return "log a temperature sensor near the links; revisit far-apart poses early and late (link growth)"
+    if "→" in variable and variable.startswith("q_"):
+        src, dst = variable[2:].split("→")
+        return f"move {src} alone over its range with {dst} still, and the reverse: a coupling of {src} into {dst}"
+    if variable.startswith("q_"):
+        return f"sweep {variable[2:]} alone over its range in small steps (a localised transmission error)"
+    if variable.startswith(("time", "temperature")):
+        return "log a temperature sensor; interleave the faces in time; let the arm warm up before the campaign"
+    if variable in ("approach_speed_m_s", "search_direction"):
+        return "vary the search speed and direction on the same faces (touch-sensor behaviour)"
+    if variable == "payload_kg":
+        return "repeat the same points with each payload (a payload-dependent deflection)"
+    return "add measurements that vary this variable alone"
+
+
 def status(n_findings: int, located: bool, floor: dict | None, worse: bool,
            misfit: list[str] = ()) -> tuple[str, str]:
     """(status, reason) of a diagnosis (module docstring); `misfit`: the variables along which a

@@ -119,3 +119,22 @@ def test_advice_names_what_to_do_where_structure_is_left():
     assert "J2 alone" in verdict.advice_for("q_J2→J3")
     assert "temperature" in verdict.advice_for("time_since_start_s→growth")
     assert "J5" in verdict.advice_for("q_J5")
+
+
+def test_holdout_floor_check_is_calibrated_on_noise_at_the_floor():
+    """The held-out residuals' null (a quadratic form in the floor errors) gives about uniform p-values."""
+    rng = np.random.default_rng(11)
+    n = 60
+    A = _design(n, 6, 11)
+    folds = kfold_indices(n, 5, 0, np.arange(n) // 5)
+    v = rng.uniform(0.5, 2.0, n)  # heteroscedastic floor
+    p = []
+    for _ in range(300):
+        e = rng.normal(0, np.sqrt(v))
+        r = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
+        p.append(verdict.holdout_floor_check(A, confirm.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"])
+    p = np.array(p)
+    assert 0.02 <= np.mean(p < 0.05) <= 0.09 and 0.4 <= np.mean(p < 0.5) <= 0.6
+    e = rng.normal(0, 1.4 * np.sqrt(v))  # 1.4× the floor
+    r = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
+    assert verdict.holdout_floor_check(A, confirm.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"] < 0.05

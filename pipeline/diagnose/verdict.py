@@ -50,6 +50,29 @@ def floor_check(r: np.ndarray, dof: int, var_floor: np.ndarray, alpha: float) ->
             "test": "chi-square of the residuals after modelling over the declared noise floor"}
 
 
+def holdout_floor_check(A: np.ndarray, e_cv: np.ndarray, folds: list[np.ndarray], var_floor: np.ndarray,
+                        alpha: float) -> dict:
+    """The held-out residuals e_cv (`confirm.holdout` of design A) against the floor: with the rows'
+    errors ε ~ N(0, diag v) and the model right, e_cv = (I − P)ε (P: each fold predicted from the
+    others' fit, which reproduces any A·β exactly), so ‖e_cv‖² is a quadratic form in ε whose mean
+    tr(QV) and variance 2 tr((QV)²) (Q = (I − P)ᵀ(I − P)) give a scaled χ² (Satterthwaite)."""
+    n = e_cv.size
+    norms = np.linalg.norm(A, axis=0)
+    As = A / np.where(norms == 0, 1, norms)
+    P = np.zeros((n, n))
+    for test in folds:
+        train = np.setdiff1d(np.arange(n), test)
+        P[np.ix_(test, train)] = As[test] @ np.linalg.pinv(As[train], rcond=1e-10)
+    R = np.eye(n) - P
+    QV = (R.T @ R) * var_floor[None, :]
+    m1, m2 = float(np.trace(QV)), float(np.sum(QV * QV.T))
+    g, h = m2 / m1, m1**2 / m2
+    T = float(e_cv @ e_cv)
+    p = float(scipy.stats.chi2.sf(T / g, h))
+    return {"holdout_rms_expected_at_floor_m": float(np.sqrt(m1 / n)), "holdout_p_value": p,
+            "holdout_above_floor": bool(p < alpha)}
+
+
 def studentized_outliers(J: np.ndarray, r: np.ndarray, alpha: float, max_out: int | None = None) -> list[tuple[int, float]]:
     """Rows whose externally studentized residual (design J, residual r ⊥ J) is beyond the
     Bonferroni bound at family α (t with n − p − 1 dof), one at a time: the most extreme row is

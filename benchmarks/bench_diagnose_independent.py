@@ -10,7 +10,8 @@ Per case and seed: the diagnosis' `status`, whether a library effect is named wi
 confidence, whether the final model is worse out of sample than geometry alone, the held-out RMS
 after modelling over the clean floor of the same seed (same noise draws).  Out-of-library cases
 count as *located* when the status is `partially_explained` / `unexplained` (the wild contact:
-when the injected record is among `outlier_records`); in-library ones (linear coupling J2→J3,
+when the injected record is among `outlier_records`; the encoder glitch — J1 reads 50 mrad off over the 30 ms
+before one latch, an impossible derived approach speed — likewise); in-library ones (linear coupling J2→J3,
 linear link growth) count as *named* when the matching finding is reported.
 
 Usage: ``python benchmarks/bench_diagnose_independent.py [--seeds 40] [--mult 4] [--cases a,b]``
@@ -35,7 +36,7 @@ from pipeline.diagnose.diagnose import Settings, diagnose  # noqa: E402
 from pipeline.systems import arc_welder as aw  # noqa: E402
 
 REPEATABILITY = 1e-4
-OUT_OF_LIBRARY = ("bump", "dent", "quad_coupling", "thermal_growth", "wild")
+OUT_OF_LIBRARY = ("bump", "dent", "quad_coupling", "thermal_growth", "wild", "glitch")
 IN_LIBRARY = {"coupling_J3_J2": ("joint_coupling", "J3->J2"), "linear_growth": ("thermal_growth", "links"),
               "coupling_J2_J3": ("joint_coupling", "J2->J3")}
 
@@ -48,6 +49,7 @@ def cases(targets: it.Targets) -> dict[str, it.Effect]:
             "quad_coupling": it.Effect("quad_coupling", 1.0),
             "thermal_growth": it.Effect("thermal_growth", 1.0, {"tau_s": 300.0}),
             "wild": it.Effect("wild", 1.0, {"record": 37}),
+            "glitch": it.Effect("glitch", 0.05, {"record": 52}),  # fixed size: 50 mrad on J1 (no MDS: not a residual)
             "coupling_J3_J2": it.Effect("coupling", 1.0, {"pair": (2, 1)}),
             "coupling_J2_J3": it.Effect("coupling", 1.0, {"pair": (1, 2)}),
             "linear_growth": it.Effect("linear_growth", 1.0)}
@@ -85,8 +87,8 @@ def main() -> None:
     for name, form in cases(targets).items():
         if name not in a.cases.split(","):
             continue
-        mds = it.mds(nom, tru, targets, form, sigma)
-        eff = it.Effect(form.kind, a.mult * mds, form.where)
+        mds = it.mds(nom, tru, targets, form, sigma) if form.kind != "glitch" else float("nan")
+        eff = it.Effect(form.kind, a.mult * mds, form.where) if form.kind != "glitch" else form
         rows = []
         for s in seeds:
             c, d = one(nom, tru, targets, eff, s, a.n_boot)
@@ -95,8 +97,8 @@ def main() -> None:
             if name in IN_LIBRARY:
                 named = any((f["effect"], f["location"]) == IN_LIBRARY[name] for f in d["findings"])
             located = d["status"] in ("partially_explained", "unexplained")
-            if name == "wild":
-                located = c.wild_record in [o["record"] for o in d["outlier_records"]]
+            if name in ("wild", "glitch"):
+                located = int(form.where["record"]) in [o["record"] for o in d["outlier_records"]]
             rows.append({"status": d["status"], "located": located, "named_high": bool(high), "high": high,
                          "named": named, "worse": d["holdout_rms_after_m"] > d["holdout_rms_before_m"] + 1e-15,
                          "after_over_floor": d["holdout_rms_after_m"] / floor[s]["holdout_rms_before_m"],

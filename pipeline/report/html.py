@@ -188,6 +188,14 @@ def diagnosis_section(art) -> str:
     if not isinstance(doc, dict):
         return ""
     html = ""
+    if isinstance(doc.get("status"), str):  # issue 18: the verdict, outlier records, findings not reported
+        html += (f'<p class="note">Status: <b>{escape(doc["status"].replace("_", " "))}</b> — '
+                 f'{escape(str(doc.get("status_reason", "")))}</p>')
+        for o in [o for o in doc.get("outlier_records") or [] if isinstance(o, dict)]:
+            html += f'<p class="note">Outlier record {escape(str(o.get("record")))}: {escape(str(o.get("reason")))}</p>'
+        for f in [f for f in doc.get("rejected_findings") or [] if isinstance(f, dict)]:
+            html += (f'<p class="note">Not reported as found: {escape(str(f.get("effect")))}@'
+                     f'{escape(str(f.get("location")))} — {escape(str(f.get("note")))}</p>')
     rows = dg.finding_rows(doc)
     if rows:
         html += "<h3>Findings</h3>" + _table(

@@ -154,3 +154,23 @@ def test_parameter_and_angular_jacobians_match_finite_differences(seed, robot):
         dR = (Rp - Rm) / (2 * h) @ np.swapaxes(R, 1, 2)  # [δω]×
         w = np.stack([dR[:, 2, 1], dR[:, 0, 2], dR[:, 1, 0]], axis=1)
         np.testing.assert_allclose(w, Jw[:, :, i], atol=1e-7)
+
+
+def test_simulate_urdf_cli_calibrates_to_the_noise_floor(tmp_path):
+    """`robocal simulate urdf` → `robocal calibrate`: residuals at the stated 0.02 mm noise (per axis)."""
+    import json
+
+    from conftest import run_cli
+
+    u = tmp_path / "r.urdf"
+    u.write_text(PR6)
+    rec = tmp_path / "sim.mcap"
+    proc = run_cli("simulate", "urdf", "--urdf", u, "--root", "base", "--tip", "flange", "--measure", "point",
+                   "--poses", "60", "--noise-mm", "0.02", "--out", rec, "--truth", tmp_path / "truth.json")
+    assert proc.returncode == 0, proc.stderr
+    assert "base.x" in json.loads((tmp_path / "truth.json").read_text())["parameters"]
+    proc = run_cli("calibrate", rec, "--out", tmp_path / "cal")
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads((tmp_path / "cal" / "results.json").read_text())
+    assert doc["rms_before_m"] > 5 * 2e-5  # the errors are visible before calibration
+    assert 0.7 * 2e-5 < doc["holdout_rms_m"] < 1.5 * 2e-5

@@ -101,10 +101,14 @@ class Composed:
         x = np.asarray(x, float)
         return x[:self.n_kin], x[self.n_kin:]
 
-    def tool(self, x: np.ndarray, q: np.ndarray):
+    def tool(self, x: np.ndarray, q: np.ndarray, jac: bool = True):
         """Tool frame over the campaign: positions (N,3), d/dx (N,3,P), rotations (N,3,3) and the
-        angular derivative (N,3,P), P covering the whole parameter vector (extras: zero)."""
+        angular derivative (N,3,P), P covering the whole parameter vector (extras: zero).  With
+        `jac` False the derivatives are None (forward kinematics only: residual evaluations)."""
         xk, _ = self.split(x)
+        if not jac:
+            R, p = ch.forward(self.kin.chain(), xk, q)
+            return p, None, R, None
         p, Jp, R, Jw = ch.jacobian(self.kin.chain(), xk, q, angular=True)
         pad = ((0, 0), (0, 0), (0, len(self.extra_names())))
         return p, np.pad(Jp, pad), R, np.pad(Jw, pad)

@@ -77,7 +77,7 @@ class PlaneModel(Composed):
         return N[k], d[k], which[k], dA[k], dB[k]
 
     def residuals(self, x: np.ndarray, data: Table) -> np.ndarray:
-        p, *_ = self.tool(x, data["joint_positions"])
+        p, *_ = self.tool(x, data["joint_positions"], jac=False)
         n, d, *_ = self.row_planes(x, data)
         return (np.einsum("ni,ni->n", n, p) - d)[:, None]
 

@@ -31,7 +31,7 @@ class PointModel(Composed):
         return np.zeros(len(self.extra_names()))
 
     def _predict(self, x: np.ndarray, data: Table, jac: bool):
-        p, Jp, R, Jw = self.tool(x, data["joint_positions"])
+        p, Jp, R, Jw = self.tool(x, data["joint_positions"], jac)
         t = np.asarray(data.get("target", np.zeros(len(p), int)), int)
         if self.n_targets == 1 or not np.any(t):
             return p, Jp

@@ -49,7 +49,7 @@ class PoseModel(Composed):
         return log_so3(R @ np.swapaxes(Rm, 1, 2))
 
     def residuals(self, x: np.ndarray, data: Table) -> np.ndarray:
-        p, _, R, _ = self.tool(x, data["joint_positions"])
+        p, _, R, _ = self.tool(x, data["joint_positions"], jac=False)
         dp = p - np.asarray(data["position"], float)
         return np.hstack([dp, self.weight * self._rot_error(R, data)])
 

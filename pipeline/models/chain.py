@@ -201,15 +201,14 @@ def forward(chain: Chain, x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.
 
 def _columns(chain: Chain, p: np.ndarray, axes_w: np.ndarray, origins: np.ndarray, steps: np.ndarray):
     """Position and orientation derivative columns of `steps`, (N,3,k) each."""
-    is_rot = chain.kind[steps] == ROT
+    is_rot = (chain.kind[steps] == ROT)[:, None, None]
     u = axes_w[steps]
     d = p[None] - origins[steps]
-    lin = u.copy()
-    a, dr = u[is_rot], d[is_rot]
-    lin[is_rot] = np.stack([a[..., 1] * dr[..., 2] - a[..., 2] * dr[..., 1],  # a × d, written out:
-                            a[..., 2] * dr[..., 0] - a[..., 0] * dr[..., 2],  # np.cross is 4× slower
-                            a[..., 0] * dr[..., 1] - a[..., 1] * dr[..., 0]], axis=-1)
-    ang = np.where(is_rot[:, None, None], u, 0.0)
+    cr = np.stack([u[..., 1] * d[..., 2] - u[..., 2] * d[..., 1],  # u × d, written out:
+                   u[..., 2] * d[..., 0] - u[..., 0] * d[..., 2],  # np.cross is 4× slower
+                   u[..., 0] * d[..., 1] - u[..., 1] * d[..., 0]], axis=-1)
+    lin = np.where(is_rot, cr, u)
+    ang = np.where(is_rot, u, 0.0)
     return lin.transpose(1, 2, 0), ang.transpose(1, 2, 0)
 
 

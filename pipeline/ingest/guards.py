@@ -88,7 +88,7 @@ def first_schema_error(rec, topic: str) -> str | None:
             loc = ".".join(map(str, err.absolute_path)) or "message"
             return f"{where(rec.path, topic, i)}: {loc}: {err.message[:160]} (schema {stem})"
         for p, x in _numbers(m):
-            if isinstance(x, int) and not -INT64 <= x < INT64:
+            if (isinstance(x, int) or "_ns" in p) and not -INT64 <= x < INT64:  # orjson reads 2**70 as a float
                 return f"{where(rec.path, topic, i)}: {p}: integer {x!r:.30} is out of range (int64)"
             if isinstance(x, float) and not math.isfinite(x):
                 return f"{where(rec.path, topic, i)}: {p}: {x} is not a finite number"

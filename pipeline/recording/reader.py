@@ -181,7 +181,8 @@ class _Reader:
                     what = f"damaged {e}"
                     nxt = pos + 9 + length
                     if nxt == end or F.frames_record(buf, nxt):  # the framing around it holds: skip just it
-                        self.warn(pos, f"{what}; skipped it; kept every complete record")
+                        lost = "its messages are lost" if op == F.OP_CHUNK else "skipped it"
+                        self.warn(pos, f"{what}; {lost}; kept every other complete record")
                         pos = nxt
                         continue
             elif op in F.VALID_OPCODES or op >= 0x80:
@@ -189,8 +190,8 @@ class _Reader:
             else:
                 what = f"file is truncated or damaged (no record starts here: opcode 0x{op:02x})"
             nxt = F.next_chunk(buf, pos, self.summary, self.limits)
-            lost = f"skipped to byte {nxt}" if nxt is not None else "nothing readable follows"
-            self.warn(pos, f"{what}; {lost}; kept every complete record")
+            lost = f"messages up to byte {nxt} are lost" if nxt is not None else "nothing readable follows"
+            self.warn(pos, f"{what}; {lost}; kept every other complete record")
             if nxt is None:
                 break
             pos = nxt

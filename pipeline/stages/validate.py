@@ -120,8 +120,8 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         epath = Path(run_dir) / INGEST / "encoder.parquet"
         if epath.is_file():
             enc = read_table(epath)
-            q = np.stack([enc[f"q_{n}"] for n in names if f"q_{n}" in enc], axis=1)
-            if q.shape[1] == len(names):
+            if all(f"q_{n}" in enc for n in names):
+                q = np.stack([enc[f"q_{n}"] for n in names], axis=1)
                 out.append(C.check_joint_limits(JOINT_STATE, q, enc["record"], lo, hi, names))
     # touch-jig faces
     fixture = rec.metadata.get(META_FIXTURE, {})

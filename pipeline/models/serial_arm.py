@@ -15,11 +15,14 @@ theta_offset,d,a,alpha,beta; tool x,y,z,rz,ry,rx — 12 + 5·n entries, SI units
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cache
 from typing import Any
 
 import numpy as np
 
-from pipeline.models.transforms import AXES, rot
+from pipeline.models import chain
+from pipeline.models.chain import ROT as ROT_, TRANS, Chain, unit
+from pipeline.models.transforms import AXES
 
 BASE_KEYS = ("x", "y", "z", "rz", "rx", "ry")
 JOINT_KEYS = ("theta_offset", "d", "a", "alpha", "beta")
@@ -96,6 +99,10 @@ class SerialArm:
         tool = {k: float(x[off + i]) for i, k in enumerate(TOOL_KEYS)}
         return replace(self, base=base, joints=joints, tool=tool)
 
+    def chain(self) -> Chain:
+        """The arm as a generic `pipeline.models.chain.Chain` (jig frame → tool tip)."""
+        return arm_chain(self.n_joints)
+
     @property
     def lower(self) -> np.ndarray:
         return np.array([j.lower for j in self.joints])
@@ -144,127 +151,34 @@ class SerialArm:
         )
 
 
-# ----- the chain as elementary steps --------------------------------------------------
-# Each step: (is_rotation, axis index, parameter index, joint index or -1).  A joint's
-# first step rotates by q_i + theta_offset_i.
-def _chain(n_joints: int) -> list[tuple[bool, int, int, int]]:
-    steps: list[tuple[bool, int, int, int]] = []
-    for k, (rot_, ax) in enumerate([(False, "x"), (False, "y"), (False, "z"), (True, "z"), (True, "x"), (True, "y")]):
-        steps.append((rot_, AXES[ax], k, -1))
+# ----- the chain as elementary steps (pipeline.models.chain) ----------------------------
+# base: Tx Ty Tz Rz Rx Ry; per joint: Rz(q + theta_offset) Tx(a) Tz(d) Rx(alpha) Ry(beta);
+# tool: Tx Ty Tz Rz Ry Rx.  Every parameter drives exactly one step.
+@cache
+def arm_chain(n_joints: int) -> Chain:
+    """The seed-000 model of an n-joint arm as a generic `Chain` (parameter order of `vector`)."""
+    R, P = ROT_, TRANS
+    steps = [(kind, unit(AXES[ax]), k, -1)
+             for k, (kind, ax) in enumerate([(P, "x"), (P, "y"), (P, "z"), (R, "z"), (R, "x"), (R, "y")])]
     for i in range(n_joints):
         o = 6 + 5 * i  # theta_offset, d, a, alpha, beta
-        steps += [(True, 2, o, i), (False, 0, o + 2, -1), (False, 2, o + 1, -1), (True, 0, o + 3, -1), (True, 1, o + 4, -1)]
+        steps += [(R, unit(2), o, i), (P, unit(0), o + 2, -1), (P, unit(2), o + 1, -1),
+                  (R, unit(0), o + 3, -1), (R, unit(1), o + 4, -1)]
     o = 6 + 5 * n_joints
-    for k, (rot_, ax) in enumerate([(False, "x"), (False, "y"), (False, "z"), (True, "z"), (True, "y"), (True, "x")]):
-        steps.append((rot_, AXES[ax], o + k, -1))
-    return steps
+    steps += [(kind, unit(AXES[ax]), o + k, -1)
+              for k, (kind, ax) in enumerate([(P, "x"), (P, "y"), (P, "z"), (R, "z"), (R, "y"), (R, "x")])]
+    return Chain.build(steps, 12 + 5 * n_joints, n_joints)
 
 
-_ROT_PLANE = ((1, 2), (2, 0), (0, 1))  # (i, j) of a rotation about x, y, z: T[i,j] = −sin, T[j,i] = sin
-
-
-def _step_matrix(is_rot: bool, ax: int, value: float) -> np.ndarray:
-    T = np.eye(4)
-    if is_rot:  # the entries of `rot` (same cos/sin), set in place: this runs per call of `forward`
-        i, j = _ROT_PLANE[ax]
-        c, sn = np.cos(value), np.sin(value)
-        T[i, i] = T[j, j] = c
-        T[i, j], T[j, i] = -sn, sn
-    else:
-        T[ax, 3] = value
-    return T
-
-
-_RUNS: dict = {}  # (x bytes, chain length, s, e) -> `_constant_run`: the planners call `forward` thousands of times per x
-
-
-def _constant_run(x: np.ndarray, steps: list, s: int, e: int):
-    """Product P of the constant steps s..e−1 and each step's axis and origin in the run's
-    first frame (memoised per parameter vector)."""
-    key = (x.tobytes(), len(steps), s, e)
-    hit = _RUNS.get(key)
-    if hit is not None:
-        return hit
-    P = np.eye(4)  # product of the run's steps before the current one
-    ax_local = np.empty((e - s, 3))
-    org_local = np.empty((e - s, 3))
-    for k in range(s, e):
-        k_rot, k_ax, k_pi, _ = steps[k]
-        ax_local[k - s], org_local[k - s] = P[:3, k_ax], P[:3, 3]
-        P = P @ _step_matrix(k_rot, k_ax, x[k_pi])
-    if len(_RUNS) > 4096:
-        _RUNS.clear()
-    for a in (P, ax_local, org_local):
-        a.setflags(write=False)  # shared by every later call with this x: a caller writing into it would be a bug
-    _RUNS[key] = (P, ax_local, org_local)
-    return P, ax_local, org_local
-
-
-_WALKS: dict = {}  # (x, q, want_jacobian) bytes -> _walk's arrays (read-only)
-
-
-def _walk(x: np.ndarray, q: np.ndarray, want_jacobian: bool):
-    """`_walk_chain`, memoised on its inputs: a fit and the diagnosis ask for the same chain at
-    the same parameters several times (residuals and Jacobian, tip and joint Jacobians).  The
-    arrays returned are read-only; the public functions hand out copies."""
+def _chain_of(q: np.ndarray) -> tuple[Chain, np.ndarray]:
     q = np.atleast_2d(np.asarray(q, dtype=float))
-    key = (x.tobytes(), q.shape, q.tobytes(), want_jacobian)
-    hit = _WALKS.get(key)
-    if hit is None:
-        hit = _walk_chain(x, q, want_jacobian)
-        for a in hit:
-            if isinstance(a, np.ndarray):
-                a.setflags(write=False)
-        if len(_WALKS) >= 8:
-            _WALKS.pop(next(iter(_WALKS)))
-        _WALKS[key] = hit
-    return hit
-
-
-def _walk_chain(x: np.ndarray, q: np.ndarray, want_jacobian: bool):
-    """Walk the chain.  Runs of constant steps are folded into one 4×4 product and joint
-    rotations are applied as column operations, so the batch cost is a few small array
-    operations per joint.  With `want_jacobian`, the world axis and origin of every
-    elementary step are recovered from the frame at the start of its constant run."""
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    n, nj = q.shape
-    if x.shape[0] != 12 + 5 * nj:
-        raise ValueError(f"{nj} joint angles per row do not fit a {x.shape[0]}-parameter model")
-    steps = _chain(nj)
-    axes_w = np.empty((len(steps), n, 3)) if want_jacobian else None
-    origins = np.empty((len(steps), n, 3)) if want_jacobian else None
-    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    s = 0
-    while s < len(steps):
-        is_rot, ax, pi, ji = steps[s]
-        if ji >= 0:  # joint rotation about the current z axis by q + theta_offset
-            if want_jacobian:
-                axes_w[s] = T[:, :3, 2]
-                origins[s] = T[:, :3, 3]
-            ang = q[:, ji] + x[pi]
-            c, sn = np.cos(ang)[:, None], np.sin(ang)[:, None]
-            c0, c1 = T[:, :3, 0].copy(), T[:, :3, 1]
-            T[:, :3, 0] = c * c0 + sn * c1
-            T[:, :3, 1] = c * c1 - sn * c0
-            s += 1
-            continue
-        e = s
-        while e < len(steps) and steps[e][3] < 0:
-            e += 1
-        P, ax_local, org_local = _constant_run(x, steps, s, e)
-        if want_jacobian:
-            R = T[:, :3, :3]
-            axes_w[s:e] = np.moveaxis(R @ ax_local.T, 2, 0)
-            origins[s:e] = np.moveaxis(R @ org_local.T, 2, 0) + T[:, :3, 3]
-        T = T @ P
-        s = e
-    return T[:, :3, :3], T[:, :3, 3], steps, axes_w, origins
+    return arm_chain(q.shape[1]), q
 
 
 def forward(x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Tool pose in the jig frame: rotations (N,3,3) and tip positions (N,3) in m."""
-    R, o, *_ = _walk(np.asarray(x, dtype=float), q, False)
-    return R.copy(), o.copy()
+    c, q = _chain_of(q)
+    return chain.forward(c, x, q)
 
 
 def tip_position(x: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -276,53 +190,22 @@ def tip_jacobian(x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Tip positions (N,3) and their derivative wrt the parameters, (N,3,P) in m per unit.
 
     Each elementary rotation about world axis u at origin o moves the tip by u × (p − o);
-    each elementary translation by u.  Steps that share a parameter add up.
+    each elementary translation by u (`pipeline.models.chain.jacobian`).
     """
-    x = np.asarray(x, dtype=float)
-    _, p, steps, axes_w, origins = _walk(x, q, True)
-    is_rot = np.array([st[0] for st in steps])
-    pidx = np.array([st[2] for st in steps])
-    cols = axes_w.copy()  # translations: the axis itself
-    a, d = axes_w[is_rot], p[None] - origins[is_rot]
-    cols[is_rot] = np.stack([a[..., 1] * d[..., 2] - a[..., 2] * d[..., 1],  # a × d, written out:
-                             a[..., 2] * d[..., 0] - a[..., 0] * d[..., 2],  # np.cross is 4× slower
-                             a[..., 0] * d[..., 1] - a[..., 1] * d[..., 0]], axis=-1)
-    J = np.zeros((p.shape[0], 3, x.shape[0]))
-    J[:, :, pidx] = cols.transpose(1, 2, 0)  # every parameter drives exactly one step
-    return p.copy(), J
+    c, q = _chain_of(q)
+    return chain.jacobian(c, x, q)
 
 
 def joint_jacobian(x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Tip positions (N,3) and their derivative wrt the joint angles, (N,3,n_joints)."""
-    x = np.asarray(x, dtype=float)
-    _, p, steps, axes_w, origins = _walk(x, q, True)
-    nj = np.atleast_2d(q).shape[1]
-    J = np.zeros((p.shape[0], 3, nj))
-    for s, (is_rot, _ax, _pi, ji) in enumerate(steps):
-        if ji >= 0:
-            J[:, :, ji] = np.cross(axes_w[s], p - origins[s])
-    return p.copy(), J
+    c, q = _chain_of(q)
+    return chain.joint_jacobian(c, x, q)
 
 
 def frames(x: np.ndarray, q: np.ndarray) -> np.ndarray:
     """World poses of base, each joint frame and the tool: (N, n_joints + 2, 4, 4)."""
-    x = np.asarray(x, dtype=float)
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    n, nj = q.shape
-    R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
-    o = np.zeros((n, 3))
-    out = np.zeros((n, nj + 2, 4, 4))
-    out[..., 3, 3] = 1
-    steps = _chain(nj)
-    # frame boundaries: after the 6 base steps, after each 5 joint steps, at the end
-    marks = {6 + 5 * i - 1: i for i in range(nj + 1)}
-    marks[len(steps) - 1] = nj + 1
-    for s, (is_rot, ax, pi, ji) in enumerate(steps):
-        if is_rot:
-            R = R @ rot("xyz"[ax], x[pi] + q[:, ji] if ji >= 0 else x[pi])
-        else:
-            o = o + R[:, :, ax] * x[pi]
-        if s in marks:
-            out[:, marks[s], :3, :3] = R
-            out[:, marks[s], :3, 3] = o
-    return out
+    c, q = _chain_of(q)
+    nj = q.shape[1]
+    # frame boundaries: after the 6 base steps, after each joint's 5 steps, at the end
+    marks = [6 + 5 * i - 1 for i in range(nj + 1)] + [c.n_steps - 1]
+    return chain.frames(c, x, q, marks)

@@ -67,34 +67,36 @@ def run(run_dir: Path, params: dict) -> dict:
         channels[topic] = {"file": channel_file(topic), "messages": len(msgs)}
     write_messages(out / MESSAGES, rec)
     stream = None
-    try:
-        stream = joint_stream(rec)
-        write_table(out / "encoder.parquet", encoder_table(stream))
-    except RobocalError as e:
-        errors.append(str(e))
-    except (TypeError, ValueError, OverflowError, KeyError, IndexError, AttributeError) as e:
-        stream = None  # content of the wrong type: name the record the schema check finds
-        errors.append(first_schema_error(rec, JOINT_STATE) or f"{where(path, JOINT_STATE)}: cannot be decoded "
-                      f"({type(e).__name__}: {e})")
+    if not (getattr(system, "STREAM_OPTIONAL", False) and not rec.messages.raw.get(JOINT_STATE)):
+        try:
+            stream = joint_stream(rec)
+            write_table(out / "encoder.parquet", encoder_table(stream))
+        except RobocalError as e:
+            errors.append(str(e))
+        except (TypeError, ValueError, OverflowError, KeyError, IndexError, AttributeError) as e:
+            stream = None  # content of the wrong type: name the record the schema check finds
+            errors.append(first_schema_error(rec, JOINT_STATE) or f"{where(path, JOINT_STATE)}: cannot be decoded "
+                          f"({type(e).__name__}: {e})")
     n = 0
-    if not errors and (bad := first_schema_error(rec, system.MEASUREMENT_CHANNEL)):
+    mchan = getattr(system, "channel_for", lambda r: system.MEASUREMENT_CHANNEL)(rec)
+    if not errors and (bad := first_schema_error(rec, mchan)):
         errors.append(bad)  # checked against the schema before any numeric conversion
     if not errors:
         try:
             _, table = system.load(rec)
             meas = measurement_table(dict(table), stream, window_s=float(params.get("context_window_s", 0.02)),
                                      temperature=temperature_stream(rec), path=path,
-                                     channel=system.MEASUREMENT_CHANNEL)
+                                     channel=mchan)
             write_table(out / "measurements.parquet", meas)
             n = len(meas["record"])
         except RobocalError as e:
             errors.append(str(e))
         except (TypeError, ValueError, OverflowError, KeyError, IndexError, AttributeError,
                 ArithmeticError) as e:  # the schema allowed it but the model cannot take it
-            errors.append(f"{where(path, system.MEASUREMENT_CHANNEL)}: cannot be used ({type(e).__name__}: {e})")
+            errors.append(f"{where(path, mchan)}: cannot be used ({type(e).__name__}: {e})")
     doc = {
         "system": system.SYSTEM,
-        "measurement_channel": system.MEASUREMENT_CHANNEL,
+        "measurement_channel": mchan,
         "source": {"path": str(path), "sha256": sha256_file(path), "bytes": path.stat().st_size},
         "metadata": rec.metadata,
         "channels": channels,
@@ -107,7 +109,8 @@ def run(run_dir: Path, params: dict) -> dict:
     }
     write_json(out / "recording.json", doc)
     lost = bool(rec.warnings) or bool(errors)  # a damaged file: no status pass
-    return {"status": "warn" if lost else "pass", "system": system.SYSTEM, "n_measurements": n, "encoder_samples": doc["encoder"]["samples"],
+    return {"status": "warn" if lost else "pass", "system": system.SYSTEM, "n_measurements": n,
+            "encoder_samples": doc["encoder"]["samples"],
             "channels": channels, "source": doc["source"], "warnings": doc["warnings"], "errors": errors}
 
 

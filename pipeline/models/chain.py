@@ -1,0 +1,279 @@
+"""A kinematic chain as a product of elementary steps, evaluated over a whole campaign at once.
+
+Every serial model in robocal — seed 000's D-H + Hayati arm, a URDF robot with its joint-origin
+error model — is one ``Chain``: a sequence of steps, each
+
+* ``const``: a fixed 4×4 transform (a URDF fixed joint, a nominal origin rotation),
+* ``rot``:   a rotation about a unit axis given in the frame before the step, by
+  ``x[param] + q[:, joint]`` (either part may be absent),
+* ``trans``: a translation along such an axis by the same kind of value.
+
+The description (`Chain`, immutable) is kept apart from what is computed from it
+(`forward`, `jacobian`, `joint_jacobian`, `frames`: pure functions of (chain, x, q)).  The
+frame in which the chain starts is the caller's (a jig, a tracker, the world), in m and rad.
+
+Derivatives use the screw form: a rotation step about world axis u through point o moves a
+point p by u × (p − o) and turns the frame by u; a translation step moves p by u.  Steps
+without a joint are folded, per parameter vector, into one 4×4 per run (memoised), so a batch
+costs a few small array operations per joint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+CONST, ROT, TRANS = 0, 1, 2
+_UNIT = np.eye(3)
+
+
+@dataclass(frozen=True, eq=False)
+class Chain:
+    """Steps of a kinematic chain (arrays of length S) over `n_params` parameters and
+    `n_joints` joint variables.  ``axis`` (S,3) unit vectors, ``param``/``joint`` (S,) int
+    (−1: none), ``const`` (S,4,4) used by ``const`` steps only."""
+
+    kind: np.ndarray
+    axis: np.ndarray
+    param: np.ndarray
+    joint: np.ndarray
+    const: np.ndarray
+    n_params: int
+    n_joints: int
+
+    @staticmethod
+    def build(steps: list[tuple], n_params: int, n_joints: int) -> "Chain":
+        """From tuples ``(kind, axis, param, joint)`` or ``(CONST, T4x4)``."""
+        S = len(steps)
+        kind = np.zeros(S, int)
+        axis = np.zeros((S, 3))
+        param = np.full(S, -1)
+        joint = np.full(S, -1)
+        const = np.broadcast_to(np.eye(4), (S, 4, 4)).copy()
+        for s, st in enumerate(steps):
+            kind[s] = st[0]
+            if st[0] == CONST:
+                const[s] = np.asarray(st[1], float)
+                continue
+            a = np.asarray(st[1], float)
+            axis[s] = a / np.linalg.norm(a)
+            param[s], joint[s] = st[2], st[3]
+        for arr in (kind, axis, param, joint, const):
+            arr.setflags(write=False)
+        return Chain(kind, axis, param, joint, const, n_params, n_joints)
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.kind)
+
+    def runs(self) -> list[tuple[int, int]]:
+        """Half-open index ranges of the chain: each joint step alone, the steps between folded."""
+        out, s, S = [], 0, self.n_steps
+        while s < S:
+            if self.joint[s] >= 0:
+                out.append((s, s + 1))
+                s += 1
+                continue
+            e = s
+            while e < S and self.joint[e] < 0:
+                e += 1
+            out.append((s, e))
+            s = e
+        return out
+
+
+def _rodrigues(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotations (N,3,3) about one unit axis by N angles."""
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * K + (1 - c) * (K @ K)
+
+
+def _step_matrix(chain: Chain, s: int, value: float) -> np.ndarray:
+    if chain.kind[s] == CONST:
+        return chain.const[s]
+    T = np.eye(4)
+    if chain.kind[s] == ROT:
+        T[:3, :3] = _rodrigues(chain.axis[s], np.array([value]))[0]
+    else:
+        T[:3, 3] = chain.axis[s] * value
+    return T
+
+
+def _value(chain: Chain, x: np.ndarray, s: int) -> float:
+    return float(x[chain.param[s]]) if chain.param[s] >= 0 else 0.0
+
+
+_RUNS: dict = {}  # (chain id, x bytes, s, e) -> folded run: planners call `forward` thousands of times per x
+
+
+def _constant_run(chain: Chain, x: np.ndarray, s: int, e: int):
+    """Product P of steps s..e−1 (no joint among them) and each step's axis and origin in the
+    run's first frame (memoised per parameter vector, read-only)."""
+    key = (id(chain), x.tobytes(), s, e)
+    hit = _RUNS.get(key)
+    if hit is not None and hit[0] is chain:
+        return hit[1]
+    P = np.eye(4)
+    ax_local = np.empty((e - s, 3))
+    org_local = np.empty((e - s, 3))
+    for k in range(s, e):
+        ax_local[k - s], org_local[k - s] = P[:3, :3] @ chain.axis[k], P[:3, 3]
+        P = P @ _step_matrix(chain, k, _value(chain, x, k))
+    if len(_RUNS) > 4096:
+        _RUNS.clear()
+    out = (P, ax_local, org_local)
+    for a in out:
+        a.setflags(write=False)
+    _RUNS[key] = (chain, out)
+    return out
+
+
+_WALKS: dict = {}  # (chain id, x, q, want) bytes -> `_walk` arrays (read-only)
+
+
+def walk(chain: Chain, x: np.ndarray, q: np.ndarray, want_jacobian: bool):
+    """`_walk`, memoised on its inputs (a fit and the diagnosis ask for the same chain at the
+    same parameters several times).  Returned arrays are read-only."""
+    x = np.asarray(x, dtype=float)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    key = (id(chain), x.tobytes(), q.shape, q.tobytes(), want_jacobian)
+    hit = _WALKS.get(key)
+    if hit is None or hit[0] is not chain:
+        res = _walk(chain, x, q, want_jacobian)
+        for a in res:
+            if isinstance(a, np.ndarray):
+                a.setflags(write=False)
+        if len(_WALKS) >= 8:
+            _WALKS.pop(next(iter(_WALKS)))
+        _WALKS[key] = hit = (chain, res)
+    return hit[1]
+
+
+def _walk(chain: Chain, x: np.ndarray, q: np.ndarray, want_jacobian: bool):
+    """Walk the chain: end rotations (N,3,3), positions (N,3) and, with `want_jacobian`, the
+    world axis and origin of every step, (S,N,3) each."""
+    n, nj = q.shape
+    if nj != chain.n_joints or x.shape != (chain.n_params,):
+        raise ValueError(f"{nj} joint values per row and {x.shape[0]} parameters do not fit a chain of "
+                         f"{chain.n_joints} joints and {chain.n_params} parameters")
+    S = chain.n_steps
+    axes_w = np.empty((S, n, 3)) if want_jacobian else None
+    origins = np.empty((S, n, 3)) if want_jacobian else None
+    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    for s, e in chain.runs():
+        ji = chain.joint[s]
+        if ji < 0:
+            P, ax_local, org_local = _constant_run(chain, x, s, e)
+            if want_jacobian:
+                R = T[:, :3, :3]
+                axes_w[s:e] = np.moveaxis(R @ ax_local.T, 2, 0)
+                origins[s:e] = np.moveaxis(R @ org_local.T, 2, 0) + T[:, :3, 3]
+            T = T @ P
+            continue
+        a = chain.axis[s]
+        if want_jacobian:
+            axes_w[s] = T[:, :3, :3] @ a
+            origins[s] = T[:, :3, 3]
+        v = q[:, ji] + _value(chain, x, s)
+        if chain.kind[s] == TRANS:
+            T[:, :3, 3] += (T[:, :3, :3] @ a) * v[:, None]
+            continue
+        principal = np.flatnonzero(a == 1.0)
+        if principal.size == 1 and np.count_nonzero(a) == 1:
+            # rotation about a frame axis: two column operations instead of a 3×3 product
+            i, j = ((1, 2), (2, 0), (0, 1))[principal[0]]
+            c, sn = np.cos(v)[:, None], np.sin(v)[:, None]
+            ci, cj = T[:, :3, i].copy(), T[:, :3, j]
+            T[:, :3, i] = c * ci + sn * cj
+            T[:, :3, j] = c * cj - sn * ci
+        else:
+            T[:, :3, :3] = T[:, :3, :3] @ _rodrigues(a, v)
+    return T[:, :3, :3], T[:, :3, 3], axes_w, origins
+
+
+def forward(chain: Chain, x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """End-frame rotations (N,3,3) and positions (N,3) m in the chain's start frame."""
+    R, p, *_ = walk(chain, x, q, False)
+    return R.copy(), p.copy()
+
+
+def _columns(chain: Chain, p: np.ndarray, axes_w: np.ndarray, origins: np.ndarray, steps: np.ndarray):
+    """Position and orientation derivative columns of `steps`, (N,3,k) each."""
+    is_rot = chain.kind[steps] == ROT
+    u = axes_w[steps]
+    d = p[None] - origins[steps]
+    lin = u.copy()
+    a, dr = u[is_rot], d[is_rot]
+    lin[is_rot] = np.stack([a[..., 1] * dr[..., 2] - a[..., 2] * dr[..., 1],  # a × d, written out:
+                            a[..., 2] * dr[..., 0] - a[..., 0] * dr[..., 2],  # np.cross is 4× slower
+                            a[..., 0] * dr[..., 1] - a[..., 1] * dr[..., 0]], axis=-1)
+    ang = np.where(is_rot[:, None, None], u, 0.0)
+    return lin.transpose(1, 2, 0), ang.transpose(1, 2, 0)
+
+
+def _scatter(cols: np.ndarray, index: np.ndarray, width: int) -> np.ndarray:
+    out = np.zeros(cols.shape[:2] + (width,))
+    if np.unique(index).size == index.size:
+        out[:, :, index] = cols
+    else:  # several steps share a parameter: their effects add up
+        np.add.at(out.transpose(2, 0, 1), index, cols.transpose(2, 0, 1))
+    return out
+
+
+def jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = False):
+    """End positions (N,3) and d position / d x (N,3,P); with `angular`, also the end frame's
+    rotations (N,3,3) and its angular derivative (N,3,P): the world-frame rotation vector δω
+    with δR = [δω]× R."""
+    x = np.asarray(x, dtype=float)
+    R, p, axes_w, origins = walk(chain, x, q, True)
+    steps = np.flatnonzero(chain.param >= 0)
+    lin, ang = _columns(chain, p, axes_w, origins, steps)
+    Jp = _scatter(lin, chain.param[steps], chain.n_params)
+    if not angular:
+        return p.copy(), Jp
+    return p.copy(), Jp, R.copy(), _scatter(ang, chain.param[steps], chain.n_params)
+
+
+def joint_jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = False):
+    """End positions (N,3) and d position / d q (N,3,n_joints); with `angular`, also the
+    angular part (N,3,n_joints)."""
+    x = np.asarray(x, dtype=float)
+    _, p, axes_w, origins = walk(chain, x, q, True)
+    steps = np.flatnonzero(chain.joint >= 0)
+    lin, ang = _columns(chain, p, axes_w, origins, steps)
+    Jq = _scatter(lin, chain.joint[steps], chain.n_joints)
+    if not angular:
+        return p.copy(), Jq
+    return p.copy(), Jq, _scatter(ang, chain.joint[steps], chain.n_joints)
+
+
+def frames(chain: Chain, x: np.ndarray, q: np.ndarray, marks: list[int]) -> np.ndarray:
+    """World poses (N, len(marks), 4, 4) after each step index in `marks` (for drawing)."""
+    x = np.asarray(x, dtype=float)
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    n = q.shape[0]
+    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    out = np.zeros((n, len(marks), 4, 4))
+    where = {m: i for i, m in enumerate(marks)}
+    for s in range(chain.n_steps):
+        v = _value(chain, x, s) + (q[:, chain.joint[s]] if chain.joint[s] >= 0 else 0.0)
+        v = np.broadcast_to(np.asarray(v, float), (n,))
+        if chain.kind[s] == CONST:
+            T = T @ chain.const[s]
+        elif chain.kind[s] == ROT:
+            M = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+            M[:, :3, :3] = _rodrigues(chain.axis[s], v)
+            T = T @ M
+        else:
+            T = T.copy()
+            T[:, :3, 3] += (T[:, :3, :3] @ chain.axis[s]) * v[:, None]
+        if s in where:
+            out[:, where[s]] = T
+    return out
+
+
+def unit(i: int) -> np.ndarray:
+    """The i-th frame axis (0 x, 1 y, 2 z)."""
+    return _UNIT[i]

@@ -16,7 +16,6 @@ import pytest
 from conftest import ROBOCAL, run_cli
 from hostile_support import BUNDLED, bomb, chunk_offsets, edit_json, rebuild, replace_chunk
 from pipeline.errors import RobocalError
-from pipeline.recording import framing
 from pipeline.recording.reader import read_recording
 from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
 
@@ -57,6 +56,8 @@ def test_1_decompression_bomb_is_refused_before_decompressing(tmp_path, kind, si
 
 
 def test_1_a_frame_that_lies_about_its_size_cannot_expand(tmp_path):
+    from pipeline.recording import framing
+
     size = framing.ReadLimits().ratio_floor_bytes  # below the ratio test: only the output cap stops it
 
     def liar(c):
@@ -80,6 +81,7 @@ def test_1_limits_are_configurable(tmp_path, monkeypatch):
 
 
 def test_1_a_run_decompresses_the_recording_once(tmp_path, monkeypatch):
+    from pipeline.recording import framing
     from pipeline.stages.runner import run_pipeline
 
     calls = []
@@ -154,10 +156,9 @@ def test_2_hostile_topics_and_face_ids(tmp_path):
 
 def test_2_diagnose_on_a_fixture_without_faces(tmp_path):
     bad = rebuild(ARC, tmp_path / "nofaces.mcap",
-                  meta=lambda md: list({**md, META_FIXTURE: {k: v for k, v in md[META_FIXTURE].items()
-                                                             if k != "faces"}}.items()),
+                  meta=lambda md: list({**md, META_FIXTURE: {**md[META_FIXTURE], "faces": []}}.items()),
                   msg=lambda t, i, d: d if t != "/robot/joint_state" or i < 40 else None)
-    one_line_error(run_cli("diagnose", bad, "--out", tmp_path / "d"), str(bad), "fixture")
+    one_line_error(run_cli("diagnose", bad, "--out", tmp_path / "d"), str(bad), META_FIXTURE, "record")
 
 
 def test_2_read_only_output_folder(tmp_path):
@@ -171,13 +172,25 @@ def test_2_read_only_output_folder(tmp_path):
     assert str(ro) in line
 
 
-def test_2_run_never_says_pass_after_a_stage_stopped(tmp_path):
+def test_2_run_never_says_pass_after_a_stage_stopped(tmp_path, monkeypatch):
     bad = rebuild(DELTA, tmp_path / "bad.mcap", msg=edit_json("/tracker/point", 3, lambda m: {**m, "point": "x"}))
     out = tmp_path / "o"
     proc = run_cli("run", bad, "--out", out, "--stages", "ingest,validate,identify")
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert not any(ln.split()[1:2] == ["pass"] for ln in proc.stderr.splitlines() if "status" in ln), proc.stderr
     assert json.loads((out / "results.json").read_text())["summary"]["status"] == "fail"
+    # a stage that crashes after others passed: results.json says fail, with the reason
+    import pipeline.stages.identify as identify
+    from pipeline.stages.runner import run_pipeline
+
+    def crash(*a, **k):
+        raise ZeroDivisionError("boom")
+
+    monkeypatch.setattr(identify, "run", crash)
+    with pytest.raises(ZeroDivisionError):
+        run_pipeline(DELTA, tmp_path / "crash", stages=["ingest", "validate", "identify"])
+    s = json.loads((tmp_path / "crash" / "results.json").read_text())["summary"]
+    assert s["status"] == "fail" and "identify" in s["error"] and "boom" in s["error"]
 
 
 # ----- 3. wrong successes ---------------------------------------------------------------------

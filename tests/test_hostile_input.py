@@ -276,8 +276,14 @@ def test_4_a_foreign_stage_folder_inside_a_run_folder_is_refused(tmp_path):
     (out / "validate" / "mine.txt").write_text("keep")
     one_line_error(ingest_validate(DELTA, out), str(out / "validate"), "not written by robocal")
     assert (out / "validate" / "mine.txt").read_text() == "keep"
-    # robocal's own folders are replaced as before (an existing empty folder is adopted)
+    # robocal's own folders are replaced as before (an existing empty folder is adopted) ...
+    (tmp_path / "empty").mkdir()
     assert ingest_validate(DELTA, tmp_path / "empty").returncode == 0
+    # ... and so is a run folder written before the markers (nothing but stage folders with stage.json)
+    for m in (tmp_path / "empty").rglob(".robocal-*"):
+        m.unlink()
+    proc = run_cli("run", DELTA, "--out", tmp_path / "empty", "--stages", "ingest,validate", "--force")
+    assert proc.returncode == 0, proc.stderr[-2000:]
 
 
 def test_5_concurrent_runs_on_one_folder_take_turns(tmp_path):

@@ -1,7 +1,8 @@
 """Run folders robocal owns: a marker so that only folders robocal wrote are ever emptied, and
 an exclusive lock so that two runs on one folder take turns.
 
-`DIR/.robocal-run` marks a run folder (written when robocal creates it, or adopts an empty one);
+`DIR/.robocal-run` marks a run folder (written when robocal creates it, or adopts an empty one, or
+one that holds nothing but what an earlier robocal wrote: stage folders with their stage.json);
 `DIR/<stage>/.robocal-stage` marks a stage folder.  A non-empty folder without the marker is the
 user's: robocal refuses it with one line and touches nothing in it.  `DIR/.robocal-lock` is locked
 with `fcntl.flock` (released by the kernel when the process dies, so a killed run never leaves a
@@ -45,6 +46,21 @@ def claim(run_dir: Path) -> None:
         raise _oserror(run_dir, e) from None
 
 
+_TOP_FILES = {"results.json", "report.html", "run.rrd", LOCK}
+
+
+def _legacy_stage(d: Path) -> bool:
+    """A stage folder a robocal from before the markers wrote (its stage.json is there)."""
+    return d.is_dir() and (d / "stage.json").is_file()
+
+
+def _legacy_run(run_dir: Path) -> bool:
+    """A run folder a robocal from before the markers wrote: only its own files and stage folders."""
+    entries = list(run_dir.iterdir())
+    return any(_legacy_stage(e) for e in entries) and all(
+        e.name in _TOP_FILES if e.is_file() else _legacy_stage(e) for e in entries)
+
+
 def refuse_foreign(run_dir: Path) -> None:
     """One line, and nothing written, when `run_dir` is a non-empty folder robocal did not mark."""
     run_dir = Path(run_dir)
@@ -52,7 +68,7 @@ def refuse_foreign(run_dir: Path) -> None:
         raise RobocalError(f"{run_dir}: exists and is not a folder; choose another --out")
     try:
         foreign = (run_dir.is_dir() and not (run_dir / RUN_MARKER).is_file()
-                   and any(p.name != LOCK for p in run_dir.iterdir()))
+                   and any(p.name != LOCK for p in run_dir.iterdir()) and not _legacy_run(run_dir))
     except OSError as e:
         raise RobocalError(f"{run_dir}: cannot read ({type(e).__name__}: {e.strerror or e})") from None
     if foreign:
@@ -68,7 +84,7 @@ def fresh_stage_dir(run_dir: Path, name: str) -> Path:
     """An empty `run_dir/name`, removing the previous one only if robocal wrote it."""
     d = Path(run_dir) / name
     if d.exists():
-        if not (d / STAGE_MARKER).is_file() and (not d.is_dir() or any(d.iterdir())):
+        if not (d / STAGE_MARKER).is_file() and (not d.is_dir() or any(d.iterdir())) and not _legacy_stage(d):
             raise RobocalError(f"{d}: not written by robocal (no {STAGE_MARKER}); robocal will not replace it — "
                                "move it away or choose another --out")
         try:

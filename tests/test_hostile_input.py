@@ -170,6 +170,7 @@ def test_2_read_only_output_folder(tmp_path):
         ro.chmod(0o555)
     line = one_line_error(ingest_validate(DELTA, ro / "robocal-run"), "cannot write", "PermissionError")
     assert str(ro) in line
+    one_line_error(run_cli("calibrate", DELTA, "--out", ro / "robocal-cal"), str(ro), "cannot write")
 
 
 def test_2_run_never_says_pass_after_a_stage_stopped(tmp_path, monkeypatch):

@@ -17,7 +17,7 @@ from pipeline.systems.registry import detect
 
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
               seed: int = 0, solver: str = "lm", joint_offsets: bool = False, variant: str | None = None,
-              select_groups: bool = True) -> dict:
+              select_groups: bool = True, accuracy: dict | None = None) -> dict:
     """Read, identify, cross-validate; write DIR/results.json and DIR/model.json.
 
     `solver`: 'lm' (least squares, default) or 'ga' (seed 001's genetic algorithm, for systems
@@ -42,6 +42,11 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
             model = dataclasses.replace(model, variant=variant)
         except ValueError as e:
             raise RobocalError(f"{path}: {e}") from None
+    from pipeline.accuracy.prior import prior_sigma
+    from pipeline.recording.schemas import META_ROBOT
+
+    # check the priors (model file, --prior) before the work, so a typo fails at once
+    prior_sigma(model, rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {}, (accuracy or {}).get("prior") or {})
     if solver == "ga":
         from pipeline.identify.genetic import cross_validate_ga, fit_ga
         if not hasattr(model, "batch_cost_fn"):
@@ -76,13 +81,26 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
+    from pipeline.accuracy.stage import guarded_document
+
+    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {})
+    if (accuracy or {}).get("previous"):
+        from pipeline.accuracy.previous import compare, read_parameters
+
+        acc["previous"] = {"run": str(accuracy["previous"]),
+                           **compare(doc["parameters"], read_parameters(Path(accuracy["previous"])))}
+    doc["accuracy"] = acc
+    doc["status"] = acc["status"]
+    doc["status_reason"], doc["status_advice"] = acc["reason"], acc["advice"]
     if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures
         doc.update(model.extra_metrics(f.nominal, f.x, table))
     out.mkdir(parents=True, exist_ok=True)
     (out / "model.json").write_text(json.dumps(model.describe(f.x), indent=2) + "\n")
     from pipeline.identify.exports import write_exports
     doc["exports"] = write_exports(model, f.x, out)
-    (out / "results.json").write_text(json.dumps(doc, indent=2) + "\n")
+    from pipeline.stages.artefacts import dumps
+
+    (out / "results.json").write_text(dumps(doc))  # numpy-aware (the accuracy map), NaN → null
     return doc
 
 
@@ -98,6 +116,10 @@ def summary_rows(doc: dict) -> list[tuple[str, str]]:
         (f"held-out RMS ({doc['holdout_folds']}-fold CV)", mm(doc["holdout_rms_m"])),
         ("max |residual| after", mm(doc["max_abs_after_m"])),
         ("predicted 3-D point accuracy (1σ, RMS)", mm(acc["rms_1sigma_m"])),
+        *([("predicted over the workspace (1σ RMS / worst 95 %)",
+            f"{mm(doc['accuracy']['map_rms_1sigma_m'])} / {mm(doc['accuracy']['map_max_bound95_m'])}")]
+          if "map_rms_1sigma_m" in doc.get("accuracy", {}) else []),
+        *([("status", doc["status"])] if "status" in doc else []),
         ("parameters identified / total", f"{doc['n_identifiable']} / {doc['n_parameters']}"),
         ("solve time", f"{doc['solve_time_s']:.3f} s"),
     ]

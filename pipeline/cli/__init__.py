@@ -13,7 +13,28 @@ simulate_app = typer.Typer(help="Simulate a calibration campaign of a reference 
                            no_args_is_help=True)
 app.add_typer(simulate_app, name="simulate")
 
-err = Console(stderr=True)
+def console(stderr: bool = False) -> Console:
+    """A rich console that wraps only on a terminal: in CI logs and pipes a line stays one line
+    (grep-friendly), whatever the 80-column default."""
+    stream = sys.stderr if stderr else sys.stdout
+    return Console(stderr=stderr, width=None if stream.isatty() else 10_000, soft_wrap=not stream.isatty())
+
+
+err = console(stderr=True)
+
+
+def _version(value: bool) -> None:
+    if value:
+        from pipeline import __version__
+
+        print(f"robocal {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print robocal's version and exit.")) -> None:
+    """Log-centric robot calibration: record, calibrate, inspect."""
 
 
 def load_commands() -> None:

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
-from pipeline.cli import app, err
+from pipeline.cli import app, console, err
+from pipeline.cli.run import PREVIOUS, PRIOR, STRICT, TARGETS, TOLERANCE, accuracy_params, strict_exit
 
 
 @app.command("calibrate")
@@ -23,6 +24,8 @@ def calibrate_cmd(
     joint_offsets: bool = typer.Option(False, "--joint-offsets", help="Also identify the arm's joint offsets (scanner)."),
     variant: str = typer.Option(None, "--model-variant",
                                 help="Model variant of the system (delta-tracker: simplified, extended)."),
+    prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
+    targets: Optional[Path] = TARGETS, strict: bool = STRICT,
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows
@@ -30,7 +33,8 @@ def calibrate_cmd(
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,
-                        joint_offsets=joint_offsets, variant=variant)
+                        joint_offsets=joint_offsets, variant=variant,
+                        accuracy=accuracy_params(prior, tolerance, previous, targets))
     for w in doc["warnings"]:
         err.print(f"[yellow]warning:[/] {w}", highlight=False)
     t = Table(title=f"robocal calibrate — {recording.name}")
@@ -38,5 +42,11 @@ def calibrate_cmd(
     t.add_column("value", justify="right")
     for k, v in summary_rows(doc):
         t.add_row(k, v)
-    Console().print(t)
+    console().print(t)
+    if doc.get("status_reason"):
+        err.print(f"[red]{doc['status']}:[/] {doc['status_reason']}", highlight=False)
+        err.print(f"advice: {doc['status_advice']}", highlight=False)
+    for m in doc["accuracy"].get("previous", {}).get("moved", []):
+        err.print(f"moved since {previous}: {m['name']} by {m['change']:.3g} {m['unit']} ({m['z']:+.1f}σ)", highlight=False)
     print(f"results: {out / 'results.json'}\nmodel:   {out / 'model.json'}")
+    strict_exit(doc["status"], strict)

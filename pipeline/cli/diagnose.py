@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, err
+from pipeline.cli import app, console, err
 
 
 @app.command("diagnose")
@@ -16,9 +16,12 @@ def diagnose_cmd(
     alpha: float = typer.Option(0.01, "--alpha", min=1e-6, max=0.2, help="Family-wise error rate (Holm)."),
     folds: int = typer.Option(5, "--folds", min=2, help="Folds of the grouped cross-validation."),
     n_boot: int = typer.Option(40, "--bootstrap", min=0, help="Bootstrap resamples for selection stability."),
+    repeatability: float = typer.Option(None, "--repeatability", min=0.0,
+                                        help="The robot's declared repeatability, 3σ (m; datasheet, ISO 9283): the "
+                                             "noise floor the fit must come back to (default: the recording's "
+                                             "campaign metadata robot_repeatability_3sigma_m, else no floor check)."),
 ) -> None:
     """Locate residual structure, name the effect from the library, model it, show the held-out fit improve."""
-    from rich.console import Console
     from rich.table import Table
 
     from pipeline.diagnose.diagnose import Settings
@@ -33,7 +36,8 @@ def diagnose_cmd(
         system = detect(rec)
         if system.SYSTEM not in SUPPORTED:
             raise RobocalError(f"{recording}: diagnosis supports {', '.join(SUPPORTED)}; this is {system.SYSTEM}")
-        doc = diagnose_recording(rec, Settings(alpha=alpha, folds=folds, n_boot=n_boot))
+        doc = diagnose_recording(rec, Settings(alpha=alpha, folds=folds, n_boot=n_boot,
+                                                   repeatability_3sigma_m=repeatability))
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "diagnosis.json", doc)
     mm = lambda v: f"{v * 1e3:.4f} mm"  # noqa: E731
@@ -50,11 +54,11 @@ def diagnose_cmd(
                          + (f" [{p['ci95'][0]:.4g}, {p['ci95'][1]:.4g}]" if p.get("ci95") else "") + f" {p['unit']}"
                          for p in f["parameters"])
         alike = ", ".join(f"{a['effect']}@{a['location']}" for a in f.get("look_alikes", []))
-        t.add_row(f["effect"] + ("" if f["confidence"] == "high" else " (low confidence)")
+        t.add_row(f["effect"] + ("" if f["confidence"] == "high" else f" ({f['confidence']} confidence)")
                   + (f" (or {alike}: the campaign can hardly tell)" if alike else ""), f["location"], pars,
                   f"{ev['p_value']:.2g}", f"{mm(ev['cv_rms_before_m'])} → {mm(ev['cv_rms_after_m'])}",
                   f"{ev['bootstrap_frequency']:.2f}")
-    con = Console()
+    con = console()
     con.print(t if doc["findings"] else "no effect found beyond the geometric model")
     dropped = (doc.get("clustered_inference") or {}).get("dropped_by_check") or []
     if dropped:
@@ -67,6 +71,15 @@ def diagnose_cmd(
             con.print(f"[yellow]unexplained structure[/] in {w['variable']} around {reg} (p={w['p_value']:.2g})")
     else:
         con.print("no unexplained structure left in the residuals")
+    for o in doc.get("outlier_records", []):
+        con.print(f"[yellow]outlier record[/] {o['record']} (face {o['face']}): {o['reason']}", highlight=False)
+    for f in doc.get("rejected_findings", []):
+        con.print(f"not reported as found: {f['effect']}@{f['location']} — {f['note']}", highlight=False)
+    if doc.get("status"):
+        fl = doc.get("noise_floor")
+        con.print(f"status: [bold]{doc['status'].replace('_', ' ')}[/] — {doc['status_reason']}"
+                  + (f" (residual RMS {fl['rms_over_floor']:.2f}× the declared floor {mm(fl['sigma_floor_m'])})"
+                     if fl else ""), highlight=False)
     shown = [n for n in doc["not_identifiable"] if "no effect" not in n["reason"]]
     if shown:
         con.print(f"{len(shown)} effect(s) this campaign cannot separate from the geometry, e.g.:")

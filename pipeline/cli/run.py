@@ -6,10 +6,9 @@ from pathlib import Path
 from typing import Optional
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
-from pipeline.cli import app, err
+from pipeline.cli import app, console, err
 
 
 def _log(line: str) -> None:
@@ -52,11 +51,52 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
             rows.append(("diagnosis: unexplained structure", "yes (see report)"))
         if diag["findings"] and diag.get("holdout_rms_after_m") is not None:
             rows.append(("held-out RMS with the effects modelled", mm(diag["holdout_rms_after_m"])))
+    if s.get("predicted_map_rms_1sigma_m") is not None:
+        rows.append(("predicted accuracy over the workspace (1σ RMS / worst 95 %)",
+                     f"{mm(s['predicted_map_rms_1sigma_m'])} / {mm(s.get('predicted_map_max_bound95_m'))}"))
     for k, v in rows:
         t.add_row(k, str(v))
-    Console(stderr=True).print(t)
+    console(stderr=True).print(t)
     for w in doc.get("warnings", []):
         err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+    if s.get("status_reason"):
+        colour = "red" if s.get("status") in ("insufficient", "fail") else "yellow"
+        err.print(f"[{colour}]{s.get('status')}:[/] {s['status_reason']}", highlight=False, soft_wrap=True)
+    if s.get("status_advice"):
+        err.print(f"advice: {s['status_advice']}", highlight=False, soft_wrap=True)
+    for label, f in (("report", "report.html"), ("rerun", "run.rrd")):
+        if (run_dir / f).is_file():
+            err.print(f"{label}: {run_dir / f}" + (f"  (open with: robocal view {run_dir})" if label == "rerun" else ""),
+                      highlight=False, soft_wrap=True)
+
+
+def accuracy_params(prior: list[str] | None, tolerance: str | None, previous: Path | None,
+                    targets: Path | None) -> dict:
+    """Parameters of the accuracy stage from the command line (SI)."""
+    from pipeline.accuracy.prior import parse_overrides, parse_quantity
+    from pipeline.errors import RobocalError
+
+    p: dict = {}
+    if prior:
+        p["prior"] = parse_overrides(prior)
+    if tolerance is not None:
+        p["tolerance_m"] = parse_quantity(tolerance, "--tolerance")
+        if p["tolerance_m"] <= 0:
+            raise RobocalError(f"--tolerance {tolerance!r}: must be positive")
+    if previous is not None:
+        if not previous.is_dir():
+            raise RobocalError(f"{previous}: no such run folder (--previous)")
+        p["previous"] = str(previous.resolve())
+    if targets is not None:
+        p["targets"] = str(targets.resolve())
+    return p
+
+
+def strict_exit(status: str | None, strict: bool) -> None:
+    """Under --strict, a calibration that is not `pass` (or `warn`) exits 1."""
+    if strict and status in ("insufficient", "fail"):
+        err.print(f"robocal: --strict: status {status}", highlight=False)
+        raise typer.Exit(1)
 
 
 def _params(loss: str | None, f_scale: float | None, reject: float | None, folds: int | None,
@@ -82,6 +122,17 @@ F_SCALE = typer.Option(None, "--f-scale", help="identify: robust-loss scale, m (
 REJECT = typer.Option(None, "--reject", help="identify: reject measurements beyond this many robust σ (MAD); 0 = off (default 5).")
 FOLDS = typer.Option(None, "--folds", min=2, help="identify: folds of the held-out cross-validation (default 5).")
 FORCE = typer.Option(False, "--force", help="Run even if cached.")
+PRIOR = typer.Option(None, "--prior", help="Prior 1σ of parameters held at nominal: NAME=SIGMA, NAME a parameter, "
+                     "pattern (J*.beta) or kind (length, angle, frame_translation, frame_rotation, pixel); "
+                     "SIGMA SI or with a unit (0.5mm, 0.2deg). Repeatable.")
+TOLERANCE = typer.Option(None, "--tolerance", help="Required accuracy (e.g. 0.1mm): fail if the 95 % bound exceeds it "
+                         "anywhere on the accuracy map.")
+PREVIOUS = typer.Option(None, "--previous", help="A previous run folder of the same robot: report parameters that "
+                        "moved by more than 3σ.")
+TARGETS = typer.Option(None, "--targets", help="CSV of x,y,z (m) where the accuracy map is evaluated "
+                       "(default: a grid over the jig volume / workspace).")
+STRICT = typer.Option(False, "--strict", help="Exit 1 unless the status is pass (or warn): insufficient data or "
+                      "tolerance not met.")
 
 
 @app.command("run")
@@ -94,6 +145,8 @@ def run_cmd(
     gap_factor: Optional[float] = typer.Option(None, "--gap-factor", help="validate: a gap is this many sample periods (default 5)."),
     force: bool = FORCE,
     only: Optional[str] = typer.Option(None, "--stages", help="Comma-separated stages to run (default: all available)."),
+    prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
+    targets: Optional[Path] = TARGETS, strict: bool = STRICT,
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached."""
@@ -103,8 +156,10 @@ def run_cmd(
 
     t0 = time.perf_counter()
     ok = False
+    params = _params(loss, f_scale, reject, folds, flag, gap_factor)
+    params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
     try:
-        outs = run_pipeline(recording, out, _params(loss, f_scale, reject, folds, flag, gap_factor), force=force, log=_log,
+        outs = run_pipeline(recording, out, params, force=force, log=_log,
                             stages=[s.strip() for s in only.split(",")] if only else None)
         ok = True
     finally:
@@ -112,6 +167,10 @@ def run_cmd(
     n_cached = sum(o.cached for o in outs)
     what = "nothing to do: every stage cached" if n_cached == len(outs) else f"{len(outs) - n_cached} stage(s) ran"
     err.print(f"{what} ({time.perf_counter() - t0:.2f} s); results: {out / 'results.json'}")
+    from pipeline.stages.artefacts import read_json
+
+    if (out / "results.json").is_file():
+        strict_exit(read_json(out / "results.json")["summary"].get("status"), strict)
 
 
 @app.command("ingest")

@@ -10,6 +10,7 @@ exists (its solution and rejected records).  Params: ``alpha`` (family α, 0.01)
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,9 @@ def settings_of(params: dict) -> Settings:
     d = Settings()
     return Settings(alpha=float(params.get("alpha", d.alpha)), folds=int(params.get("folds", d.folds)),
                     block=int(params.get("block", d.block)), n_boot=int(params.get("n_boot", d.n_boot)),
-                    seed=int(params.get("seed", d.seed)))
+                    seed=int(params.get("seed", d.seed)),
+                    repeatability_3sigma_m=(None if params.get("repeatability_3sigma_m") is None
+                                            else float(params["repeatability_3sigma_m"])))
 
 
 def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | None = None,
@@ -72,6 +75,8 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
     model, tab, info = dtable.from_recording(rec, stream)
     if drop_records:
         tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
+    if settings.repeatability_3sigma_m is None and info.get("repeatability_3sigma_m") is not None:
+        settings = replace(settings, repeatability_3sigma_m=float(info["repeatability_3sigma_m"]))
     doc = diagnose(model, tab, jig_tolerance_m=info["jig_tolerance_m"], x0=x0, settings=settings)
     doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
     return doc
@@ -102,5 +107,6 @@ def run(run_dir: Path, params: dict) -> dict:
         doc["supported"] = True
     write_json(out / "diagnosis.json", doc)
     return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],
-            "unexplained": doc["unexplained"], "holdout_rms_before_m": doc["holdout_rms_before_m"],
+            "unexplained": doc["unexplained"], "status": doc.get("status"),
+            "holdout_rms_before_m": doc["holdout_rms_before_m"],
             "holdout_rms_after_m": doc["holdout_rms_after_m"]}

@@ -90,4 +90,6 @@ def from_recording(rec, stream=None):
     tab = add_context(table, stream.t_ns, stream.q, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
                       payload_schedule=campaign.get("payload_schedule"), default_payload_kg=model.arm.payload_kg,
                       temperature=temperature_stream(rec), path=rec.path)
-    return model, tab, {"jig_tolerance_m": jig.tolerance_m, "system": aw.SYSTEM}
+    return model, tab, {"jig_tolerance_m": jig.tolerance_m, "system": aw.SYSTEM,
+                        # the robot's declared repeatability (3σ, m) when the integrator recorded it
+                        "repeatability_3sigma_m": campaign.get("robot_repeatability_3sigma_m")}

@@ -22,6 +22,7 @@ from pipeline.measurements.composed import Composed
 class CoincidenceModel(Composed):
     groups_: tuple[str, ...] = field(default_factory=tuple)
     start: tuple[tuple[float, float, float], ...] = field(default_factory=tuple)
+    fit_tool: bool = False  # as for planes: a free tool point can sit where no joint moves it
 
     residual_dim = 3
 

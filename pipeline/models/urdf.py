@@ -170,10 +170,15 @@ def read(path: str | Path, root: str, tip: str) -> RobotDescription:
 
 # ----- rotations (URDF rpy: R = Rz(yaw)·Ry(pitch)·Rx(roll)) -------------------------------------
 def rpy_of(R: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll, pitch, yaw of a rotation matrix."""
+    """URDF roll, pitch, yaw of a rotation matrix (at pitch ±90° scipy sets roll to 0 and puts
+    the rotation in yaw: the angles still give back the matrix exactly)."""
+    import warnings
+
     from scipy.spatial.transform import Rotation
 
-    yaw, pitch, roll = Rotation.from_matrix(R).as_euler("ZYX")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        yaw, pitch, roll = Rotation.from_matrix(R).as_euler("ZYX")
     return float(roll), float(pitch), float(yaw)
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from pipeline.errors import RobocalError
 
-STAGES = ("ingest", "validate", "identify", "observe", "diagnose")
+STAGES = ("ingest", "validate", "identify", "observe", "accuracy", "diagnose")
 
 
 @dataclass
@@ -33,6 +33,7 @@ class RunArtefacts:
     validate: dict | None = None  # validate/validate.json
     observe: dict | None = None  # observe/observe.json
     diagnosis: dict | None = None  # diagnose/diagnosis.json (or DIR/diagnosis.json)
+    accuracy: dict | None = None  # accuracy/accuracy.json (issue 16: the map and the verdict)
     stages: dict[str, dict] = field(default_factory=dict)  # <stage>/stage.json
 
     @property
@@ -127,4 +128,5 @@ def load_run(run_dir: str | Path) -> RunArtefacts:
         model=_json(d / "identify" / "model.json"), recording=_json(d / "ingest" / "recording.json") or {},
         measurements=_parquet(d / "ingest" / "measurements.parquet"),
         encoder=_parquet(d / "ingest" / "encoder.parquet"), validate=_json(d / "validate" / "validate.json"),
-        observe=_json(d / "observe" / "observe.json"), diagnosis=diagnosis, stages=stages)
+        observe=_json(d / "observe" / "observe.json"), diagnosis=diagnosis, stages=stages,
+        accuracy=_json(d / "accuracy" / "accuracy.json"))

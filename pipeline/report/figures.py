@@ -10,7 +10,7 @@ import numpy as np
 
 from pipeline.report.artefacts import RunArtefacts, residual_matrix
 
-DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 180.0 / np.pi)}
+DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 180.0 / np.pi), "m/px": ("µm/px", 1e6)}
 
 
 def rms(a: np.ndarray) -> float | None:

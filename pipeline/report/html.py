@@ -56,6 +56,16 @@ def _num(v: float | None, digits: int = 4) -> str:
     return f"{v:.{digits}f}"
 
 
+def _sig(v: float | None, digits: int = 5) -> str:
+    """4 decimals in the usual range; significant figures outside it (a pixel pitch of 6.6e-06 m/px or a
+    σ of 4e-05 mm stays readable instead of printing 0.0000)."""
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "–"
+    if v == 0 or 1e-3 <= abs(v) < 1e6:
+        return f"{v:.4f}"
+    return f"{v:.{digits}g}"
+
+
 def _table(head: list[str], rows: list[list[str]], numeric: set[int] = frozenset(), row_class=None) -> str:
     th = "".join(f"<th>{escape(h)}</th>" for h in head)
     body = []
@@ -111,8 +121,8 @@ def residual_section(art, series: fg.ResidualSeries) -> str:
 
 def parameter_section(fit: dict) -> str:
     rows = fg.parameter_rows(fit)
-    body = [[f"<code>{escape(r['name'])}</code>", escape(r["unit"]), _num(r["nominal"]), _num(r["estimate"]),
-             _num(r["change"]), _num(r["std"]), "yes" if r["free"] else "fixed", escape(r["reason"])] for r in rows]
+    body = [[f"<code>{escape(r['name'])}</code>", escape(r["unit"]), _sig(r["nominal"]), _sig(r["estimate"]),
+             _sig(r["change"]), _sig(r["std"]), "yes" if r["free"] else "fixed", escape(r["reason"])] for r in rows]
     html = ('<p class="note">Lengths in mm, angles in deg. σ: 1σ standard deviation from the covariance '
             "(residual σ²·(JᵀJ)⁻¹). Fixed parameters stay at their nominal value; the reason says why.</p>")
     html += _table(["parameter", "unit", "nominal", "estimate", "change", "σ", "identified", "reason"], body,
@@ -178,6 +188,14 @@ def diagnosis_section(art) -> str:
     if not isinstance(doc, dict):
         return ""
     html = ""
+    if isinstance(doc.get("status"), str):  # issue 18: the verdict, outlier records, findings not reported
+        html += (f'<p class="note">Status: <b>{escape(doc["status"].replace("_", " "))}</b> — '
+                 f'{escape(str(doc.get("status_reason", "")))}</p>')
+        for o in [o for o in doc.get("outlier_records") or [] if isinstance(o, dict)]:
+            html += f'<p class="note">Outlier record {escape(str(o.get("record")))}: {escape(str(o.get("reason")))}</p>'
+        for f in [f for f in doc.get("rejected_findings") or [] if isinstance(f, dict)]:
+            html += (f'<p class="note">Not reported as found: {escape(str(f.get("effect")))}@'
+                     f'{escape(str(f.get("location")))} — {escape(str(f.get("note")))}</p>')
     rows = dg.finding_rows(doc)
     if rows:
         html += "<h3>Findings</h3>" + _table(
@@ -192,10 +210,16 @@ def diagnosis_section(art) -> str:
                  "reported as findings): " + escape(", ".join(f"{d.get('effect')}@{d.get('location')}" for d in dropped))
                  + "</p>")
     b, a = doc.get("holdout_rms_before_m"), doc.get("holdout_rms_after_m")
-    if isinstance(b, (int, float)) and isinstance(a, (int, float)):
+    if isinstance(b, (int, float)) and not rows:
+        html += (f'<p class="note">Held-out RMS of the geometric model in the diagnosis\'s own cross-validation: '
+                 f"{b * 1e3:.4f} mm (its folds keep each jig face / pose together, so it differs from the summary's "
+                 "k-fold figure).</p>")
+    elif isinstance(b, (int, float)) and isinstance(a, (int, float)):
         html += _figure(plots.bars(["before", "after"], [b * 1e3, a * 1e3], "held-out RMS (mm)",
                                    "held-out RMS: geometry only vs with the findings"),
-                        f"Held-out RMS before {b * 1e3:.4f} mm, after modelling the findings {a * 1e3:.4f} mm.",
+                        f"Held-out RMS before {b * 1e3:.4f} mm, after modelling the findings {a * 1e3:.4f} mm "
+                        "(the diagnosis's own cross-validation, folds grouped by face / pose: it differs from the "
+                        "summary's k-fold figure).",
                         "fig-diagnosis-improvement")
     cols = None
     if art.measurements is not None:
@@ -213,8 +237,9 @@ def diagnosis_section(art) -> str:
     ni = doc.get("not_identifiable") or []
     if ni:
         html += "<h3>Not identifiable with this campaign</h3>" + _table(
-            ["effect", "absorbed by", "what to change"],
-            [[escape(str(e.get("effect", "?"))), escape(str(e.get("absorbed_by", e.get("absorbs", "")))),
+            ["effect", "location", "absorbed by", "what to change"],
+            [[escape(str(e.get("effect", "?"))), escape(dg._loc(e.get("location", ""))),
+              escape(str(e.get("absorbed_by", e.get("absorbs", "")))),
               escape(str(e.get("advice", e.get("remedy", ""))))] for e in ni if isinstance(e, dict)])
     un = doc.get("unexplained")
     where = [w for w in doc.get("unexplained_where", []) or [] if isinstance(w, dict)]
@@ -232,10 +257,19 @@ def diagnosis_section(art) -> str:
     lof = [t for t in doc.get("lack_of_fit", []) or [] if isinstance(t, dict)]
     if lof:
         html += "<h3>Lack-of-fit tests</h3>" + _table(
-            ["variable", "statistic", "p-value (Holm)"],
-            [[escape(str(t.get("variable", ""))), escape(dg._fmt(t.get("statistic"), "")),
-              escape(dg._fmt(t.get("p_value"), ""))] for t in lof], {1, 2})
+            ["variable", "statistic", "p-value (Holm)", "p-value (raw)"],
+            [[escape(str(t.get("variable", ""))), escape(dg._fmt(t.get("statistic"), "")), _p(t.get("p_value")),
+              _p(t.get("p_value_raw"))] for t in lof], {1, 2, 3}) + (
+            '<p class="note">Holm-adjusted p-values are capped at 1 (three significant figures below it): 1 means '
+            "no evidence of structure against that variable.</p>")
     return _section("diagnosis", "Diagnosis", html)
+
+
+def _p(v: Any) -> str:
+    """A p-value with 3 significant figures (Holm-adjusted values are capped at 1: shown as 1, not rounded to it)."""
+    if not isinstance(v, (int, float)) or not np.isfinite(v):
+        return "–"
+    return "1" if v >= 1 else f"{v:.3g}"
 
 
 def provenance_section(prov: dict[str, Any], rrd_name: str | None) -> str:
@@ -270,10 +304,14 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     if art.validate:
         warnings += [f"{c.get('name')}: {c.get('message')}" for c in art.validate.get("checks", [])
                      if c.get("status") == "warn"]
-    sections = [summary_section(s, warnings), residual_section(art, series), parameter_section(art.fit),
+    from pipeline.report.accuracy import accuracy_section
+
+    acc_html = accuracy_section(art)
+    sections = [summary_section(s, warnings), acc_html, residual_section(art, series), parameter_section(art.fit),
                 observability_section(art), solver_section(art.history), validation_section(art.validate),
                 diagnosis_section(art), provenance_section(prov, rrd_name)]
-    titles = [("summary", "Summary"), ("residuals", "Residuals"), ("parameters", "Parameters"),
+    titles = [("summary", "Summary")] + ([("accuracy", "Accuracy")] if acc_html else []) + [
+              ("residuals", "Residuals"), ("parameters", "Parameters"),
               ("observability", "Observability"), ("solver", "Solver"), ("validation", "Validation")]
     if art.diagnosis is not None:
         titles.append(("diagnosis", "Diagnosis"))

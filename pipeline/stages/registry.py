@@ -34,9 +34,11 @@ STAGES: tuple[Stage, ...] = (
           help="Nonlinear least squares, robust loss, outlier rejection, held-out cross-validation."),
     Stage("observe", "pipeline.stages.observe", ("ingest", "identify"), {},
           help="Singular values, O1..O5, identifiable set, correlations, predicted accuracy."),
+    Stage("accuracy", "pipeline.accuracy.stage", ("ingest", "identify"), {},
+          help="Predicted accuracy over the workspace (priors of fixed parameters included), the verdict."),
     Stage("diagnose", "pipeline.diagnose.stage", ("ingest", "validate", "identify", "observe"), {}, optional=True,
           help="Residual diagnosis (issue 7)."),
-    Stage("report", "pipeline.report.stage", ("ingest", "validate", "identify", "observe", "diagnose"), {},
+    Stage("report", "pipeline.report.stage", ("ingest", "validate", "identify", "observe", "accuracy", "diagnose"), {},
           optional=True, help="report.html and run.rrd."),
 )
 

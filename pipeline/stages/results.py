@@ -34,14 +34,23 @@ def gather(run_dir: Path) -> dict:
         for k in HEADLINE:
             if k in d.get("summary", {}):
                 summary[k] = d["summary"][k]
+    rank = {"pass": 0, "warn": 1, "insufficient": 2, "tolerance_fail": 3, "fail": 4}
     status = "pass"
     for d in docs.values():
         st = d.get("summary", {}).get("status")
-        if st == "fail":
-            status = "fail"
-        elif st == "warn" and status == "pass":
-            status = "warn"
+        if rank.get(st, 0) > rank[status]:
+            status = st
+    acc = docs.get("accuracy", {}).get("summary", {})
+    if status == "tolerance_fail" or acc.get("status") == "tolerance_fail" and status != "fail":
+        status = "fail"  # the calibration does not meet the user's tolerance (issue 16)
     summary["status"] = status
+    if acc:  # the accuracy verdict: never a confident answer from thin data
+        for k in ("reason", "advice"):
+            if acc.get(k):
+                summary[f"status_{k}"] = acc[k]
+        for k in ("map_rms_1sigma_m", "map_max_bound95_m"):
+            if k in acc:
+                summary[f"predicted_{k}"] = acc[k]
     ingest = docs.get("ingest", {}).get("summary", {})
     warnings = list(ingest.get("warnings", []))
     warnings += list(docs.get("identify", {}).get("summary", {}).get("warnings", []))

@@ -47,6 +47,12 @@ def _palette(n: int) -> list[tuple[int, int, int]]:
     return [base[i % len(base)] for i in range(n)]
 
 
+def _component_colors(rgb: tuple[int, int, int], k: int) -> list[tuple[int, int, int]]:
+    """Distinct colours for the k components of one group: red / green / blue tinted by the group."""
+    base = [(214, 39, 40), (44, 160, 44), (31, 119, 180)] + _palette(max(k - 3, 1))
+    return [tuple(int(0.75 * b + 0.25 * g) for b, g in zip(base[i], rgb)) for i in range(k)]
+
+
 def entity_part(label: str) -> str:
     """A group label as one entity-path part (a channel name such as /tracker/point → tracker_point)."""
     part = "_".join(p for p in str(label).split("/") if p)
@@ -84,8 +90,9 @@ def log_residual_series(rec: rr.RecordingStream, art: RunArtefacts) -> list[str]
                 continue
             path = f"residuals/{kind}_mm/{entity_part(g)}"
             k = R.shape[1]
-            names = [f"{g} {kind}"] if k == 1 else [f"{g} {kind} [{i}]" for i in range(k)]
-            rec.log(path, rr.SeriesPoints(colors=[rgb] * k, names=names, marker_sizes=[3.0] * k), static=True)
+            names = [f"{g} {kind}"] if k == 1 else [f"{g} {kind} {'xyz'[i] if k == 3 else i}" for i in range(k)]
+            colors = [rgb] if k == 1 else _component_colors(rgb, k)  # x/y/z told apart
+            rec.log(path, rr.SeriesPoints(colors=colors, names=names, marker_sizes=[3.0] * k), static=True)
             rec.send_columns(path, indexes=[_times(t[m])], columns=rr.Scalars.columns(scalars=R[m]))
             paths.append(path)
     return paths
@@ -224,8 +231,11 @@ def blueprint(has_scene: bool) -> rrb.Blueprint:
     """Layout: 3-D scene left; encoder, residuals and solver/summary right; time panel on `time`."""
     right = rrb.Vertical(
         rrb.TimeSeriesView(origin="/encoder", name="Encoder stream (rad)"),
-        rrb.TimeSeriesView(origin="/residuals", name="Residuals per face/channel (mm)"),
+        rrb.Tabs(rrb.TimeSeriesView(origin="/residuals/after_mm", name="Residuals after (mm)"),
+                 rrb.TimeSeriesView(origin="/residuals/before_mm", name="Residuals before (mm)"),
+                 rrb.TimeSeriesView(origin="/residuals/holdout_mm", name="Residuals held out (mm)")),
         rrb.Tabs(rrb.TextDocumentView(origin="/summary", name="Summary"),
+                 rrb.TextDocumentView(origin="/accuracy", name="Accuracy"),
                  rrb.TextDocumentView(origin="/diagnosis", name="Diagnosis"),
                  rrb.TimeSeriesView(origin="/diagnosis/plots", name="Diagnosis plots (timeline: diagnosis x <nn>)"),
                  rrb.TimeSeriesView(origin="/solver", name="Solver RMS per evaluation (mm), timeline: iteration")),
@@ -242,7 +252,7 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
               params: dict[str, Any] | None = None) -> dict[str, Any]:
     """Write `path` (run.rrd) from the run's artefacts; returns what was logged."""
     path = Path(path)
-    sha = str(art.recording.get("sha256", ""))[:16] or "unknown"
+    sha = str(art.source.get("sha256") or "")[:16] or "unknown"  # one recording id per input recording
     rec = rr.RecordingStream(APP_ID, recording_id=f"robocal-{art.system}-{sha}", send_properties=False)
     rec.set_log_time_enabled(False)
     rec.set_log_tick_enabled(False)
@@ -290,6 +300,13 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
             hook = call_system_hook(rec, art.system, model, table, x_before, x_after, art)
         except Exception as e:  # a drawing hook must not lose the rest of the recording
             warnings.append(f"system hook for {art.system} failed: {type(e).__name__}: {e}")
+    if isinstance(art.accuracy, dict):
+        try:
+            from pipeline.visualize.accuracy import log_accuracy
+
+            entities += log_accuracy(rec, art.accuracy)
+        except Exception as e:  # a drawing error must not lose the rest of the recording
+            warnings.append(f"accuracy map not logged: {type(e).__name__}: {e}")
     rec.send_blueprint(blueprint(built is not None))
     rec.flush()
     rec.disconnect()

@@ -1,0 +1,119 @@
+"""Is the predicted accuracy honest?  True 3-D error against the simulator's truth over the
+accuracy map (new configurations: the jig volume, the Delta's box, the scanner's image over its
+poses) versus the predicted 1σ; and, for information-poor arc-welder campaigns, whether the
+status is `insufficient` and the 95 % bound covers the true error.
+
+    python benchmarks/bench_accuracy_honesty.py --seeds 20            # the issue's size
+    python benchmarks/bench_accuracy_honesty.py --seeds 5 --systems arc-welder
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from pipeline.accuracy import assess, prior, workspace
+from pipeline.identify.least_squares import fit
+from pipeline.identify.model import take, uncalibrated
+from pipeline.models.jig import stepped_block
+
+FIXTURE = stepped_block().to_dict()
+
+
+def _evaluate(model, table, x_true, poor: bool = False) -> dict:
+    f = fit(model, table)
+    sigma, _, _ = prior.prior_sigma(model)
+    fixture = FIXTURE if model.system == "arc-welder" else None
+    mt, _ = workspace.map_table(model, f.x, table, fixture=fixture)
+    doc = assess.evaluate(model, f.x, f.free, f.cov, table, sigma, mt, uncalibrated(model, table),
+                          direction_advice=assess.touch_advice(fixture) if fixture else None)
+    pt, _ = model.points(x_true, mt)
+    pe, _ = model.points(f.x, mt)
+    true = np.linalg.norm(pe - pt, axis=1)
+    return {"true": true, "pred": doc["map"]["sigma_m"], "b95": doc["map"]["bound95_m"], "status": doc["status"],
+            "reason": doc["reason"]}
+
+
+def arc_welder(seed: int, case: str = "normal") -> dict:
+    from pipeline.plan.arc_welder import measured
+    from pipeline.systems import arc_welder as aw
+
+    model, table = measured(100 if case != "16 contacts" else 16, seed, random_errors=True)
+    truth = aw.random_truth(aw.nominal_arm(), np.random.default_rng(seed + 1_000_003)).vector()
+    if case == "no x-facing face":
+        table = take(table, np.asarray(table["axis"]) != 0)
+    elif case == "8 of 100 contacts":
+        table = take(table, np.sort(np.random.default_rng(seed).choice(100, 8, replace=False)))
+    return _evaluate(model, table, truth)
+
+
+def scanner(seed: int) -> dict | None:
+    from pipeline.simulate import scorbot_scanner as sim
+    from pipeline.systems import scorbot_scanner as sc
+
+    arm = sc.nominal_arm()
+    truth = sc.random_scanner(np.random.default_rng(seed + 2_000_003))
+    try:
+        _, table = sim.simulate_in_memory(arm, arm, truth, sim.Campaign(seed=seed), sim.Noise())
+    except RuntimeError:
+        return None  # this truth cannot see the pattern from reachable poses
+    return _evaluate(sc.ScannerModel(arm=arm), table, truth)
+
+
+def delta(seed: int) -> dict:
+    from pipeline.models.delta import Delta
+    from pipeline.simulate import delta_tracker as sim
+    from pipeline.systems.delta_tracker import TrackerModel
+
+    truth = sim.random_truth(np.random.default_rng(seed + 1_000_003))
+    s = sim.simulate(Delta(), truth, sim.Campaign(seed=seed), sim.Noise())
+    model = TrackerModel()
+    p = truth.parameters()
+    x_true = np.array([p[n] for n in model.parameter_names()])
+    return _evaluate(model, {"joint_positions": s.q, "point": s.point_t}, x_true)
+
+
+def report(label: str, runs: list[dict], poor: bool) -> None:
+    true = np.concatenate([r["true"] for r in runs])
+    per = np.array([np.sqrt(np.mean(r["true"] ** 2)) / np.sqrt(np.mean(r["pred"] ** 2)) for r in runs])
+    cover = np.array([np.sqrt(np.mean(r["true"] ** 2)) <= np.sqrt(np.mean(r["b95"] ** 2)) for r in runs])
+    insuff = sum(r["status"] == "insufficient" for r in runs)
+    pooled = np.sqrt(np.mean(per**2))  # each run's mean-square ratio weighs the same, whatever its scale
+    ok = np.array([r["status"] == "pass" for r in runs])
+    passed = f"; pass runs only {np.sqrt(np.mean(per[ok] ** 2)):.3f} (n={ok.sum()})" if 0 < ok.sum() < len(runs) else ""
+    print(f"{label:34s} n={len(runs):3d}  true/predicted pooled {pooled:.3f}{passed} (per run {per.min():.2f}–{per.max():.2f}, "
+          f"median {np.median(per):.2f})  "
+          f"true RMS {np.sqrt(np.mean(true**2)) * 1e3:.4g} mm  95 % bound covers {cover.mean() * 100:.0f} %  "
+          f"insufficient {insuff}/{len(runs)}" + ("  (target: all, cover ≥ 90 %)" if poor else "  (target 0.8–1.25)"))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--systems", default="arc-welder,scanner,delta,poor")
+    a = ap.parse_args()
+    which = a.systems.split(",")
+    t0 = time.perf_counter()
+    if "arc-welder" in which:
+        report("arc-welder (100 contacts)", [arc_welder(s) for s in range(a.seeds)], False)
+    if "scanner" in which:
+        runs, s = [], 0
+        while len(runs) < a.seeds:
+            r = scanner(s)
+            s += 1
+            if r is not None:
+                runs.append(r)
+        report("scorbot-scanner (5 poses × 5)", runs, False)
+    if "delta" in which:
+        report("delta-tracker (27-point grid)", [delta(s) for s in range(a.seeds)], False)
+    if "poor" in which:
+        for case in ("no x-facing face", "16 contacts", "8 of 100 contacts"):
+            runs = [arc_welder(s, case) for s in range(a.seeds)]
+            report(f"arc-welder, {case}", runs, True)
+    print(f"({time.perf_counter() - t0:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()

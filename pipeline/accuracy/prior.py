@@ -1,0 +1,111 @@
+"""Prior uncertainty of every model parameter: what is known about it before calibration.
+
+A parameter held at its nominal value by the rank test is not known: it is as uncertain as
+the robot's manufacturing and installation tolerance.  Each parameter gets a prior 1σ (SI)
+from, in increasing precedence:
+
+1. the default of its *kind* (`kind_of`: from its unit and name, so new models work too);
+2. a model that states bounds (``lower``/``upper`` attributes, e.g. the scanner's Table 2):
+   uniform within them, σ = (upper − lower)/√12;
+3. the robot model file's ``prior_sigma`` object (recording metadata): keys are parameter
+   names, shell patterns (``J*.beta``) or kinds, values SI;
+4. the command line (``--prior KEY=VALUE``, VALUE with an optional unit: ``0.5mm``, ``0.2deg``).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import re
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from pipeline.errors import RobocalError
+
+DEG = np.pi / 180
+
+#: Default prior 1σ per kind (SI).  Frame placements (a base on the floor, a tool on the
+#: flange, a tracker's registration) are known less well than machined link geometry.
+DEFAULTS: dict[str, float] = {
+    "length": 2e-3,  # m: link lengths and offsets (machining and assembly)
+    "angle": 1.0 * DEG,  # rad: joint offsets, twists, axis misalignments
+    "frame_translation": 5e-3,  # m: base / tool / sensor placement
+    "frame_rotation": 2.0 * DEG,  # rad
+    "pixel": 10.0,  # px: principal point
+    "target_offset": 1e-5,  # m: a measurement target's certified offset (a tracker SMR centred in its nest)
+}
+RELATIVE_DEFAULT = 0.1  # any other unit: 10 % of |nominal| (1 where the nominal is 0)
+FRAME_PREFIXES = ("base.", "tool.", "tracker.", "registration.", "hand_eye.")
+TARGET_PREFIXES = ("reflector.", "target.", "smr.")
+
+_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "rad": 1.0, "mrad": 1e-3, "deg": DEG, "°": DEG,
+          "px": 1.0, "": 1.0}
+
+
+def kind_of(name: str, unit: str) -> str:
+    """Kind of a parameter from its unit and name (see DEFAULTS); 'relative' otherwise."""
+    frame = name.startswith(FRAME_PREFIXES)
+    if unit == "m" and name.startswith(TARGET_PREFIXES):
+        return "target_offset"
+    if unit == "m":
+        return "frame_translation" if frame else "length"
+    if unit == "rad":
+        return "frame_rotation" if frame else "angle"
+    if unit == "px":
+        return "pixel"
+    return "relative"
+
+
+def parse_quantity(text: str, what: str = "value") -> float:
+    """'0.1mm' → 1e-4, '0.2deg' → rad, '3e-4' → 3e-4 (SI when no unit)."""
+    m = re.fullmatch(r"\s*([-+0-9.eE]+)\s*([a-zµ°]*)\s*", str(text))
+    if not m or m.group(2) not in _UNITS:
+        raise RobocalError(f"{what}: cannot read {text!r} (a number with an optional unit: m, mm, um, rad, deg, px)")
+    try:
+        return float(m.group(1)) * _UNITS[m.group(2)]
+    except ValueError:
+        raise RobocalError(f"{what}: cannot read {text!r} as a number") from None
+
+
+def parse_overrides(items: Iterable[str]) -> dict[str, float]:
+    """`KEY=VALUE` strings (command line) → {key: σ SI}."""
+    out = {}
+    for it in items:
+        key, sep, val = it.partition("=")
+        if not sep or not key.strip():
+            raise RobocalError(f"--prior {it!r}: expected NAME=SIGMA (e.g. base.x=5mm, angle=0.5deg)")
+        out[key.strip()] = parse_quantity(val, f"--prior {key.strip()}")
+    return out
+
+
+def _apply(sigma: np.ndarray, source: list[str], names: list[str], kinds: list[str],
+           overrides: Mapping[str, float], label: str) -> None:
+    for key, val in overrides.items():
+        v = float(val)
+        if not np.isfinite(v) or v < 0:
+            raise RobocalError(f"{label}: prior for {key!r} must be a finite σ ≥ 0, got {val!r}")
+        hit = [i for i, (n, k) in enumerate(zip(names, kinds)) if n == key or k == key or fnmatch.fnmatchcase(n, key)]
+        if not hit:
+            raise RobocalError(f"{label}: prior {key!r} matches no parameter or kind "
+                               f"(kinds: {', '.join(sorted(set(kinds)))})")
+        for i in hit:
+            sigma[i], source[i] = v, label
+
+
+def prior_sigma(model, overrides_file: Mapping[str, float] | None = None,
+                overrides_cli: Mapping[str, float] | None = None) -> tuple[np.ndarray, list[str], list[str]]:
+    """(σ per parameter (P,) SI, kind per parameter, where each σ came from)."""
+    names, units = model.parameter_names(), model.parameter_units()
+    nominal = np.asarray(model.nominal(), float)
+    kinds = [kind_of(n, u) for n, u in zip(names, units)]
+    sigma = np.array([DEFAULTS.get(k, RELATIVE_DEFAULT * (abs(v) or 1.0)) for k, v in zip(kinds, nominal)])
+    source = ["default:" + k for k in kinds]
+    lo, hi = getattr(model, "lower", None), getattr(model, "upper", None)
+    if lo is not None and hi is not None:
+        lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        k = min(lo.size, len(names))
+        sigma[:k] = (hi[:k] - lo[:k]) / np.sqrt(12.0)
+        source[:k] = ["model bounds (uniform)"] * k
+    _apply(sigma, source, names, kinds, overrides_file or {}, "robot model file prior_sigma")
+    _apply(sigma, source, names, kinds, overrides_cli or {}, "--prior")
+    return sigma, kinds, source

@@ -1,0 +1,113 @@
+"""Predicted accuracy of the calibrated model's points (functional core).
+
+The error of the calibrated point at a configuration has two parts (a "consider" analysis):
+
+* the fitted parameters' covariance Σ_f = σ²(J_fᵀJ_f)⁻¹ propagated through the point
+  Jacobian: Jp_f Σ_f Jp_fᵀ;
+* the fixed parameters' prior: an error δ of the fixed parameters shifts the measurements by
+  J_x δ, which the fit absorbs as far as it can (the free estimates move by −J_f⁺J_x δ); what is
+  left moves the point by G δ with G = Jp_x − Jp_f·J_f⁺J_x.  Its covariance is G diag(σ_prior²) Gᵀ.
+  A fixed parameter the fit absorbs exactly (J1.θ ≡ base.rz) contributes nothing; one no
+  measurement sees (base.x without an x-facing face) contributes its full effect.
+
+All lengths in m; points and their 3×3 covariances in the model's point frame (jig /
+workcell / robot base).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+RCOND = 1e-12  # relative singular-value cut-off of the pseudo-inverse (as least_squares.covariance)
+
+
+@dataclass(frozen=True)
+class PointAccuracy:
+    """Per point: 3×3 covariances (n,3,3) m² of the fitted and the fixed (prior) parts."""
+
+    cov_fit: np.ndarray
+    cov_prior: np.ndarray
+
+    @property
+    def cov(self) -> np.ndarray:
+        return self.cov_fit + self.cov_prior
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """RMS 3-D error (1σ), sqrt(trace Σ), (n,) m."""
+        return np.sqrt(np.clip(np.trace(self.cov, axis1=1, axis2=2), 0, None))
+
+    @property
+    def sigma_fit(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.trace(self.cov_fit, axis1=1, axis2=2), 0, None))
+
+    @property
+    def sigma_prior(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.trace(self.cov_prior, axis1=1, axis2=2), 0, None))
+
+    @property
+    def bound95(self) -> np.ndarray:
+        return norm_quantile(self.cov, 0.95)
+
+
+def pinv(J: np.ndarray) -> np.ndarray:
+    """Pseudo-inverse with the same cut-off as the fit's covariance."""
+    if J.size == 0:
+        return np.zeros(J.shape[::-1])
+    U, s, Vt = np.linalg.svd(J, full_matrices=False)
+    s_inv = np.where(s > s[0] * RCOND, 1.0 / np.where(s > 0, s, 1.0), 0.0) if s.size and s[0] > 0 else np.zeros_like(s)
+    return (Vt.T * s_inv) @ U.T
+
+
+def absorption(Jm: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """A = J_f⁺ J_x (free × fixed): how the free estimates move per unit fixed-parameter error."""
+    return pinv(Jm[:, free]) @ Jm[:, ~free]
+
+
+def predict(Jp: np.ndarray, free: np.ndarray, cov_free: np.ndarray, prior_sigma: np.ndarray,
+            A: np.ndarray) -> PointAccuracy:
+    """Point covariances (see module docstring).  Jp (n,3,P) at the estimate; cov_free
+    (F,F) m-based SI; prior_sigma (P,); A from `absorption`."""
+    Jf, Jx = Jp[:, :, free], Jp[:, :, ~free]
+    cov_fit = np.einsum("nip,pq,njq->nij", Jf, cov_free, Jf)
+    G = Jx - np.einsum("nip,pk->nik", Jf, A)
+    s2 = prior_sigma[~free] ** 2
+    cov_prior = np.einsum("nik,k,njk->nij", G, s2, G)
+    return PointAccuracy(cov_fit, cov_prior)
+
+
+def fixed_contributions(Jp: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """RMS over points of each fixed parameter's unabsorbed 3-D effect, (n_fixed,) m."""
+    G = Jp[:, :, ~free] - np.einsum("nip,pk->nik", Jp[:, :, free], A)
+    return np.sqrt(np.mean(np.sum(G**2, axis=1), axis=0)) * prior_sigma[~free]
+
+
+def uncalibrated(Jp: np.ndarray, prior_sigma: np.ndarray) -> np.ndarray:
+    """Predicted 3-D 1σ error of the uncalibrated model, (n,) m: every parameter at its prior."""
+    return np.sqrt(np.einsum("nip,p->n", Jp**2, prior_sigma**2))
+
+
+def norm_quantile(cov: np.ndarray, q: float) -> np.ndarray:
+    """q-quantile of |e| for e ~ N(0, Σ) per point, (n,) m: |e|² = Σ λ_i χ²₁ approximated by
+    c·χ²_ν with matching mean and variance (Satterthwaite): c = Σλ²/Σλ, ν = (Σλ)²/Σλ²."""
+    lam = np.clip(np.linalg.eigvalsh(cov), 0, None)
+    s1, s2 = lam.sum(axis=1), (lam**2).sum(axis=1)
+    ok = s2 > 0
+    c = np.where(ok, s2 / np.where(ok, s1, 1), 0.0)
+    nu = np.where(ok, s1**2 / np.where(ok, s2, 1), 1.0)
+    return np.sqrt(c * chi2.ppf(q, nu))
+
+
+def measured_directions(Jm: np.ndarray, Jp: np.ndarray, residual_dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """Which directions of the point the measurements fix: each measurement's residuals are
+    D_i·(point) to first order, D_i = Jm_i Jp_i⁺ (k×3); M = mean D_iᵀD_i.  Returns the
+    eigenvalues (ascending, relative to the largest) and eigenvectors (columns) of M."""
+    n = Jp.shape[0]
+    Jmi = Jm.reshape(n, residual_dim, -1)
+    D = np.einsum("nkp,npj->nkj", Jmi, np.linalg.pinv(Jp, rcond=1e-9))
+    M = np.einsum("nki,nkj->ij", D, D) / max(n, 1)
+    w, V = np.linalg.eigh(M)
+    return w / max(w[-1], 1e-300), V

@@ -1,0 +1,148 @@
+"""More of the arc-welder effect library (issue 18): couplings, link growth, face shape, wire.
+
+Same `Effect` contract and sign conventions as `pipeline.diagnose.effects` (a ``joint`` effect
+is δq added to the encoder reading to get the true joint angle; a ``tip`` effect displaces the
+true tip by D·θ in {W}):
+
+- ``joint_coupling`` Ji->Jj: δq_j = κ·q_i (rad/rad), for neighbouring joints of the arm
+  (J1..J4; the wrist pairs are `wrist_coupling`) — e.g. a J3 driven through a parallelogram;
+- ``coupling_difference`` Ji-Jj on Jj: δq_j = κ·(q_i − q_j) (rad/rad): an error linear in the
+  relative angle of two parallel joints (J2, J3);
+- ``thermal_growth``: every D-H length (a, d) grows by ε·L·t (1/s), or by ε·L·ΔT (1/K) when a
+  temperature is recorded — the tip moves by ε·t·Σ L ∂p/∂L, pose-dependent, unlike the rigid
+  `thermal_drift`;
+- ``face_tilt`` (per face, m/m along each in-plane axis) and ``face_flatness`` (per face, m/m²,
+  a bowl about the face's contacts' centre): the face is not the plane of the drawing (the
+  true tip meets it displaced by D·θ along the face's axis);
+- ``wire_stickout``: the welding wire's free length grows by s·t (m/s) along the wire (the tool
+  z axis) — tool length varying from contact to contact as the wire is fed and burnt.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.diagnose.effects import Effect, Table
+from pipeline.models import serial_arm
+
+NEIGHBOURS = ((0, 1), (1, 0), (1, 2), (2, 1), (2, 3), (3, 2))
+PLAUSIBLE = {"joint_coupling": 1e-2, "coupling_difference": 1e-2, "thermal_growth": 1e-6,
+             "thermal_growth_K": 5e-5, "face_tilt": 2e-3, "face_flatness": 0.1, "wire_stickout": 1e-6}
+ADVICE = {
+    "joint_coupling": "move the driving joint alone over its range while the driven one stays put",
+    "coupling_difference": "vary the two joints' relative angle independently of each one",
+    "thermal_growth": "revisit far-apart poses early and late in the campaign (growth scales with reach)",
+    "face_tilt": "spread the contacts over the whole face",
+    "face_flatness": "spread the contacts over the whole face, centre and edges",
+    "wire_stickout": "cut the wire to length before each block and log it; vary the wire direction",
+}
+
+
+def _joint(nj: int, j: int, col: np.ndarray) -> np.ndarray:
+    out = np.zeros((col.shape[0], nj, 1))
+    out[:, j, 0] = col
+    return out
+
+
+def _coupling(i: int, j: int):
+    def basis(arm, x, t):
+        return _joint(arm.n_joints, j, np.asarray(t["joint_positions"], float)[:, i])
+    return basis
+
+
+def _difference(i: int, j: int):
+    def basis(arm, x, t):
+        q = np.asarray(t["joint_positions"], float)
+        return _joint(arm.n_joints, j, q[:, i] - q[:, j])
+    return basis
+
+
+def _length_columns(arm, x: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Σ_L L·∂p/∂L (n, 3) m over every joint's D-H a and d."""
+    _, J = serial_arm.tip_jacobian(x, q)
+    idx = [6 + 5 * j + m for j in range(arm.n_joints) for m in (1, 2)]  # θ, d, a, α, β per joint
+    return np.einsum("nip,p->ni", J[:, :, idx], np.asarray(x, float)[idx])
+
+
+def _growth(column: str):
+    def basis(arm, x, t):
+        tau = np.asarray(t[column], float)
+        return (tau[:, None] * _length_columns(arm, x, np.asarray(t["joint_positions"], float)))[:, :, None]
+    return basis
+
+
+def _in_plane(arm, x, t, face: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(on-face mask, u, v) in-plane coordinates of the tip (m) about the face's contacts' centre."""
+    on = np.asarray(t["face"]).astype(str) == face
+    ax = np.asarray(t["axis"], int)
+    p = serial_arm.tip_position(x, np.asarray(t["joint_positions"], float))
+    a0 = int(ax[on][0]) if on.any() else 2
+    a, b = [k for k in range(3) if k != a0]
+    u = np.where(on, p[:, a] - (p[on, a].mean() if on.any() else 0), 0.0)
+    v = np.where(on, p[:, b] - (p[on, b].mean() if on.any() else 0), 0.0)
+    return on, u, v
+
+
+def _along_axis(t, cols: np.ndarray) -> np.ndarray:
+    """(n, 3, k) with the columns on each row's measured axis."""
+    ax = np.asarray(t["axis"], int)
+    D = np.zeros((ax.size, 3, cols.shape[1]))
+    D[np.arange(ax.size), ax, :] = cols
+    return D
+
+
+def _tilt(face: str):
+    def basis(arm, x, t):
+        on, u, v = _in_plane(arm, x, t, face)
+        return _along_axis(t, np.stack([u, v], axis=1))
+    return basis
+
+
+def _flatness(face: str):
+    def basis(arm, x, t):
+        on, u, v = _in_plane(arm, x, t, face)
+        w = u**2 + v**2
+        w = np.where(on, w - (w[on].mean() if on.any() else 0), 0.0)
+        return _along_axis(t, w[:, None])
+    return basis
+
+
+def _stickout(arm, x, t):
+    F = serial_arm.frames(x, np.asarray(t["joint_positions"], float))
+    wire = F[:, -1, :3, 2]  # the tool z axis in {W}
+    return (np.asarray(t["time_since_start_s"], float)[:, None] * wire)[:, :, None]
+
+
+def more_effects(arm, table: Table, min_on_face: int = 8) -> list[Effect]:
+    """The candidates of the module docstring for a touch campaign's table (a table of face ids
+    only — the simulator's look-up of an effect by name — gets every candidate)."""
+    lookup = "joint_positions" not in table
+    min_on_face = 1 if lookup else min_on_face
+    J = [j.name for j in arm.joints]
+    P, lib = PLAUSIBLE, []
+    for i, j in NEIGHBOURS:
+        if max(i, j) < arm.n_joints:
+            lib.append(Effect("joint_coupling", f"{J[i]}->{J[j]}", (f"coupling_{J[i]}_{J[j]}",), ("rad/rad",),
+                              P["joint_coupling"], "joint", _coupling(i, j), 62, f"q_{J[i]}", ADVICE["joint_coupling"]))
+    if arm.n_joints >= 3:
+        for i, j in ((1, 2), (2, 1)):
+            lib.append(Effect("coupling_difference", f"{J[i]}-{J[j]} on {J[j]}", (f"diff_{J[i]}_{J[j]}",),
+                              ("rad/rad",), P["coupling_difference"], "joint", _difference(i, j), 64, f"q_{J[i]}",
+                              ADVICE["coupling_difference"]))
+    if "temperature_rise_K" in table:
+        lib.append(Effect("thermal_growth", "links (temperature)", ("growth_per_K",), ("1/K",), P["thermal_growth_K"],
+                          "tip", _growth("temperature_rise_K"), 72, "temperature_rise_K", ADVICE["thermal_growth"]))
+    elif "time_since_start_s" in table or lookup:
+        lib.append(Effect("thermal_growth", "links", ("growth_rate",), ("1/s",), P["thermal_growth"], "tip",
+                          _growth("time_since_start_s"), 72, "time", ADVICE["thermal_growth"]))
+    if "time_since_start_s" in table or lookup:
+        lib.append(Effect("wire_stickout", "wire", ("stickout_rate",), ("m/s",), P["wire_stickout"], "tip", _stickout,
+                          76, "time", ADVICE["wire_stickout"]))
+    faces, counts = np.unique(np.asarray(table["face"]).astype(str), return_counts=True)
+    for f, c in zip(faces, counts):
+        if c >= min_on_face:
+            lib.append(Effect("face_tilt", str(f), (f"tilt_u_{f}", f"tilt_v_{f}"), ("m/m", "m/m"), P["face_tilt"], "tip",
+                              _tilt(str(f)), 92, "face", ADVICE["face_tilt"]))
+            lib.append(Effect("face_flatness", str(f), (f"bowl_{f}",), ("1/m",), P["face_flatness"], "tip",
+                              _flatness(str(f)), 94, "face", ADVICE["face_flatness"]))
+    return lib

@@ -1,0 +1,361 @@
+"""An independent generator of touch campaigns for testing the diagnosis (issue 18).
+
+It shares NO code with the diagnosis's effect signatures nor with `pipeline.simulate`: its own
+forward kinematics (a product of 4×4 homogeneous matrices), its own inverse kinematics (damped
+least squares on a finite-difference Jacobian), its own contact search (Newton on the gap along
+a joint-space search line) and its own forms of every effect, several of them deliberately
+outside the diagnosis's library:
+
+- ``bump``:        δq_j = A·exp(−½((q_j − c)/w)²) in joint j's transmission;
+- ``dent``:        a local bowl of depth D (m) and radius ρ on one face (the true face lies D·g(u, v)
+                   inside the material, g a 2-D Gaussian of the position on the face);
+- ``quad_coupling``: δq_3 = k·(q_2 − q̄_2)² (a nonlinear coupling of J3 on J2's angle);
+- ``thermal_growth``: a2 and d4 grow by α·L·(1 − e^(−t/τ)) (a warm-up acting through the kinematics);
+- ``wild``:        one contact latched `size` metres further along its search (a bad latch);
+- ``glitch``:      J1's encoder stream reads `size` rad off over the 30 ms before one latch (the latch
+                   itself is right; the approach speed derived from the stream is not);
+- in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` every D-H a, d
+  grows by α·L·t.
+
+Only the numbers of the nominal/true arm are read from `pipeline.systems.arc_welder` (base,
+D-H + Hayati joint terms, tool) and the jig's faces from `pipeline.models.jig`.  The diagnosis
+table is then built by the product's recording-side code (`pipeline.diagnose.table.add_context`)
+from this generator's own 250 Hz encoder stream, as it would be from a recording.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipeline.diagnose.table import add_context
+from pipeline.models.jig import Jig, stepped_block
+from pipeline.systems import arc_welder as aw
+
+RATE_HZ = 250.0
+COUNT = 2 * np.pi / 2**17
+EPOCH_NS = 1_767_225_600_000_000_000
+
+
+# ----- 4×4 kinematics ----------------------------------------------------------------------
+def _rot(axis: str, a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a, float)
+    c, s = np.cos(a), np.sin(a)
+    T = np.zeros(a.shape + (4, 4))
+    T[..., 3, 3] = 1
+    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
+    k = 3 - i - j
+    T[..., k, k] = 1
+    T[..., i, i], T[..., i, j], T[..., j, i], T[..., j, j] = c, -s, s, c
+    return T
+
+
+def _trans(x, y, z, shape=()) -> np.ndarray:
+    T = np.broadcast_to(np.eye(4), shape + (4, 4)).copy()
+    T[..., 0, 3], T[..., 1, 3], T[..., 2, 3] = x, y, z
+    return T
+
+
+@dataclass(frozen=True)
+class Arm:
+    """Plain numbers: base (x, y, z, rz, rx, ry), joints [(θ, d, a, α, β)], tool (x, y, z, rz, ry, rx)."""
+
+    base: tuple
+    joints: tuple
+    tool: tuple
+    lower: tuple
+    upper: tuple
+
+    @staticmethod
+    def of(arm) -> "Arm":
+        b, t = arm.base, arm.tool
+        return Arm((b["x"], b["y"], b["z"], b["rz"], b["rx"], b["ry"]),
+                   tuple((j.theta_offset, j.d, j.a, j.alpha, j.beta) for j in arm.joints),
+                   (t["x"], t["y"], t["z"], t["rz"], t["ry"], t["rx"]),
+                   tuple(j.lower for j in arm.joints), tuple(j.upper for j in arm.joints))
+
+
+def pose(arm: Arm, q: np.ndarray, link_scale: np.ndarray | None = None) -> np.ndarray:
+    """W_T_E (n, 4, 4) at joint angles q (n, 6); `link_scale` (n, 2) multiplies (a2, d4), or
+    (n, 6) every joint's a and d."""
+    q = np.atleast_2d(q)
+    n = q.shape[0]
+    x, y, z, rz, rx, ry = arm.base
+    T = (_trans(x, y, z) @ _rot("z", rz) @ _rot("x", rx) @ _rot("y", ry))[None].repeat(n, 0)
+    for i, (th, d, a, al, be) in enumerate(arm.joints):
+        a_i = np.full(n, a)
+        d_i = np.full(n, d)
+        if link_scale is not None and link_scale.shape[1] == 6:
+            a_i, d_i = a * link_scale[:, i], d * link_scale[:, i]
+        elif link_scale is not None and i == 1:
+            a_i = a * link_scale[:, 0]
+        elif link_scale is not None and i == 3:
+            d_i = d * link_scale[:, 1]
+        T = T @ _rot("z", q[:, i] + th) @ _trans(a_i, np.zeros(n), d_i, (n,)) @ _rot("x", al) @ _rot("y", be)
+    tx, ty, tz, trz, tr_y, trx = arm.tool
+    return T @ (_trans(tx, ty, tz) @ _rot("z", trz) @ _rot("y", tr_y) @ _rot("x", trx))
+
+
+def tip(arm: Arm, q: np.ndarray, link_scale: np.ndarray | None = None) -> np.ndarray:
+    return pose(arm, q, link_scale)[:, :3, 3]
+
+
+# ----- targets: own IK --------------------------------------------------------------------
+def _ik(arm: Arm, p: np.ndarray, w: np.ndarray, q0: np.ndarray, iters: int = 60) -> tuple[np.ndarray, np.ndarray]:
+    """Damped least squares on [tip − p, wire − w] (wire = tool z); returns (q, converged)."""
+    q = q0.copy()
+    h = 1e-6
+
+    def err(qq):
+        T = pose(arm, qq)
+        return np.concatenate([T[:, :3, 3] - p, 0.3 * (T[:, :3, 2] - w)], axis=1)
+
+    for _ in range(iters):
+        e = err(q)
+        J = np.stack([(err(q + h * np.eye(6)[j]) - e) / h for j in range(6)], axis=2)
+        JT = np.swapaxes(J, 1, 2)
+        step = np.linalg.solve(JT @ J + 1e-6 * np.eye(6), JT @ e[..., None])[..., 0]
+        q = q - np.clip(step, -0.3, 0.3)
+    ok = np.linalg.norm(err(q), axis=1) < 1e-9
+    ok &= np.all((q > np.array(arm.lower)) & (q < np.array(arm.upper)), axis=1)
+    return q, ok
+
+
+@dataclass
+class Targets:
+    face: np.ndarray  # (m,) face index
+    q_a: np.ndarray  # (m, 6) approach pose
+    dq: np.ndarray  # (m, 6) rad per m of search travel
+
+
+def plan(nominal: Arm, jig: Jig, m: int = 160, seed: int = 0, offset: float = 0.04) -> Targets:
+    """m approach poses, `offset` off random points of the faces, wire tilted ≤ 30° off the normal."""
+    rng = np.random.default_rng(seed)
+    faces, Q, DQ = [], [], []
+    seeds = np.array([[0, 0.5, 0, 0, 0.8, 0], [0.5, 0.3, -0.3, 0, 1, 0], [-0.5, 0.3, -0.3, 0, 1, 0],
+                      [0, 0.6, -0.6, 1.5, 1, 0], [0, 0.6, -0.6, -1.5, 1, 0], [0.3, 0.8, 0, 3, 0.5, 0]], float)
+    while sum(len(f) for f in faces) < m:
+        k = 4 * m
+        fi = rng.integers(0, len(jig.faces), k)
+        P = np.zeros((k, 3))
+        N = np.zeros((k, 3))
+        for i, f in enumerate(fi):
+            fc = jig.faces[f]
+            a, b = fc.other_axes()
+            P[i, fc.axis_index] = fc.coordinate
+            P[i, a] = rng.uniform(fc.extent[0][0] + 0.01, fc.extent[0][1] - 0.01)
+            P[i, b] = rng.uniform(fc.extent[1][0] + 0.01, fc.extent[1][1] - 0.01)
+            N[i, fc.axis_index] = fc.normal_sign
+        tilt = np.radians(30) * np.sqrt(rng.uniform(0, 1, k))
+        perp = np.cross(N, rng.normal(size=(k, 3)))
+        perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+        w = -np.cos(tilt)[:, None] * N + np.sin(tilt)[:, None] * perp  # the wire points into the face
+        best_q, best_ok = np.zeros((k, 6)), np.zeros(k, bool)
+        for s0 in seeds:
+            q, ok = _ik(nominal, P + offset * N, w, np.broadcast_to(s0, (k, 6)).copy())
+            new = ok & ~best_ok
+            best_q[new] = q[new]
+            best_ok |= ok
+        idx = np.flatnonzero(best_ok)
+        q_a = best_q[idx]
+        h = 1e-6
+        p0 = tip(nominal, q_a)
+        Jp = np.stack([(tip(nominal, q_a + h * np.eye(6)[j]) - p0) / h for j in range(6)], axis=2)
+        # minimum-norm joint rate moving the tip along −n at unit speed
+        dq = np.einsum("nij,nj->ni", np.linalg.pinv(Jp), -N[idx])
+        faces.append(fi[idx])
+        Q.append(q_a)
+        DQ.append(dq)
+    return Targets(np.concatenate(faces)[:m], np.concatenate(Q)[:m], np.concatenate(DQ)[:m])
+
+
+# ----- effects (own forms) ----------------------------------------------------------------
+@dataclass(frozen=True)
+class Effect:
+    kind: str  # bump | dent | quad_coupling | thermal_growth | wild | glitch | coupling | linear_growth
+    size: float
+    where: dict = field(default_factory=dict)
+
+
+def _joint_error(effects, q: np.ndarray, qbar: np.ndarray) -> np.ndarray:
+    dq = np.zeros_like(q)
+    for e in effects:
+        if e.kind == "bump":
+            j = e.where.get("joint", 1)
+            dq[:, j] += e.size * np.exp(-0.5 * ((q[:, j] - e.where["centre"]) / e.where.get("width", 0.1)) ** 2)
+        elif e.kind == "quad_coupling":
+            dq[:, 2] += e.size * (q[:, 1] - qbar[1]) ** 2
+        elif e.kind == "coupling":  # δq_dst = k·q_src (default J2 -> J3)
+            src, dst = e.where.get("pair", (1, 2))
+            dq[:, dst] += e.size * q[:, src]
+    return dq
+
+
+def _link_scale(effects, t: np.ndarray) -> np.ndarray | None:
+    """thermal_growth: (a2, d4) scale (n, 2); linear_growth: every a and d (n, 6)."""
+    for e in effects:
+        if e.kind == "thermal_growth":
+            return 1 + e.size * np.repeat((1 - np.exp(-t / e.where.get("tau_s", 600.0)))[:, None], 2, axis=1)
+        if e.kind == "linear_growth":
+            return 1 + e.size * np.repeat(t[:, None], 6, axis=1)
+    return None
+
+
+def _face_shift(effects, face_idx: np.ndarray, uv: np.ndarray, jig: Jig) -> np.ndarray:
+    """Displacement of the true face along its axis (m) at each contact's position on it."""
+    out = np.zeros(face_idx.size)
+    for e in effects:
+        if e.kind == "dent":
+            f = e.where["face"]
+            on = face_idx == f
+            g = np.exp(-0.5 * np.sum((uv - np.asarray(e.where["centre"])) ** 2, axis=1) / e.where["radius"] ** 2)
+            out[on] -= jig.faces[f].normal_sign * e.size * g[on]  # into the material
+    return out
+
+
+# ----- campaign ---------------------------------------------------------------------------
+@dataclass
+class Campaign:
+    table: dict  # the diagnosis table (as built from the recording)
+    truth_joint_q: np.ndarray  # (n, 6) encoder-latched q
+    along_normal_noise_sigma_m: float
+    search_speed: np.ndarray
+    wild_record: int | None = None
+
+
+def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n: int = 100,
+        jig: Jig | None = None, repeatability_3sigma_m: float = 1e-4, jig_error_m: float = 2e-5,
+        noise: float = 1.0) -> Campaign:
+    """One campaign of n contacts on the first touching targets: payload 0/6 kg in blocks of 10,
+    search speeds 5/10/20 mm/s, the true robot with `effects` (its own forms)."""
+    jig = jig or stepped_block()
+    rng = np.random.default_rng(seed)
+    idx = np.arange(n)
+    face = targets.face[idx]
+    q_a, dq = targets.q_a[idx], targets.dq[idx]
+    ax = np.array([jig.faces[f].axis_index for f in face])
+    sg = np.array([jig.faces[f].normal_sign for f in face], float)
+    other = np.array([jig.faces[f].other_axes() for f in face])
+    coord = np.array([jig.faces[f].coordinate for f in face])
+    ferr = noise * rng.uniform(-jig_error_m, jig_error_m, len(jig.faces))
+    eps = noise * rng.normal(0, repeatability_3sigma_m / 3, (n, 3))
+    speed = rng.choice([0.005, 0.01, 0.02], n)
+    qbar = np.mean(q_a, axis=0)
+    rows = np.arange(n)
+    extra = np.zeros(n)  # a late latch: travel past the contact (m)
+    wild = None
+    for e in effects:
+        if e.kind == "wild":
+            wild = int(e.where.get("record", n // 2))
+            extra[wild] += e.size
+
+    def times(s):
+        """Contact times (s): each cycle is a 2 s move, 0.3 s settle, the search, 1.2 s dwell + retract."""
+        return 5.0 + np.cumsum(2.0 + 0.3 + (s + extra) / speed + 1.2) - 1.2 - extra / speed  # physical contact
+
+    def gap(s, ls):
+        q = q_a + s[:, None] * dq
+        p = tip(truth, q + _joint_error(effects, q, qbar), ls) + eps
+        uv = p[rows[:, None], other]
+        c_true = coord + ferr[face] + _face_shift(effects, face, uv, jig)
+        return sg * (p[rows, ax] - c_true)
+
+    s = np.full(n, 0.04)
+    for _ in range(3):  # the thermal growth depends on the contact time, which depends on s
+        ls = _link_scale(effects, times(s))
+        for _ in range(30):
+            g = gap(s, ls)
+            s = s - g / ((gap(s + 1e-6, ls) - g) / 1e-6)
+    if np.max(np.abs(gap(s, ls))) > 1e-11:
+        raise RuntimeError("contact search did not converge")
+    t_contact = times(s) + extra / speed  # the latch
+    s = s + extra
+    q_latch = q_a + s[:, None] * dq
+    if noise:
+        q_latch = np.round(q_latch / COUNT) * COUNT
+    # encoder stream: move from the previous retract pose to q_a (cosine profile, 2 s), search at
+    # constant speed to the latch, dwell, retract to q_a (1 s)
+    ts, qs = [], []
+    prev = q_a[0]
+    t0 = 0.0
+    dt = 1 / RATE_HZ
+    for i in range(n):
+        tm = np.arange(0, 2.0, dt)
+        qs.append(prev + (q_a[i] - prev) * (0.5 - 0.5 * np.cos(np.pi * tm / 2.0))[:, None])
+        ts.append(t0 + tm)
+        t_s = t_contact[i] - s[i] / speed[i]  # search start
+        tsr = np.arange(t_s, t_contact[i], dt)
+        qs.append(q_a[i] + ((tsr - t_s) * speed[i])[:, None] * dq[i])
+        ts.append(tsr)
+        td = np.arange(t_contact[i], t_contact[i] + 1.2, dt)
+        back = np.clip((td - t_contact[i] - 0.2) / 1.0, 0, 1)
+        qs.append(q_latch[i] + back[:, None] * (q_a[i] - q_latch[i]))
+        ts.append(td)
+        prev, t0 = q_a[i], t_contact[i] + 1.2
+    t_stream = np.concatenate(ts)
+    q_stream = np.concatenate(qs)
+    for e in effects:  # an encoder glitch: J1 reads `size` rad off over the 30 ms before one latch
+        if e.kind == "glitch":
+            i = int(e.where.get("record", n // 2))
+            hit = (t_stream >= t_contact[i] - 0.03) & (t_stream < t_contact[i])
+            q_stream[hit, 0] += e.size
+    o = np.argsort(t_stream, kind="stable")
+    t_stream, q_stream = t_stream[o], q_stream[o]
+    keep = np.r_[True, np.diff(t_stream) > 1e-6]
+    t_stream, q_stream = t_stream[keep], q_stream[keep]
+    if noise:
+        q_stream = np.round(q_stream / COUNT) * COUNT
+    t_ns = EPOCH_NS + np.round(t_stream * 1e9).astype(np.int64)
+    tc_ns = EPOCH_NS + np.round(t_contact * 1e9).astype(np.int64)
+    payload = np.where((rows // 10) % 2 == 1, 6.0, 0.0)
+    change = np.flatnonzero(np.r_[True, np.diff(payload) != 0])
+    schedule = [{"t_ns": int(tc_ns[i] - 3e9), "payload_kg": float(payload[i])} for i in change]
+    schedule[0]["t_ns"] = int(t_ns[0])
+    ids = np.array([jig.faces[f].id for f in face], object)
+    table = {"timestamp_ns": tc_ns, "joint_positions": q_latch, "face": ids, "axis": ax, "coordinate": coord,
+             "record": rows}
+    table = add_context(table, t_ns, q_stream, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
+                        payload_schedule=schedule, default_payload_kg=0.0)
+    return Campaign(table, q_latch, float(np.hypot(repeatability_3sigma_m / 3, jig_error_m / np.sqrt(3))) * noise,
+                    speed, wild)
+
+
+# ----- minimum detectable size, computed here (3σ over the projected signature) --------------
+def geometric_jacobian(arm: Arm, q: np.ndarray, ax: np.ndarray) -> np.ndarray:
+    """(n, 42) ∂(tip along the measured axis)/∂(base, joint, tool terms), finite differences."""
+    base, joints, tool = np.array(arm.base), np.array(arm.joints), np.array(arm.tool)
+    v0 = np.concatenate([base, joints.ravel(), tool])
+    rows = np.arange(q.shape[0])
+
+    def f(v):
+        a = Arm(tuple(v[:6]), tuple(map(tuple, v[6:36].reshape(6, 5))), tuple(v[36:]), arm.lower, arm.upper)
+        return tip(a, q)[rows, ax]
+
+    f0 = f(v0)
+    h = 1e-7
+    return np.stack([(f(v0 + h * np.eye(v0.size)[i]) - f0) / h for i in range(v0.size)], axis=1)
+
+
+def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
+        jig: Jig | None = None) -> float:
+    """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable."""
+    jig = jig or stepped_block()
+    c0 = run(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0)
+    unit = Effect(effect.kind, 1e-3 * (effect.size or 1.0), effect.where)
+    c1 = run(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0)
+    ax = c0.table["axis"]
+    rows = np.arange(ax.size)
+    # residual change: the same coordinates, the model tip at the latched q moves
+    r0 = tip(truth, c0.truth_joint_q)[rows, ax]
+    r1 = tip(truth, c1.truth_joint_q)[rows, ax]
+    S = (r1 - r0) / unit.size
+    J = geometric_jacobian(truth, c0.truth_joint_q, ax)
+    U, sv, _ = np.linalg.svd(J, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-9]
+    Sp = S - U @ (U.T @ S)
+    return 3 * sigma / max(np.linalg.norm(Sp), 1e-300)
+
+
+def default_arms() -> tuple[Arm, Arm]:
+    return Arm.of(aw.nominal_arm()), Arm.of(aw.reference_truth())

@@ -1,0 +1,86 @@
+"""The diagnosis on campaigns it did not make (issue 18), a bounded run of
+`benchmarks/bench_diagnose_independent.py`: the generator (`tests/independent_touch.py`) shares no
+code with the diagnosis's signatures; effects at 4× their minimum detectable size."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import independent_touch as it
+from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.models import serial_arm
+from pipeline.systems import arc_welder as aw
+
+SETTINGS = Settings(n_boot=10, repeatability_3sigma_m=1e-4)
+
+
+@pytest.fixture(scope="module")
+def world():
+    nom, tru = it.default_arms()
+    targets = it.plan(nom, it.stepped_block(), m=110, seed=1)
+    sigma = it.run(nom, tru, targets, (), seed=0).along_normal_noise_sigma_m
+    return nom, tru, targets, sigma
+
+
+def _diagnose(world, effect=None, seed=100, mult=4.0):
+    nom, tru, targets, sigma = world
+    eff = () if effect is None else (it.Effect(effect.kind, mult * it.mds(nom, tru, targets, effect, sigma),
+                                               effect.where),)
+    c = it.run(nom, tru, targets, eff, seed=seed)
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table, settings=SETTINGS)
+    assert d["holdout_rms_after_m"] <= d["holdout_rms_before_m"] + 1e-15  # never worse than geometry alone
+    return c, d
+
+
+def test_the_generator_has_its_own_kinematics_that_agree_with_the_model():
+    q = np.random.default_rng(0).uniform(-2, 2, (20, 6))
+    _, tru = it.default_arms()
+    assert np.allclose(it.tip(tru, q), serial_arm.tip_position(aw.reference_truth().vector(), q), atol=1e-12)
+
+
+def test_clean_campaigns_are_clean(world):
+    for seed in (100, 101):
+        _, d = _diagnose(world, None, seed)
+        assert d["status"] == "clean" and not d["findings"] and not d["outlier_records"], d["status_reason"]
+        assert 0.7 < d["noise_floor"]["rms_over_floor"] < 1.3
+
+
+def test_a_wild_contact_is_an_outlier_record_not_physics(world):
+    c, d = _diagnose(world, it.Effect("wild", 1.0, {"record": 37}))
+    assert [o["record"] for o in d["outlier_records"]] == [37]
+    assert not any(f["confidence"] == "high" for f in d["findings"])
+
+
+def test_a_dent_is_located_on_its_face_and_not_named_with_confidence(world):
+    _, d = _diagnose(world, it.Effect("dent", 1.0, {"face": 1, "centre": (0.15, 0.1), "radius": 0.03}))
+    assert d["status"] in ("partially_explained", "unexplained")
+    assert "face top2 position" in [w["variable"] for w in d["unexplained_where"]]
+    assert not any(f["confidence"] == "high" for f in d["findings"])
+
+
+def test_a_transmission_bump_is_located_in_its_joint(world):
+    q2 = float(np.median(world[2].q_a[:100, 1]))
+    _, d = _diagnose(world, it.Effect("bump", 1.0, {"joint": 1, "centre": q2, "width": 0.1}))
+    assert d["status"] in ("partially_explained", "unexplained")
+    assert "q_J2" in [w["variable"] for w in d["unexplained_where"]][:3]
+    assert not any(f["confidence"] == "high" for f in d["findings"])
+
+
+def test_a_library_coupling_is_named_and_back_to_the_floor(world):
+    _, clean = _diagnose(world, None, 102)
+    _, d = _diagnose(world, it.Effect("coupling", 1.0, {"pair": (2, 1)}), 102)
+    assert [(f["effect"], f["location"]) for f in d["findings"]] == [("joint_coupling", "J3->J2")]
+    assert d["holdout_rms_after_m"] <= 1.2 * clean["holdout_rms_before_m"]
+    assert d["status"] == "explained"
+
+
+def test_an_impossible_derived_approach_speed_marks_the_record(world):
+    """An encoder glitch just before one latch: the approach speed derived from the stream is metres per
+    second (a touch search runs at mm/s): that record is set aside and named, nothing is named from it."""
+    nom, tru, targets, _ = world
+    c = it.run(nom, tru, targets, (it.Effect("glitch", 0.05, {"record": 52}),), seed=103)
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table, settings=SETTINGS)
+    assert [o["record"] for o in d["outlier_records"]] == [52]
+    assert "approach speed" in d["outlier_records"][0]["reason"]
+    assert not d["findings"] and d["status"] == "clean"

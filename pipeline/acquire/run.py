@@ -18,6 +18,8 @@ from pipeline.recording.writer import RecordingWriter
 
 FLUSH_S = 0.5  # data reaches a flushed, complete chunk within ~2 × this
 BACKOFF_S = (0.1, 2.0)  # first and largest wait between reconnection attempts
+SILENCE_S = 1.5  # a device that sent bytes and then nothing for this long is gone (devices announce every 1 s)
+GIVE_UP_S = 30.0  # the bridge down this long: stop and close the recording (0: retry for ever)
 
 
 @dataclass
@@ -30,6 +32,10 @@ class Port:
     down_since_ns: int = 0
     ever_open: bool = False
     reason: str = ""
+    heard: bool = False  # bytes received since this connection opened
+    heard_ever: bool = False
+    down: bool = False  # a gap is open (since down_since_ns, for `reason`) until bytes arrive again
+    opened_ns: int = 0
 
 
 def _open(p: Port) -> None:
@@ -43,9 +49,13 @@ def _open(p: Port) -> None:
 
 def acquire(devices: dict[str, str], out: Path, *, max_s: float | None = None, connect_timeout_s: float = 10.0,
             end_grace_s: float = 1.0, fsync: bool = False, status: Callable[[str], None] | None = None,
-            log: Callable[[str], None] = print) -> dict:
+            log: Callable[[str], None] = print, silence_s: float = SILENCE_S, give_up_s: float = GIVE_UP_S) -> dict:
     """Record `devices` ({role: port}) into `out` until stopped (SIGINT/SIGTERM), until the
-    bridge's campaign is complete, or `max_s`.  Returns the acquisition summary."""
+    bridge's campaign is complete, or `max_s`.  Returns the acquisition summary.
+
+    A port that fails, reaches end of file, or falls silent for `silence_s` after sending is
+    closed at once (said in `log`), its gap recorded from the last byte received, and reopened
+    with back-off; a bridge down for `give_up_s` (0: never) stops the acquisition."""
     if "bridge" not in devices:
         raise RobocalError("acquire needs a controller bridge: --device bridge=PORT")
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -80,29 +90,37 @@ def acquire(devices: dict[str, str], out: Path, *, max_s: float | None = None, c
                         continue
                     sel.register(p.ser.fileno(), selectors.EVENT_READ, p)
                     acq.links[p.role].connected = True
-                    if p.ever_open:
-                        acq.gap(p.role, p.down_since_ns, time.time_ns(), p.reason)
-                        log(f"{p.role}: reconnected to {p.path} after "
-                            f"{(time.time_ns() - p.down_since_ns) / 1e9:.2f} s")
-                    p.ever_open, p.backoff_s, p.reason = True, BACKOFF_S[0], ""
+                    p.ever_open, p.heard, p.opened_ns = True, False, time.time_ns()
+                    p.backoff_s = BACKOFF_S[0] if not p.down else min(2 * p.backoff_s, BACKOFF_S[1])
+            h = time.time_ns()
+            for p in ports.values():
+                link = acq.links[p.role]
+                if link.end is not None:
+                    continue
+                quiet_from = link.last_rx_ns if p.heard else p.opened_ns
+                if p.ser is not None and p.heard_ever and h - quiet_from > silence_s * 1e9:
+                    _down(p, acq, sel, quiet_from, f"silent for {(h - quiet_from) / 1e9:.1f} s" if p.heard
+                          else "no data since reopening", log)
+                if p.down and p.role == "bridge" and give_up_s > 0 and h - p.down_since_ns > give_up_s * 1e9:
+                    stop["why"] = f"bridge gone: no data for {(h - p.down_since_ns) / 1e9:.0f} s ({p.reason})"
             for key, _ in sel.select(timeout=0.02):
                 p: Port = key.data
+                reason = ""
                 try:
                     data = p.ser.read(1 << 16)
                 except (serial.SerialException, OSError) as e:
-                    data, p.reason = b"", f"disconnected: {e}"
+                    data, reason = b"", f"disconnected: {e}"
                 h = time.time_ns()
                 if data:
+                    if p.down:  # back: the gap ends at its first byte
+                        acq.gap(p.role, p.down_since_ns, h, p.reason)
+                        log(f"{p.role}: reconnected to {p.path} after {(h - p.down_since_ns) / 1e9:.2f} s")
+                        p.down, p.reason, p.backoff_s = False, "", BACKOFF_S[0]
                     acq.on_bytes(p.role, data, h)
-                if p.reason:
-                    sel.unregister(key.fd)
-                    p.ser.close()
-                    p.ser, p.down_since_ns = None, h
-                    p.next_try = time.monotonic() + p.backoff_s
-                    acq.on_disconnect(p.role)
-                    acq.links[p.role].connected = False
-                    if acq.links[p.role].end is None:
-                        log(f"{p.role}: {p.reason}; retrying with back-off")
+                    p.heard = p.heard_ever = True
+                if reason:
+                    last = acq.links[p.role].last_rx_ns
+                    _down(p, acq, sel, last if p.heard and last else h, reason, log)
             now = time.monotonic()
             if now >= next_flush:
                 acq.tick()
@@ -125,9 +143,27 @@ def acquire(devices: dict[str, str], out: Path, *, max_s: float | None = None, c
         for p in ports.values():
             if p.ser is not None:
                 p.ser.close()
+            if p.down and acq.links[p.role].end is None:  # still down: the gap runs to the end
+                acq.gap(p.role, p.down_since_ns, time.time_ns(), f"{p.reason} (not reconnected)")
         summary = acq.finish(stop["why"] or "error")
         f.close()
     return summary
+
+
+def _down(p: Port, acq: Acquisition, sel: selectors.BaseSelector, since_ns: int, reason: str,
+          log: Callable[[str], None]) -> None:
+    """Close a dead or silent port and retry it with back-off; a new gap starts at `since_ns`
+    (the last byte received), said once."""
+    sel.unregister(p.ser.fileno())
+    p.ser.close()
+    p.ser = None
+    p.next_try = time.monotonic() + p.backoff_s
+    acq.on_disconnect(p.role)
+    acq.links[p.role].connected = False
+    if not p.down:
+        p.down, p.down_since_ns, p.reason = True, since_ns, reason
+        if acq.links[p.role].end is None:
+            log(f"{p.role}: {reason}; gap recorded from {since_ns / 1e9:.3f} s (host clock), reconnecting with back-off")
 
 
 def status_line(acq: Acquisition) -> str:

@@ -59,3 +59,7 @@ def main() -> None:
     except RobocalError as e:
         err.print(f"[bold red]robocal: error:[/] {e}", highlight=False, soft_wrap=True)
         sys.exit(2)
+    except PermissionError as e:  # an output folder the user cannot write: one line, not a traceback
+        err.print(f"[bold red]robocal: error:[/] {e.filename}: cannot write (PermissionError: {e.strerror})",
+                  highlight=False, soft_wrap=True)
+        sys.exit(2)

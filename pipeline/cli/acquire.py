@@ -38,6 +38,8 @@ def acquire_cmd(
     connect_timeout: float = typer.Option(10.0, "--connect-timeout", help="Give up if a port never opens (s)."),
     fsync: bool = typer.Option(False, "--fsync", help="fsync at every chunk flush (survives power loss, not only a crash)."),
     summary: Path = typer.Option(None, "--summary", help="Also write the acquisition summary (JSON) here."),
+    silence_s: float = typer.Option(1.5, "--silence-s", help="A device silent this long after sending is treated as gone (s)."),
+    give_up_s: float = typer.Option(30.0, "--give-up-s", help="Stop when the bridge has been gone this long (s; 0: never)."),
 ) -> None:
     """Record calibration devices over serial ports until the bridge's campaign is complete or stopped."""
     from pipeline.acquire.run import acquire
@@ -51,7 +53,7 @@ def acquire_cmd(
                 st.update(line)
 
         def log(msg: str) -> None:
-            err.print(f"[yellow]{msg}[/]", highlight=False)
+            err.print(f"[yellow]{msg}[/]", highlight=False, soft_wrap=True)
 
         last = {"t": 0.0}
 
@@ -62,7 +64,7 @@ def acquire_cmd(
                 err.print(line, highlight=False, soft_wrap=True)
 
         s = acquire(devs, out, max_s=max_s, connect_timeout_s=connect_timeout, fsync=fsync,
-                    status=status if live else status_plain, log=log)
+                    status=status if live else status_plain, log=log, silence_s=silence_s, give_up_s=give_up_s)
     if summary is not None:
         summary.write_text(json.dumps(s, indent=2) + "\n")
     for role, d in s["devices"].items():

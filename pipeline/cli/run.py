@@ -17,14 +17,22 @@ def _log(line: str) -> None:
     err.print(f"[bold]{name}[/]: [{colour}]{rest}[/]", highlight=False)
 
 
-def _summary(run_dir: Path) -> None:
+def _summary(run_dir: Path, failed: bool = False) -> None:
+    """The run's figures from DIR/results.json (a folder robocal wrote); `failed`: the run stopped,
+    so whatever the file says, the status is fail."""
     from pipeline.stages.artefacts import read_json
+    from pipeline.stages.runfolder import is_run_folder
 
     p = run_dir / "results.json"
-    if not p.is_file():
+    if not p.is_file() or not is_run_folder(run_dir):
         return
-    doc = read_json(p)
-    s = doc["summary"]
+    try:
+        doc = read_json(p)
+        s = doc["summary"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return
+    if failed:
+        s["status"] = "fail"
     mm = lambda v: "—" if v is None else f"{v * 1e3:.4f} mm"  # noqa: E731
     t = Table(title=f"robocal run — {run_dir}")
     t.add_column("figure")
@@ -147,13 +155,15 @@ def run_cmd(
     from pipeline.stages.runner import run_pipeline
 
     t0 = time.perf_counter()
+    ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
     try:
         outs = run_pipeline(recording, out, params, force=force, log=_log,
                             stages=[s.strip() for s in only.split(",")] if only else None)
+        ok = True
     finally:
-        _summary(out)
+        _summary(out, failed=not ok)
     n_cached = sum(o.cached for o in outs)
     what = "nothing to do: every stage cached" if n_cached == len(outs) else f"{len(outs) - n_cached} stage(s) ran"
     err.print(f"{what} ({time.perf_counter() - t0:.2f} s); results: {out / 'results.json'}")

@@ -145,6 +145,8 @@ def _csv_column(lines: bytes, kind: pa.DataType) -> np.ndarray:
 
 
 def _joint_stream_arrow(raw: list[bytes]) -> JointStream | None:
+    if not all(m.lstrip()[:1] == b"{" for m in raw):
+        return None  # pyarrow 26's JSON reader crashes (SIGSEGV) on a first line `null` (issue 15)
     table = pa_json.read_json(io.BytesIO(b"\n".join(raw)),
                               read_options=pa_json.ReadOptions(block_size=max(1 << 20, 2 * max(map(len, raw)))))
     names_col = table.column("joint_names").combine_chunks()

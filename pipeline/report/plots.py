@@ -19,7 +19,8 @@ MM = 1e3
 DEG = 180.0 / np.pi
 RC = {"svg.fonttype": "none", "svg.hashsalt": "robocal", "font.size": 9, "axes.titlesize": 10,
       "axes.spines.top": False, "axes.spines.right": False, "axes.grid": True, "grid.alpha": 0.3,
-      "legend.fontsize": 8, "legend.frameon": False}
+      "legend.fontsize": 8, "legend.frameon": False,
+      "text.parse_math": False}  # recording strings (face ids, topics) are shown as written: `$` is not mathtext
 COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
           "#bcbd22", "#17becf"]
 

@@ -9,7 +9,9 @@ and the validate stage fails on it with the record named.
 
 from __future__ import annotations
 
+import hashlib
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +19,8 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from pipeline.errors import RobocalError
+from pipeline.errors import RobocalError, where
+from pipeline.ingest.guards import first_schema_error
 from pipeline.ingest.streams import JOINT_STATE, joint_stream
 from pipeline.ingest.tables import channel_table, encoder_table, measurement_table
 from pipeline.ingest.temperature import temperature_stream
@@ -29,8 +32,16 @@ MESSAGES = "messages.parquet"
 
 
 def channel_file(topic: str) -> str:
-    """`/touch/contact` → `touch_contact.parquet`."""
-    return topic.strip("/").replace("/", "_") + ".parquet"
+    """`/touch/contact` → `touch_contact.parquet` for robocal's own channels; any other topic gets
+    a file name that cannot collide with another topic's or ingest's own files, whatever it holds
+    (NUL, `..`, 10⁴ bytes): its safe characters (≤ 80) and a hash of the whole topic."""
+    from pipeline.recording.schemas import CHANNELS
+
+    stem = topic.strip("/").replace("/", "_")
+    if topic in CHANNELS:
+        return stem + ".parquet"
+    safe = re.sub(r"[^A-Za-z0-9_.]", "_", stem)[:80].lstrip(".")
+    return f"{safe}-{hashlib.sha256(topic.encode('utf-8', 'surrogatepass')).hexdigest()[:12]}.parquet"
 
 
 def run(run_dir: Path, params: dict) -> dict:
@@ -62,20 +73,30 @@ def run(run_dir: Path, params: dict) -> dict:
             write_table(out / "encoder.parquet", encoder_table(stream))
         except RobocalError as e:
             errors.append(str(e))
+        except (TypeError, ValueError, OverflowError, KeyError, IndexError, AttributeError) as e:
+            stream = None  # content of the wrong type: name the record the schema check finds
+            errors.append(first_schema_error(rec, JOINT_STATE) or f"{where(path, JOINT_STATE)}: cannot be decoded "
+                          f"({type(e).__name__}: {e})")
     n = 0
+    mchan = getattr(system, "channel_for", lambda r: system.MEASUREMENT_CHANNEL)(rec)
+    if not errors and (bad := first_schema_error(rec, mchan)):
+        errors.append(bad)  # checked against the schema before any numeric conversion
     if not errors:
         try:
             _, table = system.load(rec)
             meas = measurement_table(dict(table), stream, window_s=float(params.get("context_window_s", 0.02)),
                                      temperature=temperature_stream(rec), path=path,
-                                     channel=getattr(system, "channel_for", lambda r: system.MEASUREMENT_CHANNEL)(rec))
+                                     channel=mchan)
             write_table(out / "measurements.parquet", meas)
             n = len(meas["record"])
         except RobocalError as e:
             errors.append(str(e))
+        except (TypeError, ValueError, OverflowError, KeyError, IndexError, AttributeError,
+                ArithmeticError) as e:  # the schema allowed it but the model cannot take it
+            errors.append(f"{where(path, mchan)}: cannot be used ({type(e).__name__}: {e})")
     doc = {
         "system": system.SYSTEM,
-        "measurement_channel": getattr(system, "channel_for", lambda r: system.MEASUREMENT_CHANNEL)(rec),
+        "measurement_channel": mchan,
         "source": {"path": str(path), "sha256": sha256_file(path), "bytes": path.stat().st_size},
         "metadata": rec.metadata,
         "channels": channels,
@@ -87,7 +108,9 @@ def run(run_dir: Path, params: dict) -> dict:
         "n_measurements": n,
     }
     write_json(out / "recording.json", doc)
-    return {"system": system.SYSTEM, "n_measurements": n, "encoder_samples": doc["encoder"]["samples"],
+    lost = bool(rec.warnings) or bool(errors)  # a damaged file: no status pass
+    return {"status": "warn" if lost else "pass", "system": system.SYSTEM, "n_measurements": n,
+            "encoder_samples": doc["encoder"]["samples"],
             "channels": channels, "source": doc["source"], "warnings": doc["warnings"], "errors": errors}
 
 

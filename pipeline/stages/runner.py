@@ -16,7 +16,6 @@ import importlib
 import importlib.util
 import inspect
 import json
-import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ from pipeline import __version__
 from pipeline.errors import RobocalError
 from pipeline.stages.artefacts import dumps, read_json, sha256_file, write_json
 from pipeline.stages.registry import BY_NAME, STAGES, Stage
+from pipeline.stages.runfolder import STAGE_MARKER, claim, fresh_stage_dir, locked
 
 STAGE_FILE = "stage.json"
 
@@ -97,7 +97,7 @@ def read_stage(run_dir: Path, name: str) -> dict | None:
 def _outputs(run_dir: Path, name: str, summary: dict) -> dict[str, str]:
     """Every file the stage wrote (its folder and any extra `outputs`), path → SHA-256."""
     run_dir = Path(run_dir)
-    files = [p for p in sorted((run_dir / name).rglob("*")) if p.is_file() and p.name != STAGE_FILE]
+    files = [p for p in sorted((run_dir / name).rglob("*")) if p.is_file() and p.name not in (STAGE_FILE, STAGE_MARKER)]
     files += [run_dir / o for o in summary.get("outputs", []) if (run_dir / o).is_file()]
     return {p.relative_to(run_dir).as_posix(): sha256_file(p) for p in files}
 
@@ -146,11 +146,18 @@ def input_keys(run_dir: Path, stage: Stage, recording: Path | None = None) -> di
 
 def run_stage(run_dir: Path, name: str, params: dict | None = None, recording: Path | None = None,
               force: bool = False, log: Callable[[str], None] | None = None) -> Outcome:
-    """Run one stage unless it is cached.  Raises StageFailed when its summary says fail."""
+    """Run one stage unless it is cached.  Raises StageFailed when its summary says fail.
+    Holds the run folder's lock; writes only into a folder robocal created (`runfolder`)."""
     if name not in BY_NAME:
         raise RobocalError(f"unknown stage {name!r} (stages: {', '.join(BY_NAME)})")
+    with locked(run_dir, log=log):
+        claim(run_dir)
+        return _run_stage(Path(run_dir), name, params, recording, force, log)
+
+
+def _run_stage(run_dir: Path, name: str, params: dict | None, recording: Path | None,
+               force: bool, log: Callable[[str], None] | None) -> Outcome:
     stage = BY_NAME[name]
-    run_dir = Path(run_dir)
     if not is_available(stage):
         raise RobocalError(f"stage {name!r} is not available (module {stage.module} missing)")
     p = {**stage.defaults, **(params or {})}
@@ -167,12 +174,19 @@ def run_stage(run_dir: Path, name: str, params: dict | None = None, recording: P
     else:
         mod = load_module(stage)
         t0 = time.perf_counter()
-        shutil.rmtree(run_dir / name, ignore_errors=True)
-        (run_dir / name).mkdir(parents=True)
+        fresh_stage_dir(run_dir, name)
         call_params = dict(p)
         if recording is not None:
             call_params["recording"] = str(Path(recording).resolve())
-        summary = _call(mod.run, run_dir, call_params) or {}
+        try:
+            summary = _call(mod.run, run_dir, call_params) or {}
+        except BaseException as e:  # the run's results must not look like a pass after a crash
+            why = str(e) if isinstance(e, RobocalError) else f"{type(e).__name__}: {e}"
+            try:
+                write_results(run_dir, error=f"stage {name} stopped: {why}")
+            except OSError:
+                pass
+            raise
         elapsed = time.perf_counter() - t0
         doc = {"stage": name, "key": key, "params": {**p, **({"recording": call_params["recording"]}
                                                               if "recording" in call_params else {})},
@@ -191,24 +205,32 @@ def run_stage(run_dir: Path, name: str, params: dict | None = None, recording: P
 def run_pipeline(recording: Path, run_dir: Path, params: dict[str, dict] | None = None,
                  stages: list[str] | None = None, force: bool = False,
                  log: Callable[[str], None] | None = None) -> list[Outcome]:
-    """Every available stage in order (or `stages`), each cached when nothing changed."""
+    """Every available stage in order (or `stages`), each cached when nothing changed.  The
+    recording is read (and decompressed) once for the whole run."""
+    from pipeline.recording.reader import cached_reads
+
     recording, run_dir = Path(recording), Path(run_dir)
     if not recording.is_file():
         raise RobocalError(f"{recording}: no such file")
-    run_dir.mkdir(parents=True, exist_ok=True)
     params = params or {}
     names = stages or [s.name for s in available_stages()]
     outcomes = []
-    for name in names:
-        outcomes.append(run_stage(run_dir, name, params.get(name), recording if name == "ingest" else None,
-                                  force=force, log=log))
+    with locked(run_dir, log=log), cached_reads():
+        claim(run_dir)
+        for name in names:
+            outcomes.append(run_stage(run_dir, name, params.get(name), recording if name == "ingest" else None,
+                                      force=force, log=log))
     return outcomes
 
 
-def write_results(run_dir: Path) -> dict:
-    """DIR/results.json: the summaries of every stage run so far, plus the headline figures."""
+def write_results(run_dir: Path, error: str | None = None) -> dict:
+    """DIR/results.json: the summaries of every stage run so far, plus the headline figures;
+    `error` (a stage that stopped) makes the status `fail` with that reason."""
     from pipeline.stages.results import gather
 
     doc = gather(run_dir)
+    if error is not None:
+        doc["summary"]["status"] = "fail"
+        doc["summary"]["error"] = error
     write_json(Path(run_dir) / "results.json", doc)
     return doc

@@ -26,6 +26,15 @@ def _raw(rec, topic: str) -> list:
 def _limits(rec, system) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
     if hasattr(system, "joint_limits"):
         return system.joint_limits(rec)
+    model = rec.metadata.get(META_ROBOT, {})
+    if model.get("kind") == "delta":  # one actuator travel for the three legs
+        from pipeline.models.delta import Delta
+
+        try:
+            d = Delta.from_dict(model)
+        except (KeyError, ValueError, TypeError):
+            return None
+        return np.full(3, d.lower), np.full(3, d.upper), ["theta_11", "theta_12", "theta_13"]
     try:
         from pipeline.models.serial_arm import SerialArm
 
@@ -61,6 +70,9 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
     out: list[C.Check] = []
     topics = [t for t in sorted(rec.messages.raw if hasattr(rec.messages, "raw") else rec.messages) if _raw(rec, t)]
     decoded: dict[str, list[dict]] = {}
+    for topic, why in getattr(rec, "registration", {}).items():
+        if why:
+            out.append(C.Check("registration", C.FAIL, f"{topic}: {why}", topic, []))
     for topic in topics:
         try:
             decoded[topic] = rec.messages[topic]
@@ -108,8 +120,8 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         epath = Path(run_dir) / INGEST / "encoder.parquet"
         if epath.is_file():
             enc = read_table(epath)
-            q = np.stack([enc[f"q_{n}"] for n in names if f"q_{n}" in enc], axis=1)
-            if q.shape[1] == len(names):
+            if all(f"q_{n}" in enc for n in names):
+                q = np.stack([enc[f"q_{n}"] for n in names], axis=1)
                 out.append(C.check_joint_limits(JOINT_STATE, q, enc["record"], lo, hi, names))
     # touch-jig faces
     fixture = rec.metadata.get(META_FIXTURE, {})
@@ -132,6 +144,12 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
     return out
 
 
+def name_the_file(checks: list[C.Check], path: str) -> list[C.Check]:
+    """Every warn/fail message starts with the recording's path (file, channel, records)."""
+    return [c if c.status == C.PASS or c.message.startswith(str(path)) else
+            C.Check(c.name, c.status, f"{path}: {c.message}", c.channel, c.records) for c in checks]
+
+
 def summarise(checks: list[C.Check]) -> dict:
     status = C.FAIL if any(c.status == C.FAIL for c in checks) else (
         C.WARN if any(c.status == C.WARN for c in checks) else C.PASS)
@@ -144,7 +162,7 @@ def summarise(checks: list[C.Check]) -> dict:
 
 
 def run(run_dir: Path, params: dict) -> dict:
-    checks = run_checks(Path(run_dir), params)
+    checks = name_the_file(run_checks(Path(run_dir), params), recording_info(Path(run_dir))["source"]["path"])
     doc = summarise(checks)
     write_json(Path(run_dir) / NAME / "validate.json", {"checks": doc["checks"], "status": doc["status"]})
     return doc

@@ -128,10 +128,16 @@ def load(rec) -> tuple[TouchModel, dict[str, np.ndarray]]:
 
     try:
         arm = SerialArm.from_dict(rec.meta(META_ROBOT))
-        Jig.from_dict(rec.meta(META_FIXTURE))  # a recording must carry its fixture
+        jig = Jig.from_dict(rec.meta(META_FIXTURE))  # a recording must carry its fixture
     except (KeyError, ValueError, TypeError) as e:
         raise RobocalError(f"{rec.path}: robot model or fixture metadata is malformed ({e})") from None
     table = contacts(rec)
+    known = {f.id for f in jig.faces}
+    unknown = [i for i, f in enumerate(table["face"]) if f not in known]
+    if unknown:  # the fixture must describe every face touched (diagnose needs its normal)
+        raise RobocalError(f"{rec.path}: channel /touch/contact: records {', '.join(map(str, unknown[:5]))}"
+                           f"{' …' if len(unknown) > 5 else ''}: face {table['face'][unknown[0]]!r} is not in "
+                           f"the fixture metadata {META_FIXTURE!r} (faces: {', '.join(sorted(known)) or 'none'})")
     if table["joint_positions"].shape[1] != arm.n_joints:
         raise RobocalError(f"{rec.path}: channel /touch/contact: contacts have {table['joint_positions'].shape[1]} "
                            f"joint values, the robot model has {arm.n_joints} joints")

@@ -31,7 +31,12 @@ SYSTEMS: dict[str, ModuleType] = _discover()
 
 
 def detect(rec: Recording) -> ModuleType:
-    """The system named in the campaign metadata, else the one whose channel is present."""
+    """The system named in the campaign metadata, else the one whose channel is present.
+    The metadata is checked first (`ingest.guards.check_metadata`): a model is never built from
+    non-finite or absurd numbers."""
+    from pipeline.ingest.guards import check_metadata
+
+    check_metadata(rec)
     name = rec.metadata.get(META_CAMPAIGN, {}).get("system")
     if name in SYSTEMS:
         return SYSTEMS[name]

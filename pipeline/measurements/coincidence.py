@@ -64,7 +64,7 @@ class CoincidenceModel(Composed):
         _, xe = self.split(x)
         P = xe.reshape(-1, 3)
         g = np.asarray(data["group"], int)
-        _, Jp, *_ = self.tool(x, data["joint_positions"])
+        _, Jp, *_ = self.tool(x, data["joint_positions"], angular=False)
         J = np.where(touch[:, None, None], Jp, 0.0)
         rows = np.flatnonzero(touch)
         for a in range(3):

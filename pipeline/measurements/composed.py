@@ -101,7 +101,7 @@ class Composed:
         x = np.asarray(x, float)
         return x[:self.n_kin], x[self.n_kin:]
 
-    def tool(self, x: np.ndarray, q: np.ndarray, jac: bool = True):
+    def tool(self, x: np.ndarray, q: np.ndarray, jac: bool = True, angular: bool = True):
         """Tool frame over the campaign: positions (N,3), d/dx (N,3,P), rotations (N,3,3) and the
         angular derivative (N,3,P), P covering the whole parameter vector (extras: zero).  With
         `jac` False the derivatives are None (forward kinematics only: residual evaluations)."""
@@ -109,13 +109,15 @@ class Composed:
         if not jac:
             R, p = ch.forward(self.kin.chain(), xk, q)
             return p, None, R, None
-        p, Jp, R, Jw = ch.jacobian(self.kin.chain(), xk, q, angular=True)
-        pad = ((0, 0), (0, 0), (0, len(self.extra_names())))
-        return p, np.pad(Jp, pad), R, np.pad(Jw, pad)
+        width = self.n_kin + len(self.extra_names())
+        if not angular:  # position only (a point on the tool): no angular part, no rotations
+            p, Jp = ch.jacobian(self.kin.chain(), xk, q, width=width)
+            return p, Jp, None, None
+        return ch.jacobian(self.kin.chain(), xk, q, angular=True, width=width)
 
     def points(self, x: np.ndarray, data: Table) -> tuple[np.ndarray, np.ndarray]:
         """The tool point (N,3) m and its Jacobian (N,3,P)."""
-        p, Jp, _, _ = self.tool(x, data["joint_positions"])
+        p, Jp, _, _ = self.tool(x, data["joint_positions"], angular=False)
         return p, Jp
 
     def describe(self, x: np.ndarray) -> dict:

@@ -82,7 +82,7 @@ class PlaneModel(Composed):
         return (np.einsum("ni,ni->n", n, p) - d)[:, None]
 
     def jacobian(self, x: np.ndarray, data: Table) -> np.ndarray:
-        p, Jp, *_ = self.tool(x, data["joint_positions"])
+        p, Jp, *_ = self.tool(x, data["joint_positions"], angular=False)
         n, _, u, dA, dB = self.row_planes(x, data)
         J = np.einsum("ni,nip->np", n, Jp)
         rows = np.flatnonzero(u >= 0)

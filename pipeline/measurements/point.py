@@ -31,10 +31,11 @@ class PointModel(Composed):
         return np.zeros(len(self.extra_names()))
 
     def _predict(self, x: np.ndarray, data: Table, jac: bool):
-        p, Jp, R, Jw = self.tool(x, data["joint_positions"], jac)
-        t = np.asarray(data.get("target", np.zeros(len(p), int)), int)
-        if self.n_targets == 1 or not np.any(t):
+        t = np.asarray(data.get("target", np.zeros(len(data["joint_positions"]), int)), int)
+        if self.n_targets == 1 or not np.any(t):  # the tool point alone: positions only
+            p, Jp, _, _ = self.tool(x, data["joint_positions"], jac, angular=False)
             return p, Jp
+        p, Jp, R, Jw = self.tool(x, data["joint_positions"], jac)
         _, xe = self.split(x)
         off = np.vstack([np.zeros(3), xe.reshape(-1, 3)])[t]  # (n,3) in the tool frame
         w = np.einsum("nij,nj->ni", R, off)

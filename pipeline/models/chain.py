@@ -142,9 +142,8 @@ def walk(chain: Chain, x: np.ndarray, q: np.ndarray, want_jacobian: bool):
     hit = _WALKS.get(key)
     if hit is None or hit[0] is not chain:
         res = _walk(chain, x, q, want_jacobian)
-        for a in res:
-            if isinstance(a, np.ndarray):
-                a.setflags(write=False)
+        for a in res[:2]:
+            a.setflags(write=False)
         if len(_WALKS) >= 8:
             _WALKS.pop(next(iter(_WALKS)))
         _WALKS[key] = hit = (chain, res)
@@ -153,33 +152,31 @@ def walk(chain: Chain, x: np.ndarray, q: np.ndarray, want_jacobian: bool):
 
 def _walk(chain: Chain, x: np.ndarray, q: np.ndarray, want_jacobian: bool):
     """Walk the chain: end rotations (N,3,3), positions (N,3) and, with `want_jacobian`, the
-    world axis and origin of every step, (S,N,3) each."""
+    frame at the start of every run: a list of (s, e, R (N,3,3), t (N,3))."""
     n, nj = q.shape
     if nj != chain.n_joints or x.shape != (chain.n_params,):
         raise ValueError(f"{nj} joint values per row and {x.shape[0]} parameters do not fit a chain of "
                          f"{chain.n_joints} joints and {chain.n_params} parameters")
-    S = chain.n_steps
-    axes_w = np.empty((S, n, 3)) if want_jacobian else None
-    origins = np.empty((S, n, 3)) if want_jacobian else None
+    starts = [] if want_jacobian else None
+    steps_local = []  # each run's own transform: (R (3,3) or (N,3,3), t (3,) or (N,3))
     T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
     for s, e in chain.runs():
+        if want_jacobian:
+            starts.append((s, e, T[:, :3, :3].copy(), T[:, :3, 3].copy()))
         ji = chain.joint[s]
         if ji < 0:
-            P, ax_local, org_local = _constant_run(chain, x, s, e)
-            if want_jacobian:
-                R = T[:, :3, :3]
-                axes_w[s:e] = np.moveaxis(R @ ax_local.T, 2, 0)
-                origins[s:e] = np.moveaxis(R @ org_local.T, 2, 0) + T[:, :3, 3]
+            P = _constant_run(chain, x, s, e)[0]
             T = T @ P
+            steps_local.append((P[:3, :3], P[:3, 3]))
             continue
         a = chain.axis[s]
-        if want_jacobian:
-            axes_w[s] = T[:, :3, :3] @ a
-            origins[s] = T[:, :3, 3]
         v = q[:, ji] + _value(chain, x, s)
         if chain.kind[s] == TRANS:
             T[:, :3, 3] += (T[:, :3, :3] @ a) * v[:, None]
+            steps_local.append((np.eye(3), a * v[:, None]))
             continue
+        if want_jacobian:
+            steps_local.append((_rodrigues(a, v), np.zeros(3)))
         principal = np.flatnonzero(a == 1.0)
         if principal.size == 1 and np.count_nonzero(a) == 1:
             # rotation about a frame axis: two column operations instead of a 3×3 product
@@ -190,62 +187,91 @@ def _walk(chain: Chain, x: np.ndarray, q: np.ndarray, want_jacobian: bool):
             T[:, :3, j] = c * cj - sn * ci
         else:
             T[:, :3, :3] = T[:, :3, :3] @ _rodrigues(a, v)
-    return T[:, :3, :3], T[:, :3, 3], axes_w, origins
+    if want_jacobian:
+        # the end point in each run's start frame, walking back from the end: p_s = R_run p_(s+1) + t_run
+        # (exact where the rest is constant, e.g. a tool's own rotations about the tip give exact zeros)
+        ps = np.zeros((n, 3))
+        for i in range(len(starts) - 1, -1, -1):
+            Rr, tr = steps_local[i]
+            ps = (ps @ Rr.T if Rr.ndim == 2 else np.einsum("nij,nj->ni", Rr, ps)) + tr
+            starts[i] = starts[i] + (ps,)
+    return T[:, :3, :3], T[:, :3, 3], starts
 
 
 def forward(chain: Chain, x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """End-frame rotations (N,3,3) and positions (N,3) m in the chain's start frame."""
-    R, p, *_ = walk(chain, x, q, False)
+    R, p, _ = walk(chain, x, q, False)
     return R.copy(), p.copy()
 
 
-def _columns(chain: Chain, p: np.ndarray, axes_w: np.ndarray, origins: np.ndarray, steps: np.ndarray):
-    """Position and orientation derivative columns of `steps`, (N,3,k) each."""
-    is_rot = (chain.kind[steps] == ROT)[:, None, None]
-    u = axes_w[steps]
-    d = p[None] - origins[steps]
-    cr = np.stack([u[..., 1] * d[..., 2] - u[..., 2] * d[..., 1],  # u × d, written out:
-                   u[..., 2] * d[..., 0] - u[..., 0] * d[..., 2],  # np.cross is 4× slower
-                   u[..., 0] * d[..., 1] - u[..., 1] * d[..., 0]], axis=-1)
-    lin = np.where(is_rot, cr, u)
-    ang = np.where(is_rot, u, 0.0)
-    return lin.transpose(1, 2, 0), ang.transpose(1, 2, 0)
+def _local(chain: Chain, x: np.ndarray, s: int, e: int) -> tuple[np.ndarray, np.ndarray]:
+    """Axes and origins (k,3) of steps s..e−1 in the frame at the run's start."""
+    if chain.joint[s] >= 0:
+        return chain.axis[s:s + 1], np.zeros((1, 3))
+    _, ax, org = _constant_run(chain, x, s, e)
+    return ax, org
 
 
-def _scatter(cols: np.ndarray, index: np.ndarray, width: int) -> np.ndarray:
-    out = np.zeros(cols.shape[:2] + (width,))
-    if np.unique(index).size == index.size:
-        out[:, :, index] = cols
-    else:  # several steps share a parameter: their effects add up
-        np.add.at(out.transpose(2, 0, 1), index, cols.transpose(2, 0, 1))
-    return out
+def _derivatives(chain: Chain, x: np.ndarray, p: np.ndarray, starts: list, select: np.ndarray, index: np.ndarray,
+                 width: int, angular: bool):
+    """Position (N,3,width) and, with `angular`, orientation derivatives of the steps where
+    `select` (S,) holds, each into column `index[step]`.  Per run, in the run's start frame
+    {s}: a rotation about axis a through o moves p by a × (p_s − o), a translation by a; one
+    batched product with R_s brings a run's columns to the chain's frame."""
+    n = p.shape[0]
+    Jp = np.zeros((n, 3, width))
+    Jw = np.zeros((n, 3, width)) if angular else None
+    for s, e, Rs, ts, ps in starts:
+        k = np.flatnonzero(select[s:e])
+        if k.size == 0:
+            continue
+        ax, org = _local(chain, x, s, e)
+        A, O = ax[k], org[k]
+        rot = chain.kind[s + k] == ROT
+        d = ps[:, None, :] - O[None]  # ps: the end point in the run's start frame, R_sᵀ (p − t_s)
+        cr = np.stack([A[:, 1] * d[..., 2] - A[:, 2] * d[..., 1],
+                       A[:, 2] * d[..., 0] - A[:, 0] * d[..., 2],
+                       A[:, 0] * d[..., 1] - A[:, 1] * d[..., 0]], axis=-1)  # (N,k,3)
+        local = np.where(rot[None, :, None], cr, A[None])
+        cols = Rs @ np.swapaxes(local, 1, 2)  # (N,3,k)
+        idx = index[s + k]
+        _add(Jp, idx, cols)
+        if angular and rot.any():
+            _add(Jw, idx, Rs @ np.where(rot[:, None], A, 0.0).T)
+    return Jp, Jw
 
 
-def jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = False):
+def _add(J: np.ndarray, idx: np.ndarray, cols: np.ndarray) -> None:
+    """J[:, :, idx] += cols, also where several steps share a parameter (their effects add up)."""
+    if np.unique(idx).size == idx.size:
+        J[:, :, idx] += cols
+    else:
+        np.add.at(J.transpose(2, 0, 1), idx, cols.transpose(2, 0, 1))
+
+
+def jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = False, width: int | None = None):
     """End positions (N,3) and d position / d x (N,3,P); with `angular`, also the end frame's
     rotations (N,3,3) and its angular derivative (N,3,P): the world-frame rotation vector δω
-    with δR = [δω]× R."""
+    with δR = [δω]× R.  `width` ≥ P allocates that many columns (a caller's parameters appended
+    after the chain's stay zero) instead of copying into a wider array afterwards."""
     x = np.asarray(x, dtype=float)
-    R, p, axes_w, origins = walk(chain, x, q, True)
-    steps = np.flatnonzero(chain.param >= 0)
-    lin, ang = _columns(chain, p, axes_w, origins, steps)
-    Jp = _scatter(lin, chain.param[steps], chain.n_params)
+    R, p, starts = walk(chain, x, q, True)
+    w = chain.n_params if width is None else width
+    Jp, Jw = _derivatives(chain, x, p, starts, chain.param >= 0, chain.param, w, angular)
     if not angular:
         return p.copy(), Jp
-    return p.copy(), Jp, R.copy(), _scatter(ang, chain.param[steps], chain.n_params)
+    return p.copy(), Jp, R.copy(), Jw
 
 
 def joint_jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = False):
     """End positions (N,3) and d position / d q (N,3,n_joints); with `angular`, also the
     angular part (N,3,n_joints)."""
     x = np.asarray(x, dtype=float)
-    _, p, axes_w, origins = walk(chain, x, q, True)
-    steps = np.flatnonzero(chain.joint >= 0)
-    lin, ang = _columns(chain, p, axes_w, origins, steps)
-    Jq = _scatter(lin, chain.joint[steps], chain.n_joints)
+    _, p, starts = walk(chain, x, q, True)
+    Jq, Jw = _derivatives(chain, x, p, starts, chain.joint >= 0, chain.joint, chain.n_joints, angular)
     if not angular:
         return p.copy(), Jq
-    return p.copy(), Jq, _scatter(ang, chain.joint[steps], chain.n_joints)
+    return p.copy(), Jq, Jw
 
 
 def frames(chain: Chain, x: np.ndarray, q: np.ndarray, marks: list[int]) -> np.ndarray:

@@ -37,6 +37,7 @@ SCHEMA = pa.schema([
     ("n_parameters", pa.int64()),
     ("predicted_point_sigma_rms_m", pa.float64()),
     ("sigma_m", pa.float64()),
+    ("residual_dof", pa.int64()),          # residuals used − identified parameters (σ's degrees of freedom)
     ("warnings", pa.list_(pa.string())),
     ("parameters", pa.list_(PARAMETER)),
     ("expected", pa.string()),
@@ -110,6 +111,8 @@ def fill_from_run(row: dict, run_dir: Path, recording: Path, robot_id: str | Non
     if fit.is_file() and row["status"] != "fail":
         f = read_json(fit)
         row["sigma_m"] = f.get("sigma_m")
+        if f.get("n_used") is not None and f.get("n_identifiable") is not None:
+            row["residual_dof"] = int(f["n_used"]) * int(f.get("residual_dim", 1)) - int(f["n_identifiable"])
         row["parameters"] = [{k: p.get(k) for k in PARAMETER.names} for p in f.get("parameters", [])]
     meta = _campaign_meta(run_dir, recording)
     if robot_id:

@@ -42,6 +42,8 @@ def reprocess_cmd(
     engine: str = typer.Option("dask", "--engine", help="dask (default), processes (a local process pool) or "
                                "serial (in this process)."),
     core: bool = typer.Option(False, "--core", help="Only ingest, validate, identify, observe (no diagnose/report)."),
+    stages_opt: str = typer.Option("", "--stages", help="Comma-separated stages to run instead (e.g. "
+                                   "ingest,validate,identify: enough for the fleet history)."),
     robot_id: Optional[str] = typer.Option(None, "--robot-id", help="Robot identity for every recording (overrides "
                                            "the campaign metadata's robot_id)."),
     resume: bool = typer.Option(True, "--resume/--no-resume", help="Skip recordings already in OUT/results with the "
@@ -61,7 +63,12 @@ def reprocess_cmd(
         raise RobocalError(f"--engine {engine}: not one of {', '.join(ENGINES)}")
     if scheduler and engine != "dask":
         raise RobocalError("--scheduler needs --engine dask")
-    stages = CORE_STAGES if core else None
+    stages = [s.strip() for s in stages_opt.split(",") if s.strip()] or (CORE_STAGES if core else None)
+    from pipeline.stages.registry import BY_NAME
+
+    unknown = [s for s in stages or [] if s not in BY_NAME]
+    if unknown:
+        raise RobocalError(f"--stages: unknown stage(s) {', '.join(unknown)} (stages: {', '.join(BY_NAME)})")
     counts = {"ok": 0, "failed": 0, "regressed": 0, "skipped": 0}
     progress = Progress(TextColumn("[bold]reprocess"), BarColumn(), MofNCompleteColumn(),
                         TextColumn("[green]{task.fields[ok]} ok[/] [red]{task.fields[failed]} failed[/] "

@@ -58,44 +58,59 @@ def true_vector(base: np.ndarray, names: list[str], changes: list[Change], m: in
     return x
 
 
-def simulate_fleet(archive: Path, spec: FleetSpec = FleetSpec()) -> dict:
-    """Write every campaign of the fleet; returns the truth document (also written)."""
+def simulate_campaign(archive: Path, spec: FleetSpec, r: int, m: int) -> dict:
+    """Write robot r's campaign of month m; its truth entry.  A campaign whose latched joints fall
+    outside the joint limits is re-planned with the next seed (as an integrator would re-teach it)."""
     from pipeline.models.jig import stepped_block
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
     from pipeline.recording.writer import write_campaign
     from pipeline.simulate.arc_welder import Campaign, Noise, simulate
     from pipeline.systems import arc_welder as aw
 
-    archive = Path(archive)
     nominal, jig = aw.nominal_arm(), stepped_block()
     names = nominal.parameter_names()
+    rid, when = spec.robot_id(r), spec.month_start(m)
+    base = aw.random_truth(nominal, np.random.default_rng([spec.seed, r, 1])).vector()
+    true = nominal.with_vector(true_vector(base, names, [c for c in spec.changes if c.robot == r], m))
+    for attempt in range(20):
+        campaign = Campaign(contacts=spec.contacts, seed=spec.seed * 100_003 + r * 1009 + m * 31 + attempt * 7919,
+                            rate_hz=spec.rate_hz, start_ns=int(when.timestamp()) * 1_000_000_000)
+        sim = simulate(nominal, true, jig, campaign, Noise())
+        if np.all((sim.contact_q >= nominal.lower) & (sim.contact_q <= nominal.upper)):
+            break
+    path = archive / rid / when.strftime("%Y-%m") / "campaign.mcap"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: jig.to_dict(),
+            META_CAMPAIGN: {"system": aw.SYSTEM, "simulated": True, "robot_id": rid,
+                            "contacts": campaign.contacts, "controller_rate_hz": campaign.rate_hz,
+                            "search_speed_m_s": campaign.search_speed_m_s,
+                            "approach_offset_m": campaign.approach_offset_m}}
+    write_campaign(path, meta, (sim.stream_t_ns, sim.stream_q, [j.name for j in nominal.joints]),
+                   list(aw.contact_messages(sim)))
+    return {"robot_id": rid, "month": m, "start": when.isoformat(), "seed": campaign.seed,
+            "recording": path.relative_to(archive).as_posix(), "x": true.vector().tolist()}
+
+
+def simulate_fleet(archive: Path, spec: FleetSpec = FleetSpec(), workers: int = 1) -> dict:
+    """Write every campaign of the fleet (`workers` processes); returns the truth document (also written)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from pipeline.systems import arc_welder as aw
+
+    archive = Path(archive)
+    names = aw.nominal_arm().parameter_names()
     for c in spec.changes:
         if c.param not in names:
             raise ValueError(f"unknown parameter {c.param!r}")
+    jobs = [(archive, spec, r, m) for r in range(spec.robots) for m in range(1, spec.months + 1)]
+    if workers > 1:
+        with ProcessPoolExecutor(workers) as pool:
+            done = list(pool.map(simulate_campaign, *zip(*jobs)))
+    else:
+        done = [simulate_campaign(*j) for j in jobs]
     truth: dict = {"spec": {k: v for k, v in spec.__dict__.items() if k != "changes"},
-                   "changes": [c.__dict__ for c in spec.changes], "robots": {}}
-    for r in range(spec.robots):
-        rid = spec.robot_id(r)
-        base = aw.random_truth(nominal, np.random.default_rng([spec.seed, r, 1])).vector()
-        changes = [c for c in spec.changes if c.robot == r]
-        truth["robots"][rid] = {"parameter_names": names, "months": []}
-        for m in range(1, spec.months + 1):
-            when = spec.month_start(m)
-            true = nominal.with_vector(true_vector(base, names, changes, m))
-            campaign = Campaign(contacts=spec.contacts, seed=spec.seed * 100_003 + r * 1009 + m, rate_hz=spec.rate_hz,
-                                start_ns=int(when.timestamp()) * 1_000_000_000)
-            sim = simulate(nominal, true, jig, campaign, Noise())
-            path = archive / rid / when.strftime("%Y-%m") / "campaign.mcap"
-            path.parent.mkdir(parents=True, exist_ok=True)
-            meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: jig.to_dict(),
-                    META_CAMPAIGN: {"system": aw.SYSTEM, "simulated": True, "robot_id": rid,
-                                    "contacts": campaign.contacts, "controller_rate_hz": campaign.rate_hz,
-                                    "search_speed_m_s": campaign.search_speed_m_s,
-                                    "approach_offset_m": campaign.approach_offset_m}}
-            write_campaign(path, meta, (sim.stream_t_ns, sim.stream_q, [j.name for j in nominal.joints]),
-                           list(aw.contact_messages(sim)))
-            truth["robots"][rid]["months"].append({"month": m, "start": when.isoformat(),
-                                                   "recording": path.relative_to(archive).as_posix(),
-                                                   "x": true.vector().tolist()})
+                   "changes": [c.__dict__ for c in spec.changes], "parameter_names": names,
+                   "robots": {spec.robot_id(r): [d for d in done if d["robot_id"] == spec.robot_id(r)]
+                              for r in range(spec.robots)}}
     (archive / "fleet.truth.json").write_text(json.dumps(truth, indent=1) + "\n")
     return truth

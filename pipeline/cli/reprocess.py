@@ -74,7 +74,7 @@ def reprocess_cmd(
                         TextColumn("[green]{task.fields[ok]} ok[/] [red]{task.fields[failed]} failed[/] "
                                    "[yellow]{task.fields[regressed]} regressed[/] {task.fields[skipped]} done before"),
                         RateColumn(), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                        console=err, transient=False)
+                        console=err if err.is_terminal else Console(stderr=True, width=160), transient=False)
     bar = None
 
     def on_plan(n_todo: int, n_kept: int) -> None:

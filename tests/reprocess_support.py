@@ -87,3 +87,16 @@ class DaskCluster:
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait(timeout=10)
+
+
+def chromium(args: list[str], tmp: Path) -> subprocess.CompletedProcess:
+    """Headless Chromium (Debian's, `make chromium`); the test skips, saying why, where it is missing."""
+    import pytest
+
+    exe = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+    if exe is None:
+        pytest.skip("chromium not found (install it with `make chromium`, or apt-get install chromium)")
+    base = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+            "--disable-background-networking", "--disable-component-update", "--disable-sync",
+            f"--user-data-dir={tmp / 'profile'}"]
+    return subprocess.run(base + args, capture_output=True, text=True, timeout=120)

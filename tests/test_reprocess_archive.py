@@ -93,21 +93,22 @@ def test_local_cluster_nested_archive_streams_rows_gates_and_resumes(archive, tm
 
 def test_resume_after_the_client_is_killed(archive, tmp_path):
     arch, recs = archive
-    out = tmp_path / "out"
-    p = cli("reprocess", arch, "--out", out, "--workers", "2", "--stages", FAST)
+    recs = [r for r in recs if r.relative_to(arch).parts[0] in ("robot-1", "robot-2")]
+    out, pattern = tmp_path / "out", "robot-[12]/**/*.mcap"
+    p = cli("reprocess", arch, "--out", out, "--workers", "2", "--stages", FAST, "--pattern", pattern)
     t0 = time.monotonic()
     while not list((out / "results").glob("part-*.parquet")):
         assert time.monotonic() - t0 < 120 and p.poll() is None, "no part written"
         time.sleep(0.05)
     kill_group(p)  # SIGKILL: the client and its local cluster
     before = read_results(out).to_pylist()
-    assert 1 <= len(before) < 20
-    p = cli("reprocess", arch, "--out", out, "--workers", "2", "--stages", FAST)
+    assert 1 <= len(before) < 10
+    p = cli("reprocess", arch, "--out", out, "--workers", "2", "--stages", FAST, "--pattern", pattern)
     _, stderr = p.communicate(timeout=300)
     assert p.returncode == 0, stderr
     assert f"{len(before)} done before" in stderr
     every = read_results(out, latest=False).to_pylist()
-    assert len(every) == 20  # nothing computed twice
+    assert len(every) == 10  # nothing computed twice
     assert {r["recording"] for r in every} == {r.relative_to(arch).as_posix() for r in recs}
 
 
@@ -138,9 +139,10 @@ def test_external_scheduler_and_a_worker_killed_mid_task(archive, tmp_path):
         assert p.returncode == 1, stderr
         rows = read_results(out2).to_pylist()
         lost = [r for r in rows if r["status"] == "lost"]
-        assert len(rows) == 10 and len(lost) == 1, [r["status"] for r in rows]
-        assert "KilledWorker" in lost[0]["error"]
-        assert all(r["ok"] for r in rows if r is not lost[0])
+        # the task it was executing, and one it may already hold (Dask's queue sends a worker ⌈1.1 × threads⌉)
+        assert len(rows) == 10 and 1 <= len(lost) <= 2, [r["status"] for r in rows]
+        assert all("KilledWorker" in r["error"] and not r["ok"] for r in lost)
+        assert all(r["ok"] for r in rows if r["status"] != "lost")
         assert all(int(r["worker"].split(":")[1]) != victim for r in rows if r["ok"])
     finally:
         cluster.close()

@@ -115,6 +115,8 @@ def reprocess_cmd(
 def _print_table(archive: Path, rows: list[dict]) -> None:
     mm = lambda v: "—" if v is None else f"{v * 1e3:.4f}"  # noqa: E731
     shown = rows if len(rows) <= MAX_TABLE_ROWS else [r for r in rows if not r["ok"]][:MAX_TABLE_ROWS]
+    if not shown:
+        return
     title = f"robocal reprocess — {archive}" + ("" if shown is rows else
                                                f" ({len(shown)} of {len(rows)} shown: the failed or regressed)")
     t = Table(title=title)

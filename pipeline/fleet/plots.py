@@ -70,7 +70,8 @@ def accuracy(h: RobotHistory, tolerance_m: float | None) -> str:
 def parameters(h: RobotHistory, ncols: int = 5) -> str:
     """Every parameter's estimate (relative to its first calibration) with ±1σ and ±3σ bands; flagged
     steps as red vertical lines, flagged trends as a dashed fitted line."""
-    names = list(h.series)
+    flagged_names = {s["param"] for s in h.steps} | {t["param"] for t in h.trends}
+    names = sorted(h.series, key=lambda n: n not in flagged_names)  # flagged first, else model order
     if not names:
         return ""
     nrows = (len(names) + ncols - 1) // ncols

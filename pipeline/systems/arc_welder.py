@@ -116,6 +116,13 @@ class TouchModel:
         """Robot model JSON of parameter vector x (same schema as the nominal)."""
         return self.arm.with_vector(x).to_dict()
 
+    def exports(self, x: np.ndarray) -> dict[str, str]:
+        """The calibrated arm as a URDF (link `jig` → `tool`) and as a D-H table."""
+        from pipeline.models.dh_export import dh_table_csv, to_urdf
+
+        arm = self.arm.with_vector(x)
+        return {"model.urdf": to_urdf(arm), "dh_table.csv": dh_table_csv(arm)}
+
 
 # ----- recordings ------------------------------------------------------------------------
 def contact_messages(sim, names: list[str] | None = None) -> list[tuple[str, dict]]:

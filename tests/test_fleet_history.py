@@ -127,13 +127,12 @@ def test_the_fleet_page_flags_exactly_the_step_and_the_drift(fleet):
 
 
 def test_a_tight_tolerance_is_flagged(fleet):
+    from pipeline.fleet.dataset import read_results
+
     root, _ = fleet
-    p = subprocess.run([str(BIN / "robocal"), "fleet", root / "out", "--out", root / "tight.html", "--tolerance-m",
-                        "1e-5"], capture_output=True, text=True, env=ENV, timeout=600)
-    assert p.returncode == 0, p.stderr
-    flags = json.loads((root / "tight.json").read_text())
-    assert all(len(f["tolerance"]) == 12 for f in flags.values())
-    assert "60 above tolerance" not in p.stderr and "12 above tolerance" in p.stderr
+    hs = fleet_history(read_results(root / "out").to_pylist(), tolerance_m=1e-5)
+    assert [len(h.tolerance) for h in hs] == [12] * 5
+    assert [len(h.steps) for h in hs] == [0, 1, 0, 0, 0] and [len(h.trends) for h in hs] == [0, 0, 0, 1, 0]
 
 
 def test_the_fleet_page_renders_in_chromium(fleet, tmp_path):

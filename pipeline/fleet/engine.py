@@ -89,6 +89,10 @@ def dask_client(scheduler: str | None, workers: int | None, allowed_failures: in
             except (OSError, TimeoutError) as e:
                 raise RobocalError(f"{scheduler}: no Dask scheduler answered ({e})") from None
             with client:
+                try:
+                    client.wait_for_workers(1, timeout=60)
+                except TimeoutError:
+                    raise RobocalError(f"{scheduler}: the Dask scheduler has no workers (waited 60 s)") from None
                 yield client
             return
         n = workers or os.cpu_count() or 1

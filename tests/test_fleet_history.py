@@ -150,3 +150,26 @@ def test_the_fleet_page_renders_in_chromium(fleet, tmp_path):
 
     px = np.asarray(Image.open(shot).convert("L"))
     assert px.std() > 20
+
+
+def test_bad_input_is_one_line_and_exit_2(tmp_path):
+    def run(*args):
+        p = subprocess.run([str(BIN / "robocal"), *map(str, args)], capture_output=True, text=True, env=ENV,
+                           timeout=120)
+        assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+        return p.stderr
+
+    assert "not a folder" in run("reprocess", tmp_path / "missing", "--out", tmp_path / "o")
+    (tmp_path / "empty").mkdir()
+    assert "no recordings" in run("reprocess", tmp_path / "empty", "--out", tmp_path / "o")
+    assert "unknown stage" in run("reprocess", tmp_path / "empty", "--out", tmp_path / "o", "--stages", "ingest,nope")
+    (tmp_path / "one").mkdir()
+    (tmp_path / "one" / "x.mcap").write_bytes(b"x")
+    assert "no Dask scheduler answered" in run("reprocess", tmp_path / "one", "--out", tmp_path / "o",
+                                               "--scheduler", "tcp://127.0.0.1:9")
+    assert "no such results dataset" in run("fleet", tmp_path / "nothing", "--out", tmp_path / "f.html")
+    bad = tmp_path / "res" / "results"
+    bad.mkdir(parents=True)
+    (bad / "part-1.parquet").write_bytes(b"PAR1 truncated")
+    err = run("fleet", tmp_path / "res", "--out", tmp_path / "f.html")
+    assert "part-1.parquet: not a readable Parquet part" in err and not (tmp_path / "f.html").exists()

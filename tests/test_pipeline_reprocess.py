@@ -54,6 +54,10 @@ def test_reprocess_folder_passes_then_flags_a_regression_and_a_failing_recording
     p = run_cli("reprocess", rec_dir, "--out", out, "--core", "--workers", "2")
     assert p.returncode == 1
     rows = {r["recording"]: r for r in json.loads((out / "summary.json").read_text())["rows"]}
-    assert any("rms_after_m" in r for r in rows["good.mcap"]["regressions"])
+    assert any("rms_after_m" in r for r in rows["good.mcap"]["regressions"])  # kept by resume, gated anew
+    from pipeline.fleet.dataset import read_results
+
+    latest = {r["recording"]: r for r in read_results(out).to_pylist()}
+    assert latest["good.mcap"]["regressions"] == rows["good.mcap"]["regressions"] and not latest["good.mcap"]["ok"]
     assert rows["bad.mcap"]["status"] == "fail" and "joint_limits" in rows["bad.mcap"]["error"]
     assert not rows["bad.mcap"]["ok"]

@@ -16,7 +16,7 @@ from pathlib import Path
 from pipeline.errors import RobocalError
 from pipeline.fleet.dataset import ResultsWriter, done_keys
 from pipeline.fleet.discover import DEFAULT_PATTERNS, Found, discover
-from pipeline.fleet.rows import code_version, lost_row, reprocess_one
+from pipeline.fleet.rows import code_version, gate, lost_row, reprocess_one
 
 ENGINES = ("dask", "processes", "serial")
 CORE_STAGES = ["ingest", "validate", "identify", "observe"]
@@ -68,6 +68,9 @@ def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot
             raise RobocalError(f"{f.path}: cannot be read ({e.strerror})") from None
         prev = done.get((f.rel, sha, __version__, code, config))
         if prev is not None:
+            before = (prev["expected"], list(prev["regressions"] or []), prev["ok"])
+            gate(prev, f.path)  # the expected figures may have changed since
+            prev["_regated"] = before != (prev["expected"], prev["regressions"], prev["ok"])
             kept.append(prev)
         else:
             tasks.append(Task(f, sha, nbytes, Path(out) / "runs" / f.run_name))
@@ -164,6 +167,9 @@ def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, st
     res = Outcome(kept=kept, skipped_paths=skipped)
     config = config_of(stages, robot_id)
     with ResultsWriter(out, flush_s=flush_s) as w:
+        for row in kept:
+            if row.pop("_regated"):
+                w.add(row)  # a new verdict on an old result: the dataset says so too
         for row in run_tasks(tasks, stages, robot_id, config, engine, workers, scheduler, allowed_failures,
                              on_start):
             w.add(row)

@@ -128,8 +128,6 @@ def reprocess_one(path: str, rel: str, sha: str, nbytes: int, run_dir: str, stag
     """The task: run the pipeline on one recording and return its row (never raises for the
     recording's own faults: a failure is the row's `status` and `error`)."""
     from pipeline.errors import RobocalError
-    from pipeline.stages.artefacts import read_json
-    from pipeline.stages.reprocess import compare_expected
     from pipeline.stages.runner import StageFailed, run_pipeline
 
     t0 = time.perf_counter()
@@ -148,8 +146,22 @@ def reprocess_one(path: str, rel: str, sha: str, nbytes: int, run_dir: str, stag
     fill_from_run(row, out, rec, robot_id)
     if error:
         row["status"], row["error"] = status, error.splitlines()[0] if error else error
+    gate(row, rec)
+    row["elapsed_s"] = time.perf_counter() - t0
+    return row
+
+
+def gate(row: dict, recording: Path) -> dict:
+    """The regression gate: the row's figures against `<stem>.expected.json` beside the recording (re-run
+    on rows kept by a resume, since the expected figures may have changed); sets `expected`,
+    `regressions` and `ok`."""
+    from pipeline.stages.artefacts import read_json
+    from pipeline.stages.reprocess import compare_expected
+
+    rec = Path(recording)
     exp = rec.with_name(rec.name.removesuffix(".mcap") + ".expected.json")
-    if exp.is_file():
+    row["expected"], row["regressions"] = None, []
+    if exp.is_file() and row["status"] != "lost":
         summary = {k: row[k] for k in (*FIGURES, "status")}
         try:
             row["regressions"] = compare_expected(summary, read_json(exp))
@@ -157,7 +169,6 @@ def reprocess_one(path: str, rel: str, sha: str, nbytes: int, run_dir: str, stag
             row["regressions"] = [f"{exp.name}: unreadable expected figures ({e})"]
         row["expected"] = exp.name
     row["ok"] = row["status"] not in FAILED and not row["regressions"]
-    row["elapsed_s"] = time.perf_counter() - t0
     return row
 
 

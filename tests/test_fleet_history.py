@@ -173,3 +173,19 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path):
     (bad / "part-1.parquet").write_bytes(b"PAR1 truncated")
     err = run("fleet", tmp_path / "res", "--out", tmp_path / "f.html")
     assert "part-1.parquet: not a readable Parquet part" in err and not (tmp_path / "f.html").exists()
+
+
+def test_simulated_recordings_carry_the_robot_identity_and_campaign_time(tmp_path):
+    from pipeline.recording.reader import read_recording
+    from pipeline.recording.schemas import META_CAMPAIGN
+
+    rec = tmp_path / "r.mcap"
+    p = subprocess.run([str(BIN / "robocal"), "simulate", "arc-welder", "--out", rec, "--contacts", "10",
+                        "--robot-id", "cell-7/SN-1234", "--start", "2026-07-01T08:00:00Z"],
+                       capture_output=True, text=True, env=ENV, timeout=300)
+    assert p.returncode == 0, p.stderr
+    r = read_recording(rec, topics={"/touch/contact"})
+    assert r.metadata[META_CAMPAIGN]["robot_id"] == "cell-7/SN-1234"
+    t0 = int(datetime(2026, 7, 1, 8, tzinfo=timezone.utc).timestamp()) * 1_000_000_000
+    ts = [m["timestamp_ns"] for m in r.messages["/touch/contact"]]
+    assert t0 < min(ts) < t0 + 3600 * 10**9

@@ -6,8 +6,9 @@ pool and on Dask (LocalCluster), side by side; Dask's overhead per recording.
 Each recording is the bundled arc-welder campaign cut to its first CONTACTS contacts (copied to
 RECORDINGS paths of a nested archive; each copy is a separate run).  Overhead per recording =
 (wall × workers − Σ task wall times) / recordings, the time a worker slot spends outside a task
-(scheduling, transfer, writing the dataset, idling at the end); Dask's is given with and without
-the cluster's start-up.
+(scheduling, transfer, writing the dataset, idling at the end, and on a busy machine the CPU taken
+by the engine's own threads); Dask's is given with and without the cluster's start-up, and its own
+per-task cost is probed with tasks that only sleep (no CPU contention).
 """
 
 from __future__ import annotations
@@ -43,6 +44,26 @@ def small_recording(path: Path, contacts: int) -> None:
             w.write(topic, m)
 
 
+def _sleep(seconds: float) -> float:
+    t = time.perf_counter()
+    time.sleep(seconds)
+    return time.perf_counter() - t
+
+
+def scheduling_probe(workers: int, n: int = 40, seconds: float = 0.5) -> float:
+    """Dask's own cost per task, without CPU contention: tasks that sleep (s per task)."""
+    from distributed import as_completed
+
+    from pipeline.fleet.engine import dask_client
+
+    with dask_client(None, workers, None) as client:
+        client.submit(_sleep, 0.0, pure=False).result()  # workers warm
+        t0 = time.perf_counter()
+        futs = [client.submit(_sleep, seconds, pure=False) for _ in range(n)]
+        busy = sum(f.result() for f in as_completed(futs))
+        return (time.perf_counter() - t0) * workers / n - busy / n
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--recordings", type=int, default=200)
@@ -50,6 +71,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--stages", default="ingest,validate,identify")
     ap.add_argument("--engines", default="serial,processes,dask")
+    ap.add_argument("--probe", type=int, default=40, help="sleep tasks (0.5 s) for Dask's own per-task cost; 0: none")
     a = ap.parse_args()
     stages = a.stages.split(",")
     with tempfile.TemporaryDirectory(prefix="bench-reprocess-") as tmp:
@@ -86,6 +108,10 @@ def main() -> None:
             print(f"{engine:<10} {wall:8.1f} {len(rows) / wall:7.2f} {mean:7.3f} {over:15.3f} {100 * over / mean:8.1f}% "
                   f"{after:>15}")
             shutil.rmtree(out)
+    if a.probe:
+        per = scheduling_probe(a.workers, a.probe)
+        print(f"Dask's own cost per task (LocalCluster, {a.probe} tasks sleeping 0.5 s): {per * 1e3:.1f} ms "
+              f"({100 * per / 0.5:.1f} % of 0.5 s)")
 
 
 if __name__ == "__main__":

@@ -67,21 +67,28 @@ class PlaneModel(Composed):
             N[i], dA[i], dB[i] = n, P @ u, P @ v
         return N, d, dA, dB
 
+    def row_planes(self, x: np.ndarray, data: Table):
+        """Per contact: unit normal (n,3), offset (n,), and the plane's index among the unknown
+        planes (−1 for a known plane) with dn/da, dn/db (n,3) for those rows."""
+        N, d, dA, dB = self._geometry(x)
+        k = np.asarray(data["plane"], int)
+        which = np.full(len(self.planes), -1)
+        which[self._unknown()] = np.arange(len(self._unknown()))
+        return N[k], d[k], which[k], dA[k], dB[k]
+
     def residuals(self, x: np.ndarray, data: Table) -> np.ndarray:
         p, *_ = self.tool(x, data["joint_positions"])
-        N, d, *_ = self._geometry(x)
-        k = np.asarray(data["plane"], int)
-        return (np.einsum("ni,ni->n", N[k], p) - d[k])[:, None]
+        n, d, *_ = self.row_planes(x, data)
+        return (np.einsum("ni,ni->n", n, p) - d)[:, None]
 
     def jacobian(self, x: np.ndarray, data: Table) -> np.ndarray:
         p, Jp, *_ = self.tool(x, data["joint_positions"])
-        N, _, dA, dB = self._geometry(x)
-        k = np.asarray(data["plane"], int)
-        J = np.einsum("ni,nip->np", N[k], Jp)
-        for j, i in enumerate(self._unknown()):
-            rows = k == i
-            col = self.n_kin + 3 * j
-            J[rows, col] = p[rows] @ dA[i]
-            J[rows, col + 1] = p[rows] @ dB[i]
+        n, _, u, dA, dB = self.row_planes(x, data)
+        J = np.einsum("ni,nip->np", n, Jp)
+        rows = np.flatnonzero(u >= 0)
+        if rows.size:
+            col = self.n_kin + 3 * u[rows]
+            J[rows, col] = np.einsum("ni,ni->n", p[rows], dA[rows])
+            J[rows, col + 1] = np.einsum("ni,ni->n", p[rows], dB[rows])
             J[rows, col + 2] = -1.0
         return J[:, None, :]

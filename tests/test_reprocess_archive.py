@@ -31,11 +31,13 @@ def test_discovery_is_recursive_and_stays_inside_the_archive(tmp_path):
     (arch / "alias").symlink_to(arch / "a", target_is_directory=True)    # inside, already searched: once
     (arch / "a" / "b" / "loop").symlink_to(arch, target_is_directory=True)  # a loop ends
     (arch / "in.mcap").symlink_to(arch / "top.mcap")                    # file symlink inside: kept
+    (arch / "gone.mcap").symlink_to(arch / "nothing.mcap")              # broken: named
     found, skipped = discover(arch)
     rels = [f.rel for f in found]
     assert len(rels) == 3 and set(rels) == {"top.mcap", "in.mcap"} | {r for r in rels if r.endswith("deep.mcap")}
     assert any(s.startswith("a/out.mcap: symlink out") for s in skipped)
     assert any(s.startswith("linked-out: symlink out") for s in skipped)
+    assert "gone.mcap: broken symlink" in skipped
     found, _ = discover(arch, ["a/**/*.mcap"])
     assert [f.rel for f in found] == ["a/b/deep.mcap"]
 

@@ -67,6 +67,10 @@ def discover(archive: Path, patterns: tuple[str, ...] | list[str] = DEFAULT_PATT
         for e in entries:
             p = Path(e.path)
             rel = p.relative_to(root).as_posix()
+            if e.is_symlink() and not p.exists():
+                if _match(rel, pats):
+                    skipped.append(f"{rel}: broken symlink")
+                continue
             if e.is_symlink() and not _inside(p, real_root):
                 skipped.append(f"{rel}: symlink out of the archive")
                 continue

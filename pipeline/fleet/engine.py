@@ -13,6 +13,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pipeline import __version__
 from pipeline.errors import RobocalError
 from pipeline.fleet.dataset import ResultsWriter, done_keys
 from pipeline.fleet.discover import DEFAULT_PATTERNS, Found, discover
@@ -58,14 +59,15 @@ def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot
     found, skipped = discover(archive, patterns)
     done = done_keys(out) if resume else {}
     config, code = config_of(stages, robot_id), code_version()
-    from pipeline import __version__
-
     tasks, kept = [], []
     for f in found:
         try:
             sha, nbytes = sha256_file(f.path), f.path.stat().st_size
-        except OSError as e:
-            raise RobocalError(f"{f.path}: cannot be read ({e.strerror})") from None
+        except OSError as e:  # unreadable: its row says so, the others run
+            row = lost_row(str(f.path), f.rel, "", 0, str(Path(out) / "runs" / f.run_name), config,
+                           f"{f.path}: cannot be read ({e.strerror})")
+            kept.append(row | {"status": "error", "_regated": True})
+            continue
         prev = done.get((f.rel, sha, __version__, code, config))
         if prev is not None:
             before = (prev["expected"], list(prev["regressions"] or []), prev["ok"])

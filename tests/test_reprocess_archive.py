@@ -197,3 +197,22 @@ def test_local_cluster_retries_a_task_whose_worker_died(archive, tmp_path):
     assert killed
     assert len(res.rows) == 5 and all(r["ok"] for r in res.rows), [r["status"] for r in res.rows]
     assert all(int(r["worker"].split(":")[1]) != killed[0] for r in res.rows)
+
+
+def test_results_writer_puts_a_row_on_disk_within_flush_s_and_parts_are_complete(tmp_path):
+    from pipeline.fleet.dataset import ResultsWriter
+    from pipeline.fleet.rows import SCHEMA
+
+    row = {f.name: None for f in SCHEMA} | {"recording": "a.mcap", "warnings": [], "parameters": [],
+                                             "regressions": []}
+    with ResultsWriter(tmp_path, flush_s=0.3) as w:
+        w.add(row)
+        t0 = time.monotonic()
+        while not list((tmp_path / "results").glob("part-*.parquet")):
+            assert time.monotonic() - t0 < 5, "the buffered row was not flushed by the timer"
+            time.sleep(0.02)
+        w.add(row | {"recording": "b.mcap"})
+        w.add(row | {"recording": "a.mcap", "status": "pass"})  # a newer row of a.mcap
+    assert not list((tmp_path / "results").glob(".*tmp"))
+    latest = {r["recording"]: r["status"] for r in read_results(tmp_path).to_pylist()}
+    assert latest == {"a.mcap": "pass", "b.mcap": None} and read_results(tmp_path, latest=False).num_rows == 3

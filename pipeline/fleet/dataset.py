@@ -1,11 +1,12 @@
 """The reprocess results as a Parquet dataset (`OUT/results/part-*.parquet`), written while the run
-goes on: rows are buffered and flushed to a new part every `flush_s` seconds (or `flush_rows`
-rows), each part written to a temporary name and renamed, so a reader — or a resumed run — only
+goes on: rows are buffered and flushed to a new part at most `flush_s` seconds after they arrive
+(or at once when `flush_rows` are buffered), each part written to a temporary name and renamed, so a reader — or a resumed run — only
 ever sees complete parts.  A later row of the same recording supersedes an earlier one."""
 
 from __future__ import annotations
 
 import os
+import threading
 import time
 import uuid
 from pathlib import Path
@@ -24,32 +25,43 @@ def results_dir(out: Path) -> Path:
 
 
 class ResultsWriter:
-    """Append rows; parts appear as `part-<ns>-<uuid>.parquet`."""
+    """Append rows; parts appear as `part-<ns>-<uuid>.parquet`: a row is on disk at most `flush_s`
+    after it was added (a timer flushes what is buffered), or at once when `flush_rows` are buffered."""
 
     def __init__(self, out: Path, flush_s: float = 2.0, flush_rows: int = 200) -> None:
         self.dir = results_dir(out)
         self.dir.mkdir(parents=True, exist_ok=True)
         self.flush_s, self.flush_rows = flush_s, flush_rows
         self._rows: list[dict] = []
-        self._last = time.monotonic()
+        self._lock = threading.Lock()
+        self._timer: threading.Timer | None = None
         self.parts = 0
 
     def add(self, row: dict) -> None:
-        self._rows.append(row)
-        if len(self._rows) >= self.flush_rows or time.monotonic() - self._last >= self.flush_s:
+        with self._lock:
+            self._rows.append(row)
+            full = len(self._rows) >= self.flush_rows
+            if not full and self._timer is None:
+                self._timer = threading.Timer(self.flush_s, self.flush)
+                self._timer.daemon = True
+                self._timer.start()
+        if full:
             self.flush()
 
     def flush(self) -> None:
-        self._last = time.monotonic()
-        if not self._rows:
-            return
-        table = pa.Table.from_pylist(self._rows, schema=SCHEMA)
-        name = f"part-{time.time_ns():020d}-{uuid.uuid4().hex[:8]}.parquet"
-        tmp = self.dir / f".{name}.tmp"
-        pq.write_table(table, tmp)
-        os.replace(tmp, self.dir / name)
-        self._rows.clear()
-        self.parts += 1
+        with self._lock:
+            if self._timer is not None:
+                self._timer.cancel()
+                self._timer = None
+            if not self._rows:
+                return
+            table = pa.Table.from_pylist(self._rows, schema=SCHEMA)
+            name = f"part-{time.time_ns():020d}-{uuid.uuid4().hex[:8]}.parquet"
+            tmp = self.dir / f".{name}.tmp"
+            pq.write_table(table, tmp)
+            os.replace(tmp, self.dir / name)
+            self._rows.clear()
+            self.parts += 1
 
     def __enter__(self) -> "ResultsWriter":
         return self

@@ -2,10 +2,12 @@
 
 A model that offers ``groups()`` (name → parameter names; ``registration`` is always fitted)
 is grown greedily (forward selection): starting from registration only, each round adds the
-group whose k-fold cross-validated RMS is lowest, and stops when no group lowers it by at least
-`min_gain` (relative).  Fewer data therefore never give a calibration worse out of sample than
-registration alone — the selection would keep registration only.  Each round's figures are kept
-so the result can say which groups were kept and why.
+group whose k-fold cross-validated RMS is lowest, if it lowers it by at least `min_gain`
+(relative) and the row-wise paired improvement is significant (one-sided, `z` standard errors);
+it stops when no group does.  Small campaigns then try single parameters of the groups not kept
+(screened by their linearised gain).  Thin data therefore keep registration only rather than a
+model that wins the cross-validation by chance.  Each round's figures are kept so the result can
+say which groups were kept and why.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pipeline.identify.model import MeasurementModel, Table
 MIN_GAIN = 0.02  # a group must lower the held-out RMS by 2 % to be kept
 SINGLE_MAX_RESIDUALS = 200  # small campaigns: then try single parameters of the groups not kept
 SINGLE_MAX_ROUNDS = 6
+Z_KEEP = 1.645  # one-sided 95 %: the paired held-out improvement must exceed 1.645 standard errors
 SINGLE_SCREEN = 5  # single parameters cross-validated per round: the best by linearised RSS reduction
 
 
@@ -45,46 +48,59 @@ def fixed_for(model: MeasurementModel, kept: list[str]) -> tuple[str, ...]:
 
 
 def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, options: FitOptions = FitOptions(),
-           min_gain: float = MIN_GAIN, groups_of_rows: np.ndarray | None = None) -> Selection:
-    """Forward selection of parameter groups by k-fold held-out RMS (see module docstring)."""
+           min_gain: float = MIN_GAIN, groups_of_rows: np.ndarray | None = None, z: float = Z_KEEP) -> Selection:
+    """Forward selection of parameter groups by k-fold held-out error (see module docstring).
+
+    A candidate is kept when it lowers the held-out RMS by `min_gain` AND the row-wise paired
+    improvement of the squared held-out errors is significant: its mean exceeds `z` standard
+    errors (one-sided).  On a few dozen rows a group can win the cross-validation by chance; the
+    paired test asks that the win be carried by the rows, not by one or two of them."""
     candidates = [g for g in model.groups() if g != "registration" and not g.startswith("_")]
     kept = ["registration"]
 
-    def score(groups: list[str]) -> float:
+    def errors(groups: list[str]) -> np.ndarray:
         opts = replace(options, fixed=tuple(set(options.fixed) | set(fixed_for(model, groups))))
-        return _rms(cross_validate(model, data, k=k, seed=seed, options=opts, groups=groups_of_rows))
+        r = cross_validate(model, data, k=k, seed=seed, options=opts, groups=groups_of_rows)
+        return np.nansum(r**2, axis=1)  # squared held-out error per row
 
-    best = score(kept)
-    reg = best
-    rounds: list[dict] = [{"candidate": "registration", "holdout_rms_m": best, "kept": True}]
-    while candidates:
-        trial = {g: score(kept + [g]) for g in candidates}
-        g = min(trial, key=trial.get)
-        ok = trial[g] < best * (1 - min_gain)
-        for c, s in trial.items():
-            rounds.append({"candidate": c, "holdout_rms_m": s, "kept": bool(ok and c == g),
-                           "against_m": best})
+    def rms(e: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(e) / model.residual_dim))
+
+    def better(e_new: np.ndarray, e_old: np.ndarray) -> bool:
+        d = e_old - e_new
+        se = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else np.inf
+        return rms(e_new) < rms(e_old) * (1 - min_gain) and float(d.mean()) > z * se
+
+    e_best = errors(kept)
+    reg = rms(e_best)
+    rounds: list[dict] = [{"candidate": "registration", "holdout_rms_m": reg, "kept": True}]
+
+    def grow(pool: list[str], label=lambda c: c) -> str | None:
+        nonlocal e_best
+        trial = {c: errors(kept + [c]) for c in pool}
+        c = min(trial, key=lambda c: rms(trial[c]))
+        ok = better(trial[c], e_best)
+        for c2, e in trial.items():
+            rounds.append({"candidate": label(c2), "holdout_rms_m": rms(e), "kept": bool(ok and c2 == c),
+                           "against_m": rms(e_best)})
         if not ok:
-            break
-        kept.append(g)
+            return None
+        kept.append(c)
+        e_best = trial[c]
+        return c
+
+    while candidates and (g := grow(candidates)) is not None:
         candidates.remove(g)
-        best = trial[g]
     # a small campaign may support a few parameters of a group but not the whole group
     n_res = len(next(iter(data.values()))) * model.residual_dim
     singles = [n for g in candidates for n in model.groups()[g]] if n_res <= SINGLE_MAX_RESIDUALS else []
     for _ in range(SINGLE_MAX_ROUNDS if singles else 0):
-        trial = {n: score(kept + [n]) for n in _screen(model, data, kept, singles, options)}
-        n = min(trial, key=trial.get)
-        if not trial[n] < best * (1 - min_gain):
-            rounds.append({"candidate": f"best single parameter {n}", "holdout_rms_m": trial[n], "kept": False,
-                           "against_m": best})
+        n = grow(_screen(model, data, kept, singles, options))
+        if n is None:
             break
-        rounds.append({"candidate": n, "holdout_rms_m": trial[n], "kept": True, "against_m": best})
-        kept.append(n)
         singles.remove(n)
-        best = trial[n]
     return Selection(kept=kept, fixed=fixed_for(model, kept), rounds=rounds, holdout_registration_m=reg,
-                     holdout_rms_m=best)
+                     holdout_rms_m=rms(e_best))
 
 
 def _screen(model: MeasurementModel, data: Table, kept: list[str], singles: list[str],

@@ -31,6 +31,8 @@ def fleet_cmd(
     rows = read_results(summary).to_pylist()
     if not rows:
         raise RobocalError(f"{summary}: the results dataset has no rows")
+    if out.suffix.lower() == ".json":
+        raise RobocalError(f"{out}: the page is HTML (fleet.json is written beside it); give e.g. fleet.html")
     if out.exists() and out.is_dir():
         raise RobocalError(f"{out}: is a folder (give the page's file name, e.g. fleet.html)")
     hs = fleet_history(rows, tolerance_m, alpha)

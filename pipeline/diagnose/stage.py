@@ -17,7 +17,7 @@ import numpy as np
 from pipeline.diagnose.diagnose import Settings
 
 NAME = "diagnose"
-SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner")
+SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner", "urdf")
 
 
 def settings_of(params: dict) -> Settings:
@@ -45,6 +45,17 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
         if x0 is not None and len(x0) != len(model.parameter_names()):
             x0 = None  # identify ran another model variant (joint offsets): start from the global search
         doc = diagnose(model, tab, x0=x0, settings=settings, adapter=dscan.adapter(model, tab))
+        doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
+        return doc
+    if detect(rec).SYSTEM == "urdf":
+        from pipeline.diagnose import urdf_robot as durdf
+
+        model, tab, _ = durdf.from_recording(rec)
+        if drop_records:
+            tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
+        if x0 is not None and len(x0) != len(model.parameter_names()):
+            x0 = None
+        doc = diagnose(model, tab, x0=x0, settings=settings, adapter=durdf.adapter(model, tab))
         doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
         return doc
     if detect(rec).SYSTEM == "delta-tracker":

@@ -1,0 +1,127 @@
+"""Diagnosis of a URDF robot with any generic measurement type (`pipeline.measurements`).
+
+What a URDF campaign lets robocal test without a robot-specific library: effects that act through
+a joint reading, whatever the measurement type —
+
+* ``joint_scale@J``: the joint reads (1 + s)·q (a gear-ratio or encoder-count error);
+* ``encoder_eccentricity@J`` (revolute joints): it reads q + a·sin q + b·cos q (a once-per-turn
+  error of an encoder mounted off-centre, or a bent shaft);
+
+and the lack-of-fit test against smooth functions of every joint reading and of the measurement
+order, which locates structure no term names.  Each effect's signature is the residual's
+derivative with respect to the joint reading (central differences of the model's own residuals,
+so it holds for points, poses, planes and coincidence alike) times the form of the error.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.diagnose import lack_of_fit
+from pipeline.diagnose.effects import Effect
+
+PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3}
+ADVICE = {
+    "joint_scale": "measure over a wider range of this joint's travel",
+    "encoder_eccentricity": "measure over at least half a turn of this joint, spread evenly",
+}
+_H = 1e-6  # rad or m: central-difference step of the joint-reading derivative
+
+
+def joint_derivative(model, x: np.ndarray, data) -> np.ndarray:
+    """d residual / d joint reading, (n, residual_dim, n_joints), by central differences."""
+    q = np.asarray(data["joint_positions"], float)
+    out = np.empty((q.shape[0], model.residual_dim, q.shape[1]))
+    for j in range(q.shape[1]):
+        dq = np.zeros_like(q)
+        dq[:, j] = _H
+        hi = model.residuals(x, {**data, "joint_positions": q + dq})
+        lo = model.residuals(x, {**data, "joint_positions": q - dq})
+        out[:, :, j] = (hi - lo) / (2 * _H)
+    return out
+
+
+def _rows(data) -> np.ndarray:
+    """Measurement rows (coincidence distance rows carry no joint reading)."""
+    n = len(data["joint_positions"])
+    return np.asarray(data.get("kind", np.zeros(n, int))) == 0
+
+
+def library(model, table) -> list[Effect]:
+    q = np.asarray(table["joint_positions"], float)
+    joints = model.kin.desc.movable
+    lib: list[Effect] = []
+    for j, jt in enumerate(joints):
+        lib.append(Effect("joint_scale", jt.name, (f"{jt.name}.scale",), ("1",), PLAUSIBLE["joint_scale"], "direct",
+                          ("scale", j), 30, f"q_{jt.name}", ADVICE["joint_scale"],
+                          data={"located": (f"{jt.name}", q[:, j])}))
+        if jt.type != "prismatic":
+            lib.append(Effect("encoder_eccentricity", jt.name, (f"{jt.name}.ecc_sin", f"{jt.name}.ecc_cos"),
+                              ("rad", "rad"), PLAUSIBLE["encoder_eccentricity"], "direct", ("eccentricity", j), 40,
+                              f"q_{jt.name}", ADVICE["encoder_eccentricity"],
+                              data={"located": (f"{jt.name} (rad)", q[:, j])}))
+    return lib
+
+
+def signatures(model, x: np.ndarray, data, effects) -> list[np.ndarray]:
+    """Signature (n, residual_dim, k_e) of each effect at parameters x, m per unit."""
+    if not effects:
+        return []
+    D = joint_derivative(model, x, data)
+    q = np.asarray(data["joint_positions"], float)
+    live = _rows(data)[:, None]
+    out = []
+    for e in effects:
+        kind, j = e.basis
+        g = D[:, :, j] * live
+        if kind == "scale":
+            out.append((g * q[:, j:j + 1])[:, :, None])
+        else:
+            out.append(np.stack([g * np.sin(q[:, j:j + 1]), g * np.cos(q[:, j:j + 1])], axis=2))
+    return out
+
+
+def variables(model, x: np.ndarray, table) -> list:
+    """Lack-of-fit variables: each joint reading (acting through d residual / d q) and the
+    measurement order (a drift, per residual axis)."""
+    q = np.asarray(table["joint_positions"], float)
+    n, k = q.shape[0], model.residual_dim
+    D = joint_derivative(model, x, table) * _rows(table)[:, None, None]
+    out = []
+    for j, name in enumerate(model.kin.joint_names):
+        v = lack_of_fit.smooth_variable(f"q_{name}", "rad", np.repeat(q[:, j], k), D[:, :, j].reshape(n * k, 1))
+        if v is not None:
+            out.append(v)
+    t = np.asarray(table["time_since_start_s"], float)
+    v = lack_of_fit.smooth_variable("time_since_start_s", "s", np.repeat(t, k), np.tile(np.eye(k), (n, 1)), K=6)
+    if v is not None:
+        out.append(v)
+    return out
+
+
+def adapter(model, table, held: tuple[str, ...] | None = None):
+    """`diagnose.Adapter`; the geometric baseline holds what the held-out model selection did not
+    keep (`pipeline.identify.complexity`; run here unless `held` is given), so the diagnosis starts
+    from the calibration robocal reports, not from a model the data do not support."""
+    from pipeline.diagnose.diagnose import Adapter
+    from pipeline.identify.complexity import select
+
+    if held is None:
+        held = select(model, table).fixed if model.groups() else ()
+    return Adapter(library=library(model, table), held=tuple(held),
+                   signatures=lambda x, data, effects: signatures(model, x, data, effects),
+                   variables=lambda x: variables(model, x, table),
+                   time_s=np.asarray(table["time_since_start_s"], float),
+                   located=lambda e: e.data.get("located"))
+
+
+def from_recording(rec):
+    """(model, diagnosis table, info) of a URDF recording: its measurements with the time since
+    the first one (the measurement order where a table came without times)."""
+    from pipeline.systems import urdf_robot
+
+    model, table = urdf_robot.load(rec)
+    t = np.asarray(table["timestamp_ns"], np.int64)
+    tab = dict(table)
+    tab["time_since_start_s"] = (t - t.min()) * 1e-9 if t.size else np.zeros(0)
+    return model, tab, {"system": urdf_robot.SYSTEM}

@@ -45,7 +45,7 @@ def test_reprocess_folder_passes_then_flags_a_regression_and_a_failing_recording
     assert p.returncode == 0, p.stdout + p.stderr
     rows = json.loads((out / "summary.json").read_text())["rows"]
     assert rows[0]["system"] == "arc-welder" and rows[0]["n_measurements"] == 40 and rows[0]["ok"]
-    assert (out / "summary.csv").read_text().startswith('"recording","system"')
+    assert (out / "summary.csv").read_text().startswith('"recording","robot_id","system"')
 
     expected["figures"]["rms_after_m"] = {"max": 1e-6}  # a result that no longer meets expectations
     (rec_dir / "good.expected.json").write_text(json.dumps(expected))
@@ -54,6 +54,10 @@ def test_reprocess_folder_passes_then_flags_a_regression_and_a_failing_recording
     p = run_cli("reprocess", rec_dir, "--out", out, "--core", "--workers", "2")
     assert p.returncode == 1
     rows = {r["recording"]: r for r in json.loads((out / "summary.json").read_text())["rows"]}
-    assert any("rms_after_m" in r for r in rows["good.mcap"]["regressions"])
-    assert rows["bad.mcap"]["status"].startswith("failed") and "joint_limits" in rows["bad.mcap"]["status"]
+    assert any("rms_after_m" in r for r in rows["good.mcap"]["regressions"])  # kept by resume, gated anew
+    from pipeline.fleet.dataset import read_results
+
+    latest = {r["recording"]: r for r in read_results(out).to_pylist()}
+    assert latest["good.mcap"]["regressions"] == rows["good.mcap"]["regressions"] and not latest["good.mcap"]["ok"]
+    assert rows["bad.mcap"]["status"] == "fail" and "joint_limits" in rows["bad.mcap"]["error"]
     assert not rows["bad.mcap"]["ok"]

@@ -1,53 +1,133 @@
-"""`robocal reprocess`: the pipeline over a folder of recordings, compared with expected figures."""
+"""`robocal reprocess`: an archive of recordings through the pipeline on Dask, results streamed to a
+Parquet dataset, compared with expected figures."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Optional
 
 import typer
 from rich.console import Console
+from rich.progress import (BarColumn, MofNCompleteColumn, Progress, ProgressColumn, TextColumn, TimeElapsedColumn,
+                           TimeRemainingColumn)
 from rich.table import Table
+from rich.text import Text
 
 from pipeline.cli import app, err
+
+MAX_TABLE_ROWS = 50
+
+
+class RateColumn(ProgressColumn):
+    """Recordings per second (rich's moving estimate)."""
+
+    def render(self, task) -> Text:
+        return Text("—/s" if not task.speed else f"{task.speed:.2f} rec/s", style="progress.data.speed")
 
 
 @app.command("reprocess")
 def reprocess_cmd(
-    folder: Path = typer.Argument(..., help="Folder of recordings (*.mcap), each optionally with <stem>.expected.json."),
-    out: Path = typer.Option(..., "--out", help="Output folder: one run folder per recording, summary.json/.csv."),
-    workers: Optional[int] = typer.Option(None, "--workers", min=1, help="Parallel processes (default: CPU count)."),
+    archive: Path = typer.Argument(..., help="Archive folder: recordings found recursively (see --pattern), each "
+                                   "optionally with <stem>.expected.json beside it."),
+    out: Path = typer.Option(..., "--out", help="Output folder: results/ (Parquet dataset, one row per recording, "
+                             "written as tasks complete), runs/<path>/ (one run folder per recording), "
+                             "summary.json/.csv."),
+    pattern: list[str] = typer.Option([], "--pattern", help="Glob over paths relative to ARCHIVE (repeatable; "
+                                      "default **/*.mcap). Symlinks are followed only inside the archive."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Existing Dask scheduler, tcp://HOST:PORT "
+                                            "(its workers must see ARCHIVE and --out at the same paths). Default: "
+                                            "a local cluster of --workers processes."),
+    workers: Optional[int] = typer.Option(None, "--workers", min=1, help="Local workers (default: CPU count)."),
+    engine: str = typer.Option("dask", "--engine", help="dask (default), processes (a local process pool) or "
+                               "serial (in this process)."),
     core: bool = typer.Option(False, "--core", help="Only ingest, validate, identify, observe (no diagnose/report)."),
+    stages_opt: str = typer.Option("", "--stages", help="Comma-separated stages to run instead (e.g. "
+                                   "ingest,validate,identify: enough for the fleet history)."),
+    robot_id: Optional[str] = typer.Option(None, "--robot-id", help="Robot identity for every recording (overrides "
+                                           "the campaign metadata's robot_id)."),
+    resume: bool = typer.Option(True, "--resume/--no-resume", help="Skip recordings already in OUT/results with the "
+                                "same input hash, robocal version and options."),
+    allowed_failures: Optional[int] = typer.Option(None, "--allowed-failures", min=0, help="Local cluster: times a "
+                                                   "task may lose its worker before it is recorded as lost "
+                                                   "(Dask's distributed.scheduler.allowed-failures, default 3)."),
 ) -> None:
-    """Run every recording of FOLDER through the pipeline in parallel; exit 1 on any regression."""
+    """Reprocess every recording of ARCHIVE; exit 1 on any regression or failed recording."""
     from pipeline.errors import RobocalError
-    from pipeline.stages.reprocess import reprocess, write_summary
+    from pipeline.fleet.engine import CORE_STAGES, ENGINES, reprocess_archive
+    from pipeline.stages.reprocess import write_summary
 
-    if not folder.is_dir():
-        raise RobocalError(f"{folder}: not a folder")
-    stages = ["ingest", "validate", "identify", "observe"] if core else None
-    with err.status(f"reprocessing {folder}…"):
-        rows = reprocess(folder, out, workers, stages)
+    if not archive.is_dir():
+        raise RobocalError(f"{archive}: not a folder")
+    if engine not in ENGINES:
+        raise RobocalError(f"--engine {engine}: not one of {', '.join(ENGINES)}")
+    if scheduler and engine != "dask":
+        raise RobocalError("--scheduler needs --engine dask")
+    stages = [s.strip() for s in stages_opt.split(",") if s.strip()] or (CORE_STAGES if core else None)
+    from pipeline.stages.registry import BY_NAME
+
+    unknown = [s for s in stages or [] if s not in BY_NAME]
+    if unknown:
+        raise RobocalError(f"--stages: unknown stage(s) {', '.join(unknown)} (stages: {', '.join(BY_NAME)})")
+    counts = {"ok": 0, "failed": 0, "regressed": 0, "skipped": 0}
+    progress = Progress(TextColumn("[bold]reprocess"), BarColumn(), MofNCompleteColumn(),
+                        TextColumn("[green]{task.fields[ok]} ok[/] [red]{task.fields[failed]} failed[/] "
+                                   "[yellow]{task.fields[regressed]} regressed[/] {task.fields[skipped]} done before"),
+                        RateColumn(), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+                        console=err if err.is_terminal else Console(stderr=True, width=160), transient=False)
+    bar = None
+
+    def on_plan(n_todo: int, n_kept: int) -> None:
+        nonlocal bar
+        counts["skipped"] = n_kept
+        bar = progress.add_task("reprocess", total=n_todo, **counts)
+
+    def on_row(row: dict) -> None:
+        key = "failed" if row["status"] in ("fail", "error", "crash", "lost") else "regressed" \
+            if row["regressions"] else "ok"
+        counts[key] += 1
+        progress.update(bar, advance=1, **counts)
+
+    def on_start(client) -> None:
+        n = len(client.scheduler_info().get("workers", {}))
+        progress.console.print(f"Dask scheduler {client.scheduler.address}: {n} worker(s)", highlight=False)
+
+    with progress:
+        res = reprocess_archive(archive, out, patterns=tuple(pattern) or ("**/*.mcap",), stages=stages,
+                                robot_id=robot_id, engine=engine, workers=workers, scheduler=scheduler,
+                                allowed_failures=allowed_failures, resume=resume, on_plan=on_plan, on_row=on_row,
+                                on_start=on_start)
+    rows = res.all_rows
+    for s in res.skipped_paths:
+        err.print(f"[yellow]skipped[/] {s}", highlight=False)
     if not rows:
-        raise RobocalError(f"{folder}: no recordings (*.mcap)")
+        raise RobocalError(f"{archive}: no recordings (patterns {', '.join(pattern) or '**/*.mcap'})")
     write_summary(rows, out)
-    mm = lambda v: "—" if v is None else f"{v * 1e3:.4f}"  # noqa: E731
-    t = Table(title=f"robocal reprocess — {folder}")
-    for c in ("recording", "system", "meas.", "RMS before mm", "RMS after mm", "held-out mm", "identifiable",
-              "status", "vs expected"):
-        t.add_column(c)
-    for r in rows:
-        verdict = ("[green]ok[/]" if not r["regressions"] else "[red]" + "; ".join(r["regressions"]) + "[/]") \
-            if r["expected"] else "[yellow]no expected figures[/]"
-        t.add_row(r["recording"], str(r.get("system") or "—"), str(r.get("n_measurements") or "—"),
-                  mm(r.get("rms_before_m")), mm(r.get("rms_after_m")), mm(r.get("holdout_rms_m")),
-                  str(r.get("n_identifiable") or "—"), str(r.get("status")), verdict)
-    import sys
-
-    Console(width=None if sys.stdout.isatty() else 160).print(t)
+    _print_table(archive, rows)
     bad = [r for r in rows if not r["ok"]]
-    err.print(f"summary: {out / 'summary.csv'}")
+    err.print(f"results: {out / 'results'} (Parquet dataset), summary: {out / 'summary.csv'}")
     if bad:
         err.print(f"[bold red]{len(bad)} of {len(rows)} recording(s) regressed or failed[/]")
         raise typer.Exit(1)
     err.print(f"[green]all {len(rows)} recording(s) as expected[/]")
+
+
+def _print_table(archive: Path, rows: list[dict]) -> None:
+    mm = lambda v: "—" if v is None else f"{v * 1e3:.4f}"  # noqa: E731
+    shown = rows if len(rows) <= MAX_TABLE_ROWS else [r for r in rows if not r["ok"]][:MAX_TABLE_ROWS]
+    if not shown:
+        return
+    title = f"robocal reprocess — {archive}" + ("" if shown is rows else
+                                               f" ({len(shown)} of {len(rows)} shown: the failed or regressed)")
+    t = Table(title=title)
+    for c in ("recording", "robot", "system", "meas.", "RMS before mm", "RMS after mm", "held-out mm",
+              "identifiable", "status", "vs expected"):
+        t.add_column(c)
+    for r in shown:
+        verdict = ("[green]ok[/]" if not r["regressions"] else "[red]" + "; ".join(r["regressions"]) + "[/]") \
+            if r["expected"] else "[yellow]no expected figures[/]"
+        status = str(r.get("status")) + (f": {r['error']}" if r.get("error") else "")
+        t.add_row(r["recording"], str(r.get("robot_id") or "—"), str(r.get("system") or "—"),
+                  str(r.get("n_measurements") or "—"), mm(r.get("rms_before_m")), mm(r.get("rms_after_m")),
+                  mm(r.get("holdout_rms_m")), str(r.get("n_identifiable") or "—"), status, verdict)
+    Console(width=None if sys.stdout.isatty() else 160).print(t)

@@ -26,6 +26,7 @@ def scorbot_scanner_cmd(
                                      "joint_offset@J1..J5 rad, joint_scale@J1..J5). Repeatable; goes to TRUTH.json only."),
     capture_speed: float = typer.Option(0.0, "--capture-speed", min=0.0, help="Joint speed (rad/s) of a sweep through each pose during the capture (exposes a camera time offset)."),
     spread: bool = typer.Option(False, "--spread", help="Stripe rows over 10-90 %% of the image and crossings spread along the stripe (exposes lens distortion)."),
+    robot_id: str = typer.Option("sim-scorbot-scanner", "--robot-id", help="Robot identity written to the campaign metadata."),
 ) -> None:
     """Laser-stripe scanner on a SCORBOT-ER VII (seed 001): stripe crossings of a printed 30 mm grid."""
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
@@ -61,7 +62,8 @@ def scorbot_scanner_cmd(
             raise RuntimeError("no usable random scanner truth in 50 draws")
     lo, hi = sc.bounds()
     meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: pattern.to_dict(),
-            META_CAMPAIGN: {"system": sc.SYSTEM, "simulated": True, "poses": poses, "corners_per_pose": corners},
+            META_CAMPAIGN: {"system": sc.SYSTEM, "simulated": True, "poses": poses, "corners_per_pose": corners,
+                           "robot_id": robot_id},
             sc.META_SCANNER: {"image_width_px": sc.IMAGE_SIZE_PX[0], "image_height_px": sc.IMAGE_SIZE_PX[1],
                               "bounds": {n: [float(a), float(b)] for n, a, b in zip(sc.cam.SCANNER_NAMES, lo, hi)},
                               "nominal": {n: float(v) for n, v in zip(sc.cam.SCANNER_NAMES, sc.nominal_scanner())},

@@ -34,6 +34,9 @@ def arc_welder_cmd(
                                             "(1 Hz, 0.05 K noise) on /arm/temperature."),
     dwell_s: float = typer.Option(None, "--dwell-s", min=0.0, help="Campaign: dwell (s) at the approach pose and at "
                                   "each contact (default 0.2); longer dwells make a longer campaign (warm-up)."),
+    robot_id: str = typer.Option("sim-arc-welder", "--robot-id", help="Robot identity written to the campaign metadata."),
+    start: str = typer.Option("", "--start", help="Campaign start, ISO 8601 UTC (e.g. 2026-07-01T08:00:00Z); "
+                              "default 2026-01-01T00:00:00Z."),
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
     from pipeline.models.jig import stepped_block
@@ -47,18 +50,34 @@ def arc_welder_cmd(
         noise = Noise(repeatability_3sigma_m=repeatability, scale=noise_scale)
     if dwell_s is not None:
         campaign = replace(campaign, dwell_s=dwell_s)
+    if start:
+        campaign = replace(campaign, start_ns=_start_ns(start))
     jig = stepped_block()
     thermal = (warm_up, temperature_sensor)
     if (effect or payloads or search_speeds or face_order != "shuffled" or warm_up or temperature_sensor
             or payload_pairs):
         _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
-                      thermal, payload_pairs)  # the effects simulator (issue 7)
+                      thermal, payload_pairs, robot_id)  # the effects simulator (issue 7)
         return
     with err.status(f"simulating {contacts} contacts…"):
         sim = simulate(nominal, true, jig, campaign, noise)
-    _write(out, truth, nominal, jig, campaign, sim, truth_document(true, noise, campaign, sim), {})
+    _write(out, truth, nominal, jig, campaign, sim, truth_document(true, noise, campaign, sim), {"robot_id": robot_id})
     err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.contact_t_ns.size} contacts; "
               f"injected noise RMS {sim.injected_noise_rms_m * 1e3:.4f} mm)")
+
+
+def _start_ns(text: str) -> int:
+    """ISO 8601 (naive = UTC) → ns since the Unix epoch."""
+    from datetime import datetime, timezone
+
+    from pipeline.errors import RobocalError
+
+    try:
+        t = datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        raise RobocalError(f"--start {text!r}: not an ISO 8601 time (e.g. 2026-07-01T08:00:00Z)") from None
+    t = t if t.tzinfo else t.replace(tzinfo=timezone.utc)
+    return int(t.timestamp()) * 1_000_000_000 + t.microsecond * 1000
 
 
 def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc: dict, campaign_meta: dict,
@@ -82,7 +101,8 @@ def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc
 
 
 def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
-                  thermal_opts: tuple[str, bool] = ("", False), payload_pairs: bool = False) -> None:
+                  thermal_opts: tuple[str, bool] = ("", False), payload_pairs: bool = False,
+                  robot_id: str = "sim-arc-welder") -> None:
     """Campaign with concealed effects and campaign variations (`pipeline.simulate.effects`)."""
     from pipeline.errors import RobocalError
     from pipeline.simulate import effects as se
@@ -112,6 +132,6 @@ def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, paylo
         raise RobocalError(str(e)) from None
     sim = es.sim
     _write(out, truth, nominal, jig, campaign, sim, truth_document(true, noise, campaign, sim) | se.truth_effects(es),
-           se.campaign_metadata(es, campaign), es.temperature.messages() if es.temperature is not None else ())
+           se.campaign_metadata(es, campaign) | {"robot_id": robot_id}, es.temperature.messages() if es.temperature is not None else ())
     err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.contact_t_ns.size} contacts, "
               f"{len(injected)} concealed effect(s))")

@@ -229,7 +229,7 @@ def recording_metadata(delta: Delta, campaign: Campaign, noise: Noise) -> dict[s
         META_FIXTURE: {"kind": "laser_tracker", "reflector_offset_m": H_NOMINAL,
                        "note": "reflector (SMR centre) sits reflector_offset_m below the platform point P "
                                "along the platform's w axis (seed 003 eq. 13)"},
-        META_CAMPAIGN: {"system": "delta-tracker", "simulated": True,
+        META_CAMPAIGN: {"system": "delta-tracker", "simulated": True, "robot_id": "sim-delta-tracker",
                         "grid": list(campaign.grid), "spacing_m": list(campaign.spacing_m),
                         "center_m": list(campaign.center_m), "random_points": campaign.points,
                         "controller_rate_hz": campaign.rate_hz, "settle_s": campaign.settle_s,

@@ -1,0 +1,118 @@
+"""Reprocess throughput: the same archive of small recordings in-process (serial), on a local process
+pool and on Dask (LocalCluster), side by side; Dask's overhead per recording.
+
+    python benchmarks/bench_reprocess.py [--recordings 200] [--contacts 12] [--workers 2] [--stages ingest,validate,identify]
+
+Each recording is the bundled arc-welder campaign cut to its first CONTACTS contacts (copied to
+RECORDINGS paths of a nested archive; each copy is a separate run).  Overhead per recording =
+(wall × workers − Σ task wall times) / recordings, the time a worker slot spends outside a task
+(scheduling, transfer, writing the dataset, idling at the end, and on a busy machine the CPU taken
+by the engine's own threads); Dask's is given with and without the cluster's start-up, and its own
+per-task cost is probed with tasks that only sleep (no CPU contention).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from pipeline.fleet.engine import reprocess_archive  # noqa: E402
+from pipeline.recording.reader import read_recording  # noqa: E402
+from pipeline.recording.writer import RecordingWriter  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+JS, TC = "/robot/joint_state", "/touch/contact"
+
+
+def small_recording(path: Path, contacts: int) -> None:
+    rec = read_recording(ROOT / "recordings" / "arc-welder-touch.mcap")
+    cs = rec.messages[TC][:contacts]
+    t_end = cs[-1]["timestamp_ns"] + 1_000_000_000
+    msgs = [(JS, m) for m in rec.messages[JS] if m["timestamp_ns"] <= t_end] + [(TC, m) for m in cs]
+    msgs.sort(key=lambda x: x[1]["timestamp_ns"])
+    with RecordingWriter(path) as w:
+        for k, v in rec.metadata.items():
+            w.metadata(k, v)
+        for topic, m in msgs:
+            w.write(topic, m)
+
+
+def _sleep(seconds: float) -> float:
+    t = time.perf_counter()
+    time.sleep(seconds)
+    return time.perf_counter() - t
+
+
+def scheduling_probe(workers: int, n: int = 40, seconds: float = 0.5) -> float:
+    """Dask's own cost per task, without CPU contention: tasks that sleep (s per task)."""
+    from distributed import as_completed
+
+    from pipeline.fleet.engine import dask_client
+
+    with dask_client(None, workers, None) as client:
+        client.submit(_sleep, 0.0, pure=False).result()  # workers warm
+        t0 = time.perf_counter()
+        futs = [client.submit(_sleep, seconds, pure=False) for _ in range(n)]
+        busy = sum(f.result() for f in as_completed(futs))
+        return (time.perf_counter() - t0) * workers / n - busy / n
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--recordings", type=int, default=200)
+    ap.add_argument("--contacts", type=int, default=12)
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--stages", default="ingest,validate,identify")
+    ap.add_argument("--engines", default="serial,processes,dask")
+    ap.add_argument("--probe", type=int, default=40, help="sleep tasks (0.5 s) for Dask's own per-task cost; 0: none")
+    a = ap.parse_args()
+    stages = a.stages.split(",")
+    with tempfile.TemporaryDirectory(prefix="bench-reprocess-") as tmp:
+        tmp = Path(tmp)
+        first = tmp / "archive" / "robot-000" / "m00.mcap"
+        first.parent.mkdir(parents=True)
+        small_recording(first, a.contacts)
+        for i in range(1, a.recordings):
+            p = tmp / "archive" / f"robot-{i // 12:03d}" / f"m{i % 12:02d}.mcap"
+            p.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(first, p)
+        print(f"{a.recordings} recordings of {a.contacts} contacts ({first.stat().st_size / 1e6:.2f} MB each), "
+              f"stages {a.stages}, {a.workers} worker(s), load {os.getloadavg()[0]:.1f}")
+        print(f"{'engine':<10} {'wall s':>8} {'rec/s':>7} {'task s':>7} {'overhead/rec s':>15} {'% of task':>9} "
+              f"{'after start-up':>15}")
+        for engine in a.engines.split(","):
+            out = tmp / f"out-{engine}"
+            started: list[float] = []
+            t0 = time.perf_counter()
+            res = reprocess_archive(tmp / "archive", out, stages=stages, engine=engine, workers=a.workers,
+                                    on_start=lambda c: started.append(time.perf_counter()))
+            wall = time.perf_counter() - t0
+            rows = res.rows
+            assert len(rows) == a.recordings and all(r["status"] not in ("error", "crash", "lost") for r in rows)
+            w = 1 if engine == "serial" else a.workers
+            task = sum(r["elapsed_s"] for r in rows)
+            over = (wall * w - task) / len(rows)
+            mean = task / len(rows)
+            after = ""
+            if started:
+                wall2 = time.perf_counter() - started[0]
+                over2 = (wall2 * w - task) / len(rows)
+                after = f"{over2:.3f} s ({100 * over2 / mean:.1f} %)"
+            print(f"{engine:<10} {wall:8.1f} {len(rows) / wall:7.2f} {mean:7.3f} {over:15.3f} {100 * over / mean:8.1f}% "
+                  f"{after:>15}")
+            shutil.rmtree(out)
+    if a.probe:
+        per = scheduling_probe(a.workers, a.probe)
+        print(f"Dask's own cost per task (LocalCluster, {a.probe} tasks sleeping 0.5 s): {per * 1e3:.1f} ms "
+              f"({100 * per / 0.5:.1f} % of 0.5 s)")
+
+
+if __name__ == "__main__":
+    main()

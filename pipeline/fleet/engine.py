@@ -1,0 +1,181 @@
+"""Reprocess an archive: discover, skip what is done (input hash + version), run the rest on Dask
+(a LocalCluster by default, or an existing scheduler), a process pool or in-process, and stream
+each row to the results dataset as it completes."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed as pool_completed
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pipeline import __version__
+from pipeline.errors import RobocalError
+from pipeline.fleet.dataset import ResultsWriter, done_keys
+from pipeline.fleet.discover import DEFAULT_PATTERNS, Found, discover
+from pipeline.fleet.rows import code_version, gate, lost_row, reprocess_one
+
+ENGINES = ("dask", "processes", "serial")
+CORE_STAGES = ["ingest", "validate", "identify", "observe"]
+SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+@dataclass
+class Task:
+    found: Found
+    sha256: str
+    nbytes: int
+    run_dir: Path
+
+    def args(self, stages: list[str] | None, robot_id: str | None, config: str) -> tuple:
+        return (str(self.found.path.resolve()), self.found.rel, self.sha256, self.nbytes, str(self.run_dir),
+                stages, robot_id, config)
+
+
+@dataclass
+class Outcome:
+    rows: list[dict] = field(default_factory=list)      # rows computed by this run
+    kept: list[dict] = field(default_factory=list)      # rows of a previous run, skipped (resume)
+    skipped_paths: list[str] = field(default_factory=list)  # symlinks out of the archive, loops
+
+    @property
+    def all_rows(self) -> list[dict]:
+        return sorted(self.rows + self.kept, key=lambda r: r["recording"])
+
+
+def config_of(stages: list[str] | None, robot_id: str | None) -> str:
+    return json.dumps({"stages": stages or "all", "robot_id": robot_id}, sort_keys=True)
+
+
+def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot_id=None,
+         resume: bool = True) -> tuple[list[Task], list[dict], list[str]]:
+    """(tasks to run, rows kept from a previous run, paths skipped by discovery)."""
+    from pipeline.stages.artefacts import sha256_file
+
+    found, skipped = discover(archive, patterns)
+    done = done_keys(out) if resume else {}
+    config, code = config_of(stages, robot_id), code_version()
+    tasks, kept = [], []
+    for f in found:
+        try:
+            sha, nbytes = sha256_file(f.path), f.path.stat().st_size
+        except OSError as e:  # unreadable: its row says so, the others run
+            row = lost_row(str(f.path), f.rel, "", 0, str(Path(out) / "runs" / f.run_name), config,
+                           f"{f.path}: cannot be read ({e.strerror})")
+            kept.append(row | {"status": "error", "_regated": True})
+            continue
+        prev = done.get((f.rel, sha, __version__, code, config))
+        if prev is not None:
+            before = (prev["expected"], list(prev["regressions"] or []), prev["ok"])
+            gate(prev, f.path)  # the expected figures may have changed since
+            prev["_regated"] = before != (prev["expected"], prev["regressions"], prev["ok"])
+            kept.append(prev)
+        else:
+            tasks.append(Task(f, sha, nbytes, Path(out) / "runs" / f.run_name))
+    return tasks, kept, skipped
+
+
+@contextmanager
+def dask_client(scheduler: str | None, workers: int | None, allowed_failures: int | None) -> Iterator:
+    """A `distributed.Client`: to `scheduler` (tcp://HOST:PORT), else to a new LocalCluster of
+    `workers` single-threaded worker processes (default: the CPU count)."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    cfg = {} if allowed_failures is None else {"distributed.scheduler.allowed-failures": allowed_failures}
+    with dask.config.set(cfg):
+        if scheduler:
+            try:
+                client = Client(scheduler, timeout="10s")
+            except (OSError, TimeoutError) as e:
+                raise RobocalError(f"{scheduler}: no Dask scheduler answered ({e})") from None
+            with client:
+                try:
+                    client.wait_for_workers(1, timeout=60)
+                except TimeoutError:
+                    raise RobocalError(f"{scheduler}: the Dask scheduler has no workers (waited 60 s)") from None
+                yield client
+            return
+        n = workers or os.cpu_count() or 1
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                          scheduler_port=0, silence_logs=logging.ERROR, env=SINGLE_THREADED) as cluster, \
+                Client(cluster) as client:
+            yield client
+
+
+def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "dask", workers: int | None = None,
+              scheduler: str | None = None, allowed_failures: int | None = None,
+              on_start: Callable[[object], None] | None = None) -> Iterator[dict]:
+    """Yield each task's row as it completes (any order)."""
+    if not tasks:
+        return
+    if engine == "serial":
+        for t in tasks:
+            yield reprocess_one(*t.args(stages, robot_id, config))
+        return
+    if engine == "processes":
+        n = max(1, min(len(tasks), workers or os.cpu_count() or 1))
+        with ProcessPoolExecutor(max_workers=n) as pool:
+            futs = {pool.submit(reprocess_one, *t.args(stages, robot_id, config)): t for t in tasks}
+            for fut in pool_completed(futs):
+                t = futs[fut]
+                try:
+                    yield fut.result()
+                except Exception as e:  # noqa: BLE001 — a dead pool process: the row says so
+                    yield lost_row(str(t.found.path), t.found.rel, t.sha256, t.nbytes, str(t.run_dir), config,
+                                   f"worker process died: {type(e).__name__}: {e}")
+        return
+    if engine != "dask":
+        raise RobocalError(f"unknown engine {engine!r} (one of {', '.join(ENGINES)})")
+    from distributed import as_completed
+
+    with dask_client(scheduler, workers, allowed_failures) as client:
+        if on_start:
+            on_start(client)
+        futs, by_key = [], {}
+        for i, t in enumerate(tasks):
+            fut = client.submit(reprocess_one, *t.args(stages, robot_id, config), pure=False,
+                                key=f"robocal-reprocess-{i}-{t.sha256[:16]}")
+            futs.append(fut)
+            by_key[fut.key] = t
+        for fut in as_completed(futs):
+            t = by_key[fut.key]
+            try:
+                row = fut.result()
+            except Exception as e:  # noqa: BLE001 — KilledWorker after Dask's retries, or a lost task
+                reason = f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}".rstrip(": ")
+                row = lost_row(str(t.found.path), t.found.rel, t.sha256, t.nbytes, str(t.run_dir), config,
+                               f"worker died: {reason}")
+            fut.release()
+            yield row
+
+
+def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, stages: list[str] | None = None,
+                      robot_id: str | None = None, engine: str = "dask", workers: int | None = None,
+                      scheduler: str | None = None, allowed_failures: int | None = None, resume: bool = True,
+                      flush_s: float = 2.0, on_plan: Callable[[int, int], None] | None = None,
+                      on_row: Callable[[dict], None] | None = None,
+                      on_start: Callable[[object], None] | None = None) -> Outcome:
+    """The whole run: rows written to `out/results/` as they complete; returns them all."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    tasks, kept, skipped = plan(archive, out, patterns, stages, robot_id, resume)
+    if on_plan:
+        on_plan(len(tasks), len(kept))
+    res = Outcome(kept=kept, skipped_paths=skipped)
+    config = config_of(stages, robot_id)
+    with ResultsWriter(out, flush_s=flush_s) as w:
+        for row in kept:
+            if row.pop("_regated"):
+                w.add(row)  # a new verdict on an old result: the dataset says so too
+        for row in run_tasks(tasks, stages, robot_id, config, engine, workers, scheduler, allowed_failures,
+                             on_start):
+            w.add(row)
+            res.rows.append(row)
+            if on_row:
+                on_row(row)
+    return res

@@ -1,0 +1,194 @@
+"""Each robot's calibrations over time (functional core of `robocal fleet`): parameter series with σ,
+steps between consecutive calibrations, trends (drift), accuracy against a tolerance, and the
+recordings that failed or were insufficient.
+
+Steps: |x_k − x_{k−1}| > c·√(σ_k² + σ_{k−1}²), with c = max(3, t quantile at α/(2m)) — 3σ, raised by
+Bonferroni over the robot's m comparisons (family α per robot, default 1 %) and by Student's t with the
+Welch–Satterthwaite degrees of freedom of the two σ (each σ is estimated from that fit's residuals).
+Trends: weighted least squares of each parameter on time with one level per segment between flagged
+steps of that parameter; the slope's standard error scaled by the Birge ratio √(χ²/dof) when above 1;
+flagged when |slope/se| exceeds the t quantile at α/(2P) (P parameters tested for the robot).
+"""
+
+from __future__ import annotations
+
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+FAILED = ("fail", "error", "crash", "lost")
+NS_PER_YEAR = 365.25 * 86400e9
+UNKNOWN = "(no robot id)"
+
+
+@dataclass
+class Series:
+    """One parameter of one robot over its usable calibrations (SI units)."""
+
+    name: str
+    unit: str
+    t_ns: np.ndarray
+    estimate: np.ndarray
+    std: np.ndarray
+    dof: np.ndarray  # residual degrees of freedom of each σ (inf when unknown)
+    recordings: list[str]
+
+
+@dataclass
+class RobotHistory:
+    robot_id: str
+    rows: list[dict]                      # every row of the robot, in campaign-time order
+    usable: list[dict]                    # rows the series are built from
+    series: dict[str, Series] = field(default_factory=dict)
+    steps: list[dict] = field(default_factory=list)
+    trends: list[dict] = field(default_factory=list)
+    tolerance: list[dict] = field(default_factory=list)
+    failed: list[dict] = field(default_factory=list)
+    insufficient: list[dict] = field(default_factory=list)
+
+    @property
+    def flagged(self) -> bool:
+        return bool(self.steps or self.trends or self.tolerance)
+
+
+def insufficiency(row: dict, usual_identifiable: int | None) -> str | None:
+    """Why a completed calibration cannot enter the history, or None: no time or parameters, or fewer
+    than 90 % of the robot's usual number of identifiable parameters (a campaign that does not
+    determine the model).  A parameter fixed in one calibration only drops out of that comparison."""
+    if row.get("campaign_start_ns") is None:
+        return "no campaign time"
+    if not row.get("parameters"):
+        return "no parameters"
+    if usual_identifiable is not None and (row.get("n_identifiable") or 0) < 0.9 * usual_identifiable:
+        return f"{row.get('n_identifiable')} identifiable parameters, {usual_identifiable} usually: the campaign " \
+               "does not determine the robot's model"
+    if (row.get("residual_dof") or 0) < 1:
+        return "no residual degrees of freedom"
+    return None
+
+
+def build_series(rows: list[dict]) -> dict[str, Series]:
+    names: dict[str, str] = {}
+    for r in rows:
+        for p in r["parameters"]:
+            if p["identifiable"] and p.get("std") is not None and np.isfinite(p["std"]):
+                names.setdefault(p["name"], p["unit"])
+    out = {}
+    for name, unit in names.items():
+        t, x, s, d, rec = [], [], [], [], []
+        for r in rows:
+            p = next((p for p in r["parameters"] if p["name"] == name), None)
+            if p is None or not p["identifiable"] or p.get("std") is None or not np.isfinite(p["std"]):
+                continue
+            t.append(r["campaign_start_ns"])
+            x.append(p["estimate"])
+            s.append(p["std"])
+            d.append(r.get("residual_dof") or np.inf)
+            rec.append(r["recording"])
+        out[name] = Series(name, unit, np.asarray(t, np.int64), np.asarray(x, float), np.asarray(s, float),
+                           np.asarray(d, float), rec)
+    return out
+
+
+def welch_dof(s1: np.ndarray, n1: np.ndarray, s2: np.ndarray, n2: np.ndarray) -> np.ndarray:
+    """Welch–Satterthwaite degrees of freedom of √(s1² + s2²)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = (s1**2 + s2**2) ** 2 / (s1**4 / n1 + s2**4 / n2)
+    return np.where(np.isfinite(v), v, np.inf)
+
+
+def find_steps(series: dict[str, Series], alpha: float = 0.01) -> list[dict]:
+    """Moves between consecutive calibrations beyond the threshold (module docstring)."""
+    m = sum(max(0, s.estimate.size - 1) for s in series.values())
+    if m == 0:
+        return []
+    p = alpha / (2 * m)
+    steps = []
+    for s in series.values():
+        if s.estimate.size < 2:
+            continue
+        d = np.diff(s.estimate)
+        sd = np.hypot(s.std[1:], s.std[:-1])
+        nu = welch_dof(s.std[1:], s.dof[1:], s.std[:-1], s.dof[:-1])
+        crit = np.maximum(3.0, np.where(np.isfinite(nu), stats.t.isf(p, np.where(np.isfinite(nu), nu, 1)),
+                                        stats.norm.isf(p)))
+        z = d / sd
+        for k in np.flatnonzero(np.abs(z) > crit):
+            steps.append({"param": s.name, "unit": s.unit, "index": int(k + 1), "t_ns": int(s.t_ns[k + 1]),
+                          "from_t_ns": int(s.t_ns[k]), "recording": s.recordings[k + 1], "delta": float(d[k]),
+                          "sigma": float(sd[k]), "z": float(z[k]), "threshold": float(crit[k])})
+    return steps
+
+
+def fit_trend(s: Series, step_indices: list[int]) -> dict | None:
+    """Weighted LS: one level per segment (split at `step_indices`), one slope (per year)."""
+    n = s.estimate.size
+    seg = np.searchsorted(np.asarray(sorted(step_indices), int), np.arange(n), side="right")
+    n_seg = int(seg.max()) + 1 if n else 0
+    dof = n - n_seg - 1
+    if dof < 2:
+        return None
+    ty = (s.t_ns - s.t_ns[0]) / NS_PER_YEAR
+    A = np.zeros((n, n_seg + 1))
+    A[np.arange(n), seg] = 1.0
+    A[:, -1] = ty
+    w = 1.0 / s.std
+    Aw, yw = A * w[:, None], s.estimate * w
+    coef, *_ = np.linalg.lstsq(Aw, yw, rcond=None)
+    cov = np.linalg.pinv(Aw.T @ Aw)
+    chi2 = float(np.sum((yw - Aw @ coef) ** 2))
+    birge = max(1.0, chi2 / dof)
+    se = float(np.sqrt(cov[-1, -1] * birge))
+    return {"param": s.name, "unit": s.unit, "slope_per_year": float(coef[-1]), "se_per_year": se,
+            "z": float(coef[-1] / se) if se > 0 else 0.0, "dof": dof, "chi2_dof": chi2 / dof,
+            "levels": coef[:-1].tolist(), "segments": seg.tolist()}
+
+
+def find_trends(series: dict[str, Series], steps: list[dict], alpha: float = 0.01) -> list[dict]:
+    fits = []
+    for s in series.values():
+        f = fit_trend(s, [st["index"] for st in steps if st["param"] == s.name])
+        if f is not None:
+            fits.append(f)
+    if not fits:
+        return []
+    p = alpha / (2 * len(fits))
+    out = []
+    for f in fits:
+        crit = float(stats.t.isf(p, f["dof"]))
+        if abs(f["z"]) > crit:
+            out.append(f | {"threshold": crit})
+    return out
+
+
+def robot_history(robot_id: str, rows: list[dict], tolerance_m: float | None, alpha: float = 0.01) -> RobotHistory:
+    rows = sorted(rows, key=lambda r: (r.get("campaign_start_ns") is None, r.get("campaign_start_ns") or 0,
+                                       r["recording"]))
+    h = RobotHistory(robot_id, rows, [])
+    done = [r for r in rows if r.get("status") not in FAILED]
+    h.failed = [r for r in rows if r.get("status") in FAILED]
+    counts = Counter(r.get("n_identifiable") for r in done if r.get("parameters"))
+    usual = max(counts, key=lambda k: (counts[k], k or 0)) if counts else None
+    for r in done:
+        why = insufficiency(r, usual)
+        if why:
+            h.insufficient.append(r | {"reason": why})
+        else:
+            h.usable.append(r)
+    h.series = build_series(h.usable)
+    h.steps = find_steps(h.series, alpha)
+    h.trends = find_trends(h.series, h.steps, alpha)
+    if tolerance_m is not None:
+        h.tolerance = [{"recording": r["recording"], "t_ns": r["campaign_start_ns"], "holdout_rms_m": r["holdout_rms_m"]}
+                       for r in h.usable if r.get("holdout_rms_m") is not None and r["holdout_rms_m"] > tolerance_m]
+    return h
+
+
+def fleet_history(rows: list[dict], tolerance_m: float | None = None, alpha: float = 0.01) -> list[RobotHistory]:
+    """One history per robot (rows without a robot id are grouped under UNKNOWN), sorted by id."""
+    by: dict[str, list[dict]] = defaultdict(list)
+    for r in rows:
+        by[r.get("robot_id") or UNKNOWN].append(r)
+    return [robot_history(k, by[k], tolerance_m, alpha) for k in sorted(by)]

@@ -123,3 +123,15 @@ def read(path: str | Path, system: str | None = None, n_joints: int | None = Non
                          q_approach=np.array([r["approach_joints_rad"] for r in rows], float).reshape(len(rows), nj),
                          dq=np.array([r["search_joint_rate_rad_per_m"] for r in rows], float).reshape(len(rows), nj),
                          direction=np.array([r["search_direction"] for r in rows], float), campaign=camp)
+
+
+def concat(parts: list[TouchCampaign]) -> TouchCampaign:
+    """Campaigns run back to back (the stages of a staged campaign), with the first one's controller."""
+    if len(parts) == 1:
+        return parts[0]
+    doc = dict(parts[0].doc, stage=max(p.doc["stage"] for p in parts),
+               measurements=[m for p in parts for m in p.doc["measurements"]])
+    return TouchCampaign(path=", ".join(p.path for p in parts), doc=doc, face_id=[f for p in parts for f in p.face_id],
+                         **{k: np.concatenate([getattr(p, k) for p in parts])
+                            for k in ("axis", "coordinate", "q_approach", "dq", "direction")},
+                         campaign=parts[0].campaign)

@@ -26,7 +26,7 @@ from pipeline.models.serial_arm import SerialArm
 from pipeline.plan.doptimal import woodbury_update
 from pipeline.plan.touch import TouchPool
 
-ANGLE_SD, LENGTH_SD, BASE_YAW_SD = np.radians(0.7), 2e-3, np.radians(2.5)
+ANGLE_SD, LENGTH_SD, BASE_YAW_SD = np.radians(1.0), 4e-3, np.radians(2.5)
 
 
 def prior_cov(arm: SerialArm) -> np.ndarray:

@@ -80,22 +80,32 @@ def edge_distance(jig: Jig, face: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 
 def search(x: np.ndarray, q_a: np.ndarray, dq: np.ndarray, axis: np.ndarray, sign: np.ndarray,
-           coordinate: np.ndarray, tip_offset: np.ndarray | None = None, iters: int = 8) -> tuple[np.ndarray, np.ndarray]:
-    """Travel s (m) at which the tip of model x (plus `tip_offset`, m) reaches each face plane
-    along the joint-space search, by Newton with the analytic joint Jacobian; and the gap at
-    the start (m, > 0: the search starts outside the material)."""
-    r = np.arange(axis.size)
-    off = np.zeros((axis.size, 3)) if tip_offset is None else tip_offset
-    s = np.zeros(axis.size)
-    g0 = None
+           coordinate: np.ndarray, tip_offset: np.ndarray | None = None, travel_m: float = 0.09,
+           step_m: float = 1e-3, iters: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Travel s (m) at which the tip of model x (plus `tip_offset`, m) first reaches each face
+    plane along the joint-space search, and the gap at the start (m, > 0: the search starts
+    outside the material).  The first crossing is bracketed on a `step_m` grid up to
+    `travel_m` (the path is a straight line in joint space, not in space), then refined by
+    Newton with the analytic joint Jacobian, kept inside the bracket.  No crossing: s = inf."""
+    n = axis.size
+    r = np.arange(n)
+    off = np.zeros((n, 3)) if tip_offset is None else tip_offset
+    grid = np.arange(0.0, travel_m + step_m, step_m)
+    qg = q_a[:, None, :] + grid[None, :, None] * dq[:, None, :]
+    pg = serial_arm.tip_position(x, qg.reshape(-1, q_a.shape[1])).reshape(n, grid.size, 3) + off[:, None, :]
+    g = sign[:, None] * (pg[r, :, axis] - coordinate[:, None])  # (n, grid)
+    g0 = g[:, 0]
+    cross = (g[:, :-1] > 0) & (g[:, 1:] <= 0)
+    found = cross.any(axis=1)
+    k = np.argmax(cross, axis=1)
+    lo, hi = grid[k], grid[k + 1]
+    s = np.where(found, lo + step_m * g[r, k] / np.where(found, g[r, k] - g[r, k + 1], 1.0), 0.0)
     for _ in range(iters):
         p, Jq = serial_arm.joint_jacobian(x, q_a + s[:, None] * dq)
-        g = sign * ((p + off)[r, axis] - coordinate)
-        if g0 is None:
-            g0 = g
+        gs = sign * ((p + off)[r, axis] - coordinate)
         slope = sign * np.einsum("nj,nj->n", Jq[r, axis], dq)
-        s = s - g / np.where(np.abs(slope) > 1e-12, slope, 1e-12)
-    return s, g0
+        s = np.clip(s - gs / np.where(np.abs(slope) > 1e-12, slope, -1e-12), lo, hi)
+    return np.where(found & (g0 > 0), s, np.inf), g0
 
 
 def pool(arm: SerialArm, jig: Jig, n: int, seed: int = 0, margin_m: float = 0.010,
@@ -115,7 +125,8 @@ def pool(arm: SerialArm, jig: Jig, n: int, seed: int = 0, margin_m: float = 0.01
     axis = np.array([jig.faces[f].axis_index for f in faces], int)
     sign = np.array([jig.faces[f].normal_sign for f in faces], float)
     coord = np.array([jig.faces[f].coordinate for f in faces])
-    s, g0 = search(x, q_a, dq, axis, sign, coord)
+    s, g0 = search(x, q_a, dq, axis, sign, coord, travel_m=campaign.search_travel_m)
+    s = np.where(np.isfinite(s), s, 0.0)
     p = serial_arm.tip_position(x, q_a + s[:, None] * dq)
     inside = edge_distance(inner, faces, p) >= -1e-9
     good = inside & (g0 > 0) & (s > 0) & (s < campaign.search_travel_m)

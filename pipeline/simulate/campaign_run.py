@@ -56,11 +56,12 @@ def landing(truth_x: np.ndarray, jig: Jig, face: np.ndarray, q_a: np.ndarray, dq
     axis = np.array([jig.faces[f].axis_index for f in face], int)
     sign = np.array([jig.faces[f].normal_sign for f in face], float)
     coord = np.array([jig.faces[f].coordinate for f in face]) + (0.0 if face_err is None else face_err)
-    s, g0 = search(truth_x, q_a, dq, axis, sign, coord, eps)
+    s, g0 = search(truth_x, q_a, dq, axis, sign, coord, eps, travel_m=travel_m)
+    s = np.where(np.isfinite(s), s, travel_m)
     p = serial_arm.tip_position(truth_x, q_a + s[:, None] * dq) + (0.0 if eps is None else eps)
     on = edge_distance(jig, face, p) >= 0
     at_approach = g0 <= 0
-    hit = ~at_approach & (s > 0) & (s <= travel_m) & on & np.isfinite(s)
+    hit = ~at_approach & (s > 0) & (s < travel_m) & on
     reason = np.where(hit, 0, np.where(at_approach, 2, 1))
     return hit, reason, s
 

@@ -114,8 +114,19 @@ def pool(arm: SerialArm, jig: Jig, n: int, seed: int = 0, margin_m: float = 0.01
     contacts at least the face margin inside every edge.  Deterministic for a seed."""
     rng = np.random.default_rng(seed)
     inner = shrunk(jig, margin_m)
+    parts: list[TouchPool] = []
+    for _ in range(6):  # IK failures and contacts predicted off the shrunk face: draw more until n
+        have = sum(p.face.size for p in parts)
+        if have >= n:
+            break
+        parts.append(_batch(arm, jig, inner, int((n - have) * 1.6) + 8, rng, campaign))
+    cat = TouchPool(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in TouchPool.__dataclass_fields__})
+    return cat.take(np.arange(min(n, cat.face.size)))
+
+
+def _batch(arm: SerialArm, jig: Jig, inner: Jig, n_try: int, rng: np.random.Generator, campaign: Campaign) -> TouchPool:
     x = arm.vector()
-    faces, P, R = _targets(inner, int(n * 1.15) + 4, rng, campaign.approach_offset_m, campaign.max_tilt_rad)
+    faces, P, R = _targets(inner, n_try, rng, campaign.approach_offset_m, campaign.max_tilt_rad)
     q_a, ok = ik.solve(x, P, R, IK_SEEDS, arm.lower, arm.upper, iters=40)
     faces, q_a = faces[ok], q_a[ok]
     normals = np.stack([jig.faces[f].normal for f in faces])
@@ -126,10 +137,10 @@ def pool(arm: SerialArm, jig: Jig, n: int, seed: int = 0, margin_m: float = 0.01
     sign = np.array([jig.faces[f].normal_sign for f in faces], float)
     coord = np.array([jig.faces[f].coordinate for f in faces])
     s, g0 = search(x, q_a, dq, axis, sign, coord, travel_m=campaign.search_travel_m)
-    s = np.where(np.isfinite(s), s, 0.0)
+    good = np.isfinite(s)
+    s = np.where(good, s, 0.0)
     p = serial_arm.tip_position(x, q_a + s[:, None] * dq)
-    inside = edge_distance(inner, faces, p) >= -1e-9
-    good = inside & (g0 > 0) & (s > 0) & (s < campaign.search_travel_m)
-    idx = np.flatnonzero(good)[:n]
+    good &= (edge_distance(inner, faces, p) >= -1e-9) & (g0 > 0) & (s > 0)
+    idx = np.flatnonzero(good)
     return TouchPool(face=faces[idx], axis=axis[idx], sign=sign[idx], q_approach=q_a[idx], dq=dq[idx],
                      travel=s[idx], target=p[idx], edge_distance=edge_distance(jig, faces[idx], p[idx]))

@@ -272,11 +272,16 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
                      if c.get("status") == "warn"]
     sections = [summary_section(s, warnings), residual_section(art, series), parameter_section(art.fit),
                 observability_section(art), solver_section(art.history), validation_section(art.validate),
-                diagnosis_section(art), provenance_section(prov, rrd_name)]
+                diagnosis_section(art)]
+    from pipeline.report import compensation  # shown when `robocal compensate` ran on this run
+    comp = compensation.section(art.run_dir)
+    sections += [comp or "", provenance_section(prov, rrd_name)]
     titles = [("summary", "Summary"), ("residuals", "Residuals"), ("parameters", "Parameters"),
               ("observability", "Observability"), ("solver", "Solver"), ("validation", "Validation")]
     if art.diagnosis is not None:
         titles.append(("diagnosis", "Diagnosis"))
+    if comp:
+        titles.append(("compensation", "Compensation"))
     titles.append(("provenance", "Provenance"))
     nav = "".join(f'<a href="#{i}">{escape(t)}</a>' for i, t in titles)
     src = prov.get("input_path") or "recording"

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from pipeline.models import chain as ch
 from pipeline.models import serial_arm
@@ -74,18 +73,22 @@ class SerialArmKinematics:
 @dataclass(frozen=True)
 class IKOptions:
     iters: int = 40
-    tol_m: float = 1e-12  # converged when the lever-weighted pose error is below this (m)
+    tol_m: float = 1e-11  # converged when the lever-weighted pose error is below this (m)
     damping: float = 1e-10  # Levenberg–Marquardt λ (m²), raised ×10 on a rejected step
     max_step_rad: float = 0.3
+    give_up_damping: float = 1e-2  # a row stops (not converged) once λ has grown this far
     singular_threshold_m: float = 1e-3  # σ_min of the lever-scaled Jacobian (m per rad)
 
 
 def pose_error(R: np.ndarray, p: np.ndarray, R_t: np.ndarray | None, p_t: np.ndarray) -> np.ndarray:
-    """[p − p_t; LEVER·ω] with R = exp([ω]×)·R_t (world frame), (N, 6) or (N, 3) without R_t."""
+    """[p − p_t; LEVER·ω'] with R·R_tᵀ = exp([ω]×) (world frame) and ω' = sin|ω|·ω/|ω| = vee of the
+    skew part of R·R_tᵀ: the same zero as ω, first-order equal (cheaper than the log map);
+    (N, 6), or (N, 3) without R_t."""
     e = p - p_t
     if R_t is None:
         return e
-    w = Rotation.from_matrix(np.einsum("nij,nkj->nik", R, R_t)).as_rotvec()
+    E = np.einsum("nij,nkj->nik", R, R_t)
+    w = 0.5 * np.stack([E[:, 2, 1] - E[:, 1, 2], E[:, 0, 2] - E[:, 2, 0], E[:, 1, 0] - E[:, 0, 1]], axis=1)
     return np.concatenate([e, LEVER_M * w], axis=1)
 
 
@@ -121,17 +124,20 @@ def solve(kin: Kinematics, x: np.ndarray, p_t: np.ndarray, R_t: np.ndarray | Non
         q[acc], R[acc], p[acc], J[acc], e[acc], err[acc] = q_new[better], Rn[better], pn[better], Jn[better], en[better], errn[better]
         lam[acc] = np.maximum(lam[acc] / 10, options.damping)
         lam[active[~better]] *= 10
-        active = active[(err[active] > options.tol_m) & (lam[active] < 1e6)]
+        active = active[(err[active] > options.tol_m) & (lam[active] < options.give_up_damping)]
     return q, err
 
 
 def sigma_min(kin: Kinematics, x: np.ndarray, q: np.ndarray, orientation: bool = True) -> np.ndarray:
     """Smallest singular value of the lever-scaled pose Jacobian (m per rad), (N,)."""
-    _, _, J = kin.pose_jacobian(x, q)
+    return _sigma_min(kin.pose_jacobian(x, q)[2], orientation)
+
+
+def _sigma_min(J: np.ndarray, orientation: bool) -> np.ndarray:
     J = J.copy() if orientation else J[:, :3]
     if orientation:
         J[:, 3:] *= LEVER_M
-    return np.linalg.svd(J, compute_uv=False)[:, -1]
+    return np.sqrt(np.clip(np.linalg.eigvalsh(np.einsum("nki,nkj->nij", J, J))[:, 0], 0, None))
 
 
 def multistart(kin: Kinematics, x: np.ndarray, p_t: np.ndarray, R_t: np.ndarray | None, seeds: np.ndarray,
@@ -178,22 +184,29 @@ def compensate(kin: Kinematics, x_nominal: np.ndarray, x_calibrated: np.ndarray,
     p_t = np.atleast_2d(np.asarray(p_t, float))
     n = p_t.shape[0]
     q_nom, ok_nom = multistart(kin, x_nominal, p_t, R_t, seeds, options, hint)
-    start = np.where(ok_nom[:, None], q_nom, np.nan)
-    q, ok_cal = multistart(kin, x_calibrated, p_t, R_t, seeds, options, start)  # nominal branch first
+    q = np.full_like(q_nom, np.nan)
     status = np.full(n, "ok", dtype=object)
-    # rows the calibrated IK cannot place within limits: tell unreachable from out of limits
-    bad = np.flatnonzero(~ok_cal)
-    if bad.size:
-        s0 = np.where(np.isfinite(start[bad]), start[bad], seeds[0])
-        qb, eb = solve(kin, x_calibrated, p_t[bad], None if R_t is None else R_t[bad], s0, options)
-        q[bad] = qb
-        status[bad] = np.where(eb <= 1e-9, "out_of_limits", "unreachable")
-    R_c, p_c = kin.pose(x_calibrated, np.nan_to_num(q))
+    rows = np.flatnonzero(ok_nom)  # calibrated IK from the nominal solution: the same branch
+    q[rows], e = solve(kin, x_calibrated, p_t[rows], None if R_t is None else R_t[rows], q_nom[rows], options)
+    within = np.all((q[rows] >= kin.lower) & (q[rows] <= kin.upper), axis=1)
+    status[rows[e > 1e-9]] = "unreachable"
+    status[rows[(e <= 1e-9) & ~within]] = "out_of_limits"
+    rest = np.flatnonzero(~ok_nom)  # no nominal solution within limits: any calibrated one, else why not
+    if rest.size:
+        qr, okr = multistart(kin, x_calibrated, p_t[rest], None if R_t is None else R_t[rest], seeds, options)
+        q[rest] = qr
+        bad = rest[~okr]
+        if bad.size:
+            qb, eb = solve(kin, x_calibrated, p_t[bad], None if R_t is None else R_t[bad],
+                           np.broadcast_to(seeds[0], (bad.size, kin.n_joints)), options)
+            q[bad] = qb
+            status[bad] = np.where(eb <= 1e-9, "out_of_limits", "unreachable")
+    R_c, p_c, J_c = kin.pose_jacobian(x_calibrated, np.nan_to_num(q))  # one walk for error, σ_min, det
     err = np.linalg.norm(pose_error(R_c, p_c, R_t, p_t), axis=1)
-    smin = sigma_min(kin, x_calibrated, np.nan_to_num(q), R_t is not None)
+    smin = _sigma_min(J_c, R_t is not None)
     if R_t is not None and kin.n_joints == 6:
         det_n = np.linalg.det(kin.pose_jacobian(x_nominal, np.nan_to_num(q_nom))[2])
-        det_c = np.linalg.det(kin.pose_jacobian(x_calibrated, np.nan_to_num(q))[2])
+        det_c = np.linalg.det(J_c)
         status[(status == "ok") & ok_nom & (np.sign(det_n) != np.sign(det_c))] = "branch_change"
     status[(status == "ok") & (smin < options.singular_threshold_m)] = "singular"
     Rn, pn = kin.pose(x_nominal, np.nan_to_num(q))

@@ -13,7 +13,8 @@ Compensation of target (p_t, R_t):
 3. corrected target (R_c, p_c) = nominal forward kinematics of the calibrated joints: a
    nominal controller's IK of it returns the calibrated joints.
 Each row gets a status: ok, unreachable (no convergence), singular (smallest singular value of
-the lever-scaled 6×n Jacobian below `singular_threshold`, m), out_of_limits, branch_change (the
+the lever-scaled 6×n Jacobian, at the nominal or the calibrated solution, below `singular_threshold_m`,
+5 mm per rad: 0.1 mm of tool motion costs 20 mrad of joint motion), out_of_limits, branch_change (the
 sign of det J differs between the nominal and the calibrated solution: a singularity lies between
 them, so the calibrated joints are on another branch) — never clipped silently.
 """
@@ -77,7 +78,7 @@ class IKOptions:
     damping: float = 1e-10  # Levenberg–Marquardt λ (m²), raised ×10 on a rejected step
     max_step_rad: float = 0.3
     give_up_damping: float = 1e-2  # a row stops (not converged) once λ has grown this far
-    singular_threshold_m: float = 1e-3  # σ_min of the lever-scaled Jacobian (m per rad)
+    singular_threshold_m: float = 5e-3  # σ_min of the lever-scaled Jacobian (m per rad), nominal or calibrated
 
 
 def pose_error(R: np.ndarray, p: np.ndarray, R_t: np.ndarray | None, p_t: np.ndarray) -> np.ndarray:
@@ -137,7 +138,8 @@ def _sigma_min(J: np.ndarray, orientation: bool) -> np.ndarray:
     J = J.copy() if orientation else J[:, :3]
     if orientation:
         J[:, 3:] *= LEVER_M
-    return np.sqrt(np.clip(np.linalg.eigvalsh(np.einsum("nki,nkj->nij", J, J))[:, 0], 0, None))
+    G = np.einsum("nik,njk->nij", J, J) if J.shape[1] <= J.shape[2] else np.einsum("nki,nkj->nij", J, J)
+    return np.sqrt(np.clip(np.linalg.eigvalsh(G)[:, 0], 0, None))  # smallest singular value via the small Gram
 
 
 def multistart(kin: Kinematics, x: np.ndarray, p_t: np.ndarray, R_t: np.ndarray | None, seeds: np.ndarray,
@@ -149,12 +151,13 @@ def multistart(kin: Kinematics, x: np.ndarray, p_t: np.ndarray, R_t: np.ndarray 
     ok = np.zeros(n, bool)
     starts = [] if hint is None else [hint]
     starts += [np.broadcast_to(s, (n, kin.n_joints)) for s in seeds]
-    for s0 in starts:
+    for k, s0 in enumerate(starts):
         todo = np.flatnonzero(~ok & np.all(np.isfinite(s0), axis=1))
         if todo.size == 0:
             continue
         qs, err = solve(kin, x, p_t[todo], None if R_t is None else R_t[todo], s0[todo], options)
-        qs = (qs + np.pi) % (2 * np.pi) - np.pi  # seed-000 limits lie within ±π except J6: wrap to the seed's turn
+        if hint is None or k > 0:  # from a generic seed: the turn nearest zero (a hint keeps its own turn)
+            qs = (qs + np.pi) % (2 * np.pi) - np.pi
         good = (err <= 1e-9) & np.all((qs >= kin.lower) & (qs <= kin.upper), axis=1)
         q[todo[good]], ok[todo[good]] = qs[good], True
     return q, ok
@@ -204,11 +207,14 @@ def compensate(kin: Kinematics, x_nominal: np.ndarray, x_calibrated: np.ndarray,
     R_c, p_c, J_c = kin.pose_jacobian(x_calibrated, np.nan_to_num(q))  # one walk for error, σ_min, det
     err = np.linalg.norm(pose_error(R_c, p_c, R_t, p_t), axis=1)
     smin = _sigma_min(J_c, R_t is not None)
+    J_n = kin.pose_jacobian(x_nominal, np.nan_to_num(q_nom))[2]
+    smin = np.minimum(smin, np.where(ok_nom, _sigma_min(J_n, R_t is not None), np.inf))  # near-singular in either model
     if R_t is not None and kin.n_joints == 6:
-        det_n = np.linalg.det(kin.pose_jacobian(x_nominal, np.nan_to_num(q_nom))[2])
+        det_n = np.linalg.det(J_n)
         det_c = np.linalg.det(J_c)
         status[(status == "ok") & ok_nom & (np.sign(det_n) != np.sign(det_c))] = "branch_change"
-    status[(status == "ok") & (smin < options.singular_threshold_m)] = "singular"
+    # near a singularity is the cause when the IK also failed or changed branch there
+    status[np.isin(status, ("ok", "unreachable", "branch_change")) & (smin < options.singular_threshold_m)] = "singular"
     Rn, pn = kin.pose(x_nominal, np.nan_to_num(q))
     return Compensated(q_nominal=q_nom, q=q, status=status, p_corrected=pn, R_corrected=Rn, error_m=err,
                        sigma_min_m=smin, correction_m=np.linalg.norm(pn - p_t, axis=1))

@@ -9,7 +9,7 @@ fails with one line naming the file and the measurement.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -135,3 +135,14 @@ def concat(parts: list[TouchCampaign]) -> TouchCampaign:
                          **{k: np.concatenate([getattr(p, k) for p in parts])
                             for k in ("axis", "coordinate", "q_approach", "dq", "direction")},
                          campaign=parts[0].campaign)
+
+
+def from_pool(system: str, arm, jig: Jig, pool: TouchPool, campaign: Campaign = Campaign(), margin_m: float = 0.0,
+              stage: int = 1, stages: int = 1) -> TouchCampaign:
+    """A `TouchCampaign` of planned candidates without a file (benchmarks, tests)."""
+    doc = touch_document(system, arm, jig, pool, campaign, margin_m, stage, stages)
+    return TouchCampaign(path="<memory>", doc=doc, face_id=[jig.faces[int(f)].id for f in pool.face],
+                         axis=pool.axis.copy(), coordinate=np.array([jig.faces[int(f)].coordinate for f in pool.face]),
+                         q_approach=pool.q_approach.copy(), dq=pool.dq.copy(),
+                         direction=np.array([-jig.faces[int(f)].normal for f in pool.face]).reshape(-1, 3),
+                         campaign=replace(campaign, contacts=int(pool.face.size)))

@@ -16,7 +16,8 @@ from pipeline.systems.registry import detect
 
 
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
-              seed: int = 0, solver: str = "lm", joint_offsets: bool = False, variant: str | None = None) -> dict:
+              seed: int = 0, solver: str = "lm", joint_offsets: bool = False, variant: str | None = None,
+              select_groups: bool = True) -> dict:
     """Read, identify, cross-validate; write DIR/results.json and DIR/model.json.
 
     `solver`: 'lm' (least squares, default) or 'ga' (seed 001's genetic algorithm, for systems
@@ -48,6 +49,13 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         f = fit_ga(model, table)
         holdout = cross_validate_ga(model, table, k=k_folds, seed=seed)
     elif solver == "lm":
+        selection = None
+        if select_groups and getattr(model, "groups", None) and model.groups():
+            from dataclasses import replace as _replace
+
+            from pipeline.identify.complexity import select
+            selection = select(model, table, k=k_folds, seed=seed, options=options)
+            options = _replace(options, fixed=tuple(sorted(set(options.fixed) | set(selection.fixed))))
         f = fit(model, table, options)
         holdout = cross_validate(model, table, k=k_folds, seed=seed, options=options)
     else:
@@ -60,11 +68,18 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
                            source={"path": str(path), "sha256": sha256_file(path)}, warnings=warnings,
                            k_folds=k_folds)
     doc["solver"] = solver
+    if solver == "lm" and selection is not None:
+        from pipeline.identify.complexity import explain
+        doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
+                                  "holdout_registration_only_m": selection.holdout_registration_m,
+                                  "explanation": explain(selection)}
     if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures
         doc.update(model.extra_metrics(f.nominal, f.x, table))
     out.mkdir(parents=True, exist_ok=True)
-    (out / "results.json").write_text(json.dumps(doc, indent=2) + "\n")
     (out / "model.json").write_text(json.dumps(model.describe(f.x), indent=2) + "\n")
+    from pipeline.identify.exports import write_exports
+    doc["exports"] = write_exports(model, f.x, out)
+    (out / "results.json").write_text(json.dumps(doc, indent=2) + "\n")
     return doc
 
 

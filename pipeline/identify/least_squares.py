@@ -27,6 +27,7 @@ class FitOptions:
     max_nfev: int | None = None
     rank_tol: float = RANK_TOL
     x0: np.ndarray | None = None
+    before: bool = True  # compute the "before" residuals at the model's uncalibrated parameters
 
 
 @dataclass
@@ -80,7 +81,8 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
         raise ValueError(f"cannot fix unknown parameters: {sorted(unknown)}")
     fixed = np.array([n in options.fixed for n in names])
     priority = getattr(model, "priority", lambda: None)()
-    r0 = model.residuals(uncalibrated(model, data), data)  # "before": the uncalibrated system
+    # "before": the uncalibrated system (a model's registration-only fit calls `fit` with before=False)
+    r0 = model.residuals(uncalibrated(model, data) if options.before else x0, data)
     history: list[float] = []
     x = x0.copy()
     ident = analyse(_flat_jac(model, x0, data), names, fixed, priority, options.rank_tol)

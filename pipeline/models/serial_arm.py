@@ -99,6 +99,10 @@ class SerialArm:
         tool = {k: float(x[off + i]) for i, k in enumerate(TOOL_KEYS)}
         return replace(self, base=base, joints=joints, tool=tool)
 
+    def chain(self) -> Chain:
+        """The arm as a generic `pipeline.models.chain.Chain` (jig frame → tool tip)."""
+        return arm_chain(self.n_joints)
+
     @property
     def lower(self) -> np.ndarray:
         return np.array([j.lower for j in self.joints])

@@ -16,12 +16,17 @@ CHANNELS: dict[str, str] = {
     "/scanner/stripe": "scanner_stripe",
     "/tracker/point": "tracker_point",
     "/arm/temperature": "temperature",
+    "/measure/point": "measure_point",
+    "/measure/pose": "measure_pose",
+    "/measure/plane": "measure_plane",
+    "/measure/coincidence": "measure_coincidence",
 }
 
 # metadata record names
 META_ROBOT = "robocal.robot_model"
 META_FIXTURE = "robocal.fixture"
 META_CAMPAIGN = "robocal.campaign"
+META_URDF = "robocal.urdf"
 
 
 def schema_dir() -> Path:

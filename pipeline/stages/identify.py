@@ -42,6 +42,13 @@ def run(run_dir: Path, params: dict) -> dict:
     table = read_measurements(run_dir)
     data = model_columns(table)
     opts = options_of(params)
+    selection = None
+    if getattr(model, "groups", None) and model.groups():  # keep only groups that improve held-out error
+        from dataclasses import replace
+
+        from pipeline.identify.complexity import select
+        selection = select(model, data, k=int(params.get("folds", 5)), seed=int(params.get("seed", 0)), options=opts)
+        opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
     rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
     f = rf.fit
     kept_data = take(data, rf.kept)
@@ -83,8 +90,16 @@ def run(run_dir: Path, params: dict) -> dict:
         "parameters": parameter_table(f),
         "warnings": [w for w in [holdout_warning(int(rf.kept.sum()), folds, k, int(free.sum()))] if w],
     }
+    if selection is not None:
+        from pipeline.identify.complexity import explain
+        doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
+                                  "holdout_registration_only_m": selection.holdout_registration_m,
+                                  "explanation": explain(selection)}
     if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
         doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
+    from pipeline.identify.exports import write_exports
+    out.mkdir(parents=True, exist_ok=True)
+    doc["exports"] = write_exports(model, f.x, out)
     write_json(out / "fit.json", doc)
     write_json(out / "history.json", {"cost_rms_m": f.history})
     write_json(out / "model.json", model.describe(f.x))

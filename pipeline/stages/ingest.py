@@ -56,25 +56,26 @@ def run(run_dir: Path, params: dict) -> dict:
         channels[topic] = {"file": channel_file(topic), "messages": len(msgs)}
     write_messages(out / MESSAGES, rec)
     stream = None
-    try:
-        stream = joint_stream(rec)
-        write_table(out / "encoder.parquet", encoder_table(stream))
-    except RobocalError as e:
-        errors.append(str(e))
+    if not (getattr(system, "STREAM_OPTIONAL", False) and not rec.messages.raw.get(JOINT_STATE)):
+        try:
+            stream = joint_stream(rec)
+            write_table(out / "encoder.parquet", encoder_table(stream))
+        except RobocalError as e:
+            errors.append(str(e))
     n = 0
     if not errors:
         try:
             _, table = system.load(rec)
             meas = measurement_table(dict(table), stream, window_s=float(params.get("context_window_s", 0.02)),
                                      temperature=temperature_stream(rec), path=path,
-                                     channel=system.MEASUREMENT_CHANNEL)
+                                     channel=getattr(system, "channel_for", lambda r: system.MEASUREMENT_CHANNEL)(rec))
             write_table(out / "measurements.parquet", meas)
             n = len(meas["record"])
         except RobocalError as e:
             errors.append(str(e))
     doc = {
         "system": system.SYSTEM,
-        "measurement_channel": system.MEASUREMENT_CHANNEL,
+        "measurement_channel": getattr(system, "channel_for", lambda r: system.MEASUREMENT_CHANNEL)(rec),
         "source": {"path": str(path), "sha256": sha256_file(path), "bytes": path.stat().st_size},
         "metadata": rec.metadata,
         "channels": channels,

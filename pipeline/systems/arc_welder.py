@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.identify.model import Table
-from pipeline.models import serial_arm
+from pipeline.measurements.plane import PlaneModel
 from pipeline.models.serial_arm import Joint, LinkMass, SerialArm
 
 SYSTEM = "arc-welder"
@@ -70,25 +70,21 @@ def random_truth(nominal: SerialArm, rng: np.random.Generator) -> SerialArm:
 
 
 @dataclass(frozen=True)
-class TouchModel:
-    """Touch-jig measurement model over a serial arm (implements `MeasurementModel`).
+class TouchModel(PlaneModel):
+    """Seed 000's touch jig as a composition: the plane-contact measurement type over the D-H +
+    Hayati arm (`kin`, a `SerialArm`), each contact's plane a known jig face (implements
+    `MeasurementModel`).
 
-    Data columns: ``joint_positions`` (n, n_joints) rad, ``axis`` (n,) int 0/1/2,
-    ``coordinate`` (n,) m.
+    Data columns: ``joint_positions`` (n, n_joints) rad, ``axis`` (n,) int 0/1/2 (the face's
+    normal), ``coordinate`` (n,) m (the face's jig coordinate).
     """
 
-    arm: SerialArm
-    system: str = SYSTEM
-    residual_dim: int = 1
+    system = SYSTEM
+    fit_tool: bool = True
 
-    def parameter_names(self) -> list[str]:
-        return self.arm.parameter_names()
-
-    def parameter_units(self) -> list[str]:
-        return self.arm.parameter_units()
-
-    def nominal(self) -> np.ndarray:
-        return self.arm.vector()
+    @property
+    def arm(self) -> SerialArm:
+        return self.kin
 
     def priority(self) -> np.ndarray:
         """Which member of a dependent group is kept: base and tool translation first, then
@@ -99,22 +95,18 @@ class TouchModel:
             return 2 if n.endswith(".beta") else 1
         return np.array([level(n) for n in self.parameter_names()])
 
-    def residuals(self, x: np.ndarray, data: Table) -> np.ndarray:
-        p = serial_arm.tip_position(x, data["joint_positions"])
+    def row_planes(self, x: np.ndarray, data: Table):
+        """Each contact's face: normal e_axis, offset its jig coordinate (known planes)."""
         ax = np.asarray(data["axis"], int)
-        return (p[np.arange(len(ax)), ax] - data["coordinate"])[:, None]
+        zeros = np.zeros((len(ax), 3))
+        return np.eye(3)[ax], np.asarray(data["coordinate"], float), np.full(len(ax), -1), zeros, zeros
 
-    def jacobian(self, x: np.ndarray, data: Table) -> np.ndarray:
-        _, J = serial_arm.tip_jacobian(x, data["joint_positions"])
-        ax = np.asarray(data["axis"], int)
-        return J[np.arange(len(ax)), ax][:, None, :]
+    def exports(self, x: np.ndarray) -> dict[str, str]:
+        """The calibrated arm as a URDF (link `jig` → `tool`) and as a D-H table."""
+        from pipeline.models.dh_export import dh_table_csv, to_urdf
 
-    def points(self, x: np.ndarray, data: Table) -> tuple[np.ndarray, np.ndarray]:
-        return serial_arm.tip_jacobian(x, data["joint_positions"])
-
-    def describe(self, x: np.ndarray) -> dict:
-        """Robot model JSON of parameter vector x (same schema as the nominal)."""
-        return self.arm.with_vector(x).to_dict()
+        arm = self.arm.with_vector(x)
+        return {"model.urdf": to_urdf(arm), "dh_table.csv": dh_table_csv(arm)}
 
 
 # ----- recordings ------------------------------------------------------------------------

@@ -1,0 +1,102 @@
+"""`robocal import csv`: measurement tables of any URDF robot → a self-contained recording."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from pipeline.cli import app, err
+
+import_app = typer.Typer(help="Bring measurements of any URDF robot in: CSV tables (and ROS 2 bags) → a recording.",
+                         no_args_is_help=True)
+app.add_typer(import_app, name="import")
+
+
+def _cols(s: str) -> tuple[str, ...]:
+    return tuple(c.strip() for c in s.split(",") if c.strip())
+
+
+def parse_plane(spec: str) -> tuple[str, dict]:
+    """``NAME:NX,NY,NZ:OFFSET`` (OFFSET a column name or a number, m) → (name, plane)."""
+    from pipeline.errors import RobocalError
+
+    parts = spec.split(":")
+    if len(parts) != 3:
+        raise RobocalError(f"--plane {spec!r}: expected NAME:NX,NY,NZ:OFFSET (OFFSET a column or a number in m)")
+    name, normal, off = parts
+    try:
+        n = [float(v) for v in normal.split(",")]
+        assert len(n) == 3 and any(n)
+    except (ValueError, AssertionError):
+        raise RobocalError(f"--plane {spec!r}: normal {normal!r} is not three numbers") from None
+    try:
+        offset: float | str = float(off)
+    except ValueError:
+        offset = off
+    return name, {"normal": n, "offset": offset}
+
+
+@import_app.command("csv")
+def import_csv(
+    files: list[Path] = typer.Argument(..., help="CSV file(s); rows of several files are concatenated."),
+    urdf: Path = typer.Option(..., "--urdf", help="Robot description (URDF); meshes are not needed."),
+    root: str = typer.Option(..., "--root", help="Root link of the calibrated chain."),
+    tip: str = typer.Option(..., "--tip", help="Tip link of the calibrated chain."),
+    measure: str = typer.Option(..., "--measure", help="point | pose | plane | coincidence."),
+    out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
+    joint_units: str = typer.Option("rad", "--joint-units", help="Revolute joint columns in rad or deg."),
+    length_units: str = typer.Option("m", "--length-units", help="Positions and prismatic joints in m or mm."),
+    columns: str = typer.Option("", "--columns", help="Column names for files without a header, comma-separated."),
+    position: str = typer.Option("x,y,z", "--position-cols", help="Position columns (point, pose)."),
+    target: list[str] = typer.Option([], "--target-cols", help="Further targets' x,y,z columns (point), repeatable."),
+    orientation: str = typer.Option("", "--orientation-cols", help="Orientation columns (pose)."),
+    orientation_kind: str = typer.Option("rpy", "--orientation", help="rpy (URDF roll,pitch,yaw, rad) or quat (x,y,z,w)."),
+    plane: list[str] = typer.Option([], "--plane", help="Plane of a file: STEM:NX,NY,NZ:OFFSET (repeatable)."),
+    unknown_planes: bool = typer.Option(False, "--unknown-planes", help="Estimate the planes' tilt and offset."),
+    group_from: str = typer.Option("file", "--group-from", help="Coincidence group of a row: file or parent/file."),
+    distance: list[str] = typer.Option([], "--distance", help="Known distance between two groups: A:B:METRES."),
+    sigma_m: float = typer.Option(1e-3, "--sigma-m", help="Pose: position uncertainty, m."),
+    sigma_rad: float = typer.Option(1e-3, "--sigma-rad", help="Pose: orientation uncertainty, rad."),
+    robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
+) -> None:
+    """Map CSV columns to the URDF's joints (by header name) and write a recording `robocal run` calibrates."""
+    from pipeline.errors import RobocalError
+    from pipeline.importers.csv_table import CsvSpec, read_table
+    from pipeline.importers.recording import write_urdf_recording
+    from pipeline.models import urdf as urdf_mod
+
+    if measure not in ("point", "pose", "plane", "coincidence"):
+        raise RobocalError(f"--measure {measure!r}: expected point, pose, plane or coincidence")
+    if joint_units not in ("rad", "deg") or length_units not in ("m", "mm"):
+        raise RobocalError("--joint-units takes rad or deg, --length-units m or mm")
+    if measure == "pose" and not orientation:
+        raise RobocalError("--measure pose needs --orientation-cols")
+    if out.exists() and out.resolve() in {f.resolve() for f in files}:
+        raise RobocalError(f"{out}: --out is one of the input files")
+    desc = urdf_mod.read(urdf, root, tip)
+    planes = dict(parse_plane(p) for p in plane)
+    for p in planes.values():
+        p["known"] = not unknown_planes
+    spec = CsvSpec(measure=measure, joint_units=joint_units, length_units=length_units, columns=_cols(columns),
+                   position=_cols(position), targets=tuple(_cols(t) for t in target),
+                   orientation=_cols(orientation), orientation_kind=orientation_kind, group_from=group_from,
+                   planes=planes)
+    table, extras = read_table(files, desc, spec)
+    campaign = {**extras, "source_files": [str(f) for f in files], "robot_id": robot_id or desc.name}
+    if measure == "pose":
+        campaign |= {"sigma_m": sigma_m, "sigma_rad": sigma_rad}
+    if distance:
+        ds = []
+        for d in distance:
+            try:
+                a, b, v = d.rsplit(":", 2)
+                ds.append({"a": a, "b": b, "distance": float(v)})
+            except ValueError:
+                raise RobocalError(f"--distance {d!r}: expected A:B:METRES") from None
+        campaign["distances"] = ds
+    for w in extras.get("import_warnings", []):
+        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+    n = write_urdf_recording(out, desc, measure, campaign, table)
+    err.print(f"imported {n} {measure} measurements of {len(desc.joint_names)} joints "
+              f"({desc.root} → {desc.tip}) into {out}", highlight=False, soft_wrap=True)

@@ -1,0 +1,163 @@
+"""CSV measurement tables → robocal recordings (`robocal import csv`).
+
+Columns are matched to the URDF chain's joints by header name (any order; other columns are
+measurement columns or ignored).  Units are declared (`joint_units` deg|rad for revolute joints,
+`length_units` mm|m for prismatic joints and positions) and converted to SI; a value beyond a
+joint's limits after conversion — the usual sign of degrees declared as radians — is an error
+naming file, row and column.  Several files may be given: their rows are concatenated and each
+row keeps its file's stem (the plane or group name for plane / coincidence measurements).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
+from scipy.spatial.transform import Rotation
+
+from pipeline.errors import RobocalError
+from pipeline.models.urdf import RobotDescription
+
+# A reading beyond its URDF limit by more than this fraction of the joint's range (or, for a joint
+# without limits, beyond ±4π) is an error — the usual sign of degrees declared as radians.  Real
+# robots do read a little past their URDF limits: less than that is a warning.
+LIMIT_SLACK = 0.25
+
+
+@dataclass(frozen=True)
+class CsvSpec:
+    """How to read the measurement columns (names refer to CSV headers)."""
+
+    measure: str
+    joint_units: str = "rad"
+    length_units: str = "m"
+    columns: tuple[str, ...] = ()  # header for files without one
+    position: tuple[str, ...] = ("x", "y", "z")
+    targets: tuple[tuple[str, str, str], ...] = ()  # further targets' position columns
+    orientation: tuple[str, ...] = ()
+    orientation_kind: str = "rpy"  # rpy (URDF roll, pitch, yaw; rad) | quat (x, y, z, w)
+    group_from: str = "file"  # coincidence: "file" (stem) or "parent/file"
+    planes: dict = field(default_factory=dict)  # plane name (file stem) -> {"normal": (3,), "offset": col or value}
+
+
+def _read(path: Path, spec: CsvSpec) -> dict[str, np.ndarray]:
+    opts = pacsv.ReadOptions(column_names=list(spec.columns)) if spec.columns else pacsv.ReadOptions()
+    try:
+        t = pacsv.read_csv(path, read_options=opts)
+    except (pa.ArrowInvalid, OSError) as e:
+        raise RobocalError(f"{path}: cannot read CSV ({str(e).splitlines()[0]})") from None
+    out = {}
+    for name in t.column_names:
+        col = t.column(name)
+        if pa.types.is_integer(col.type) or pa.types.is_floating(col.type):
+            out[name] = col.to_numpy(zero_copy_only=False).astype(float)
+        else:
+            out[name] = np.asarray(col.to_pylist(), object)
+    return out
+
+
+def _numeric(path: Path, cols: dict, name: str) -> np.ndarray:
+    v = cols[name]
+    if v.dtype == object:
+        for i, s in enumerate(v):
+            try:
+                float(s)
+            except (TypeError, ValueError):
+                raise RobocalError(f"{path}: row {i + 2}: column {name!r}: {s!r} is not a number") from None
+        v = v.astype(float)
+    bad = np.flatnonzero(~np.isfinite(v))
+    if bad.size:
+        raise RobocalError(f"{path}: row {bad[0] + 2}: column {name!r} is empty, NaN or inf")
+    return v
+
+
+def _need(path: Path, cols: dict, names: list[str], what: str, used: set[str]) -> None:
+    missing = [c for c in names if c not in cols]
+    if missing:
+        unknown = [c for c in cols if c not in used and c not in names]
+        raise RobocalError(f"{path}: missing {what} column(s) {', '.join(missing)}"
+                           f"{'; unused columns: ' + ', '.join(unknown) if unknown else ''}")
+
+
+def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tuple[dict[str, np.ndarray], dict]:
+    """The measurement table (SI, chain joint order) of the CSV files, and campaign extras."""
+    joints = desc.movable
+    names = [j.name for j in joints]
+    ang = np.array([j.type != "prismatic" for j in joints])
+    jscale = np.where(ang, np.pi / 180 if spec.joint_units == "deg" else 1.0,
+                      1e-3 if spec.length_units == "mm" else 1.0)
+    lscale = 1e-3 if spec.length_units == "mm" else 1.0
+    lo, hi = np.array([j.lower for j in joints]), np.array([j.upper for j in joints])
+    rows: dict[str, list] = {}
+    planes = []
+    warnings: list[str] = []
+    for path in paths:
+        path = Path(path)
+        cols = _read(path, spec)
+        n = len(next(iter(cols.values()))) if cols else 0
+        if n == 0:
+            raise RobocalError(f"{path}: no data rows")
+        used = set(spec.position) | {c for t in spec.targets for c in t} | set(spec.orientation)
+        _need(path, cols, names, "joint", used)
+        q = np.stack([_numeric(path, cols, c) for c in names], axis=1) * jscale
+        finite = np.isfinite(hi - lo)
+        slack = np.where(finite, LIMIT_SLACK * np.where(finite, hi - lo, 0.0), 0.0)
+        lo_e = np.where(finite, lo - slack, np.where(ang, -4 * np.pi, -np.inf))
+        hi_e = np.where(finite, hi + slack, np.where(ang, 4 * np.pi, np.inf))
+        out_of = (q < lo_e) | (q > hi_e)
+        beyond = ((q < lo) | (q > hi)) & ~out_of
+        for k in np.flatnonzero(beyond.any(0)):
+            warnings.append(f"{path}: column {names[k]!r}: {int(beyond[:, k].sum())} row(s) beyond the URDF limits "
+                            f"[{lo[k]:.6g}, {hi[k]:.6g}] (at most {np.max(np.maximum(lo[k] - q[:, k], q[:, k] - hi[k])):.3g})")
+        if out_of.any():
+            i, k = np.argwhere(out_of)[0]
+            hint = " (degrees declared as radians? use --joint-units deg)" if ang[k] and spec.joint_units == "rad" else ""
+            raise RobocalError(f"{path}: row {i + 2}: column {names[k]!r}: {q[i, k]:.6g} is far outside the joint's "
+                               f"limits [{lo[k]:.6g}, {hi[k]:.6g}]{hint}")
+        part: dict[str, np.ndarray] = {"joint_positions": q}
+        if spec.measure in ("point", "pose"):
+            _need(path, cols, list(spec.position), "position", set(names))
+            pos = [np.stack([_numeric(path, cols, c) for c in spec.position], 1) * lscale]
+            for t in spec.targets:
+                _need(path, cols, list(t), "target position", set(names))
+                pos.append(np.stack([_numeric(path, cols, c) for c in t], 1) * lscale)
+            part["position"] = np.concatenate(pos)
+            part["target"] = np.repeat(np.arange(len(pos)), n)
+            part["joint_positions"] = np.tile(q, (len(pos), 1))
+        if spec.measure == "pose":
+            _need(path, cols, list(spec.orientation), "orientation", set(names))
+            o = np.stack([_numeric(path, cols, c) for c in spec.orientation], 1)
+            if spec.orientation_kind == "rpy":  # URDF rpy: R = Rz(yaw) Ry(pitch) Rx(roll)
+                part["orientation"] = Rotation.from_euler("ZYX", o[:, ::-1]).as_quat()
+            else:
+                part["orientation"] = o / np.linalg.norm(o, axis=1, keepdims=True)
+            del part["target"]
+        if spec.measure == "plane":
+            stem = path.stem
+            if stem not in spec.planes:
+                raise RobocalError(f"{path}: no plane declared for this file (--plane {stem}:NX,NY,NZ:OFFSET)")
+            pl = spec.planes[stem]
+            off = pl["offset"]
+            if isinstance(off, str):
+                _need(path, cols, [off], "plane offset", set(names))
+                v = _numeric(path, cols, off) * lscale
+                if np.ptp(v) > 1e-9:
+                    raise RobocalError(f"{path}: column {off!r} (plane offset) differs between rows")
+                off = float(v[0])
+            planes.append({"name": stem, "normal": list(pl["normal"]), "offset": float(off), "known": pl.get("known", True)})
+            part["plane"] = np.full(n, stem, object)
+        if spec.measure == "coincidence":
+            g = path.stem if spec.group_from == "file" else f"{path.parent.name}/{path.stem}"
+            part["group"] = np.full(n, g, object)
+        for k, v in part.items():
+            rows.setdefault(k, []).append(v)
+    table = {k: np.concatenate(v) for k, v in rows.items()}
+    extras: dict = {"import_warnings": warnings} if warnings else {}
+    if planes:
+        extras["planes"] = planes
+    if spec.measure == "point":
+        extras["n_targets"] = 1 + len(spec.targets)
+    return table, extras

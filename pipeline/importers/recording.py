@@ -1,0 +1,45 @@
+"""Write a URDF-robot recording: the robot description, the campaign and one message per row.
+
+Every importer (CSV, ROS 2 bags) and `robocal simulate urdf` ends here, so a recording of
+any origin reads the same way (`pipeline.systems.urdf_robot.load`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.models.urdf import RobotDescription
+from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
+from pipeline.recording.writer import RecordingWriter
+
+T0_NS = 1_700_000_000_000_000_000  # a fixed epoch for tables without times (bit-identical re-imports)
+
+
+def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, campaign: dict,
+                         table: dict[str, np.ndarray], labels: list[str] | None = None) -> int:
+    """Write `table` (rows: ``joint_positions`` (n, n_joints) in the chain's joint order, plus
+    the type's columns: ``position`` (n,3), ``target`` (n,), ``orientation`` (n,4) xyzw,
+    ``plane``/``group`` (n,) names; optional ``timestamp_ns``) to `out`.  Returns rows written."""
+    q = np.asarray(table["joint_positions"], float)
+    n = len(q)
+    t = np.asarray(table.get("timestamp_ns", T0_NS + np.arange(n) * 1_000_000_000), np.int64)
+    camp = {"system": "urdf", "measure": measure, "joint_names": desc.joint_names, **campaign}
+    topic = f"/measure/{measure}"
+    with RecordingWriter(out) as w:
+        w.metadata(META_URDF, {"urdf": desc.urdf, "root": desc.root, "tip": desc.tip, "source": desc.source})
+        w.metadata(META_CAMPAIGN, camp)
+        for i in range(n):
+            m: dict = {"timestamp_ns": int(t[i]), "joint_positions": q[i].tolist()}
+            if "position" in table:
+                m["position"] = np.asarray(table["position"][i], float).tolist()
+            if "target" in table:
+                m["target"] = int(table["target"][i])
+            if "orientation" in table:
+                m["orientation"] = np.asarray(table["orientation"][i], float).tolist()
+            for key in ("plane", "group"):
+                if key in table:
+                    m[key] = str(table[key][i])
+            w.write(topic, m)
+    return n

@@ -1,0 +1,164 @@
+"""Any URDF robot with any of the generic measurement types (`pipeline.measurements`).
+
+A recording of this system carries the URDF and the chain choice in the metadata record
+``robocal.urdf`` ({urdf, root, tip, source}), the campaign (``robocal.campaign``: system
+"urdf", ``measure`` point|pose|plane|coincidence, ``joint_names``, and per type ``planes``,
+``distances``, ``sigma_m``/``sigma_rad``, ``n_targets``) and one message per measurement on
+``/measure/<type>`` (`schemas/measure_*.schema.json`).  An encoder stream is optional.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.errors import RobocalError, where
+from pipeline.measurements.coincidence import CoincidenceModel
+from pipeline.measurements.plane import Plane, PlaneModel
+from pipeline.measurements.point import PointModel
+from pipeline.measurements.pose import PoseModel
+from pipeline.models import urdf
+from pipeline.models.urdf_arm import UrdfArm
+from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
+
+SYSTEM = "urdf"
+MEASURES = ("point", "pose", "plane", "coincidence")
+MEASUREMENT_CHANNEL = "/measure/point"
+STREAM_OPTIONAL = True
+GROUP_COLUMN = "label"
+
+
+def channel_of(measure: str) -> str:
+    return f"/measure/{measure}"
+
+
+def channel_for(rec) -> str:
+    """The measurement channel of this recording (by its campaign's measurement type)."""
+    try:
+        return channel_of(campaign_measure(rec))
+    except RobocalError:
+        return MEASUREMENT_CHANNEL
+
+
+def campaign_measure(rec) -> str:
+    m = rec.meta(META_CAMPAIGN).get("measure")
+    if m not in MEASURES:
+        raise RobocalError(f"{rec.path}: metadata robocal.campaign: measure {m!r} is not one of {', '.join(MEASURES)}")
+    return m
+
+
+def arm_of(rec) -> UrdfArm:
+    meta = rec.meta(META_URDF)
+    if not isinstance(meta, dict) or not all(isinstance(meta.get(k), str) for k in ("urdf", "root", "tip")):
+        raise RobocalError(f"{rec.path}: metadata robocal.urdf must hold strings urdf, root and tip")
+    desc = urdf.parse(meta["urdf"], meta["root"], meta["tip"], source=f"{rec.path}: metadata robocal.urdf")
+    names = rec.meta(META_CAMPAIGN).get("joint_names", desc.joint_names)
+    if list(names) != desc.joint_names:
+        raise RobocalError(f"{rec.path}: campaign joint_names {names} differ from the chain's {desc.joint_names}")
+    return UrdfArm(desc)
+
+
+def model_for(arm: UrdfArm, measure: str, campaign: dict, labels: list[str] | None = None):
+    """The measurement model of `measure` over `arm` (campaign settings applied)."""
+    if measure == "point":
+        return PointModel(arm, n_targets=int(campaign.get("n_targets", 1)))
+    if measure == "pose":
+        return PoseModel(arm, sigma_m=float(campaign.get("sigma_m", 1e-3)),
+                         sigma_rad=float(campaign.get("sigma_rad", 1e-3)))
+    if measure == "plane":
+        planes = tuple(Plane(str(p["name"]), tuple(float(v) for v in p.get("normal", (0, 0, 1))),
+                             float(p.get("offset", 0.0)), bool(p.get("known", True)))
+                       for p in campaign.get("planes", []))
+        return PlaneModel(arm, planes=planes, fit_tool=bool(campaign.get("fit_tool", False)))
+    groups = tuple(labels or [str(g) for g in campaign.get("groups", [])])
+    return CoincidenceModel(arm, groups_=groups)
+
+
+def _column(rec, topic, msgs, key, shape, dtype=float):
+    out = []
+    for i, m in enumerate(msgs):
+        if key not in m:
+            raise RobocalError(f"{where(rec.path, topic, i)}: field {key!r} missing")
+        try:
+            v = np.asarray(m[key], dtype=dtype)
+        except (TypeError, ValueError, OverflowError):
+            raise RobocalError(f"{where(rec.path, topic, i)}: field {key!r} is not numeric") from None
+        if v.shape != shape:
+            raise RobocalError(f"{where(rec.path, topic, i)}: field {key!r} has shape {v.shape}, expected {shape}")
+        if dtype is float and not np.all(np.isfinite(v)):
+            raise RobocalError(f"{where(rec.path, topic, i)}: field {key!r} has NaN or inf")
+        out.append(v)
+    return np.stack(out) if out else np.zeros((0,) + shape, dtype)
+
+
+def load(rec):
+    """Measurement model and measurement table of a URDF recording."""
+    measure = campaign_measure(rec)
+    campaign = rec.meta(META_CAMPAIGN)
+    arm = arm_of(rec)
+    topic = channel_of(measure)
+    msgs = rec.require(topic)
+    n = len(msgs)
+    table = {"timestamp_ns": _column(rec, topic, msgs, "timestamp_ns", (), np.int64),
+             "joint_positions": _column(rec, topic, msgs, "joint_positions", (arm.n_joints,)),
+             "record": np.arange(n)}
+    labels = None
+    if measure in ("point", "pose"):
+        table["position"] = _column(rec, topic, msgs, "position", (3,))
+    if measure == "point":
+        table["target"] = np.array([int(m.get("target", 0)) for m in msgs], np.int64)
+        table["label"] = np.array([f"target {t}" for t in table["target"]], object)
+    if measure == "pose":
+        quat = _column(rec, topic, msgs, "orientation", (4,))
+        norm = np.linalg.norm(quat, axis=1)
+        bad = np.flatnonzero(np.abs(norm - 1) > 1e-3)
+        if bad.size:
+            raise RobocalError(f"{where(rec.path, topic, int(bad[0]))}: orientation is not a unit quaternion "
+                               f"(norm {norm[bad[0]]:.4g})")
+        table["orientation"] = quat / norm[:, None]
+        table["label"] = np.full(n, "pose", object)
+    if measure in ("plane", "coincidence"):
+        key = "plane" if measure == "plane" else "group"
+        names = [str(m.get(key, "")) for m in msgs]
+        if measure == "plane":
+            labels = [str(p["name"]) for p in campaign.get("planes", [])]
+        else:
+            labels = list(dict.fromkeys(names))
+        index = {g: i for i, g in enumerate(labels)}
+        for i, g in enumerate(names):
+            if g not in index:
+                raise RobocalError(f"{where(rec.path, topic, i)}: {key} {g!r} is not declared in the campaign "
+                                   f"(known: {', '.join(labels)})")
+        table[key] = np.array([index[g] for g in names], np.int64)
+        table["label"] = np.array(names, object)
+    if measure == "coincidence":
+        table["group"] = table.pop("group")
+    model = model_for(arm, measure, campaign, labels)
+    if measure == "coincidence" and campaign.get("distances"):
+        table = _with_distances(rec, table, campaign["distances"], labels, arm.n_joints)
+    return model, table
+
+
+def _with_distances(rec, table: dict, distances: list, labels: list[str], nj: int) -> dict:
+    """Append one row per known distance between two groups' points (kind = 1)."""
+    index = {g: i for i, g in enumerate(labels)}
+    rows = []
+    for d in distances:
+        a, b = str(d.get("a")), str(d.get("b"))
+        if a not in index or b not in index:
+            raise RobocalError(f"{rec.path}: metadata robocal.campaign: distance between unknown groups {a!r}, {b!r}")
+        rows.append((index[a], index[b], float(d["distance"])))
+    n, k = len(table["record"]), len(rows)
+    out = {c: np.concatenate([v, np.zeros((k,) + v.shape[1:], v.dtype)]) for c, v in table.items() if c != "label"}
+    out["label"] = np.concatenate([table["label"], np.array(["distance"] * k, object)])
+    out["kind"] = np.r_[np.zeros(n, np.int64), np.ones(k, np.int64)]
+    out["group"][n:] = [r[0] for r in rows]
+    out["group_b"] = np.r_[np.zeros(n, np.int64), [r[1] for r in rows]].astype(np.int64)
+    out["distance"] = np.r_[np.zeros(n), [r[2] for r in rows]]
+    out["record"] = np.arange(n + k)
+    return out
+
+
+def joint_limits(rec):
+    """(lower, upper, names) of the chain's movable joints, for validate."""
+    arm = arm_of(rec)
+    return arm.lower, arm.upper, arm.joint_names

@@ -47,7 +47,7 @@ def one_pool(seed: int, a) -> dict:
     i1, _ = staged.plan_first_stage(nominal, jig, P1, a.first)
     sel_s = time.perf_counter() - t
     c1 = cdoc.from_pool(aw.SYSTEM, nominal, jig, P1.take(i1), margin_m=0.010, stages=2)
-    ex1 = execute(nominal, truth, jig, c1, Noise(), seed=seed)
+    ex1 = execute(nominal, truth, jig, c1, Noise(), seed=seed, stream=False)
     x1, cov1 = staged.map_fit(model, table_of(ex1.sim), staged.prior_cov(nominal), 5e-5)
     arm1 = nominal.with_vector(x1)
     P2 = touch.pool(arm1, jig, a.candidates, seed=seed + 7, margin_m=0.003)
@@ -55,7 +55,7 @@ def one_pool(seed: int, a) -> dict:
     i2, _ = staged.plan_next_stage(x1, cov1, jig, P2, a.total - a.first)
     sel_s += time.perf_counter() - t
     c2 = cdoc.from_pool(aw.SYSTEM, arm1, jig, P2.take(i2), margin_m=0.003, stage=2, stages=2)
-    ex = execute(nominal, truth, jig, cdoc.concat([c1, c2]), Noise(), seed=seed)
+    ex = execute(nominal, truth, jig, cdoc.concat([c1, c2]), Noise(), seed=seed, stream=False)
     n_land = int(ex.landed.sum())
     planned = err3d(xt, fit(model, table_of(ex.sim)).x, test_q)
     # random campaigns: today's simulator — random targets, misses replaced, same number of landed contacts
@@ -65,7 +65,7 @@ def one_pool(seed: int, a) -> dict:
     for _ in range(a.random):
         order = rng.permutation(R.face.size)
         exr = execute(nominal, truth, jig, cdoc.from_pool(aw.SYSTEM, nominal, jig, R.take(order[:3 * n_land])),
-                      Noise(), seed=int(rng.integers(1 << 30)))
+                      Noise(), seed=int(rng.integers(1 << 30)), stream=False)
         tab = {k: v[: n_land] for k, v in table_of(exr.sim).items()}
         rand.append(err3d(xt, fit(model, tab).x, test_q))
     out = {"seed": seed, "planned": a.total, "landed": n_land, "stage1_landed": int(ex.landed[: a.first].sum()),
@@ -74,7 +74,7 @@ def one_pool(seed: int, a) -> dict:
     if a.single:
         pl = dplan(model, P1.table(), a.total)
         ex_s = execute(nominal, truth, jig, cdoc.from_pool(aw.SYSTEM, nominal, jig, P1.take(pl.selection.index)),
-                       Noise(), seed=seed)
+                       Noise(), seed=seed, stream=False)
         out |= {"single_landed": int(ex_s.landed.sum()), "err_single_m": err3d(xt, fit(model, table_of(ex_s.sim)).x, test_q)}
     return out
 

@@ -67,8 +67,10 @@ def landing(truth_x: np.ndarray, jig: Jig, face: np.ndarray, q_a: np.ndarray, dq
 
 
 def execute(nominal: SerialArm, truth: SerialArm, jig: Jig, plan: TouchCampaign, noise: Noise = Noise(),
-            seed: int = 0, start_ns: int | None = None) -> Executed:
-    """Run every planned measurement in order on the true robot (see module docstring)."""
+            seed: int = 0, start_ns: int | None = None, stream: bool = True) -> Executed:
+    """Run every planned measurement in order on the true robot (see module docstring).
+    `stream` False skips the encoder stream (contacts only, times from a 1 s per measurement
+    clock) for benchmarks that only fit contacts."""
     rng = np.random.default_rng(seed)
     k = noise.scale
     face_err = {f.id: float(k * rng.uniform(-noise.jig_error_m, noise.jig_error_m)) for f in jig.faces}
@@ -82,8 +84,12 @@ def execute(nominal: SerialArm, truth: SerialArm, jig: Jig, plan: TouchCampaign,
     s_run = np.where(hit, s, np.where(reason == 2, 0.0, camp.search_travel_m))
     quant = k > 0
     q_end = _quantise(plan.q_approach + s_run[:, None] * plan.dq, noise.encoder_counts_per_rev, quant)
-    t_ns, q_stream, t_end = _timeline(plan.q_approach, plan.dq, np.maximum(s_run, 1e-6), camp, nominal.n_joints)
-    q_stream = _quantise(q_stream, noise.encoder_counts_per_rev, quant)
+    if stream:
+        t_ns, q_stream, t_end = _timeline(plan.q_approach, plan.dq, np.maximum(s_run, 1e-6), camp, nominal.n_joints)
+        q_stream = _quantise(q_stream, noise.encoder_counts_per_rev, quant)
+    else:
+        t_end = camp.start_ns + np.arange(1, n + 1, dtype=np.int64) * 1_000_000_000
+        t_ns, q_stream = t_end[:0], np.zeros((0, nominal.n_joints))
     h = np.flatnonzero(hit)
     axis = plan.axis[h]
     coord = np.array([jig.faces[f].coordinate for f in face[h]])

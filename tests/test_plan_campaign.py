@@ -156,3 +156,24 @@ def test_device_sim_plays_a_planned_campaign_over_a_pty_with_its_misses(planned,
     n_contact = len(rec.messages.get("/touch/contact", []))
     n_miss = len(rec.messages.get("/touch/miss", []))
     assert n_contact + n_miss == 30 and n_contact >= 10
+
+
+def test_delta_pose_campaign_is_planned_executed_and_calibrated(tmp_path):
+    r = run_cli("plan", "delta-tracker", "--candidates", "300", "--select", "27", "--out", tmp_path / "c.json")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "c.json").read_text())
+    validator("campaign").validate(doc)
+    assert doc["measurement"] == "pose" and len(doc["measurements"]) == 27
+    r = run_cli("simulate", "delta-tracker", "--campaign", tmp_path / "c.json", "--out", tmp_path / "r.mcap")
+    assert r.returncode == 0, r.stderr
+    rec = read_recording(tmp_path / "r.mcap")
+    q = np.array([m["joint_positions"] for m in rec.messages["/tracker/point"]])
+    planned = np.array([m["joints_rad"] for m in doc["measurements"]])
+    assert np.abs(q - planned).max() < 1e-4  # the robot stood at the planned configurations (encoder resolution)
+    r = run_cli("calibrate", tmp_path / "r.mcap", "--out", tmp_path / "cal")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "cal" / "results.json").read_text())["holdout_rms_m"] < 5e-5
+    bad = dict(doc, system="arc-welder")
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    r = run_cli("simulate", "delta-tracker", "--campaign", tmp_path / "bad.json", "--out", tmp_path / "x.mcap")
+    assert r.returncode == 2 and "not a delta-tracker pose campaign" in r.stderr

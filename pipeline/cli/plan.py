@@ -97,6 +97,9 @@ def plan_cmd(
             n = len(mt["record"])
             doc["check"] = compare(mmodel, take(mt, np.arange(n - 100)), take(mt, np.arange(n - 100, n)),
                                    select_m, n_random=check, seed=seed)
+    if hasattr(mod, "pose_campaign"):  # an executable campaign (schemas/campaign.schema.json)
+        doc = {"kind": "robocal.campaign", "version": 1, **doc, "stage": 1, "stages": 1,
+               **mod.pose_campaign(table, s.index)}
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json(out, doc)
     err.print(f"selected {select_m} of {len(As)} candidates in {s.elapsed_s:.3f} s "

@@ -50,6 +50,9 @@ def plan_cmd(
         from pipeline.plan.arc_welder import touch_campaign
         from pipeline.stages.artefacts import write_json
 
+        if check:
+            err.print("[yellow]--check is not run for touch campaigns: benchmarks/bench_plan_campaign.py executes "
+                      "planned and random campaigns on the true robot[/]")
         doc = touch_campaign(candidates, select_m, seed, margin, stages, first_stage, after)
         out.parent.mkdir(parents=True, exist_ok=True)
         write_json(out, doc)

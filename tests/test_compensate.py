@@ -64,7 +64,8 @@ def test_unreachable_and_out_of_limits_rows_are_reported_not_clipped(arms):
     p[0] = [3.0, 3.0, 3.0]  # far out of reach
     lo, hi = nominal.lower.copy(), nominal.upper.copy()
     lo[0], hi[0] = q[1, 0] - 1e-6, q[1, 0] + 1e-6  # J1 pinned where the nominal solution is: the calibrated one is out
-    kin = S.SerialArmKinematics(6, lo, hi)
+    from dataclasses import replace
+    kin = replace(S.SerialArmKinematics.of(nominal), lower=lo, upper=hi)
     c = S.compensate(kin, nominal.vector(), truth.vector(), p, R, IK_SEEDS, hint=q)
     assert c.status[0] == "unreachable"
     assert c.status[1] == "out_of_limits"
@@ -129,3 +130,43 @@ def test_compensated_program_on_the_true_robot_is_within_1_2x_the_predicted_accu
     rms = lambda v: float(np.sqrt(np.mean(v**2)))  # noqa: E731
     assert rms(before) > 10e-3
     assert rms(after) <= 1.2 * rms(sigma), (rms(after), rms(sigma))
+
+
+URDF = """<robot name="six">
+  <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="l4"/><link name="l5"/>
+  <link name="l6"/><link name="tool"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.4"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.1 0 0" rpy="1.5707963 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0.45 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j4" type="revolute"><parent link="l3"/><child link="l4"/><origin xyz="0.05 0.4 0" rpy="-1.5707963 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j5" type="revolute"><parent link="l4"/><child link="l5"/><origin xyz="0 0 0" rpy="1.5707963 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j6" type="revolute"><parent link="l5"/><child link="l6"/><origin xyz="0 0 0" rpy="-1.5707963 0 0"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="flange" type="fixed"><parent link="l6"/><child link="tool"/><origin xyz="0.02 0 0.12"/></joint>
+</robot>
+"""
+
+
+def test_a_urdf_robot_plugs_into_compensation_through_its_chain():
+    from pipeline.models.urdf import parse
+    from pipeline.models.urdf_arm import UrdfArm
+
+    arm = UrdfArm(parse(URDF, "base", "tool"))
+    kin = S.ChainKinematics.of(arm)
+    x0 = arm.vector()
+    rng = np.random.default_rng(0)
+    x1 = x0 + rng.normal(0, 1e-3, x0.size)  # a "calibrated" robot ~1 mm / 1 mrad off
+    q = rng.uniform(-1, 1, (200, 6))
+    q[:, 4] = rng.uniform(0.4, 1.2, 200) * rng.choice([-1, 1], 200)  # away from the wrist singularity
+    R, p = kin.pose(x0, q)
+    c = S.compensate(kin, x0, x1, p, R, np.zeros((1, 6)), hint=q)
+    ok = c.status == "ok"
+    assert ok.mean() > 0.9
+    R1, p1 = kin.pose(x1, c.q[ok])
+    assert np.abs(p1 - p[ok]).max() < 1e-9 and np.abs(R1 - R[ok]).max() < 1e-9
+    assert np.abs(c.q[ok] - q[ok]).max() < 0.1  # same branch, a small correction

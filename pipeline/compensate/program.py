@@ -94,7 +94,13 @@ def load_run(run_dir: Path) -> dict:
 
 def predicted_sigma(model, x: np.ndarray, free: np.ndarray, cov: np.ndarray, q: np.ndarray) -> np.ndarray:
     """1σ 3-D tool-point error of the calibrated model at joints q (N,), m."""
-    _, Jp = model.points(x, {"joint_positions": np.nan_to_num(q)})
+    q = np.nan_to_num(q)
+    if _chain_kin(model) is not None:
+        J = serial.ChainKinematics.of(model.kin).point_jacobian(x, q)
+        Jp = np.zeros((q.shape[0], 3, x.size))
+        Jp[:, :, : J.shape[2]] = J
+    else:
+        _, Jp = model.points(x, {"joint_positions": q})
     Jp = Jp[:, :, free]
     return np.sqrt(np.einsum("nip,pq,niq->n", Jp, cov, Jp))
 
@@ -102,11 +108,11 @@ def predicted_sigma(model, x: np.ndarray, free: np.ndarray, cov: np.ndarray, q: 
 def compensate_run(run: dict, targets: dict) -> serial.Compensated:
     """Dispatch on the run's model: serial arm (LM IK) or Delta (closed form)."""
     model = run["model"]
-    if hasattr(model, "arm"):  # serial arm (TouchModel); a URDF model plugs in with its Kinematics
+    if _chain_kin(model) is not None:  # seed 000's arm, a URDF robot: any measurement model over a Chain
         from pipeline.simulate.arc_welder import IK_SEEDS
 
-        kin = serial.SerialArmKinematics.of(model.arm)
-        seeds = IK_SEEDS if model.arm.n_joints == 6 else np.zeros((1, model.arm.n_joints))
+        kin = serial.ChainKinematics.of(model.kin)
+        seeds = IK_SEEDS if kin.n_joints == 6 else np.zeros((1, kin.n_joints))
         return serial.compensate(kin, run["x_nominal"], run["x"], targets["p"], targets["R"], seeds, targets["hint"])
     if hasattr(model, "delta"):
         from pipeline.compensate import delta
@@ -118,9 +124,16 @@ def compensate_run(run: dict, targets: dict) -> serial.Compensated:
     raise RobocalError(f"compensation is not available for system {run['system']} yet")
 
 
+def _chain_kin(model):
+    kin = getattr(model, "kin", None)
+    return kin if kin is not None and hasattr(kin, "chain") else None
+
+
 def joint_names(model) -> list[str]:
-    if hasattr(model, "arm"):
-        return [j.name for j in model.arm.joints]
+    kin = _chain_kin(model)
+    if kin is not None:
+        names = getattr(kin, "joint_names", None)
+        return list(names) if names is not None else [j.name for j in kin.joints]
     return ["theta1", "theta2", "theta3"]
 
 

@@ -2,9 +2,8 @@
 analytic joint Jacobian), and compensation of a program of Cartesian targets.
 
 Kinematics plug in through `Kinematics` (forward pose and joint Jacobian with its angular part
-at a parameter vector); `SerialArmKinematics` wraps seed 000's D-H + Hayati arm
-(`pipeline.models.serial_arm` / `chain`) and any `Chain`-based robot (URDF) can be wrapped the
-same way.  All poses in the work frame {W} (the jig frame for the arc welder), m and rad.
+at a parameter vector); `ChainKinematics` wraps any robot described by a `Chain`: seed 000's
+D-H + Hayati arm and URDF robots alike.  All poses in the work frame {W} (the jig frame for the arc welder), m and rad.
 
 Compensation of target (p_t, R_t):
 1. the controller's solution: nominal-model IK (from the row's hint, else multi-start seeds,
@@ -27,7 +26,6 @@ from typing import Protocol
 import numpy as np
 
 from pipeline.models import chain as ch
-from pipeline.models import serial_arm
 
 LEVER_M = 0.3  # orientation weighed like a 0.3 m lever (rad → m) in the Newton steps and σ_min
 
@@ -48,27 +46,40 @@ class Kinematics(Protocol):
         ...
 
 
-@dataclass(frozen=True)
-class SerialArmKinematics:
-    """`Kinematics` of a `SerialArm` (seed 000's model) through its `Chain`."""
+@dataclass(frozen=True, eq=False)
+class ChainKinematics:
+    """`Kinematics` of any robot described by a `pipeline.models.chain.Chain` — seed 000's
+    `SerialArm`, a `UrdfArm` — whose parameters come first in the parameter vector (the
+    measurement model's extra parameters, if any, follow and are ignored here)."""
 
+    chain: ch.Chain
     n_joints: int
     lower: np.ndarray
     upper: np.ndarray
 
     @classmethod
-    def of(cls, arm) -> "SerialArmKinematics":
-        return cls(arm.n_joints, arm.lower, arm.upper)
+    def of(cls, kin) -> "ChainKinematics":
+        """From a kinematics description with `chain()`, `n_joints`, `lower`, `upper`."""
+        return cls(kin.chain(), int(kin.n_joints), np.asarray(kin.lower, float), np.asarray(kin.upper, float))
+
+    def _x(self, x):
+        return np.asarray(x, float)[: self.chain.n_params]
 
     def pose(self, x, q):
-        return serial_arm.forward(x, q)
+        return ch.forward(self.chain, self._x(x), np.atleast_2d(np.asarray(q, float)))
 
     def pose_jacobian(self, x, q):
         q = np.atleast_2d(np.asarray(q, float))
-        c = serial_arm.arm_chain(q.shape[1])
-        R, p, *_ = ch.walk(c, x, q, True)  # one walk: joint_jacobian below reuses it (memoised)
-        _, Jp, Jw = ch.joint_jacobian(c, x, q, angular=True)
+        R, p, *_ = ch.walk(self.chain, self._x(x), q, True)  # one walk: joint_jacobian below reuses it (memoised)
+        _, Jp, Jw = ch.joint_jacobian(self.chain, self._x(x), q, angular=True)
         return R.copy(), p.copy(), np.concatenate([Jp, Jw], axis=1)
+
+    def point_jacobian(self, x, q) -> np.ndarray:
+        """d tool point / d parameters (N, 3, P) over the chain's parameters."""
+        return ch.jacobian(self.chain, self._x(x), np.atleast_2d(np.asarray(q, float)))[1]
+
+
+SerialArmKinematics = ChainKinematics  # seed 000's arm: ChainKinematics.of(SerialArm)
 
 
 @dataclass(frozen=True)

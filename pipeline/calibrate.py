@@ -57,6 +57,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
             selection = select(model, table, k=k_folds, seed=seed, options=options)
             options = _replace(options, fixed=tuple(sorted(set(options.fixed) | set(selection.fixed))))
         f = fit(model, table, options)
+        if selection is not None:
+            from pipeline.identify.complexity import relabel
+            relabel(f, selection)
         holdout = cross_validate(model, table, k=k_folds, seed=seed, options=options)
     else:
         raise RobocalError(f"unknown solver {solver!r} (expected lm or ga)")

@@ -116,3 +116,13 @@ def explain(sel: Selection) -> list[str]:
         lines.append(f"+ {r['candidate']}: held-out {r['holdout_rms_m'] * 1e3:.3f} mm against "
                      f"{r['against_m'] * 1e3:.3f} mm → {verdict}")
     return lines
+
+
+def relabel(fit, sel: Selection) -> None:
+    """Name the reason of the parameters the selection held fixed (instead of "fixed by the user")."""
+    names = fit.names
+    why = "not fitted: its group did not lower the held-out error (model_selection)"
+    for n in sel.fixed:
+        i = names.index(n)
+        if fit.identifiability.reasons.get(i) == "fixed by the user":
+            fit.identifiability.reasons[i] = why

@@ -51,6 +51,9 @@ def run(run_dir: Path, params: dict) -> dict:
         opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
     rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
     f = rf.fit
+    if selection is not None:
+        from pipeline.identify.complexity import relabel
+        relabel(f, selection)
     kept_data = take(data, rf.kept)
     folds = int(params.get("folds", 5))
     holdout_kept = cross_validate(model, kept_data, k=folds, seed=int(params.get("seed", 0)), options=opts)

@@ -159,6 +159,12 @@ def _with_distances(rec, table: dict, distances: list, labels: list[str], nj: in
 
 
 def joint_limits(rec):
-    """(lower, upper, names) of the chain's movable joints, for validate."""
+    """(lower, upper, names) of the chain's movable joints for validate, widened as the importer
+    does (`csv_table.LIMIT_SLACK` of each range): real robots read a little past their URDF's
+    nominal limits; far past them is a unit mistake and fails."""
+    from pipeline.importers.csv_table import LIMIT_SLACK
+
     arm = arm_of(rec)
-    return arm.lower, arm.upper, arm.joint_names
+    lo, hi = arm.lower, arm.upper
+    span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
+    return lo - LIMIT_SLACK * span, hi + LIMIT_SLACK * span, arm.joint_names

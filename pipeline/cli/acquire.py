@@ -97,6 +97,8 @@ def device_sim_cmd(
     recording: Path = typer.Option(None, "--recording", help="Play this recording instead of simulating one."),
     seed: int = typer.Option(0, "--seed", help="Seed of the simulated campaign and of the impairments."),
     sim_args: str = typer.Option("", "--sim-args", help="Extra options for `robocal simulate SYSTEM`, e.g. '--contacts 30'."),
+    campaign: list[Path] = typer.Option([], "--campaign", help="Play this planned campaign (robocal plan --out) as "
+                                        "executed on the simulated true robot; repeat for stages."),
     speed: float = typer.Option(1.0, "--speed", min=0.01, help="Play this many times faster than real time."),
     batch: int = typer.Option(1, "--batch", min=1, max=1000, help="Encoder samples per SAMPLES frame."),
     corrupt: float = typer.Option(0.0, "--corrupt", min=0.0, max=1.0, help="Probability of flipping each byte."),
@@ -117,10 +119,13 @@ def device_sim_cmd(
     from pipeline.recording.schemas import META_CAMPAIGN
 
     tmp = tempfile.TemporaryDirectory(prefix="robocal-devsim-")
+    if campaign and recording is not None:
+        raise RobocalError("device-sim: give --campaign or --recording, not both")
     if recording is None:
         recording = Path(tmp.name) / "campaign.mcap"
         try:
-            simulate_app([system, "--out", str(recording), "--seed", str(seed), *shlex.split(sim_args)],
+            plan_args = [a for c in campaign for a in ("--campaign", str(c))]
+            simulate_app([system, "--out", str(recording), "--seed", str(seed), *plan_args, *shlex.split(sim_args)],
                          standalone_mode=False)
         except SystemExit as e:
             if e.code:

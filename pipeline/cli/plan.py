@@ -34,9 +34,37 @@ def plan_cmd(
     seed: int = typer.Option(0, "--seed", help="Seed of the candidate generation."),
     check: int = typer.Option(0, "--check", min=0, help="Also compare, on a simulated campaign, the held-out RMS of "
                                                         "the planned set with this many random sets (0 = skip)."),
+    margin: float = typer.Option(0.010, "--margin", min=0.0, help="Touch: predicted contacts at least this far (m) "
+                                 "inside every face edge (narrow faces: 35 % of their width)."),
+    stages: int = typer.Option(1, "--stages", min=1, max=2, help="2: write a short first stage (--first-stage "
+                               "contacts, most likely to land); calibrate it (robocal run), then plan the rest with --after."),
+    first_stage: int = typer.Option(15, "--first-stage", min=3, help="Contacts in the first stage of --stages 2."),
+    after: Path = typer.Option(None, "--after", help="Touch: plan the next stage on the run directory of the stages "
+                               "so far (robocal run REC --out RUN_DIR): its contacts, updated model and uncertainty."),
 ) -> None:
-    """D-optimal pose selection: greedy + Fedorov exchange with rank-1 (Sherman–Morrison) updates."""
+    """D-optimal pose selection: greedy + Fedorov exchange with rank-1 (Sherman–Morrison) updates.
+    For the arc welder the output is an executable campaign (schemas/campaign.schema.json)."""
     import numpy as np
+
+    if hasattr(candidate_module(system), "touch_campaign"):
+        from pipeline.plan.arc_welder import touch_campaign
+        from pipeline.stages.artefacts import write_json
+
+        if check:
+            err.print("[yellow]--check is not run for touch campaigns: benchmarks/bench_plan_campaign.py executes "
+                      "planned and random campaigns on the true robot[/]")
+        doc = touch_campaign(candidates, select_m, seed, margin, stages, first_stage, after)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_json(out, doc)
+        p = [m.get("landing_probability", 1.0) for m in doc["measurements"]]
+        err.print(f"stage {doc['stage']} of {doc['stages']}: {len(doc['measurements'])} measurements planned from "
+                  f"{doc['n_candidates']} candidates in {doc['selection_s']:.3f} s; predicted landing probability "
+                  f"min {min(p):.3f}, mean {np.mean(p):.3f}; margin {margin * 1e3:.1f} mm")
+        if doc["stage"] < doc["stages"]:
+            err.print(f"next: robocal simulate {system} --campaign {out} --out REC.mcap (or run it on the robot); "
+                      f"robocal run REC.mcap --out RUN; robocal plan {system} --after RUN --select N --out NEXT.json")
+        print(out)
+        return
 
     from pipeline.identify.model import take
     from pipeline.plan.doptimal import logdet_info, scale
@@ -72,6 +100,9 @@ def plan_cmd(
             n = len(mt["record"])
             doc["check"] = compare(mmodel, take(mt, np.arange(n - 100)), take(mt, np.arange(n - 100, n)),
                                    select_m, n_random=check, seed=seed)
+    if hasattr(mod, "pose_campaign"):  # an executable campaign (schemas/campaign.schema.json)
+        doc = {"kind": "robocal.campaign", "version": 1, **doc, "stage": 1, "stages": 1,
+               **mod.pose_campaign(table, s.index)}
     out.parent.mkdir(parents=True, exist_ok=True)
     write_json(out, doc)
     err.print(f"selected {select_m} of {len(As)} candidates in {s.elapsed_s:.3f} s "

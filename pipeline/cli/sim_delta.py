@@ -33,6 +33,8 @@ def delta_tracker_cmd(
                                 "an injected thermal_drift=GX,GY,GZ is then in m/K of that rise."),
     temperature_sensor: bool = typer.Option(False, "--temperature-sensor", help="Thermal: log a temperature sensor "
                                             "(1 Hz, 0.05 K noise) on /arm/temperature."),
+    campaign_file: Path = typer.Option(None, "--campaign", help="Execute this planned pose campaign "
+                                       "(robocal plan delta-tracker --out) instead of the grid."),
 ) -> None:
     """Laser-tracker campaign of seed 003's 90° Delta robot."""
     from pipeline.errors import RobocalError
@@ -46,6 +48,17 @@ def delta_tracker_cmd(
     delta = Delta()
     true = random_truth(np.random.default_rng(seed + 1_000_003), truth_model)
     campaign = Campaign(grid=tuple(grid), spacing_m=tuple(spacing), points=points, seed=seed)
+    if campaign_file is not None:  # the planned actuator angles, commanded as their nominal platform points
+        from dataclasses import replace as _replace
+
+        from pipeline.models import delta as dm
+        from pipeline.plan.delta_tracker import read_pose_campaign
+
+        p_cmd, ok = dm.forward(delta, np.zeros(27), read_pose_campaign(campaign_file))
+        if not np.all(ok):
+            raise RobocalError(f"{campaign_file}: measurement {int(np.flatnonzero(~ok)[0])}: the legs cannot close "
+                               "at these actuator angles")
+        campaign = _replace(campaign, targets_m=tuple(map(tuple, p_cmd.tolist())))
     noise = Noise(tracker_sigma_m=tracker_sigma, scale=noise_scale)
     out.parent.mkdir(parents=True, exist_ok=True)
     if truth is not None:

@@ -37,6 +37,9 @@ def arc_welder_cmd(
     robot_id: str = typer.Option("sim-arc-welder", "--robot-id", help="Robot identity written to the campaign metadata."),
     start: str = typer.Option("", "--start", help="Campaign start, ISO 8601 UTC (e.g. 2026-07-01T08:00:00Z); "
                               "default 2026-01-01T00:00:00Z."),
+    campaign_file: list[Path] = typer.Option([], "--campaign", help="Execute this planned campaign (robocal plan --out) "
+                                             "on the true robot instead of drawing targets; misses go to /touch/miss. "
+                                             "Repeat for the stages of a staged campaign: run back to back, one recording."),
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
     from pipeline.models.jig import stepped_block
@@ -53,6 +56,9 @@ def arc_welder_cmd(
     if start:
         campaign = replace(campaign, start_ns=_start_ns(start))
     jig = stepped_block()
+    if campaign_file:
+        _run_campaign(out, truth, nominal, true, jig, campaign_file, noise, seed)
+        return
     thermal = (warm_up, temperature_sensor)
     if (effect or payloads or search_speeds or face_order != "shuffled" or warm_up or temperature_sensor
             or payload_pairs):
@@ -98,6 +104,32 @@ def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)
         truth.write_text(json.dumps(truth_doc, indent=2, default=float) + "\n")
+
+
+def _run_campaign(out: Path, truth: Path | None, nominal, true, jig, campaign_files: list[Path], noise,
+                  seed: int) -> None:
+    """Execute planned campaign files, back to back, on the true robot (`pipeline.simulate.campaign_run`)."""
+    from pipeline.plan.campaign import concat, read
+    from pipeline.simulate.arc_welder import truth_document
+    from pipeline.systems import arc_welder as aw
+
+    plan = concat([read(f, aw.SYSTEM, nominal.n_joints, jig) for f in campaign_files])
+    campaign_file = ", ".join(str(f) for f in campaign_files)
+    from pipeline.simulate.campaign_run import execute
+
+    with err.status(f"executing {plan.n} planned contacts…"):
+        ex = execute(nominal, true, jig, plan, noise, seed)
+    sim = ex.sim
+    camp = replace(plan.campaign, contacts=int(sim.contact_t_ns.size), seed=seed)
+    meta = {"campaign_file": str(campaign_file), "planned": plan.n, "landed": int(ex.landed.sum()),
+            "missed": int((~ex.landed).sum()), "stage": plan.doc["stage"], "stages": plan.doc["stages"]}
+    doc = truth_document(true, noise, camp, sim) | {
+        "campaign_execution": {**meta, "land_rate": ex.land_rate,
+                               "misses": [{"index": int(i), "face": plan.face_id[i], "reason": r}
+                                          for i, r in zip(ex.miss_index, ex.miss_reason)]}}
+    _write(out, truth, nominal, jig, camp, sim, doc, meta, ex.miss_messages())
+    err.print(f"wrote {out}: {plan.n} planned contacts, {meta['landed']} landed, {meta['missed']} missed "
+              f"(logged on /touch/miss); {sim.stream_t_ns.size} encoder samples")
 
 
 def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,

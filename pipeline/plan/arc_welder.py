@@ -37,3 +37,70 @@ def measured(n: int, seed: int, random_errors: bool = False, noise_scale: float 
     truth = aw.random_truth(nominal, np.random.default_rng(seed + 1_000_003)) if random_errors else aw.reference_truth()
     sim = simulate(nominal, truth, stepped_block(), Campaign(contacts=n, seed=seed), Noise(scale=noise_scale))
     return aw.TouchModel(nominal), table_of(sim)
+
+
+def touch_campaign(n_candidates: int, m: int, seed: int = 0, margin_m: float = 0.010, stages: int = 1,
+                   first_stage: int = 15, after=None, sigma_m: float = 5e-5) -> dict:
+    """An executable campaign document (`pipeline.plan.campaign`): one stage D-optimal with the
+    face margin; with `stages` 2 the first stage (`pipeline.plan.staged`); with `after` (a run
+    directory of the stages so far) the next stage, planned on its MAP-updated model."""
+    import time
+
+    from pipeline.identify.model import take
+    from pipeline.plan import staged, touch
+    from pipeline.plan.campaign import touch_document
+    from pipeline.plan.select import plan
+    from pipeline.simulate.arc_welder import Campaign
+
+    jig = stepped_block()
+    nominal = aw.nominal_arm()
+    campaign = Campaign()
+    if after is not None:
+        nominal, jig, table = stages_so_far(after)
+        x, cov = staged.map_fit(aw.TouchModel(nominal), table, staged.prior_cov(nominal), sigma_m)
+        arm = nominal.with_vector(x)
+        pool = touch.pool(arm, jig, n_candidates, seed, margin_m, campaign)
+        t1 = time.perf_counter()
+        idx, p = staged.plan_next_stage(x, cov, jig, pool, m, sigma_m, campaign.approach_offset_m)
+        doc = touch_document(aw.SYSTEM, arm, jig, pool.take(idx), campaign, margin_m, 2, 2, idx)
+        extra = {"criterion": "Bayesian D-optimal given the earlier stages (MAP update, posterior covariance); "
+                              "candidates landing with P >= 0.99", "earlier_contacts": int(len(table["axis"]))}
+    else:
+        pool = touch.pool(nominal, jig, n_candidates, seed, margin_m, campaign)
+        t1 = time.perf_counter()
+        if stages == 2:
+            idx, p = staged.plan_first_stage(nominal, jig, pool, first_stage, sigma_m, campaign.approach_offset_m)
+            extra = {"criterion": "Bayesian D-optimal under the prior error sizes among the candidates likeliest "
+                                  "to land (P >= 0.95, else the 3m likeliest)"}
+        else:
+            model = aw.TouchModel(nominal)
+            pl = plan(model, take(pool.table(), np.arange(pool.face.size)), m)
+            idx = pl.selection.index
+            p = staged.landing_probability(nominal.vector(), staged.prior_cov(nominal), jig, pool.take(idx),
+                                           campaign.approach_offset_m)
+            extra = {"criterion": "D-optimal: log det of the information matrix of the free parameters",
+                     "logdet": pl.selection.logdet, "observability": pl.observability}
+        doc = touch_document(aw.SYSTEM, nominal, jig, pool.take(idx), campaign, margin_m, 1, stages, idx)
+    for row, pi in zip(doc["measurements"], p):
+        row["landing_probability"] = float(pi)
+    doc.update({"n_candidates": int(pool.face.size), "seed": seed, "selection_s": time.perf_counter() - t1,
+                "elapsed_s_note": "selection_s excludes the candidates' inverse kinematics", **extra})
+    return doc
+
+
+def stages_so_far(run_dir) -> tuple:
+    """(nominal arm, jig, contact table) of a run directory of an earlier stage."""
+    from pathlib import Path
+
+    from pipeline.errors import RobocalError
+    from pipeline.ingest.tables import model_columns
+    from pipeline.models.serial_arm import SerialArm
+    from pipeline.recording.schemas import META_FIXTURE, META_ROBOT
+    from pipeline.stages.ingest import read_measurements, recording_info
+
+    info = recording_info(Path(run_dir))
+    if info.get("system") != aw.SYSTEM:
+        raise RobocalError(f"{run_dir}: is a {info.get('system')} run, not {aw.SYSTEM}")
+    meta = info["metadata"]
+    table = model_columns(read_measurements(Path(run_dir)))
+    return SerialArm.from_dict(meta[META_ROBOT]), Jig.from_dict(meta[META_FIXTURE]), table

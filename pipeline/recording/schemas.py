@@ -12,6 +12,7 @@ import jsonschema
 CHANNELS: dict[str, str] = {
     "/robot/joint_state": "joint_state",
     "/touch/contact": "touch_contact",
+    "/touch/miss": "touch_miss",
     "/scanner/stripe": "scanner_stripe",
     "/tracker/point": "tracker_point",
     "/arm/temperature": "temperature",

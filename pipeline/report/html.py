@@ -309,12 +309,17 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     acc_html = accuracy_section(art)
     sections = [summary_section(s, warnings), acc_html, residual_section(art, series), parameter_section(art.fit),
                 observability_section(art), solver_section(art.history), validation_section(art.validate),
-                diagnosis_section(art), provenance_section(prov, rrd_name)]
+                diagnosis_section(art)]
+    from pipeline.report import compensation  # shown when `robocal compensate` ran on this run
+    comp = compensation.section(art.run_dir)
+    sections += [comp or "", provenance_section(prov, rrd_name)]
     titles = [("summary", "Summary")] + ([("accuracy", "Accuracy")] if acc_html else []) + [
               ("residuals", "Residuals"), ("parameters", "Parameters"),
               ("observability", "Observability"), ("solver", "Solver"), ("validation", "Validation")]
     if art.diagnosis is not None:
         titles.append(("diagnosis", "Diagnosis"))
+    if comp:
+        titles.append(("compensation", "Compensation"))
     titles.append(("provenance", "Provenance"))
     nav = "".join(f'<a href="#{i}">{escape(t)}</a>' for i, t in titles)
     src = prov.get("input_path") or "recording"

@@ -51,6 +51,7 @@ class Campaign:
     joint_speed_rad_s: float = 1.5
     settle_s: float = 0.5
     start_ns: int = EPOCH_NS
+    targets_m: tuple | None = None  # explicit platform points ((x, y, z), …) in {A}, e.g. from a planned campaign
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,8 @@ def random_truth(rng: np.random.Generator, model: str = "simplified") -> Truth:
 def campaign_targets(c: Campaign) -> np.ndarray:
     """Commanded platform positions (n, 3) m in {A}: the grid visited layer by layer in a
     serpentine (consecutive points are neighbours), or uniform random points in its box."""
+    if c.targets_m is not None:
+        return np.asarray(c.targets_m, float).reshape(-1, 3)
     center, step, g = np.asarray(c.center_m), np.asarray(c.spacing_m), np.asarray(c.grid)
     half = (g - 1) / 2 * step
     if c.points is not None:

@@ -1,0 +1,47 @@
+"""`robocal compensate RUN_DIR --targets TARGETS.csv --out PROGRAM.csv`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from pipeline.cli import app, err
+
+
+@app.command("compensate")
+def compensate_cmd(
+    run_dir: Path = typer.Argument(..., help="Run directory of a calibration (robocal run REC --out RUN_DIR)."),
+    targets: Path = typer.Option(..., "--targets", help="Targets CSV: x,y,z (m, work frame) [, qw,qx,qy,qz] "
+                                 "[, q_<joint> nominal joints to keep the branch] [, name]."),
+    out: Path = typer.Option(..., "--out", help="Program CSV to write: calibrated joints, corrected targets for a "
+                             "nominal controller, status and predicted σ per row."),
+) -> None:
+    """Inverse kinematics of the calibrated model for a program of Cartesian targets (see docs/compensate.md)."""
+    import time
+
+    from pipeline.compensate import program as pg
+    from pipeline.errors import RobocalError
+    from pipeline.stages.artefacts import write_json
+
+    if out.resolve() == targets.resolve():
+        raise RobocalError(f"{out}: --out would overwrite the targets file")
+    run = pg.load_run(run_dir)
+    names = pg.joint_names(run["model"])
+    tg = pg.read_targets(targets, names)
+    t0 = time.perf_counter()
+    c = pg.compensate_run(run, tg)
+    sigma = pg.predicted_sigma(run["model"], run["x"], run["free"], run["cov"], c.q)
+    elapsed = time.perf_counter() - t0
+    pg.write_program(out, c, tg, names, sigma)
+    doc = pg.summary(run, c, sigma, targets, out) | {"elapsed_s_note": "see the command's output"}
+    write_json(Path(run_dir) / "compensation" / "compensation.json", doc)
+    counts = ", ".join(f"{v} {k}" for k, v in doc["status_counts"].items())
+    sig = doc["predicted_sigma_rms_m"]
+    err.print(f"compensated {c.q.shape[0]} targets in {elapsed:.3f} s: {counts}; predicted 1σ tool-point error "
+              f"RMS {sig * 1e3 if sig is not None else float('nan'):.4f} mm; median correction "
+              f"{(doc['correction_median_m'] or float('nan')) * 1e3:.3f} mm", highlight=False)
+    bad = [r for r in doc["rows"] if r["status"] != "ok"][:5]
+    for r in bad:
+        err.print(f"  row {r['row']}: {r['status']}", highlight=False)
+    print(out)

@@ -1,0 +1,168 @@
+"""`robocal compensate` shell: read a run's calibration and a targets CSV, write the program.
+
+Targets CSV (header row; SI units, work frame — the jig frame {W} for the arc welder, the robot
+frame {A} for the Delta): ``x,y,z`` (m); optional ``qw,qx,qy,qz`` (tool orientation, unit
+quaternion, scalar first); optional ``q_<joint>`` for every joint (the program's nominal joint
+angles, rad: the branch to keep); optional ``name``.  Program CSV: per target ``row``, ``name``,
+``status``, the calibrated joints ``q_<joint>`` (rad), the corrected target for a nominal
+controller ``x_cmd,y_cmd,z_cmd`` (+ ``qw_cmd…`` with orientation), ``predicted_sigma_m`` (1σ
+3-D tool-point error of the calibrated model there), ``correction_m``, ``sigma_min_m``,
+``model_error_m``.  `RUN_DIR/compensation/compensation.json` keeps the summary for the report.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
+from scipy.spatial.transform import Rotation
+
+from pipeline.compensate import serial
+from pipeline.errors import RobocalError
+
+QUAT = ("qw", "qx", "qy", "qz")
+
+
+def read_targets(path: Path, joint_names: list[str]) -> dict:
+    """Targets from CSV: p (N,3), R (N,3,3) or None, hint (N,n) or None, names (one-line errors)."""
+    try:
+        t = pacsv.read_csv(path)
+    except FileNotFoundError:
+        raise RobocalError(f"{path}: no such targets file") from None
+    except (pa.ArrowInvalid, UnicodeDecodeError) as e:
+        raise RobocalError(f"{path}: not a targets CSV ({str(e).splitlines()[0]})") from None
+    cols = set(t.column_names)
+    if missing := [c for c in ("x", "y", "z") if c not in cols]:
+        raise RobocalError(f"{path}: missing column(s) {', '.join(missing)} (need x,y,z in m)")
+    if t.num_rows == 0:
+        raise RobocalError(f"{path}: no targets")
+
+    def numbers(names: list[str]) -> np.ndarray:
+        out = np.empty((t.num_rows, len(names)))
+        for k, c in enumerate(names):
+            try:
+                v = t.column(c).to_numpy(zero_copy_only=False).astype(float)
+            except (ValueError, TypeError, pa.ArrowInvalid):
+                v = np.full(t.num_rows, np.nan)
+                raw = t.column(c).to_pylist()
+                for i, r in enumerate(raw):
+                    try:
+                        v[i] = float(r)
+                    except (TypeError, ValueError):
+                        raise RobocalError(f"{path}: row {i + 1} (line {i + 2}), column {c}: {r!r} is not a number") from None
+            bad = np.flatnonzero(~np.isfinite(v))
+            if bad.size:
+                raise RobocalError(f"{path}: row {bad[0] + 1} (line {bad[0] + 2}), column {c}: missing or not finite")
+            out[:, k] = v
+        return out
+
+    p = numbers(["x", "y", "z"])
+    R = None
+    if cols & set(QUAT):
+        if not set(QUAT) <= cols:
+            raise RobocalError(f"{path}: orientation needs all of qw,qx,qy,qz (unit quaternion, scalar first)")
+        qv = numbers(list(QUAT))
+        norm = np.linalg.norm(qv, axis=1)
+        if (bad := np.flatnonzero(np.abs(norm - 1) > 1e-6)).size:
+            raise RobocalError(f"{path}: row {bad[0] + 1} (line {bad[0] + 2}): quaternion norm {norm[bad[0]]:.6g} is not 1")
+        R = Rotation.from_quat(qv[:, [1, 2, 3, 0]]).as_matrix()
+    hint_cols = [f"q_{j}" for j in joint_names]
+    hint = numbers(hint_cols) if set(hint_cols) <= cols else None
+    names = [str(v) for v in t.column("name").to_pylist()] if "name" in cols else [""] * t.num_rows
+    return {"p": p, "R": R, "hint": hint, "names": names}
+
+
+def load_run(run_dir: Path) -> dict:
+    """The run's system, nominal and calibrated parameters and covariance (identify/fit.json)."""
+    from pipeline.stages.ingest import load_system
+
+    fit_path = Path(run_dir) / "identify" / "fit.json"
+    if not fit_path.is_file():
+        raise RobocalError(f"{run_dir}: no identify/fit.json (calibrate with `robocal run REC --out {run_dir}`)")
+    fit = json.loads(fit_path.read_text())
+    system, model, _ = load_system(Path(run_dir))
+    if list(fit["names"]) != list(model.parameter_names()):
+        raise RobocalError(f"{fit_path}: parameters do not match the {system.SYSTEM} model of the recording")
+    free = np.asarray(fit["free"], bool)
+    cov = np.asarray(fit["cov"], float).reshape(int(free.sum()), int(free.sum()))
+    return {"system": system.SYSTEM, "model": model, "x_nominal": np.asarray(fit["nominal"], float),
+            "x": np.asarray(fit["x"], float), "free": free, "cov": cov}
+
+
+def predicted_sigma(model, x: np.ndarray, free: np.ndarray, cov: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """1σ 3-D tool-point error of the calibrated model at joints q (N,), m."""
+    q = np.nan_to_num(q)
+    if _chain_kin(model) is not None:
+        J = serial.ChainKinematics.of(model.kin).point_jacobian(x, q)
+        Jp = np.zeros((q.shape[0], 3, x.size))
+        Jp[:, :, : J.shape[2]] = J
+    else:
+        _, Jp = model.points(x, {"joint_positions": q})
+    Jp = Jp[:, :, free]
+    return np.sqrt(np.einsum("nip,pq,niq->n", Jp, cov, Jp))
+
+
+def compensate_run(run: dict, targets: dict) -> serial.Compensated:
+    """Dispatch on the run's model: serial arm (LM IK) or Delta (closed form)."""
+    model = run["model"]
+    if _chain_kin(model) is not None:  # seed 000's arm, a URDF robot: any measurement model over a Chain
+        from pipeline.simulate.arc_welder import IK_SEEDS
+
+        kin = serial.ChainKinematics.of(model.kin)
+        seeds = IK_SEEDS if kin.n_joints == 6 else np.zeros((1, kin.n_joints))
+        return serial.compensate(kin, run["x_nominal"], run["x"], targets["p"], targets["R"], seeds, targets["hint"])
+    if hasattr(model, "delta"):
+        from pipeline.compensate import delta
+
+        try:
+            return delta.compensate(model, run["x_nominal"], run["x"], targets["p"])
+        except ValueError as e:
+            raise RobocalError(str(e)) from None
+    raise RobocalError(f"compensation is not available for system {run['system']} yet")
+
+
+def _chain_kin(model):
+    kin = getattr(model, "kin", None)
+    return kin if kin is not None and hasattr(kin, "chain") else None
+
+
+def joint_names(model) -> list[str]:
+    kin = _chain_kin(model)
+    if kin is not None:
+        names = getattr(kin, "joint_names", None)
+        return list(names) if names is not None else [j.name for j in kin.joints]
+    return ["theta1", "theta2", "theta3"]
+
+
+def write_program(out: Path, c: serial.Compensated, targets: dict, names: list[str], sigma: np.ndarray) -> None:
+    """PROGRAM.csv (see module docstring); doubles written at full precision."""
+    cols: dict[str, pa.Array] = {"row": pa.array(np.arange(1, c.q.shape[0] + 1)),
+                                 "name": pa.array(targets["names"]), "status": pa.array(c.status.astype(str))}
+    for k, j in enumerate(names):
+        cols[f"q_{j}"] = pa.array(c.q[:, k])
+    for k, a in enumerate("xyz"):
+        cols[f"{a}_cmd"] = pa.array(c.p_corrected[:, k])
+    if targets["R"] is not None:
+        qv = Rotation.from_matrix(c.R_corrected).as_quat()[:, [3, 0, 1, 2]]
+        for k, a in enumerate(QUAT):
+            cols[f"{a}_cmd"] = pa.array(qv[:, k])
+    cols.update({"predicted_sigma_m": pa.array(sigma), "correction_m": pa.array(c.correction_m),
+                 "sigma_min_m": pa.array(c.sigma_min_m), "model_error_m": pa.array(c.error_m)})
+    out.parent.mkdir(parents=True, exist_ok=True)
+    pacsv.write_csv(pa.table(cols), out)
+
+
+def summary(run: dict, c: serial.Compensated, sigma: np.ndarray, targets_path: Path, out: Path) -> dict:
+    """compensation.json: counts per status, per-target σ and correction (for the report)."""
+    ok = c.status == "ok"
+    return {"system": run["system"], "targets": str(targets_path), "program": str(out), "n_targets": int(c.status.size),
+            "status_counts": {s: int((c.status == s).sum()) for s in serial.STATUS if (c.status == s).any()},
+            "orientation": bool(np.any(c.R_corrected != np.eye(3))) if run["system"] != "delta-tracker" else False,
+            "predicted_sigma_rms_m": float(np.sqrt(np.mean(sigma[ok] ** 2))) if ok.any() else None,
+            "correction_median_m": float(np.median(c.correction_m[ok])) if ok.any() else None,
+            "max_model_error_m": float(c.error_m[ok].max()) if ok.any() else None,
+            "rows": [{"row": i + 1, "status": str(s), "predicted_sigma_m": float(sg), "correction_m": float(cm)}
+                     for i, (s, sg, cm) in enumerate(zip(c.status, sigma, c.correction_m))]}

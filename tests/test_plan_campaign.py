@@ -1,0 +1,179 @@
+"""Executable campaigns: plan → campaign file (schema) → executed on the true robot (misses
+recorded as misses) → calibrated; two stages; bad campaign files."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from pipeline.errors import RobocalError
+from pipeline.models import serial_arm
+from pipeline.models.jig import stepped_block
+from pipeline.plan import campaign as cdoc
+from pipeline.plan import touch
+from pipeline.recording.reader import read_recording
+from pipeline.recording.schemas import validator
+from pipeline.simulate.arc_welder import Campaign, Noise
+from pipeline.simulate.campaign_run import execute
+from pipeline.systems import arc_welder as aw
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("plan")
+    r = run_cli("plan", "arc-welder", "--candidates", "150", "--select", "30", "--out", d / "c.json")
+    assert r.returncode == 0, r.stderr
+    return d / "c.json"
+
+
+def test_campaign_file_is_schema_valid_and_targets_keep_the_margin(planned):
+    doc = json.loads(planned.read_text())
+    validator("campaign").validate(doc)
+    assert doc["kind"] == "robocal.campaign" and len(doc["measurements"]) == 30
+    jig = stepped_block()
+    nominal = aw.nominal_arm()
+    for m in doc["measurements"]:
+        f = jig.face(m["face"])
+        ma, mb = doc["face_margins_m"][f.id]
+        a, b = f.other_axes()
+        p = m["predicted_contact_m"]
+        assert f.extent[0][0] + ma - 1e-9 <= p[a] <= f.extent[0][1] - ma + 1e-9
+        assert f.extent[1][0] + mb - 1e-9 <= p[b] <= f.extent[1][1] - mb + 1e-9
+        q = np.array(m["approach_joints_rad"])
+        assert np.all(q >= nominal.lower) and np.all(q <= nominal.upper)
+    assert min(doc["face_margins_m"]["top1"]) == pytest.approx(0.010)  # a wide face keeps the stated margin
+
+
+def test_executed_on_a_robot_equal_to_its_planning_model_every_contact_lands_where_predicted(planned):
+    nominal, jig = aw.nominal_arm(), stepped_block()
+    plan = cdoc.read(planned, aw.SYSTEM, 6, jig)
+    ex = execute(nominal, nominal, jig, plan, Noise(scale=0.0))
+    assert ex.landed.all()
+    pred = np.array([m["predicted_contact_m"] for m in plan.doc["measurements"]])
+    p = serial_arm.tip_position(nominal.vector(), ex.sim.contact_q)
+    assert np.abs(p - pred).max() < 1e-9
+
+
+def test_misses_on_the_true_robot_are_recorded_as_misses_and_contacts_are_true(tmp_path):
+    nominal, truth, jig = aw.nominal_arm(), aw.reference_truth(), stepped_block()
+    pool = touch.pool(nominal, jig, 60, seed=3, margin_m=0.0)  # no margin: the ~20 mm error makes misses
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(cdoc.touch_document(aw.SYSTEM, nominal, jig, pool, Campaign(), 0.0)))
+    plan = cdoc.read(path, aw.SYSTEM, 6, jig)
+    ex = execute(nominal, truth, jig, plan, Noise(), seed=1)
+    assert 0 < (~ex.landed).sum() < plan.n  # some miss, some land, none replaced
+    assert ex.sim.contact_t_ns.size + ex.miss_index.size == plan.n
+    assert ex.sim.injected_noise_rms_m < 1e-4  # every recorded contact is a true contact (noise only)
+    # a miss is genuine: the true tip never meets its face inside the edges within the travel
+    from pipeline.simulate.campaign_run import landing
+    for i in ex.miss_index[:5]:
+        f = np.array([[x.id for x in jig.faces].index(plan.face_id[i])])
+        hit, _, _ = landing(truth.vector(), jig, f, plan.q_approach[[i]], plan.dq[[i]], 0.09)
+        assert not hit[0]
+    out = tmp_path / "r.mcap"
+    r = run_cli("simulate", "arc-welder", "--campaign", path, "--out", out, "--truth", tmp_path / "t.json")
+    assert r.returncode == 0, r.stderr
+    rec = read_recording(out)
+    t = json.loads((tmp_path / "t.json").read_text())["campaign_execution"]
+    assert len(rec.messages.get("/touch/contact", [])) == t["landed"]
+    misses = rec.messages.get("/touch/miss", [])
+    assert len(misses) == t["missed"] > 0
+    for m in misses:
+        validator("touch_miss").validate(m)
+    assert sorted([m["campaign_index"] for m in misses]) == [x["index"] for x in t["misses"]]
+
+
+def test_two_stage_campaign_lands_and_calibrates(tmp_path):
+    d = tmp_path
+    assert run_cli("plan", "arc-welder", "--stages", "2", "--first-stage", "15", "--candidates", "300",
+                   "--select", "50", "--out", d / "c1.json").returncode == 0
+    r = run_cli("simulate", "arc-welder", "--campaign", d / "c1.json", "--out", d / "r1.mcap", "--seed", "3")
+    assert r.returncode == 0, r.stderr
+    r = run_cli("run", d / "r1.mcap", "--out", d / "run1")
+    assert r.returncode == 0, r.stderr
+    r = run_cli("plan", "arc-welder", "--after", d / "run1", "--select", "35", "--margin", "0.003",
+                "--candidates", "300", "--seed", "1", "--out", d / "c2.json")
+    assert r.returncode == 0, r.stderr
+    doc2 = json.loads((d / "c2.json").read_text())
+    assert doc2["stage"] == 2 and doc2["earlier_contacts"] >= 10
+    r = run_cli("simulate", "arc-welder", "--campaign", d / "c1.json", "--campaign", d / "c2.json",
+                "--out", d / "r12.mcap", "--truth", d / "t12.json", "--seed", "3")
+    assert r.returncode == 0, r.stderr
+    t = json.loads((d / "t12.json").read_text())["campaign_execution"]
+    assert t["planned"] == 50
+    stage2 = [x for x in t["misses"] if x["index"] >= 15]
+    assert len(stage2) <= 2  # planned on the updated model, the second stage lands
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["measurements"][0].update(approach_joints_rad=[0.0] * 5), "measurement 0: approach_joints_rad"),
+    (lambda d: d["measurements"][1].update(face="nowhere"), "measurement 1: face 'nowhere'"),
+    (lambda d: d["measurements"][2].update(search_direction=[0, 0, 2]), "measurement 2: search_direction"),
+    (lambda d: d.pop("measurements"), "'measurements' is a required property"),
+])
+def test_bad_campaign_files_fail_with_one_line_naming_file_and_measurement(planned, tmp_path, edit, message):
+    doc = json.loads(planned.read_text())
+    edit(doc)
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(RobocalError, match=message):
+        cdoc.read(bad, aw.SYSTEM, 6, stepped_block())
+    r = run_cli("simulate", "arc-welder", "--campaign", bad, "--out", tmp_path / "x.mcap")
+    assert r.returncode == 2 and "Traceback" not in r.stderr and str(bad) in r.stderr
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_not_json_campaign(tmp_path):
+    bad = tmp_path / "c.json"
+    bad.write_text("{not json")
+    r = run_cli("simulate", "arc-welder", "--campaign", bad, "--out", tmp_path / "x.mcap")
+    assert r.returncode == 2 and "not a JSON campaign" in r.stderr
+
+
+def test_device_sim_plays_a_planned_campaign_over_a_pty_with_its_misses(planned, tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    robocal = str(Path(sys.executable).parent / "robocal")
+    dev = tmp_path / "dev"
+    p = subprocess.Popen([robocal, "device-sim", "arc-welder", "--campaign", str(planned), "--speed", "100",
+                          "--link-dir", str(dev), "--seed", "3"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(120):
+            if (dev / "bridge").exists():
+                break
+            time.sleep(0.5)
+        r = run_cli("acquire", "--device", f"bridge={dev / 'bridge'}", "--out", tmp_path / "acq.mcap")
+        assert r.returncode == 0, r.stderr
+    finally:
+        p.wait(timeout=120)
+    rec = read_recording(tmp_path / "acq.mcap")
+    n_contact = len(rec.messages.get("/touch/contact", []))
+    n_miss = len(rec.messages.get("/touch/miss", []))
+    assert n_contact + n_miss == 30 and n_contact >= 10
+
+
+def test_delta_pose_campaign_is_planned_executed_and_calibrated(tmp_path):
+    r = run_cli("plan", "delta-tracker", "--candidates", "300", "--select", "27", "--out", tmp_path / "c.json")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "c.json").read_text())
+    validator("campaign").validate(doc)
+    assert doc["measurement"] == "pose" and len(doc["measurements"]) == 27
+    r = run_cli("simulate", "delta-tracker", "--campaign", tmp_path / "c.json", "--out", tmp_path / "r.mcap")
+    assert r.returncode == 0, r.stderr
+    rec = read_recording(tmp_path / "r.mcap")
+    q = np.array([m["joint_positions"] for m in rec.messages["/tracker/point"]])
+    planned = np.array([m["joints_rad"] for m in doc["measurements"]])
+    assert np.abs(q - planned).max() < 1e-4  # the robot stood at the planned configurations (encoder resolution)
+    r = run_cli("calibrate", tmp_path / "r.mcap", "--out", tmp_path / "cal")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "cal" / "results.json").read_text())["holdout_rms_m"] < 5e-5
+    bad = dict(doc, system="arc-welder")
+    (tmp_path / "bad.json").write_text(json.dumps(bad))
+    r = run_cli("simulate", "delta-tracker", "--campaign", tmp_path / "bad.json", "--out", tmp_path / "x.mcap")
+    assert r.returncode == 2 and "not a delta-tracker pose campaign" in r.stderr

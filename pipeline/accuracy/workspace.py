@@ -69,7 +69,7 @@ def _arc_welder(model, x: np.ndarray, data: dict, targets: np.ndarray | None, fi
 
 def _delta(model, x: np.ndarray, data: dict, targets: np.ndarray | None, n: tuple[int, int, int]):
     from pipeline.models import delta as dm
-    from pipeline.systems.delta_tracker import registration_matrix
+    from pipeline.measurements.registration import registration_matrix
 
     beta, reg, _ = model._split(x)
     b = model._simplified_beta(beta)

@@ -26,7 +26,7 @@ def compensate(model, x_nominal: np.ndarray, x_calibrated: np.ndarray, p_t: np.n
     nb = model.n_beta
     b_n = model._simplified_beta(x_nominal[:nb])
     b_c = model._simplified_beta(x_calibrated[:nb])
-    from pipeline.systems.delta_tracker import registration_matrix
+    from pipeline.measurements.registration import registration_matrix
 
     def to_robot(x):  # workcell {T} → robot {A}: ᴬP = R·ᵀP + t (the model's registration)
         R, t = registration_matrix(model._split(x)[1])

@@ -77,7 +77,7 @@ def extended_columns(model, x: np.ndarray, data) -> np.ndarray:
 
 def context(model, x: np.ndarray, data, need_ext: bool = True) -> dict:
     """What the signatures are made of, computed once per x."""
-    from pipeline.systems.delta_tracker import registration_matrix
+    from pipeline.measurements.registration import registration_matrix
 
     _, reg, _ = model._split(x)
     R, _ = registration_matrix(reg)

@@ -17,7 +17,7 @@ from pipeline import __version__
 from pipeline.errors import RobocalError
 from pipeline.fleet.dataset import ResultsWriter, done_keys
 from pipeline.fleet.discover import DEFAULT_PATTERNS, Found, discover
-from pipeline.fleet.rows import code_version, gate, lost_row, reprocess_one
+from pipeline.fleet.rows import code_version, gate, lost_row, reprocess_one, warm_worker
 
 ENGINES = ("dask", "processes", "serial")
 CORE_STAGES = ["ingest", "validate", "identify", "observe"]
@@ -98,12 +98,14 @@ def dask_client(scheduler: str | None, workers: int | None, allowed_failures: in
                     client.wait_for_workers(1, timeout=60)
                 except TimeoutError:
                     raise RobocalError(f"{scheduler}: the Dask scheduler has no workers (waited 60 s)") from None
+                client.run(warm_worker)
                 yield client
             return
         n = workers or os.cpu_count() or 1
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                           scheduler_port=0, silence_logs=logging.ERROR, env=SINGLE_THREADED) as cluster, \
                 Client(cluster) as client:
+            client.run(warm_worker)  # imports at start-up, in parallel, not on the first tasks
             yield client
 
 

@@ -123,6 +123,27 @@ def fill_from_run(row: dict, run_dir: Path, recording: Path, robot_id: str | Non
     row["campaign_start_ns"], row["campaign_end_ns"] = _campaign_time(run_dir)
 
 
+def warm_worker() -> int:
+    """Import every stage and system module once, at a worker's start, so that no task pays the
+    interpreter's imports (a Dask worker is a fresh process; a forked pool inherits them).
+    Returns the number of modules imported."""
+    import importlib
+    import pkgutil
+
+    import pipeline.systems as systems
+    from pipeline.stages.registry import STAGES
+
+    names = [s.module for s in STAGES] + [f"pipeline.systems.{m.name}" for m in pkgutil.iter_modules(systems.__path__)]
+    n = 0
+    for name in names:
+        try:
+            importlib.import_module(name)
+            n += 1
+        except ImportError:  # an optional stage's module may be absent
+            pass
+    return n
+
+
 def reprocess_one(path: str, rel: str, sha: str, nbytes: int, run_dir: str, stages: list[str] | None,
                   robot_id: str | None, config: str) -> dict:
     """The task: run the pipeline on one recording and return its row (never raises for the

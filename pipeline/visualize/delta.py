@@ -18,7 +18,7 @@ import numpy as np
 import rerun as rr
 
 from pipeline.models import delta as dm
-from pipeline.systems.delta_tracker import registration_matrix
+from pipeline.measurements.registration import registration_matrix
 
 TIMELINE = "time"
 NOMINAL_RGB = (220, 80, 60)

@@ -28,6 +28,18 @@ class Identifiability:
     order: np.ndarray  # pivot order (parameter indices)
 
 
+def triangular_factor(J: np.ndarray, block: int = 8192) -> np.ndarray:
+    """R (p, p) of J = Q·R for a tall J (m, p), by blocks of rows (tall-skinny QR: the R of
+    each block, stacked, factored again — the same R up to row signs).  A single Householder
+    QR of a J larger than the cache rereads all of it per column; by blocks the cost stays
+    linear in m."""
+    m, p = J.shape
+    if m <= 2 * block:
+        return scipy.linalg.qr(J, mode="r")[0][:p]
+    Rs = [scipy.linalg.qr(J[i:i + block], mode="r")[0][:p] for i in range(0, m, block)]
+    return scipy.linalg.qr(np.vstack(Rs), mode="r")[0][:p]
+
+
 def analyse(J: np.ndarray, names: list[str], fixed: np.ndarray | None = None,
             priority: np.ndarray | None = None, tol: float = RANK_TOL) -> Identifiability:
     """Rank-revealing analysis of J (m, p).
@@ -40,7 +52,7 @@ def analyse(J: np.ndarray, names: list[str], fixed: np.ndarray | None = None,
     m, p = J.shape
     if m > p:
         # J = Q·R: R has J's column norms and linear dependencies, at p×p instead of m×p
-        J = scipy.linalg.qr(J, mode="r")[0][:p]
+        J = triangular_factor(J)
         m = p
     fixed = np.zeros(p, bool) if fixed is None else np.asarray(fixed, bool)
     priority = np.zeros(p, int) if priority is None else np.asarray(priority, int)

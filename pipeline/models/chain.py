@@ -212,41 +212,55 @@ def _local(chain: Chain, x: np.ndarray, s: int, e: int) -> tuple[np.ndarray, np.
     return ax, org
 
 
+CHUNK = 4096  # rows per block of the Jacobian's columns (≈ 100 kB per temporary)
+
+
 def _derivatives(chain: Chain, x: np.ndarray, p: np.ndarray, starts: list, select: np.ndarray, index: np.ndarray,
                  width: int, angular: bool):
     """Position (N,3,width) and, with `angular`, orientation derivatives of the steps where
     `select` (S,) holds, each into column `index[step]`.  Per run, in the run's start frame
     {s}: a rotation about axis a through o moves p by a × (p_s − o), a translation by a; one
-    batched product with R_s brings a run's columns to the chain's frame."""
+    batched product with R_s brings a run's columns to the chain's frame.
+
+    The columns are built parameter-major, (width, N, 3), and returned as (N, 3, width) views:
+    each parameter's column is then one contiguous write, which keeps the cost linear in N
+    when the Jacobian no longer fits in cache (writing a column of an (N, 3, width) array
+    touches every cache line of it)."""
     n = p.shape[0]
-    Jp = np.zeros((n, 3, width))
-    Jw = np.zeros((n, 3, width)) if angular else None
+    Jp = np.zeros((width, n, 3))
+    Jw = np.zeros((width, n, 3)) if angular else None
+    runs = []
     for s, e, Rs, ts, ps in starts:
         k = np.flatnonzero(select[s:e])
-        if k.size == 0:
-            continue
-        ax, org = _local(chain, x, s, e)
-        A, O = ax[k], org[k]
-        rot = chain.kind[s + k] == ROT
-        d = ps[:, None, :] - O[None]  # ps: the end point in the run's start frame, R_sᵀ (p − t_s)
-        cr = np.stack([A[:, 1] * d[..., 2] - A[:, 2] * d[..., 1],
-                       A[:, 2] * d[..., 0] - A[:, 0] * d[..., 2],
-                       A[:, 0] * d[..., 1] - A[:, 1] * d[..., 0]], axis=-1)  # (N,k,3)
-        local = np.where(rot[None, :, None], cr, A[None])
-        cols = Rs @ np.swapaxes(local, 1, 2)  # (N,3,k)
-        idx = index[s + k]
-        _add(Jp, idx, cols)
-        if angular and rot.any():
-            _add(Jw, idx, Rs @ np.where(rot[:, None], A, 0.0).T)
-    return Jp, Jw
+        if k.size:
+            ax, org = _local(chain, x, s, e)
+            runs.append((ax[k], org[k], chain.kind[s + k] == ROT, index[s + k], Rs, ps))
+    for lo in range(0, n, CHUNK):  # row blocks: every temporary stays in cache, cost linear in N
+        sl = slice(lo, min(lo + CHUNK, n))
+        for A, O, rot, idx, Rs, ps in runs:
+            d = ps[None, sl, :] - O[:, None, :]  # (k,n,3); ps: the end point in the run's start frame
+            a = A[:, None, :]
+            cr = np.stack([a[..., 1] * d[..., 2] - a[..., 2] * d[..., 1],
+                           a[..., 2] * d[..., 0] - a[..., 0] * d[..., 2],
+                           a[..., 0] * d[..., 1] - a[..., 1] * d[..., 0]], axis=-1)
+            local = np.where(rot[:, None, None], cr, a)
+            _add(Jp, idx, sl, _rotate(Rs[sl], local))  # (k,n,3) in the chain's frame
+            if angular and rot.any():
+                _add(Jw, idx, sl, _rotate(Rs[sl], np.where(rot[:, None], A, 0.0)[:, None, :]))
+    return Jp.transpose(1, 2, 0), (Jw.transpose(1, 2, 0) if angular else None)
 
 
-def _add(J: np.ndarray, idx: np.ndarray, cols: np.ndarray) -> None:
-    """J[:, :, idx] += cols, also where several steps share a parameter (their effects add up)."""
-    if np.unique(idx).size == idx.size:
-        J[:, :, idx] += cols
-    else:
-        np.add.at(J.transpose(2, 0, 1), idx, cols.transpose(2, 0, 1))
+def _rotate(Rs: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rs[n] @ v[k, n] for Rs (N,3,3) and v (k,N,3) or (k,1,3): three streaming multiply-adds
+    (a batched 3×3 product per row is several times slower at this shape)."""
+    return Rs[None, :, :, 0] * v[..., 0:1] + Rs[None, :, :, 1] * v[..., 1:2] + Rs[None, :, :, 2] * v[..., 2:3]
+
+
+def _add(J: np.ndarray, idx: np.ndarray, rows: slice, cols: np.ndarray) -> None:
+    """J[idx, rows] += cols (parameter-major), also where several steps share a parameter
+    (their effects add up): in place, one contiguous block per column."""
+    for j, c in zip(idx, cols):
+        J[j, rows] += c
 
 
 def jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = False, width: int | None = None):

@@ -63,3 +63,46 @@ def test_a_registered_tracker_on_a_serial_arm_recovers_the_truth(robot):
         return (model.target_point(x, qn) - tx) @ Rx
 
     assert np.linalg.norm(in_tracker(f.x) - in_tracker(truth), axis=1).max() < 1e-6
+
+
+def test_the_scanner_is_a_composition():
+    from pipeline.measurements.sensed_point import SensedPointModel
+    from pipeline.models.serial_arm import SerialArm
+    from pipeline.models.stripe_sensor import StripeSensor
+    from pipeline.systems.scorbot_scanner import ScannerModel
+
+    m = ScannerModel(joint_offsets=True)
+    assert isinstance(m, SensedPointModel) and isinstance(m.arm, SerialArm) and isinstance(m.sensor, StripeSensor)
+    assert m.parameter_names()[14:] == [f"J{i}.theta_offset" for i in range(1, 6)]
+
+
+@pytest.mark.parametrize("robot", ["6R", "P+6R"])
+def test_the_stripe_scanner_on_a_urdf_arm_has_exact_jacobians(robot):
+    """The scanner's measurement type, unchanged, on a URDF arm with a prismatic joint: joint
+    offsets only for the revolute joints, each mapped to its own joint; analytic = finite
+    differences; the simulated corners are met exactly at the truth."""
+    from pipeline.measurements.sensed_point import SensedPointModel
+    from pipeline.models import camera as cam
+    from pipeline.models.stripe_sensor import StripeSensor
+    from pipeline.systems.scorbot_scanner import reference_scanner
+
+    arm = arm_of(robot)
+    s = reference_scanner()
+    model = SensedPointModel(arm, StripeSensor(), tuple(s), joint_offsets=True)
+    n_off = sum(n.endswith(".offset") for n in arm.parameter_names())
+    assert len(model.parameter_names()) == 14 + n_off
+    rng = np.random.default_rng(4)
+    q = configurations(arm, 15, 4)
+    px = np.column_stack([rng.uniform(100, 540, 15), rng.uniform(80, 400, 15)])
+    x = model.nominal() + np.concatenate([np.zeros(14), rng.normal(0, 1e-3, n_off)])
+    p_f = cam.camera_to_flange(s, cam.camera_points(s, px))
+    R_f, t_f = model.flange(x, q)
+    data = {"joint_positions": q, "pixel": px, "corner": np.einsum("nij,nj->ni", R_f, p_f) + t_f}
+    assert np.abs(model.residuals(x, data)).max() < 1e-12
+    J = model.jacobian(x, data)
+    h = np.maximum(np.abs(x), 1e-3) * 1e-6
+    fd = np.stack([(model.residuals(x + hi * e, data) - model.residuals(x - hi * e, data)) / (2 * hi)
+                   for hi, e in zip(h, np.eye(x.size))], -1)
+    scale = np.abs(fd).max(axis=(0, 1))  # per parameter: columns differ by orders of magnitude
+    assert np.all(scale > 0)
+    assert np.max(np.abs(J - fd).max(axis=(0, 1)) / scale) < 1e-5

@@ -19,10 +19,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.identify.model import Table
+from pipeline.measurements.sensed_point import SensedPointModel
 from pipeline.models import camera as cam
 from pipeline.models.transforms import rot as _rot
-from pipeline.models import serial_arm
 from pipeline.models.serial_arm import Joint, SerialArm
+from pipeline.models.stripe_sensor import StripeSensor
 
 SYSTEM = "scorbot-scanner"
 MEASUREMENT_CHANNEL = "/scanner/stripe"
@@ -103,8 +104,9 @@ def gauge_invariants(s: np.ndarray) -> dict[str, float]:
 
 
 @dataclass(frozen=True)
-class ScannerModel:
-    """Stripe-corner measurement model (implements `MeasurementModel`).
+class ScannerModel(SensedPointModel):
+    """Seed 001 as a composition: the SCORBOT arm (`SerialArm`) + the laser-stripe scanner
+    (`StripeSensor`) + a point known to be a target's corner (`SensedPointModel`).
 
     Data columns: ``joint_positions`` (n,5) rad, ``pixel`` (n,2) px (U, V), ``corner`` (n,3) m
     in {B}; optional ``pose`` (n,) observation index.  `nominal_x` is the nominal scanner
@@ -112,30 +114,15 @@ class ScannerModel:
     """
 
     arm: SerialArm = field(default_factory=nominal_arm)
+    sensor: StripeSensor = field(default_factory=StripeSensor)
     nominal_x: tuple[float, ...] = tuple(nominal_scanner())
     joint_offsets: bool = False
     image_size: tuple[int, int] = IMAGE_SIZE_PX
     lower: tuple[float, ...] = tuple(bounds()[0])
     upper: tuple[float, ...] = tuple(bounds()[1])
     search_samples: int = 1024
-    system: str = SYSTEM
-    residual_dim: int = 3
 
-    # ----- description ------------------------------------------------------------------
-    def parameter_names(self) -> list[str]:
-        names = [f"scanner.{n}" for n in cam.SCANNER_NAMES]
-        if self.joint_offsets:
-            names += [f"{j.name}.theta_offset" for j in self.arm.joints]
-        return names
-
-    def parameter_units(self) -> list[str]:
-        return list(cam.SCANNER_UNITS) + (["rad"] * self.arm.n_joints if self.joint_offsets else [])
-
-    def nominal(self) -> np.ndarray:
-        x = np.asarray(self.nominal_x, float)
-        if self.joint_offsets:
-            x = np.concatenate([x, [j.theta_offset for j in self.arm.joints]])
-        return x
+    system = SYSTEM
 
     def priority(self) -> np.ndarray:
         """Scanner parameters first, joint offsets next, then v0 and θ (gauge directions that
@@ -145,52 +132,6 @@ class ScannerModel:
         p[[cam.I_V0, cam.I_TH]] = 2
         p[cam.I_F] = 3
         return p
-
-    # ----- kinematics -------------------------------------------------------------------
-    def _arm_vector(self, x: np.ndarray) -> np.ndarray:
-        xa = self.arm.vector()
-        if self.joint_offsets:
-            xa[6 + 5 * np.arange(self.arm.n_joints)] = x[cam.N_SCANNER:]
-        return xa
-
-    def flange(self, x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Flange rotations (n,3,3) and positions (n,3) m in {B}."""
-        return serial_arm.forward(self._arm_vector(np.asarray(x, float)), q)
-
-    def points(self, x: np.ndarray, data: Table, excess=None) -> tuple[np.ndarray, np.ndarray]:
-        """Reconstructed stripe points P (n,3) m in {B} (eq. 13) and dP/dx (n,3,P); `excess`:
-        further lens terms (`camera.camera_points_jacobian`)."""
-        x = np.asarray(x, float)
-        s = x[:cam.N_SCANNER]
-        px = np.asarray(data["pixel"], float)
-        q = np.asarray(data["joint_positions"], float)
-        p_c, Jc = cam.camera_points_jacobian(s, px, excess)
-        R_he = cam.hand_eye_rotation(s[cam.I_W], s[cam.I_PHI], s[cam.I_PSI])
-        p_f = p_c @ R_he.T + s[cam.I_TX:cam.I_TZ + 1]
-        J_f = np.empty((px.shape[0], 3, cam.N_SCANNER))
-        J_f[:, :, :8] = np.einsum("ij,njk->nik", R_he, Jc)
-        J_f[:, :, 8:] = cam.hand_eye_jacobian(s, p_c)
-        xa = self._arm_vector(x)
-        R_f, t_f = serial_arm.forward(xa, q)
-        P = np.einsum("nij,nj->ni", R_f, p_f) + t_f
-        J = np.zeros((px.shape[0], 3, x.size))
-        J[:, :, :cam.N_SCANNER] = np.einsum("nij,njk->nik", R_f, J_f)
-        if self.joint_offsets:
-            F = serial_arm.frames(xa, q)  # frame i-1 carries joint i's axis (z) and origin
-            for i in range(self.arm.n_joints):
-                z, o = F[:, i, :3, 2], F[:, i, :3, 3]
-                J[:, :, cam.N_SCANNER + i] = np.cross(z, P - o)
-        return P, J
-
-    def residuals(self, x: np.ndarray, data: Table) -> np.ndarray:
-        x = np.asarray(x, float)
-        s = x[:cam.N_SCANNER]
-        p_f = cam.camera_to_flange(s, cam.camera_points(s, np.asarray(data["pixel"], float)))
-        R_f, t_f = self.flange(x, data["joint_positions"])
-        return np.einsum("nij,nj->ni", R_f, p_f) + t_f - np.asarray(data["corner"], float)
-
-    def jacobian(self, x: np.ndarray, data: Table) -> np.ndarray:
-        return self.points(x, data)[1]
 
     def batch_cost(self, X: np.ndarray, data: Table) -> np.ndarray:
         """Eq. 18's J (m²) for many scanner vectors X (C,14) at once (arm at its nominal)."""

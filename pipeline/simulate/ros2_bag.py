@@ -48,7 +48,7 @@ def timeline(q_stops: np.ndarray, layout: BagLayout) -> tuple[np.ndarray, np.nda
     seg = np.minimum((t // T).astype(int), m - 1)
     tau = t - seg * T
     s = np.where(tau < layout.move_s, 0.5 - 0.5 * np.cos(np.pi * tau / layout.move_s), 1.0)
-    prev = np.vstack([q_stops[:1], q_stops[:-1]])
+    prev = np.roll(q_stops, 1, axis=0)  # the first move comes from the last stop (a campaign that repeats)
     q = prev[seg] + s[:, None] * (q_stops[seg] - prev[seg])
     k = np.arange(m)
     return t, q, k * T + layout.move_s + layout.dwell_s / 2, k * T + layout.move_s / 2

@@ -136,6 +136,25 @@ def test_ros2_bags_are_recognised_and_not_misread_as_recordings(tmp_path, robot)
     assert "imported 6 point measurements" in proc.stderr
 
 
+@pytest.mark.parametrize("zero,args,warned", [((), ("--time", "log"), False), (("/tracker/point",), (), True)])
+def test_clocks_offset_and_missing_stamps_still_pair(tmp_path, robot, zero, args, warned):
+    """The tracker's clock 80 ms off the controller's changes nothing while the robot stands still;
+    a topic without header stamps falls back to receive times (with a warning when the other topic
+    has stamps); `--time log` uses receive times for both."""
+    upath, desc = robot
+    truth = bag_of(tmp_path, desc, n=8, seed=6, layout=BagLayout(clock_offset_s=0.08, zero_stamps=zero, moving=(2,)))
+    proc = _import(tmp_path, upath, tmp_path / "bag", *args)
+    assert proc.returncode == 0, proc.stderr
+    assert "7 paired, 1 taken while moving" in proc.stderr
+    assert ("receive time" in proc.stderr) == warned, proc.stderr
+    camp = campaign_of(tmp_path / "out.mcap")["ros2"]
+    assert camp["time_measurements"] == ("receive time" if zero or args else "header.stamp")
+    from pipeline.recording.reader import read_recording
+
+    q = np.array([m["joint_positions"] for m in read_recording(tmp_path / "out.mcap").messages["/measure/point"]])
+    np.testing.assert_allclose(q, np.delete(truth["q_stops"], 2, axis=0), atol=1e-12)
+
+
 # ----- bad input: one line naming file, topic and record -----------------------------------------
 def _import(tmp_path: Path, upath: Path, bag: Path, *extra) -> object:
     return run_cli("import", "ros2", bag, *robot_args(upath), "--out", tmp_path / "out.mcap", *extra)

@@ -1,17 +1,19 @@
 """Planning a touch campaign that lands although the robot is off (Bayesian, two stages).
 
 Before calibration the robot's error is known only in size: the prior on the parameter error
-(`prior_cov`: the paper's error sizes, 0.7° per angle, 2 mm per length, 2.5° base yaw — the
+(`prior_cov`: 1° per angle, 4 mm per length, 2.5° base yaw, wider than the paper's errors — the
 tool orientation does not move a point tip).  Linearised at the planning model, a candidate's
 predicted contact then has a tangential σ along each face axis, and its landing probability is
 P(the true contact stays inside both edges) × P(the search starts outside the material).
 
-Stage 1 picks, among the candidates most likely to land, the Bayesian D-optimal few
-(log det(Σ₀⁻¹ + Σ JᵀJ/σ²), greedy).  A maximum-a-posteriori fit of what landed (`map_fit`:
-least squares with the prior as extra residuals, so 10–15 contacts already pin the base yaw)
-gives the model and posterior covariance that stage 2 is planned on: a new candidate pool by
-the updated model's IK, kept where it lands with probability ≥ `p_land`, then D-optimal given
-stage 1's information.  Pure numpy/scipy functions of (model, data).
+Stage 1 picks, among the candidates most likely to land, one contact on every face and then
+the I-optimal rest (`ioptimal`: the least average predicted 3-D tool-point variance over the
+pool's contact configurations, which span the jig, given the prior).  A maximum-a-posteriori fit
+of what landed (`map_fit`: least squares with the prior as extra residuals, so 10–15 contacts
+already pin the base yaw) gives the model and posterior covariance that stage 2 is planned on:
+a new candidate pool by the updated model's IK, kept where it lands with probability ≥ `p_land`,
+then I-optimal given stage 1's information (greedy + Fedorov exchange).  Pure numpy/scipy
+functions of (model, data).
 """
 
 from __future__ import annotations
@@ -56,23 +58,16 @@ def landing_probability(x: np.ndarray, cov: np.ndarray, jig: Jig, pool: TouchPoo
     return p_t * ndtr((pool.travel - 1e-3) / s_n)  # the true face must lie beyond the start
 
 
-def bayes_greedy(A: np.ndarray, m: int, info0: np.ndarray, allowed: np.ndarray | None = None,
-                 H: np.ndarray | None = None) -> np.ndarray:
-    """Greedy Bayesian choice of m rows of A (N, k, P) (each already divided by its noise σ)
-    given prior information `info0` (P×P): D-optimal, maximise log det(info0 + Σ AᵀA); with `H`
-    (P×P, Σ_t G_tᵀG_t over the tool-point Jacobians G_t of the configurations that matter),
-    I-optimal: minimise the summed prediction variance tr(H M⁻¹) (one-row k = 1 blocks)."""
+def bayes_greedy(A: np.ndarray, m: int, info0: np.ndarray, allowed: np.ndarray | None = None) -> np.ndarray:
+    """Greedy Bayesian D-optimal choice of m rows of A (N, k, P) (each already divided by its
+    noise σ) given prior information `info0` (P×P): maximise log det(info0 + Σ AᵀA)."""
     N, k, _ = A.shape
     Minv = np.linalg.pinv(info0 + 1e-12 * np.trace(info0) * np.eye(info0.shape[0]), hermitian=True)
     chosen = np.zeros(N, bool) if allowed is None else ~np.asarray(allowed, bool)
     order: list[int] = []
     I = np.eye(k)
     for _ in range(min(m, int((~chosen).sum()))):
-        if H is None:
-            gain = np.linalg.slogdet(I + np.einsum("nkp,pq,nlq->nkl", A, Minv, A))[1]
-        else:  # Sherman–Morrison: tr(H M⁻¹) drops by vᵀHv / (1 + a v), v = M⁻¹aᵀ
-            V = A[:, 0, :] @ Minv
-            gain = np.einsum("np,pq,nq->n", V, H, V) / (1 + np.einsum("np,np->n", V, A[:, 0, :]))
+        gain = np.linalg.slogdet(I + np.einsum("nkp,pq,nlq->nkl", A, Minv, A))[1]
         gain[chosen] = -np.inf
         j = int(np.argmax(gain))
         chosen[j] = True

@@ -275,16 +275,18 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         raise RobocalError(f"{at(path, mt)}: none of the {len(tm)} measurements was taken while the robot stood "
                            f"still ({summ['n_moving']} moving, {summ['n_not_covered']} outside the joint states; "
                            f"window {spec.window_s} s, max speed {spec.max_speed}; see --still-window, --still-speed)")
-    table: dict = {"joint_positions": pairing.q[ok], "position": P[ok], "timestamp_ns": tm[ok]}
+    keep = np.flatnonzero(ok)
+    keep = keep[np.argsort(tm[keep], kind="stable")]  # recorded in time order (bag order is receive order)
+    table: dict = {"joint_positions": pairing.q[keep], "position": P[keep], "timestamp_ns": tm[keep]}
     if measure == "pose":
-        table["orientation"] = O[ok]
+        table["orientation"] = O[keep]
     else:
-        table["target"] = np.zeros(int(ok.sum()), int)
+        table["target"] = np.zeros(len(keep), int)
     extras = {
         "source_files": [str(path)],
         "ros2": {"joint_topic": jt, "measure_topic": mt, "measure_type": topics[mt], "frame_id": frame,
                  "time_joint_states": jsrc, "time_measurements": msrc, "t0_ns": t0, "joint_states": jreport,
-                 "pairing": summ, "measurement_records": np.flatnonzero(ok).tolist()},
+                 "pairing": summ, "measurement_records": keep.tolist()},
     }
     if measure == "point":
         extras["n_targets"] = 1

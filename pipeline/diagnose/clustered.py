@@ -338,3 +338,25 @@ def physical_whitener(model: PhysicalModel, sigma2: float, pre=None, n_effective
         w, Vec = np.linalg.eigh(Sg)
         blocks.append((rows, (Vec / np.sqrt(np.clip(w, 1e-12, None))) @ Vec.T))
     return Whitener(blocks, float(np.sqrt(sigma2)), np.diag(cv), ids.size, pre, int(n_effective))
+
+
+def sign_flip_elimination(W: Whitener, r: np.ndarray, Jw: np.ndarray, S: list[np.ndarray], accepted: list[int],
+                          cluster: np.ndarray, m: int, alpha: float, draws: int,
+                          seed: int) -> tuple[list[int], dict, list[int]]:
+    """Backward elimination of the accepted blocks under the restricted wild cluster bootstrap
+    (`stepwise.cluster_sign_flip_p`, whitened problem): while Holm's step-down over a family of m
+    does not reject every block given the others, drop the least significant.  Returns (kept,
+    {kept block: Holm-adjusted p}, dropped blocks)."""
+    from pipeline.diagnose.stepwise import cluster_sign_flip_p
+
+    rw = W(r)
+    Sw = {i: W(S[i]) for i in accepted}
+    A, dropped = list(accepted), []
+    while A:
+        p = cluster_sign_flip_p(rw, [Sw[i] for i in A], Jw, cluster, draws, seed)
+        order = np.argsort(p, kind="stable")
+        adj = np.maximum.accumulate(np.minimum(1.0, p[order] * (m - np.arange(len(A)))))
+        if np.all(adj <= alpha):
+            return A, {A[o]: float(a) for o, a in zip(order, adj)}, dropped
+        dropped.append(A.pop(int(np.argmax(p))))
+    return A, {}, dropped

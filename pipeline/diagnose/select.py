@@ -46,4 +46,5 @@ from pipeline.diagnose.gate import (  # noqa: F401
 from pipeline.diagnose.stepwise import (  # noqa: F401
     Step, _batches, _single_batches, _pair_batches, _Design, _conditional, forward_select, _holm_steps, conditional_steps, wild_cluster_p, look_alikes, cluster_sign_flip_p)
 from pipeline.diagnose.clustered import (  # noqa: F401
-    Whitener, NoiseModel, noise_components, _covariance_and_scale, measurement_covariance, measurement_whitener, cluster_whitener, PhysicalModel, _cluster_gram, _block_columns, physical_components, physical_whitener)
+    Whitener, NoiseModel, noise_components, _covariance_and_scale, measurement_covariance, measurement_whitener, cluster_whitener, PhysicalModel, _cluster_gram, _block_columns, physical_components, physical_whitener,
+    sign_flip_elimination)

@@ -117,6 +117,10 @@ def read_recording(path: str | Path, topics: set[str] | None = None, skip: froze
     counts per channel.  Inside `cached_reads()` a second read of the same unchanged file is served
     from memory (a run reads its recording once)."""
     path = Path(path)
+    from pipeline.importers.bagkind import not_a_recording_hint
+
+    if (hint := not_a_recording_hint(path)) is not None:
+        raise RobocalError(hint)
     if not path.is_file():
         raise RobocalError(f"{path}: no such file")
     key = None

@@ -105,19 +105,6 @@ def encode(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], device_t_ns: n
     return m.SerializeToString()
 
 
-def encode_stream(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], batch: int = 250,
-                  device_t_ns: np.ndarray | None = None,
-                  host_t_ns: np.ndarray | None = None) -> list[tuple[int, bytes]]:
-    """A whole stream as (first sample time ns, message) per batch of `batch` samples."""
-    out = []
-    for s in range(0, len(t_ns), batch):
-        sl = slice(s, s + batch)
-        out.append((int(t_ns[s]), encode(t_ns[sl], q[sl], names,
-                                          None if device_t_ns is None else device_t_ns[sl],
-                                          None if host_t_ns is None else host_t_ns[sl])))
-    return out
-
-
 def from_dict(msg: dict) -> bytes:
     """A JSON-form batch (the legacy `robocal.JointState` body) as one protobuf message."""
     q = np.asarray(msg["positions"], np.float64)

@@ -98,6 +98,7 @@ def test_protobuf_stream_messages_that_break_the_schema_are_all_named(tmp_path):
     assert c["status"] == "fail" and c["records"] == [3, 8] and str(rec) in c["message"]
     assert "record 3: positions hold NaN or inf" in c["message"] and "\n" not in c["message"]
     assert any(c["name"] == "time_monotonic" and c["status"] == "pass" for c in checks)
+    assert any(c["name"] == "duplicates" and c["channel"] == "/robot/joint_state" for c in checks)
     assert any(c["channel"] == "/touch/contact" and c["name"] == "schema" and c["status"] == "pass" for c in checks)
 
 

@@ -45,7 +45,7 @@ def prior_cov(arm: SerialArm) -> np.ndarray:
 def landing_probability(x: np.ndarray, cov: np.ndarray, jig: Jig, pool: TouchPool, standoff_m: float) -> np.ndarray:
     """P(land) per candidate under parameter covariance `cov` (linearised at x), (N,)."""
     _, J = serial_arm.tip_jacobian(x, pool.q_contact)  # (N, 3, P)
-    var = np.einsum("nip,pq,niq->ni", J, cov, J)
+    var = np.einsum("nip,nip->ni", J @ cov, J)
     sd = np.sqrt(np.clip(var, 1e-30, None))
     n = pool.face.size
     other = np.array([f.other_axes() for f in jig.faces])[pool.face]

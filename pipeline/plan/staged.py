@@ -111,10 +111,11 @@ def map_fit(model, table: dict, cov0: np.ndarray, sigma_m: float, x0: np.ndarray
 
 
 def _allowed(p: np.ndarray, p_min: float, at_least: int, face: np.ndarray | None = None, per_face: int = 3,
-             p_floor: float = 0.25) -> np.ndarray:
+             p_floor: float = 0.5) -> np.ndarray:
     """Candidates landing with P ≥ p_min, else the `at_least` likeliest; with `face`, also the
-    `per_face` likeliest of every face (where P ≥ p_floor), so that every face can be covered
-    (narrow faces never reach p_min under the prior: P ≈ 0.4 on the 30 mm risers)."""
+    `per_face` likeliest of every face where P ≥ p_floor, so that those faces can be covered
+    (under the prior no candidate reaches p_min, and without this the y faces were never planned;
+    the 30 mm risers, P ≈ 0.43 under the prior, wait for stage 2)."""
     allowed = p >= p_min
     if allowed.sum() < at_least:
         allowed = np.zeros(p.size, bool)

@@ -73,6 +73,12 @@ class Effect:
     def k(self) -> int:
         return len(self.parameters)
 
+    @property
+    def family(self) -> tuple[str, str, str]:
+        """(name, place, variable) shared by the forms of one effect (`forms`): the location up to a
+        form in brackets, e.g. joint_coupling J2->J3 and J2->J3 (quadratic)."""
+        return self.name, str(self.location).split(" (")[0], self.variable
+
 
 # ----- physics helpers ------------------------------------------------------------------
 _TORQUES: dict = {}  # (arm id, x, q, payload) bytes -> (arm, torques): the compliance candidates of all joints share them

@@ -101,16 +101,16 @@ def main() -> None:
             if name in IN_LIBRARY:
                 named = any((f["effect"], f["location"]) == IN_LIBRARY[name] for f in d["findings"])
             located = d["status"] in ("partially_explained", "unexplained")
-            fam = form = None
+            fam = form_ok = None
             if name in FORMS:
                 nm_, place, form_loc = FORMS[name]
                 fam = any(f["effect"] == nm_ and f["location"].split(" (")[0] == place for f in d["findings"])
-                form = any(f["effect"] == nm_ and f["location"].startswith(form_loc) for f in d["findings"])
+                form_ok = any(f["effect"] == nm_ and f["location"].startswith(form_loc) for f in d["findings"])
                 high = [h for h in high if not (h.startswith(nm_ + "@") and h.split("@")[1].split(" (")[0] == place)]
             if name in ("wild", "glitch"):
                 located = int(form.where["record"]) in [o["record"] for o in d["outlier_records"]]
             rows.append({"status": d["status"], "located": located, "named_high": bool(high), "high": high,
-                         "family_named": fam, "form_named": form,
+                         "family_named": fam, "form_named": form_ok,
                          "named": named, "worse": d["holdout_rms_after_m"] > d["holdout_rms_before_m"] + 1e-15,
                          "after_over_floor": d["holdout_rms_after_m"] / floor[s]["holdout_rms_before_m"],
                          "where": [w["variable"] for w in d["unexplained_where"]][:3]})

@@ -4,7 +4,8 @@ no code of `pipeline.recording`).
 
 Channels: `/robot/joint_state` (batches of 250 samples), `/touch/contact` with each contact's
 `search` command (speed, direction into the face, stand-off, target), `/arm/payload` at each
-payload change as it happened, `/touch/miss` (a search that faulted, when asked for); metadata:
+payload change as it happened, `/touch/miss` (a search that faulted, when asked for), `/arm/temperature`
+(several sensors, when given); metadata:
 the robot model, the fixture and the campaign (with the *programmed* payload schedule, which the
 operator may not have followed: `independent_touch.run(payload_late=…)`).
 """
@@ -27,10 +28,11 @@ def _body(o: dict) -> bytes:
 
 def write_recording(path: Path, campaign, robot_model: dict, fixture: dict, *, events: bool = True,
                     search: bool = True, faulted: list[int] = (), repeatability_3sigma_m: float = 1e-4,
-                    standoff_m: float = 0.04) -> None:
+                    standoff_m: float = 0.04, temperatures: dict | None = None) -> None:
     """Write `campaign` (`independent_touch.Campaign`) to `path`.  `events`: log `/arm/payload`;
     `search`: each contact's search command; `faulted`: contacts whose search the controller aborted
-    (logged on `/touch/miss` with reason `fault` instead of a contact)."""
+    (logged on `/touch/miss` with reason `fault` instead of a contact); `temperatures`: {sensor: K as a
+    function of the time since the stream's start (s)}, read once a second on `/arm/temperature`."""
     tab = campaign.table
     msgs: list[tuple[str, dict]] = []
     t, q = campaign.stream_t_ns, campaign.stream_q
@@ -53,9 +55,14 @@ def write_recording(path: Path, campaign, robot_model: dict, fixture: dict, *, e
     if events:
         msgs += [("/arm/payload", {"timestamp_ns": int(tc), "payload_kg": float(kg), "tool": "torch"})
                  for tc, kg in campaign.payload_changes]
+    t_read = np.arange(t[0], t[-1] + 1, 1_000_000_000, dtype=np.int64)
+    for sensor, kelvin in (temperatures or {}).items():
+        k = kelvin((t_read - t[0]) * 1e-9)
+        msgs += [("/arm/temperature", {"timestamp_ns": int(tr), "sensor": sensor, "temperature_k": round(float(v), 4)})
+                 for tr, v in zip(t_read, k)]
     msgs.sort(key=lambda tm: tm[1]["timestamp_ns"])
     stems = {"/robot/joint_state": "joint_state", "/touch/contact": "touch_contact", "/touch/miss": "touch_miss",
-             "/arm/payload": "payload"}
+             "/arm/payload": "payload", "/arm/temperature": "temperature"}
     with open(path, "wb") as f:
         w = Writer(f)
         w.start(profile="robocal", library="independent_touch")

@@ -82,3 +82,26 @@ def test_a_faulted_search_is_reported_and_its_contact_left_out(world, tmp_path):
     assert sw["counts"] == {"fault": 2}
     assert [f["fault_code"] for f in sw["faults"]] == ["E-STOP 112"] * 2
     assert doc["n_measurements"] == 98 and doc["status"] == "clean"
+
+
+def test_several_temperature_sensors_the_growth_is_named_on_the_sensor_that_tracks_it(world, tmp_path):
+    """a2, d4 grow as the upper arm warms up (1 − e^(−t/300 s)); two sensors are logged: the base (the
+    hall's slow drift) first, then link2, which follows the warm-up.  Both become table columns; the
+    growth is named against link2's temperature (linear in it: the right form), back to the floor."""
+    nom, tru, targets = world
+    sigma = it.run(nom, tru, targets, (), seed=0).along_normal_noise_sigma_m
+    form = it.Effect("thermal_growth", 1.0, {"tau_s": 300.0})
+    c = it.run(nom, tru, targets, (it.Effect(form.kind, 4 * it.mds(nom, tru, targets, form, sigma), form.where),),
+               seed=9)
+    clean = diagnose_recording(_write(tmp_path, it.run(nom, tru, targets, (), seed=9), "clean.mcap"), SETTINGS)
+    t0 = (c.table["timestamp_ns"][0] - c.stream_t_ns[0]) * 1e-9
+    temps = {"base": lambda t: 293.15 + 0.2 * t / 1000, "link2": lambda t: 296.0 + 12.0 * (1 - np.exp(-t / 300.0))}
+    rec = _write(tmp_path, c, "warm.mcap", temperatures=temps)
+    _, tab, _ = from_recording(rec)
+    assert tab["temperature_sensor"][0] == "base" and "temperature_rise_K@link2" in tab
+    assert t0 < 30 and np.allclose(tab["temperature_rise_K@link2"][-1], 12.0 * (1 - np.exp(-tab["time_since_start_s"][-1] / 300)),
+                                   atol=0.05)
+    doc = diagnose_recording(rec, SETTINGS)
+    assert [(f["effect"], f["location"]) for f in doc["findings"]] == [("thermal_growth", "links (temperature link2)")]
+    assert doc["status"] == "explained"
+    assert doc["holdout_rms_after_m"] <= 1.2 * clean["holdout_rms_before_m"]

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.effects import Effect, Table
+from pipeline.diagnose.effects import Effect, Table, temperature_columns
 from pipeline.models import serial_arm
 
 NEIGHBOURS = ((0, 1), (1, 0), (1, 2), (2, 1), (2, 3), (3, 2))
@@ -153,8 +153,10 @@ def more_effects(arm, table: Table, min_on_face: int = 8) -> list[Effect]:
                               ("rad/rad",), P["coupling_difference"], "joint", _difference(i, j), 64, f"q_{J[i]}",
                               ADVICE["coupling_difference"]))
     if "temperature_rise_K" in table:
-        lib.append(Effect("thermal_growth", "links (temperature)", ("growth_per_K",), ("1/K",), P["thermal_growth_K"],
-                          "tip", _growth("temperature_rise_K"), 72, "temperature_rise_K", ADVICE["thermal_growth"]))
+        for col, sensor in temperature_columns(table):  # the first sensor, then each other one
+            lib.append(Effect("thermal_growth", "links (temperature)" if col == "temperature_rise_K" else
+                              f"links (temperature {sensor})", ("growth_per_K",), ("1/K",), P["thermal_growth_K"],
+                              "tip", _growth(col), 72, col, ADVICE["thermal_growth"]))
     elif "time_since_start_s" in table or lookup:
         lib.append(Effect("thermal_growth", "links", ("growth_rate",), ("1/s",), P["thermal_growth"], "tip",
                           _growth("time_since_start_s"), 72, "time", ADVICE["thermal_growth"]))

@@ -107,3 +107,12 @@ def test_a_saturating_link_growth_gets_its_warm_up_form_by_held_out_error(world)
     assert len(tried) == 5 and min(tried, key=tried.get) == f["location"]
     assert tried["links"] > tried[f["location"]]
     assert d["holdout_rms_after_m"] <= 1.2 * clean["holdout_rms_before_m"]
+
+
+def test_a_linear_link_growth_keeps_the_linear_form(world):
+    """Every a, d × (1 + αt): a warm-up with τ ≈ the campaign's duration fits it almost as well out of
+    sample; the one-standard-error rule keeps the simplest form (`forms.choose`)."""
+    _, d = _diagnose(world, it.Effect("linear_growth", 1.0), 106)
+    (f,) = [f for f in d["findings"] if f["effect"] == "thermal_growth"]
+    assert f["location"] == "links"
+    assert len(f["evidence"]["forms_cv_rms_m"]) == 5

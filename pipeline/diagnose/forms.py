@@ -6,7 +6,8 @@ links linear in time or a first-order warm-up 1 − e^(−t/τ) with τ on a gri
 campaign's duration.  The forms are candidates like any other (the selection's grouped F and
 Holm's correction count them); once the selection has accepted one, each other form of the same
 family is tried in its place, and the one with the lowest grouped cross-validated RMS of the
-linearised model (geometry + every accepted effect) is kept: held-out error decides the form,
+linearised model (geometry + every accepted effect) is kept — unless it beats the family's simplest
+form by less than one standard error (then the simplest stays): held-out error decides the form,
 not the in-sample fit.
 """
 
@@ -23,25 +24,30 @@ def alternatives(lib: list[Effect], i: int, pool: list[int]) -> list[int]:
     return [j for j in pool if j != i and lib[j].family == lib[i].family]
 
 
-def _cv(Jf: np.ndarray, S: list[np.ndarray], idx: list[int], r: np.ndarray, folds: list) -> float:
-    return confirm.rms(confirm.holdout(np.hstack([Jf] + [S[i] for i in idx]), r, folds))
+def _cv(Jf: np.ndarray, S: list[np.ndarray], idx: list[int], r: np.ndarray, folds: list) -> np.ndarray:
+    return confirm.holdout(np.hstack([Jf] + [S[i] for i in idx]), r, folds)
 
 
 def choose(lib: list[Effect], accepted: list[int], testable: list[int], S: list[np.ndarray], Jf: np.ndarray,
            r: np.ndarray, folds: list) -> tuple[list[int], dict[int, list[dict]]]:
     """(accepted with each finding's form replaced by the held-out best of its family, {kept entry:
-    [{form, cv_rms_m}] of every form tried}).  Unchanged when no accepted entry has another form."""
+    [{form, cv_rms_m}] of every form tried}).  The simplest form (the family's lowest `priority`: the
+    linear one) is kept unless another lowers the held-out mean square by more than one standard error
+    of the paired difference (the one-standard-error rule): forms that fit equally well out of sample
+    are not told apart by noise.  Unchanged when no accepted entry has another form."""
     out = list(accepted)
     tried: dict[int, list[dict]] = {}
     for pos, i in enumerate(accepted):
         alts = [j for j in alternatives(lib, i, testable) if j not in out]
         if not alts:
             continue
-        scores = []
-        for j in [i] + alts:
-            cand = out[:pos] + [j] + out[pos + 1:]
-            scores.append((_cv(Jf, S, cand, r, folds), j))
-        best = min(scores, key=lambda sj: sj[0])[1]  # ties: the form the selection chose (first)
+        forms = sorted([i] + alts, key=lambda j: (lib[j].priority, j))
+        e2 = {j: _cv(Jf, S, out[:pos] + [j] + out[pos + 1:], r, folds) ** 2 for j in forms}
+        base = forms[0]
+        best = min(forms, key=lambda j: (float(np.mean(e2[j])), lib[j].priority))
+        d = e2[base] - e2[best]
+        if best != base and np.mean(d) <= np.std(d, ddof=1) / np.sqrt(d.size):
+            best = base
         out[pos] = best
-        tried[best] = [{"form": str(lib[j].location), "cv_rms_m": c} for c, j in scores]
+        tried[best] = [{"form": str(lib[j].location), "cv_rms_m": float(np.sqrt(np.mean(e2[j])))} for j in forms]
     return out, tried

@@ -14,7 +14,7 @@ true tip by D·θ in {W}):
 - ``thermal_growth``: every D-H length (a, d) grows by ε·L·t (1/s), or by ε·L·ΔT (1/K) when a
   temperature is recorded — the tip moves by ε·t·Σ L ∂p/∂L, pose-dependent, unlike the rigid
   `thermal_drift`; and as a first-order warm-up, ε·L·(1 − e^(−t/τ)) (1), τ on a grid over the
-  campaign's duration T (T/8, T/4, T/2, T): ``links (warm-up τ … s)`` — the forms of one family,
+  campaign's duration T (T/8, T/4, T/2, T): ``links (warm-up τ = T/4)`` (τ in s: the finding's ``form``) — the forms of one family,
   the held-out error chooses among them (`forms`);
 - ``face_tilt`` (per face, m/m along each in-plane axis) and ``face_flatness`` (per face, m/m²,
   a bowl about the face's contacts' centre): the face is not the plane of the drawing (the
@@ -164,9 +164,9 @@ def more_effects(arm, table: Table, min_on_face: int = 8) -> list[Effect]:
         span = float(np.max(t)) if t.size else 0.0
         for frac in WARM_UP_FRACTIONS if span > 0 else ():
             tau = frac * span
-            lib.append(Effect("thermal_growth", f"links (warm-up τ {tau:.0f} s)", ("growth_warm_up",), ("1",),
+            lib.append(Effect("thermal_growth", f"links (warm-up τ = {'T' if frac == 1 else f'T/{1 / frac:.0f}'})", ("growth_warm_up",), ("1",),
                               P["thermal_growth_warm_up"], "tip", _warm_up(tau), 73, "time",
-                              ADVICE["thermal_growth"]))
+                              ADVICE["thermal_growth"], data={"form": {"tau_s": tau, "campaign_duration_s": span}}))
     if "time_since_start_s" in table or lookup:
         lib.append(Effect("wire_stickout", "wire", ("stickout_rate",), ("m/s",), P["wire_stickout"], "tip", _stickout,
                           76, "time", ADVICE["wire_stickout"]))

@@ -44,7 +44,7 @@ def one_pool(seed: int, a) -> dict:
     test_q = touch.pool(nominal, jig, 400, seed=50_000 + seed, margin_m=0.0).q_contact
     P1 = touch.pool(nominal, jig, a.candidates, seed=seed, margin_m=0.010)
     t = time.perf_counter()
-    i1, _ = staged.plan_first_stage(nominal, jig, P1, a.first)
+    i1, _ = staged.plan_first_stage(nominal, jig, P1, a.first, criterion=a.criterion, cover=not a.no_cover)
     sel_s = time.perf_counter() - t
     c1 = cdoc.from_pool(aw.SYSTEM, nominal, jig, P1.take(i1), margin_m=0.010, stages=2)
     ex1 = execute(nominal, truth, jig, c1, Noise(), seed=seed, stream=False)
@@ -52,12 +52,14 @@ def one_pool(seed: int, a) -> dict:
     arm1 = nominal.with_vector(x1)
     P2 = touch.pool(arm1, jig, a.candidates, seed=seed + 7, margin_m=0.003)
     t = time.perf_counter()
-    i2, _ = staged.plan_next_stage(x1, cov1, jig, P2, a.total - a.first)
+    i2, _ = staged.plan_next_stage(x1, cov1, jig, P2, a.total - a.first, criterion=a.criterion,
+                                   prior=staged.prior_cov(nominal), prior_weight=a.prior_weight)
     sel_s += time.perf_counter() - t
     c2 = cdoc.from_pool(aw.SYSTEM, arm1, jig, P2.take(i2), margin_m=0.003, stage=2, stages=2)
     ex = execute(nominal, truth, jig, cdoc.concat([c1, c2]), Noise(), seed=seed, stream=False)
     n_land = int(ex.landed.sum())
-    planned = err3d(xt, fit(model, table_of(ex.sim)).x, test_q)
+    f_planned = fit(model, table_of(ex.sim))
+    planned = err3d(xt, f_planned.x, test_q)
     # random campaigns: today's simulator — random targets, misses replaced, same number of landed contacts
     R = touch.pool(nominal, jig, a.candidates, seed=seed + 11, margin_m=0.0)
     rng = np.random.default_rng(seed + 13)
@@ -70,7 +72,8 @@ def one_pool(seed: int, a) -> dict:
         rand.append(err3d(xt, fit(model, tab).x, test_q))
     out = {"seed": seed, "planned": a.total, "landed": n_land, "stage1_landed": int(ex.landed[: a.first].sum()),
            "err_planned_m": planned, "err_random_median_m": float(np.median(rand)), "selection_s": sel_s,
-           "map_err_m": err3d(xt, x1, test_q)}
+           "map_err_m": err3d(xt, x1, test_q),
+           "free": int(f_planned.free.sum())}
     if a.single:
         pl = dplan(model, P1.table(), a.total)
         ex_s = execute(nominal, truth, jig, cdoc.from_pool(aw.SYSTEM, nominal, jig, P1.take(pl.selection.index)),
@@ -88,6 +91,9 @@ def main() -> None:
     ap.add_argument("--first", type=int, default=15)
     ap.add_argument("--random", type=int, default=20)
     ap.add_argument("--truth", choices=("random", "reference"), default="reference")
+    ap.add_argument("--criterion", choices=("I", "D"), default="I", help="I-optimal (default) or Bayesian D-optimal")
+    ap.add_argument("--prior-weight", type=float, default=1.0, help="weight of the prior in stage 2's criterion")
+    ap.add_argument("--no-cover", action="store_true", help="stage 1 without one contact per face first")
     ap.add_argument("--single", action="store_true", help="also a one-stage D-optimal campaign with the margin")
     a = ap.parse_args()
     rows = []
@@ -98,7 +104,7 @@ def main() -> None:
                  if a.single else "")
         print(f"pool {s}: landed {r['landed']}/{r['planned']} (stage 1 {r['stage1_landed']}/{a.first}); true 3-D error "
               f"{r['err_planned_m'] * 1e3:.4f} mm vs random median {r['err_random_median_m'] * 1e3:.4f} mm; after stage 1 "
-              f"(MAP) {r['map_err_m'] * 1e3:.2f} mm; selection {r['selection_s']:.3f} s{extra}", flush=True)
+              f"(MAP) {r['map_err_m'] * 1e3:.2f} mm; {r['free']} free; selection {r['selection_s']:.3f} s{extra}", flush=True)
     land = sum(r["landed"] for r in rows) / sum(r["planned"] for r in rows)
     e = np.array([r["err_planned_m"] for r in rows])
     beat = sum(r["err_planned_m"] < r["err_random_median_m"] for r in rows)

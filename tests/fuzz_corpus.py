@@ -6,7 +6,10 @@ Classes: bit flips, truncation, corrupt chunks (garbage, emptied or unknown comp
 length), decompression bombs (zstd, lz4), altered schemas and message encodings, altered JSON
 (deep nesting, wrong types, out-of-range numbers, NaN, not an object, cut short), altered metadata
 (non-finite or absurd model numbers, swapped limits, `system` not a string, duplicate records,
-not an object, fixture without faces) and hostile topics (NUL, 300 bytes, colliding names).
+not an object, fixture without faces), hostile topics (NUL, 300 bytes, colliding names) and damaged
+protobuf encoder streams (the source upgraded to protobuf, then one message cut, holding an unknown
+field, a wrong wire type, NaN, too few positions, or empty; or the registered FileDescriptorSet
+garbage or of another type).
 """
 
 from __future__ import annotations
@@ -21,9 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from hostile_support import BUNDLED, bit_flips, bomb, chunk_offsets, rebuild, replace_chunk
+from google.protobuf.descriptor_pb2 import FileDescriptorSet
+
+from pipeline.recording import joint_state_batch as JSB
 from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
 
-CLASSES = ("bitflip", "truncate", "chunk", "bomb", "schema", "json", "metadata", "topic")
+CLASSES = ("bitflip", "truncate", "chunk", "bomb", "schema", "json", "metadata", "topic", "protobuf")
 OUTCOMES = ("ok", "warned", "error", "traceback", "hang", "memory", "silent-loss")
 
 
@@ -89,6 +95,55 @@ JSON_EDITS: dict[str, Callable[[dict, np.random.Generator], bytes]] = {
     "string-number": lambda m, r: json.dumps({**m, "timestamps_ns" if "timestamps_ns" in m else "timestamp_ns": "12"}).encode(),
     "not-utf8": lambda m, r: b'{"timestamp_ns": "\xff\xfe"}',
 }
+
+def _pb_edit(fn: Callable) -> Callable[[bytes, np.random.Generator], bytes]:
+    def edit(body: bytes, rng: np.random.Generator) -> bytes:
+        m = JSB.JointStateBatch.FromString(body)
+        fn(m, rng)
+        return m.SerializeToString()
+    return edit
+
+
+def _other_type_fds() -> bytes:
+    fd = JSB.file_descriptor()
+    fd.message_type[0].field[3].type = fd.message_type[0].field[3].TYPE_FLOAT
+    return FileDescriptorSet(file=[fd]).SerializeToString()
+
+
+# edits of one protobuf stream message (body, rng) -> body, or of the stream's registration
+PROTO_EDITS: dict[str, tuple[Callable | None, Callable[[np.random.Generator], dict] | None]] = {
+    "cut": (lambda b, r: b[: int(r.integers(1, len(b)))], None),
+    "unknown-field": (lambda b, r: b + b"\x38\x01", None),
+    "fds-garbage": (None, lambda r: {"schema_data": r.integers(0, 256, 40, dtype=np.uint8).tobytes()}),
+    "nan": (_pb_edit(lambda m, r: m.positions.__setitem__(int(r.integers(len(m.positions))), float("nan"))), None),
+    "count": (_pb_edit(lambda m, r: m.positions.__delitem__(-1)), None),
+    "fds-other-type": (None, lambda r: {"schema_data": _other_type_fds()}),
+    "wire-type": (lambda b, r: b"\x19" + b"\x00" * 8 + b, None),  # field 3 (int64) as a fixed64
+    "empty": (lambda b, r: b"", None),
+}
+
+
+@functools.cache
+def _pb_source(source: str) -> Path:
+    """The bundled recording `source` with its encoder stream upgraded to protobuf (once per process)."""
+    from pipeline.recording.upgrade import upgrade
+
+    out = Path(tempfile.mkdtemp(prefix="robocal-fuzz-pb-")) / f"{source}-pb.mcap"
+    upgrade(BUNDLED[source], out)
+    return out
+
+
+def _protobuf_case(name: str, source: str, edit: str, index: int, rng: np.random.Generator) -> Callable[[Path], Path]:
+    msg_edit, channel_edit = PROTO_EDITS[edit]
+    spec = channel_edit(rng) if channel_edit else {}
+
+    def make(d: Path) -> Path:
+        return rebuild(_pb_source(source), d / name,
+                       msg=(lambda t, i, b: msg_edit(b, rng) if (t == "/robot/joint_state" and i == index) else b)
+                       if msg_edit else None,
+                       channel=lambda t: spec if t == "/robot/joint_state" else {})
+    return make
+
 
 META_EDITS: dict[str, Callable[[dict], list]] = {
     "model-nan": lambda md: list({**md, META_ROBOT: _first_number(md[META_ROBOT], float("nan"))}.items()),
@@ -190,6 +245,10 @@ def cases(seed: int, per_class: int, sources: tuple[str, ...] = ("delta-tracker"
                   ["/encoder", "/messages", "/measurements"])[k % 4]
         yield Case("topic", f"topic-{k % 4}-{tag}", src,
                    _rebuild(f"topic-{tag}.mcap", src, extra=[(t, t0 + i, b'{"timestamp_ns":1}') for i, t in enumerate(topics)]))
+        pedit = list(PROTO_EDITS)[k % len(PROTO_EDITS)]
+        prng = np.random.default_rng([seed, k, 17])  # its own stream: the other classes' cases are as before
+        yield Case("protobuf", f"protobuf-{pedit}-{tag}", src,
+                   _protobuf_case(f"protobuf-{tag}.mcap", src, pedit, int(prng.integers(0, 5)), prng))
 
 
 def message_count(path: Path) -> int:

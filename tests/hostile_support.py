@@ -14,6 +14,7 @@ from mcap.data_stream import ReadDataStream
 from mcap.records import Chunk
 from mcap.writer import CompressionType, Writer
 
+from pipeline.recording import joint_state_batch as JSB
 from pipeline.recording.reader import read_recording
 from pipeline.recording.schemas import CHANNELS, schema_bytes, schema_title
 
@@ -98,7 +99,11 @@ def rebuild(src: Path, dst: Path, *, msg=None, meta=None, channel=None, extra=()
                 stem = CHANNELS.get(t)
                 spec = {"topic": t, "schema_name": schema_title(stem) if stem else "custom",
                         "schema_encoding": "jsonschema", "schema_data": schema_bytes(stem) if stem else b"{}",
-                        "message_encoding": "json", **(channel(t) if channel else {})}
+                        "message_encoding": "json"}
+                if rec.encodings.get(t) == JSB.ENCODING:  # the protobuf encoder stream, registered as robocal does
+                    spec.update(schema_name=JSB.SCHEMA_NAME, schema_encoding=JSB.ENCODING,
+                                schema_data=JSB.FILE_DESCRIPTOR_SET, message_encoding=JSB.ENCODING)
+                spec.update(channel(t) if channel else {})
                 sid = w.register_schema(spec["schema_name"], spec["schema_encoding"], spec["schema_data"])
                 ids[t] = w.register_channel(spec["topic"], spec["message_encoding"], sid)
             d = msg(t, i, d) if (msg and i >= 0) else d

@@ -102,14 +102,16 @@ def test_strictly_increasing():
     assert strictly_increasing(np.array([5, 9]), 7).tolist() == [8, 9]
 
 
-def test_acquired_stream_decodes_on_the_canonical_path(drifted):
-    """The acquisition's layout (device and host time lists after the positions) is the writer's
-    canonical JSON: the fast decoding path takes it, bit-identical to the message-by-message check."""
+def test_acquired_stream_is_protobuf_with_device_and_host_times(drifted):
+    """The acquisition writes the stream as robocal.JointStateBatch, with the raw device times and
+    host receive times of every sample beside the corrected ones; `joint_stream` reads it."""
     from pipeline.ingest import streams
+    from pipeline.recording import joint_state_batch as JSB
 
     rec = drifted[3]
-    fast = streams._joint_stream_canonical(rec.messages.raw[streams.JOINT_STATE])
-    slow = streams._joint_stream_checked(rec)
-    assert fast is not None and fast.names == slow.names
-    assert np.array_equal(fast.t_ns, slow.t_ns) and np.array_equal(fast.message_index, slow.message_index)
-    assert np.array_equal(fast.q.view(np.int64), slow.q.view(np.int64))
+    assert rec.encodings[streams.JOINT_STATE] == "protobuf" and not rec.registration[streams.JOINT_STATE]
+    b = JSB.decode(rec.messages.raw[streams.JOINT_STATE])
+    s = streams.joint_stream(rec)
+    assert np.array_equal(s.t_ns, b.t_ns) and np.array_equal(s.q.view(np.int64), b.q.view(np.int64))
+    assert b.device_t_ns.shape == b.host_t_ns.shape == s.t_ns.shape
+    assert np.all(np.diff(s.t_ns) > 0) and not np.array_equal(b.device_t_ns, s.t_ns)

@@ -22,7 +22,7 @@ def test_every_command_has_help():
     names = {" ".join(p) for p, _ in paths}
     for expected in ("calibrate", "run", "ingest", "validate", "identify", "observe", "report", "view", "diagnose",
                      "plan", "reprocess", "acquire", "device-sim", "recover", "simulate arc-welder",
-                     "simulate scorbot-scanner", "simulate delta-tracker"):
+                     "simulate scorbot-scanner", "simulate delta-tracker", "import csv", "import ros2"):
         assert expected in names, f"missing command {expected!r}"
     runner = CliRunner()
     for path, cmd in paths:

@@ -124,7 +124,9 @@ def test_cli_injects_conceals_and_stage_diagnoses(tmp_path):
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     raw = rec.read_bytes()
-    assert b"time_offset" not in raw and b"offset" not in raw.lower().replace(b"theta_offset", b"")
+    # the stream's schema (protobuf descriptor) has a field sample_offsets_ns (JSON name sampleOffsetsNs)
+    assert b"time_offset" not in raw and b"offset" not in raw.lower().replace(b"theta_offset", b"").replace(
+        b"sample_offsets_ns", b"").replace(b"sampleoffsetsns", b"")
     assert json.loads(tr.read_text())["effects"][0]["effect"] == "time_offset"
     from pipeline.diagnose import stage
     from pipeline.recording.reader import read_recording

@@ -126,6 +126,39 @@ def test_joint_stream_decoders_fail_only_as_ingest_expects(bodies):
             pass
 
 
+_PB = None
+
+
+def _valid_batch() -> bytes:
+    global _PB
+    if _PB is None:
+        import numpy as np
+
+        from pipeline.recording import joint_state_batch as JSB
+        _PB = JSB.encode(1_700_000_000_000_000_000 + np.arange(4), np.ones((4, 3)), ["a", "b", "c"], np.arange(4))
+    return _PB
+
+
+@settings(max_examples=300, deadline=None)
+@given(bodies=st.lists(st.binary(max_size=120) | st.builds(
+    lambda cut, flips: bytes(b ^ f for b, f in zip(_valid_batch()[:cut], flips + [0] * cut)),
+    st.integers(0, 200), st.lists(st.integers(0, 255), max_size=40)), min_size=1, max_size=4))
+def test_protobuf_stream_decoder_fails_only_with_a_named_record(bodies):
+    """Any bytes on a protobuf encoder stream: a stream, or a one-line error naming the record."""
+    from pipeline.ingest.streams import JOINT_STATE, joint_stream
+    from pipeline.recording.reader import Recording
+
+    rec = Recording(path=BUNDLED["delta-tracker"])
+    rec.encodings[JOINT_STATE] = "protobuf"
+    rec.messages.raw[JOINT_STATE] = list(bodies)
+    try:
+        s = joint_stream(rec)
+    except RobocalError as e:
+        assert "\n" not in str(e) and f"channel {JOINT_STATE}: record " in str(e)
+        return
+    assert s.q.shape == (s.t_ns.size, len(s.names)) and s.t_ns.size == s.message_index.size
+
+
 @settings(max_examples=100, deadline=None)
 @given(declared=st.integers(0, 1 << 40), payload=st.binary(max_size=64), comp=st.sampled_from(framing.COMPRESSIONS))
 def test_decompression_never_exceeds_the_declared_size_or_limits(declared, payload, comp):

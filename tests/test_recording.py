@@ -9,29 +9,38 @@ import numpy as np
 from mcap.reader import make_reader
 
 from pipeline.ingest.streams import contacts, joint_stream
+from pipeline.recording import joint_state_batch as JSB
 from pipeline.recording.reader import read_recording
 from pipeline.recording.schemas import CHANNELS, META_CAMPAIGN, META_FIXTURE, META_ROBOT, schema, schema_bytes, validator
 from pipeline.recording.writer import RecordingWriter
 from pipeline.systems.arc_welder import nominal_arm
 
 
-def test_independent_reader_sees_jsonschema_channels_and_conforming_bodies(arc_default):
+def test_independent_reader_sees_registered_channels_and_conforming_bodies(arc_default):
+    """Contacts: JSON with their JSON Schema (the file in schemas/); the encoder stream: protobuf
+    with the FileDescriptorSet of robocal.JointStateBatch (decoded in tests/test_binary_stream.py)."""
     rec_path, _ = arc_default
     with open(rec_path, "rb") as f:
         reader = make_reader(f, validate_crcs=True)
         summary = reader.get_summary()
         topics = {c.topic: c for c in summary.channels.values()}
         assert set(topics) == {"/robot/joint_state", "/touch/contact"}
-        for topic, ch in topics.items():
-            sch = summary.schemas[ch.schema_id]
-            assert ch.message_encoding == "json" and sch.encoding == "jsonschema"
-            assert sch.data == schema_bytes(CHANNELS[topic])  # the file in schemas/, byte for byte
+        ch = topics["/touch/contact"]
+        sch = summary.schemas[ch.schema_id]
+        assert ch.message_encoding == "json" and sch.encoding == "jsonschema"
+        assert sch.data == schema_bytes(CHANNELS["/touch/contact"])  # the file in schemas/, byte for byte
+        ch = topics["/robot/joint_state"]
+        sch = summary.schemas[ch.schema_id]
+        assert ch.message_encoding == sch.encoding == "protobuf" and sch.name == JSB.SCHEMA_NAME
+        assert sch.data == JSB.FILE_DESCRIPTOR_SET
         n = 0
         for _schema, channel, message in reader.iter_messages():
-            body = json.loads(message.data)
-            if channel.topic == "/touch/contact" or n % 10 == 0:  # pure-Python jsonschema is slow on big arrays
+            if channel.topic == "/touch/contact":
+                body = json.loads(message.data)
                 validator(CHANNELS[channel.topic]).validate(body)
-            assert message.log_time == body["timestamp_ns"]
+            else:
+                body = JSB.to_dict(message.data)
+            assert message.log_time == message.publish_time == body["timestamp_ns"]
             n += 1
         assert n == summary.statistics.message_count
 
@@ -63,11 +72,12 @@ def test_round_trip_is_byte_for_byte(arc_default, tmp_path):
     assert out.read_bytes() == rec_path.read_bytes()
 
 
-def test_stream_fast_path_equals_checked_path(arc_default):
-    from pipeline.ingest.streams import _joint_stream_checked
-
+def test_stream_decodes_as_its_messages_read_one_by_one(arc_default):
     rec = read_recording(arc_default[0])
-    fast, slow = joint_stream(rec), _joint_stream_checked(rec)
+    fast = joint_stream(rec)
+    msgs = rec.messages["/robot/joint_state"]  # each message on its own, in the JSON form
+    slow = type(fast)(np.concatenate([m["timestamps_ns"] for m in msgs]),
+                      np.concatenate([m["positions"] for m in msgs]), tuple(msgs[0]["joint_names"]), fast.message_index)
     np.testing.assert_array_equal(fast.q, slow.q)
     np.testing.assert_array_equal(fast.t_ns, slow.t_ns)
     assert fast.names == slow.names == tuple(f"J{i}" for i in range(1, 7))

@@ -60,9 +60,10 @@ def device_streams(rec: Recording, clock: Clock, batch: int = 1, announce_every_
     js = joint_stream(rec)
     t_all = [js.t_ns[0]]
     events: dict[str, list[tuple[int, str, dict]]] = {}
-    for topic, msgs in rec.messages.items():
-        if topic == JOINT_STATE or not msgs:
+    for topic in list(rec.messages.raw):
+        if topic == JOINT_STATE or not rec.messages.raw[topic]:
             continue
+        msgs = rec.messages[topic]
         role = CHANNEL_DEVICE.get(topic, "bridge")
         for m in msgs:
             body = {k: v for k, v in m.items() if k not in ("timestamp_ns", "device_timestamp_ns", "host_receive_ns")}

@@ -202,10 +202,7 @@ class Acquisition:
         link.samples += t.size
         for s in range(0, t.size, self.batch):
             sl = slice(s, s + self.batch)
-            self.w.write(JOINT_STATE, {"timestamp_ns": int(t[s]), "timestamps_ns": t[sl].tolist(),
-                                       "joint_names": names, "positions": q[sl].tolist(),
-                                       "device_timestamps_ns": t_dev[sl].tolist(),
-                                       "host_receive_times_ns": h_rx[sl].tolist()})
+            self.w.write_batch(t[sl], q[sl], names, device_t_ns=t_dev[sl], host_t_ns=h_rx[sl])
 
     def _write_events(self, link: Link, fit) -> None:
         if not link._events:

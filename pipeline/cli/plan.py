@@ -41,11 +41,18 @@ def plan_cmd(
     first_stage: int = typer.Option(15, "--first-stage", min=3, help="Contacts in the first stage of --stages 2."),
     after: Path = typer.Option(None, "--after", help="Touch: plan the next stage on the run directory of the stages "
                                "so far (robocal run REC --out RUN_DIR): its contacts, updated model and uncertainty."),
+    urdf: Path = typer.Option(None, "--urdf", help="System urdf: the robot description (URDF)."),
+    root: str = typer.Option(None, "--root", help="System urdf: root link of the chain."),
+    tip: str = typer.Option(None, "--tip", help="System urdf: tip link of the chain."),
+    measure: str = typer.Option("point", "--measure", help="System urdf: point | pose (what is measured at each "
+                                "configuration: a tracker target, or a 6-D pose)."),
 ) -> None:
     """D-optimal pose selection: greedy + Fedorov exchange with rank-1 (Sherman–Morrison) updates.
     For the arc welder the output is an executable campaign (schemas/campaign.schema.json)."""
     import numpy as np
 
+    if system == "urdf":
+        return plan_urdf(urdf, root, tip, measure, candidates, select_m, out, seed, check)
     if hasattr(candidate_module(system), "touch_campaign"):
         from pipeline.plan.arc_welder import touch_campaign
         from pipeline.stages.artefacts import write_json
@@ -112,4 +119,64 @@ def plan_cmd(
         c = doc["check"]
         err.print(f"held-out RMS: planned {c['planned_holdout_rms_m'] * 1e3:.4f} mm, random median "
                   f"{c['random_median_m'] * 1e3:.4f} mm ({c['planned_rank_among_random']} of {check} random sets better)")
+    print(out)
+
+
+def plan_urdf(urdf: Path | None, root: str | None, tip: str | None, measure: str, candidates: int, select_m: int,
+              out: Path, seed: int, check: int) -> None:
+    """`robocal plan urdf`: D-optimal joint configurations of any URDF chain for point or pose measurements,
+    written as an executable pose campaign (joint names from the URDF)."""
+    import numpy as np
+
+    from pipeline.errors import RobocalError
+    from pipeline.models import urdf as urdf_mod
+    from pipeline.models.urdf_arm import UrdfArm
+    from pipeline.plan import urdf_robot as pu
+    from pipeline.plan.select import compare, plan
+    from pipeline.stages.artefacts import write_json
+    from pipeline.systems.urdf_robot import model_for
+
+    if urdf is None or root is None or tip is None:
+        raise RobocalError("robocal plan urdf needs --urdf ROBOT.urdf --root LINK --tip LINK")
+    if measure not in ("point", "pose"):
+        raise RobocalError(f"--measure {measure!r}: planning from joint configurations needs point or pose "
+                           "(plane and coincidence campaigns depend on the fixture)")
+    desc = urdf_mod.read(urdf, root, tip)
+    model = model_for(UrdfArm(desc), measure, {})
+    q = pu.configurations(model.kin, candidates, seed)
+    with err.status(f"planning {select_m} of {candidates} configurations…"):
+        p = plan(model, pu.table_at(model, model.nominal(), q), select_m)
+    s = p.selection
+    doc = {"kind": "robocal.campaign", "version": 1, "system": "urdf", "stage": 1, "stages": 1,
+           "n_candidates": candidates, "select": select_m, "seed": seed,
+           "criterion": "D-optimal: log det of the information matrix of the free parameters (scaled columns)",
+           "free_parameters": [n for n, f in zip(model.parameter_names(), p.free) if f],
+           "logdet": s.logdet, "greedy_logdet": s.greedy_logdet, "exchanges": s.exchanges,
+           "selection_s": s.elapsed_s, "observability": p.observability,
+           **pu.pose_campaign(desc, measure, q, s.index, str(urdf))}
+    if check:
+        from pipeline.simulate.urdf_robot import random_truth
+
+        rng = np.random.default_rng(seed + 1)
+        truth = random_truth(model, rng, 1e-3, np.radians(0.2))
+        cand = pu.table_at(model, truth, q)
+        cand["position"] = cand["position"] + rng.normal(0, 5e-5, cand["position"].shape)
+        test = pu.table_at(model, truth, pu.configurations(model.kin, 300, seed + 2))
+        true_tip = model.tool(truth, test["joint_positions"])[0]
+
+        def tip_error(x: np.ndarray, t: dict) -> np.ndarray:  # 3-D tool-point error, m (instrument frame)
+            return np.linalg.norm(model.tool(x, t["joint_positions"])[0] - true_tip, axis=1)
+
+        with err.status(f"checking against {check} random sets on a simulated truth…"):
+            doc["check"] = compare(model, cand, test, select_m, n_random=check, seed=seed, error=tip_error)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json(out, doc)
+    err.print(f"{desc.name} ({root} → {tip}), {measure}: selected {select_m} of {candidates} configurations in "
+              f"{s.elapsed_s:.3f} s (log det {s.logdet:.2f}; {len(doc['free_parameters'])} free parameters); "
+              f"O1 {p.observability['O1']:.4g}", highlight=False)
+    if "check" in doc:
+        c = doc["check"]
+        err.print(f"true 3-D tool-point error (RMS) at 300 new configurations (simulated truth, 1 mm / 0.2° errors, 50 µm noise): "
+                  f"planned {c['planned_holdout_rms_m'] * 1e3:.4f} mm, random median {c['random_median_m'] * 1e3:.4f} mm "
+                  f"({c['planned_rank_among_random']} of {check} random sets better)", highlight=False)
     print(out)

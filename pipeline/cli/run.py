@@ -9,6 +9,7 @@ import typer
 from rich.table import Table
 
 from pipeline.cli import app, console, err
+from pipeline.cli import ros2 as ros2_cli
 
 
 def _log(line: str) -> None:
@@ -137,7 +138,7 @@ STRICT = typer.Option(False, "--strict", help="Exit 1 unless the status is pass 
 
 @app.command("run")
 def run_cmd(
-    recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
+    recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign, or a ROS 2 bag."),
     out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
     loss: Optional[str] = LOSS, f_scale: Optional[float] = F_SCALE, reject: Optional[float] = REJECT,
     folds: Optional[int] = FOLDS,
@@ -147,14 +148,24 @@ def run_cmd(
     only: Optional[str] = typer.Option(None, "--stages", help="Comma-separated stages to run (default: all available)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
+    urdf: Optional[Path] = typer.Option(None, "--urdf", help="ROS 2 bag: the robot's URDF (docs/ros2.md)."),
+    root: Optional[str] = typer.Option(None, "--root", help="ROS 2 bag: root link of the calibrated chain."),
+    tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain."),
+    joint_topic: str = ros2_cli.JOINT_TOPIC, measure_topic: Optional[str] = ros2_cli.MEASURE_TOPIC,
+    measure: Optional[str] = ros2_cli.MEASURE, window_s: float = ros2_cli.WINDOW, max_speed: float = ros2_cli.SPEED,
+    time_source: str = ros2_cli.TIME, sigma_m: float = ros2_cli.SIGMA_M, sigma_rad: float = ros2_cli.SIGMA_RAD,
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
-    available); stages whose inputs and parameters did not change are cached."""
+    available); stages whose inputs and parameters did not change are cached.  A ROS 2 bag is
+    imported first (into DIR/import/recording.mcap; --urdf, --root, --tip, topics: docs/ros2.md)."""
     import time
 
     from pipeline.stages.runner import run_pipeline
 
     t0 = time.perf_counter()
+    recording = ros2_cli.run_input(recording, out, urdf, root, tip, joint_topic=joint_topic,
+                                   measure_topic=measure_topic, measure=measure, window_s=window_s,
+                                   max_speed=max_speed, time=time_source, sigma_m=sigma_m, sigma_rad=sigma_rad)
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)

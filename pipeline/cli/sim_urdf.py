@@ -27,12 +27,17 @@ def urdf_cmd(
                                     help="Pose: orientation noise; plane/coincidence: joint reading noise, deg."),
     groups: int = typer.Option(4, "--groups", min=1, help="Coincidence: fixed points (sockets)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (truth, configurations, noise)."),
+    campaign_file: Path = typer.Option(None, "--campaign",
+                                       help="Execute this planned campaign (CAMPAIGN.json, measurement: pose) "
+                                            "instead of random configurations."),
 ) -> None:
-    """Random truth (errors of the stated size) and a campaign, written as a URDF recording."""
+    """Random truth (errors of the stated size) and a campaign (random configurations, or a planned
+    CAMPAIGN.json executed on the true robot), written as a URDF recording."""
     from pipeline.errors import RobocalError
     from pipeline.importers.recording import write_urdf_recording
     from pipeline.models import urdf as urdf_mod
     from pipeline.models.urdf_arm import UrdfArm
+    from pipeline.plan.campaign import read_pose
     from pipeline.simulate.urdf_robot import campaign, random_truth
     from pipeline.systems.urdf_robot import model_for
 
@@ -43,8 +48,11 @@ def urdf_cmd(
     model = model_for(arm, measure, {}, [f"socket{i}" for i in range(groups)])
     rng = np.random.default_rng(seed)
     x = random_truth(model, rng, error_mm * 1e-3, np.radians(error_deg), registration=measure in ("point", "pose"))
-    table, tr = campaign(model, x, poses, seed, measure, noise_mm * 1e-3, np.radians(noise_deg), n_groups=groups)
+    q = None if campaign_file is None else read_pose(campaign_file, "urdf", list(arm.joint_names))
+    table, tr = campaign(model, x, poses, seed, measure, noise_mm * 1e-3, np.radians(noise_deg), n_groups=groups, q=q)
     camp: dict = {"simulated": True, "robot_id": f"{desc.name}-sim-{seed}"}
+    if campaign_file is not None:
+        camp["campaign_file"] = str(campaign_file)
     if measure == "plane":
         camp["planes"] = [{**p, "known": True} for p in tr.planes]
     if measure == "pose":

@@ -7,7 +7,9 @@ D-H + Hayati arm and URDF robots alike.  All poses in the work frame {W} (the ji
 
 Compensation of target (p_t, R_t):
 1. the controller's solution: nominal-model IK (from the row's hint, else multi-start seeds,
-   first converging within limits — the branch a nominal controller would take);
+   first converging within limits — the branch a nominal controller would take; for large
+   programs only on anchors, the other targets started at their nearest anchor's solution:
+   `pipeline.compensate.seeds`);
 2. calibrated-model IK started there (same branch; a jump > `branch_jump_rad` is reported);
 3. corrected target (R_c, p_c) = nominal forward kinematics of the calibrated joints: a
    nominal controller's IK of it returns the calibrated joints.
@@ -99,7 +101,7 @@ def pose_error(R: np.ndarray, p: np.ndarray, R_t: np.ndarray | None, p_t: np.nda
     e = p - p_t
     if R_t is None:
         return e
-    E = np.einsum("nij,nkj->nik", R, R_t)
+    E = R @ np.swapaxes(R_t, 1, 2)
     w = 0.5 * np.stack([E[:, 2, 1] - E[:, 1, 2], E[:, 0, 2] - E[:, 2, 0], E[:, 1, 0] - E[:, 0, 1]], axis=1)
     return np.concatenate([e, LEVER_M * w], axis=1)
 
@@ -124,8 +126,9 @@ def solve(kin: Kinematics, x: np.ndarray, p_t: np.ndarray, R_t: np.ndarray | Non
         Ja = J[active, :k].copy()
         if k == 6:
             Ja[:, 3:] *= LEVER_M
-        JtJ = np.einsum("nik,nil->nkl", Ja, Ja) + lam[active, None, None] * I
-        step = np.linalg.solve(JtJ, np.einsum("nik,ni->nk", Ja, e[active])[..., None])[..., 0]
+        JaT = np.swapaxes(Ja, 1, 2)
+        JtJ = JaT @ Ja + lam[active, None, None] * I  # batched matmul: faster than einsum here
+        step = np.linalg.solve(JtJ, JaT @ e[active][..., None])[..., 0]
         scale = np.minimum(1.0, options.max_step_rad / np.maximum(np.abs(step).max(axis=1), 1e-300))
         q_new = q[active] - step * scale[:, None]
         Rn, pn, Jn = kin.pose_jacobian(x, q_new)
@@ -156,22 +159,45 @@ def _sigma_min(J: np.ndarray, orientation: bool) -> np.ndarray:
 def multistart(kin: Kinematics, x: np.ndarray, p_t: np.ndarray, R_t: np.ndarray | None, seeds: np.ndarray,
                options: IKOptions = IKOptions(), hint: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """IK from each row's hint (rows with a finite hint), else from each of `seeds` (S, n) in
-    turn: the first solution converged within the limits, the controller's rule.  (q, ok)."""
+    turn: the first solution converged within the limits, the controller's rule.  (q, ok).
+    The seeds after the first are solved side by side in one batch (each row's solution from a
+    seed does not depend on the other seeds, so the answer is the rule's; one batch instead of
+    S sequential solves saves the per-iteration overhead on the few rows left)."""
     n = p_t.shape[0]
     q = np.full((n, kin.n_joints), np.nan)
     ok = np.zeros(n, bool)
-    starts = [] if hint is None else [hint]
-    starts += [np.broadcast_to(s, (n, kin.n_joints)) for s in seeds]
-    for k, s0 in enumerate(starts):
+    seeds = np.asarray(seeds, float).reshape(-1, kin.n_joints)
+    starts = [] if hint is None else [(hint, True)]
+    starts += [(np.broadcast_to(seeds[0], (n, kin.n_joints)), False)] if seeds.size else []
+    for s0, own_turn in starts:  # the hint, then the first seed: most rows end here
         todo = np.flatnonzero(~ok & np.all(np.isfinite(s0), axis=1))
         if todo.size == 0:
             continue
         qs, err = solve(kin, x, p_t[todo], None if R_t is None else R_t[todo], s0[todo], options)
-        if hint is None or k > 0:  # from a generic seed: the turn nearest zero (a hint keeps its own turn)
-            qs = (qs + np.pi) % (2 * np.pi) - np.pi
-        good = (err <= 1e-9) & np.all((qs >= kin.lower) & (qs <= kin.upper), axis=1)
-        q[todo[good]], ok[todo[good]] = qs[good], True
+        good = _accept(kin, qs, err, own_turn)
+        q[todo[good]], ok[todo[good]] = _turn(qs[good], own_turn), True
+    todo = np.flatnonzero(~ok)
+    if todo.size and seeds.shape[0] > 1:  # the other seeds, every (row, seed) pair in one batch
+        S = seeds.shape[0] - 1
+        rows = np.repeat(todo, S)
+        q0 = np.tile(seeds[1:], (todo.size, 1))
+        qs, err = solve(kin, x, p_t[rows], None if R_t is None else R_t[rows], q0, options)
+        good = _accept(kin, qs, err, False).reshape(todo.size, S)
+        first = np.argmax(good, axis=1)
+        hit = good.any(axis=1)
+        pick = np.arange(todo.size) * S + first
+        q[todo[hit]], ok[todo[hit]] = _turn(qs[pick[hit]], False), True
     return q, ok
+
+
+def _turn(q: np.ndarray, own_turn: bool) -> np.ndarray:
+    """From a generic seed: the turn nearest zero (a hint keeps its own turn)."""
+    return q if own_turn else (q + np.pi) % (2 * np.pi) - np.pi
+
+
+def _accept(kin: Kinematics, q: np.ndarray, err: np.ndarray, own_turn: bool) -> np.ndarray:
+    qs = _turn(q, own_turn)
+    return (err <= 1e-9) & np.all((qs >= kin.lower) & (qs <= kin.upper), axis=1)
 
 
 STATUS = ("ok", "unreachable", "out_of_limits", "singular", "branch_change")
@@ -197,7 +223,9 @@ def compensate(kin: Kinematics, x_nominal: np.ndarray, x_calibrated: np.ndarray,
     """Compensate targets (p_t (N,3), R_t (N,3,3) or None) — see the module docstring."""
     p_t = np.atleast_2d(np.asarray(p_t, float))
     n = p_t.shape[0]
-    q_nom, ok_nom = multistart(kin, x_nominal, p_t, R_t, seeds, options, hint)
+    from pipeline.compensate.seeds import nominal_ik  # (imports this module)
+
+    q_nom, ok_nom = nominal_ik(kin, x_nominal, p_t, R_t, seeds, options, hint)
     q = np.full_like(q_nom, np.nan)
     status = np.full(n, "ok", dtype=object)
     rows = np.flatnonzero(ok_nom)  # calibrated IK from the nominal solution: the same branch

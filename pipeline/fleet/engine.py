@@ -23,8 +23,12 @@ ENGINES = ("dask", "processes", "serial")
 CORE_STAGES = ["ingest", "validate", "identify", "observe"]
 SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 # Dask's diagnostics that cost CPU a reprocess does not use: the workers' statistical profiler (a
-# stack sample every 10 ms) and the GIL monitor; on a busy box they take CPU from the tasks.
-QUIET = {"distributed.worker.profile.enabled": False, "distributed.admin.system-monitor.gil.enabled": False}
+# stack sample every 10 ms) and the GIL monitor; on a busy box they take CPU from the tasks.  Also
+# glibc's default malloc: Dask sets MALLOC_TRIM_THRESHOLD_=65536 in workers, which turns off glibc's
+# dynamic mmap threshold, so every numpy temporary over 128 KiB is a fresh mmap + page faults
+# (measured: tasks 17 % slower than in a process pool).
+QUIET = {"distributed.worker.profile.enabled": False, "distributed.admin.system-monitor.gil.enabled": False,
+         "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 QUIET_ENV = {"DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
              "DASK_DISTRIBUTED__ADMIN__SYSTEM_MONITOR__GIL__ENABLED": "False"}
 

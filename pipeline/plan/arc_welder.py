@@ -61,16 +61,19 @@ def touch_campaign(n_candidates: int, m: int, seed: int = 0, margin_m: float = 0
         arm = nominal.with_vector(x)
         pool = touch.pool(arm, jig, n_candidates, seed, margin_m, campaign)
         t1 = time.perf_counter()
-        idx, p = staged.plan_next_stage(x, cov, jig, pool, m, sigma_m, campaign.approach_offset_m)
+        idx, p = staged.plan_next_stage(x, cov, jig, pool, m, sigma_m, campaign.approach_offset_m,
+                                        prior=staged.prior_cov(nominal))
         doc = touch_document(aw.SYSTEM, arm, jig, pool.take(idx), campaign, margin_m, 2, 2, idx)
-        extra = {"criterion": "Bayesian D-optimal given the earlier stages (MAP update, posterior covariance); "
+        extra = {"criterion": "I-optimal (least mean predicted 3-D tool-point variance over the jig) given the "
+                              "earlier stages (MAP update, posterior covariance), greedy + exchange; "
                               "candidates landing with P >= 0.99", "earlier_contacts": int(len(table["axis"]))}
     else:
         pool = touch.pool(nominal, jig, n_candidates, seed, margin_m, campaign)
         t1 = time.perf_counter()
         if stages == 2:
             idx, p = staged.plan_first_stage(nominal, jig, pool, first_stage, sigma_m, campaign.approach_offset_m)
-            extra = {"criterion": "Bayesian D-optimal under the prior error sizes among the candidates likeliest "
+            extra = {"criterion": "one contact per face, then I-optimal under the prior error sizes, among the "
+                                  "candidates likeliest "
                                   "to land (P >= 0.95, else the 3m likeliest)"}
         else:
             model = aw.TouchModel(nominal)

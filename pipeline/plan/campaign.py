@@ -146,3 +146,34 @@ def from_pool(system: str, arm, jig: Jig, pool: TouchPool, campaign: Campaign = 
                          q_approach=pool.q_approach.copy(), dq=pool.dq.copy(),
                          direction=np.array([-jig.faces[int(f)].normal for f in pool.face]).reshape(-1, 3),
                          campaign=replace(campaign, contacts=int(pool.face.size)))
+
+
+def read_pose(path: str | Path, system: str, joint_names: list[str]) -> np.ndarray:
+    """Joint configurations (n, len(joint_names)) rad of a `measurement: pose` campaign of `system`,
+    columns reordered to `joint_names` (the campaign must name exactly those joints); one-line errors."""
+    from pipeline.recording.schemas import validator
+
+    path = str(path)
+    try:
+        doc = json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise RobocalError(f"{path}: no such campaign file") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise RobocalError(f"{path}: not a JSON campaign file ({e})") from None
+    errors = sorted(validator("campaign").iter_errors(doc), key=lambda e: list(e.absolute_path))
+    if errors:
+        where = "/".join(str(p) for p in errors[0].absolute_path).replace("measurements/", "measurement ") or "document"
+        raise RobocalError(f"{path}: {where}: {errors[0].message} (schemas/campaign.schema.json)")
+    if doc["system"] != system or doc["measurement"] != "pose":
+        raise RobocalError(f"{path}: is a {doc['system']} {doc['measurement']} campaign, not a {system} pose campaign")
+    names = list(doc["joint_names"])
+    if sorted(names) != sorted(joint_names):
+        raise RobocalError(f"{path}: joint_names {names} do not match the robot's joints {list(joint_names)}")
+    order = [names.index(j) for j in joint_names]
+    out = []
+    for m in doc["measurements"]:
+        q = np.asarray(m.get("joints_rad", []), float)
+        if q.shape != (len(names),) or not np.all(np.isfinite(q)):
+            raise RobocalError(f"{path}: measurement {m['index']}: joints_rad must be {len(names)} finite numbers")
+        out.append(q[order])
+    return np.array(out).reshape(-1, len(names))

@@ -5,6 +5,7 @@ planned set beats random sets of the same size on held-out accuracy."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -34,23 +35,26 @@ def plan(model: MeasurementModel, candidates: Table, m: int, x: np.ndarray | Non
     return Plan(sel, ident.free, indices(singular_values(Js), Js.shape[0]))
 
 
-def holdout_rms(model: MeasurementModel, train: Table, test: Table, options: FitOptions = FitOptions()) -> float:
-    """RMS residual (m) on `test` of the model fitted to `train`."""
+def holdout_rms(model: MeasurementModel, train: Table, test: Table, options: FitOptions = FitOptions(),
+                error: Callable[[np.ndarray, Table], np.ndarray] | None = None) -> float:
+    """RMS on `test` of the model fitted to `train`: of its residuals (m), or of `error(x_fitted, test)`."""
     f = fit(model, train, options)
-    return float(np.sqrt(np.mean(model.residuals(f.x, test) ** 2)))
+    e = model.residuals(f.x, test) if error is None else error(f.x, test)
+    return float(np.sqrt(np.mean(e ** 2)))
 
 
 def compare(model: MeasurementModel, candidates: Table, test: Table, m: int, n_random: int = 20,
-            seed: int = 0) -> dict:
-    """Held-out RMS of the planned m-set vs `n_random` random m-sets of the same candidates."""
+            seed: int = 0, error: Callable[[np.ndarray, Table], np.ndarray] | None = None) -> dict:
+    """Held-out RMS of the planned m-set vs `n_random` random m-sets of the same candidates
+    (of the residuals, or of `error(x_fitted, test)`, see `holdout_rms`)."""
     p = plan(model, candidates, m)
-    planned = holdout_rms(model, take(candidates, p.selection.index), test)
+    planned = holdout_rms(model, take(candidates, p.selection.index), test, error=error)
     rng = np.random.default_rng(seed)
     N = n_rows(candidates)
     rand = []
     for _ in range(n_random):
         idx = np.sort(rng.choice(N, m, replace=False))
-        rand.append(holdout_rms(model, take(candidates, idx), test))
+        rand.append(holdout_rms(model, take(candidates, idx), test, error=error))
     rand = np.array(rand)
     return {"m": m, "n_candidates": N, "n_test": n_rows(test), "planned_holdout_rms_m": planned,
             "random_holdout_rms_m": rand.tolist(), "random_median_m": float(np.median(rand)),

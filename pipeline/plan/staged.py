@@ -1,17 +1,19 @@
 """Planning a touch campaign that lands although the robot is off (Bayesian, two stages).
 
 Before calibration the robot's error is known only in size: the prior on the parameter error
-(`prior_cov`: the paper's error sizes, 0.7° per angle, 2 mm per length, 2.5° base yaw — the
+(`prior_cov`: 1° per angle, 4 mm per length, 2.5° base yaw, wider than the paper's errors — the
 tool orientation does not move a point tip).  Linearised at the planning model, a candidate's
 predicted contact then has a tangential σ along each face axis, and its landing probability is
 P(the true contact stays inside both edges) × P(the search starts outside the material).
 
-Stage 1 picks, among the candidates most likely to land, the Bayesian D-optimal few
-(log det(Σ₀⁻¹ + Σ JᵀJ/σ²), greedy).  A maximum-a-posteriori fit of what landed (`map_fit`:
-least squares with the prior as extra residuals, so 10–15 contacts already pin the base yaw)
-gives the model and posterior covariance that stage 2 is planned on: a new candidate pool by
-the updated model's IK, kept where it lands with probability ≥ `p_land`, then D-optimal given
-stage 1's information.  Pure numpy/scipy functions of (model, data).
+Stage 1 picks, among the candidates most likely to land, one contact on every face and then
+the I-optimal rest (`ioptimal`: the least average predicted 3-D tool-point variance over the
+pool's contact configurations, which span the jig, given the prior).  A maximum-a-posteriori fit
+of what landed (`map_fit`: least squares with the prior as extra residuals, so 10–15 contacts
+already pin the base yaw) gives the model and posterior covariance that stage 2 is planned on:
+a new candidate pool by the updated model's IK, kept where it lands with probability ≥ `p_land`,
+then I-optimal given stage 1's information (greedy + Fedorov exchange).  Pure numpy/scipy
+functions of (model, data).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from scipy.special import ndtr
 from pipeline.models import serial_arm
 from pipeline.models.jig import Jig
 from pipeline.models.serial_arm import SerialArm
+from pipeline.plan import ioptimal
 from pipeline.plan.doptimal import woodbury_update
 from pipeline.plan.touch import TouchPool
 
@@ -55,23 +58,16 @@ def landing_probability(x: np.ndarray, cov: np.ndarray, jig: Jig, pool: TouchPoo
     return p_t * ndtr((pool.travel - 1e-3) / s_n)  # the true face must lie beyond the start
 
 
-def bayes_greedy(A: np.ndarray, m: int, info0: np.ndarray, allowed: np.ndarray | None = None,
-                 H: np.ndarray | None = None) -> np.ndarray:
-    """Greedy Bayesian choice of m rows of A (N, k, P) (each already divided by its noise σ)
-    given prior information `info0` (P×P): D-optimal, maximise log det(info0 + Σ AᵀA); with `H`
-    (P×P, Σ_t G_tᵀG_t over the tool-point Jacobians G_t of the configurations that matter),
-    I-optimal: minimise the summed prediction variance tr(H M⁻¹) (one-row k = 1 blocks)."""
+def bayes_greedy(A: np.ndarray, m: int, info0: np.ndarray, allowed: np.ndarray | None = None) -> np.ndarray:
+    """Greedy Bayesian D-optimal choice of m rows of A (N, k, P) (each already divided by its
+    noise σ) given prior information `info0` (P×P): maximise log det(info0 + Σ AᵀA)."""
     N, k, _ = A.shape
     Minv = np.linalg.pinv(info0 + 1e-12 * np.trace(info0) * np.eye(info0.shape[0]), hermitian=True)
     chosen = np.zeros(N, bool) if allowed is None else ~np.asarray(allowed, bool)
     order: list[int] = []
     I = np.eye(k)
     for _ in range(min(m, int((~chosen).sum()))):
-        if H is None:
-            gain = np.linalg.slogdet(I + np.einsum("nkp,pq,nlq->nkl", A, Minv, A))[1]
-        else:  # Sherman–Morrison: tr(H M⁻¹) drops by vᵀHv / (1 + a v), v = M⁻¹aᵀ
-            V = A[:, 0, :] @ Minv
-            gain = np.einsum("np,pq,nq->n", V, H, V) / (1 + np.einsum("np,np->n", V, A[:, 0, :]))
+        gain = np.linalg.slogdet(I + np.einsum("nkp,pq,nlq->nkl", A, Minv, A))[1]
         gain[chosen] = -np.inf
         j = int(np.argmax(gain))
         chosen[j] = True
@@ -114,41 +110,55 @@ def map_fit(model, table: dict, cov0: np.ndarray, sigma_m: float, x0: np.ndarray
     return x, post
 
 
-def _choose(rows: np.ndarray, p: np.ndarray, m: int, info0: np.ndarray, p_min: float, at_least: int) -> np.ndarray:
-    """Bayesian D-optimal m among candidates landing with P ≥ p_min (else the `at_least` likeliest)."""
+def _allowed(p: np.ndarray, p_min: float, at_least: int) -> np.ndarray:
+    """Candidates landing with P ≥ p_min, else the `at_least` likeliest."""
     allowed = p >= p_min
     if allowed.sum() < at_least:
         allowed = np.zeros(p.size, bool)
         allowed[np.argsort(-p)[:at_least]] = True
-    return bayes_greedy(rows, m, info0, allowed)
+    return allowed
+
+
+def _select(x: np.ndarray, pool: TouchPool, m: int, info0: np.ndarray, keep: np.ndarray, allowed: np.ndarray,
+            sigma_m: float, criterion: str, groups: np.ndarray | None) -> np.ndarray:
+    """m candidates: I-optimal (`ioptimal.select`: mean 3-D tool-point variance over the pool's
+    contact configurations, which span the jig) or Bayesian D-optimal greedy ("D")."""
+    rows = touch_rows(x, pool, sigma_m)[:, :, keep]
+    if criterion == "D":
+        return bayes_greedy(rows, m, info0, allowed)
+    _, G = serial_arm.tip_jacobian(x, pool.q_contact)
+    return ioptimal.select(rows, m, info0, ioptimal.eval_matrix(G[:, :, keep]), allowed, groups).index
 
 
 def plan_first_stage(nominal: SerialArm, jig: Jig, pool: TouchPool, m: int, sigma_m: float = 5e-5,
-                     standoff_m: float = 0.04, p_min: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
-    """Stage 1: (indices into pool, their landing probabilities) under the prior."""
+                     standoff_m: float = 0.04, p_min: float = 0.95, criterion: str = "I",
+                     cover: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Stage 1: (indices into pool, their landing probabilities) under the prior: among the
+    candidates landing with P ≥ p_min (else the 3m likeliest), I-optimal given the prior, one
+    contact on every face first (`cover`: the MAP update between the stages sees every face)."""
     x = nominal.vector()
     cov0 = prior_cov(nominal)
     keep = np.diag(cov0) > 0
     p = landing_probability(x, cov0, jig, pool, standoff_m)
-    idx = _choose(touch_rows(x, pool, sigma_m)[:, :, keep], p, m, np.diag(1 / np.diag(cov0)[keep]), p_min, 3 * m)
+    allowed = _allowed(p, p_min, 3 * m)
+    idx = _select(x, pool, m, np.diag(1 / np.diag(cov0)[keep]), keep, allowed, sigma_m, criterion,
+                  pool.face if cover else None)
     return idx, p[idx]
 
 
 def plan_next_stage(x: np.ndarray, cov: np.ndarray, jig: Jig, pool: TouchPool, m: int, sigma_m: float = 5e-5,
-                    standoff_m: float = 0.04, p_min: float = 0.99, criterion: str = "D") -> tuple[np.ndarray, np.ndarray]:
-    """Stage 2: (indices into a pool planned on the updated model x, landing probabilities)
-    under the posterior `cov`, given what the earlier stages already know: D-optimal, or I-optimal (the
-    summed 3-D tool-point variance over the pool's configurations, which span the jig: criterion "I";
-    measured worse on bench_plan_campaign: 0.049-0.078 vs 0.041-0.072 mm over 3 pools)."""
+                    standoff_m: float = 0.04, p_min: float = 0.99, criterion: str = "I",
+                    prior: np.ndarray | None = None, prior_weight: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Stage 2: (indices into a pool planned on the updated model x, landing probabilities under
+    the posterior `cov`) given what the earlier stages already know, among the candidates landing
+    with P ≥ p_min (else the 2m likeliest): I-optimal (default) or D-optimal.  The final
+    calibration has no prior: with `prior` (the stage-1 prior covariance) its information in
+    cov⁻¹ is counted at `prior_weight` only."""
     keep = np.diag(cov) > 0
     p = landing_probability(x, cov, jig, pool, standoff_m)
     info0 = np.linalg.inv(cov[np.ix_(keep, keep)])
-    _, G = serial_arm.tip_jacobian(x, pool.q_contact)  # the candidates span the jig: their 3-D tips matter
-    G = G[:, :, keep]
-    H = np.einsum("nip,niq->pq", G, G) / pool.face.size if criterion == "I" else None
-    allowed = p >= p_min
-    if allowed.sum() < 2 * m:
-        allowed = np.zeros(p.size, bool)
-        allowed[np.argsort(-p)[:2 * m]] = True
-    idx = bayes_greedy(touch_rows(x, pool, sigma_m)[:, :, keep], m, info0, allowed, H)
+    if prior is not None and prior_weight != 1.0:
+        info0 = info0 - (1 - prior_weight) * np.linalg.inv(prior[np.ix_(keep, keep)])
+        info0 = 0.5 * (info0 + info0.T)
+    idx = _select(x, pool, m, info0, keep, _allowed(p, p_min, 2 * m), sigma_m, criterion, None)
     return idx, p[idx]

@@ -42,3 +42,12 @@ def candidates_for(model: Composed, n: int, seed: int = 0, x: np.ndarray | None 
     """n random candidate measurements of a point or pose model (at x, default nominal)."""
     x = model.nominal() if x is None else x
     return table_at(model, x, configurations(model.kin, n, seed))
+
+
+def pose_campaign(desc, measure: str, q: np.ndarray, idx: np.ndarray, urdf_path: str) -> dict:
+    """The campaign file's robot-specific part: the chosen joint configurations (rad) by URDF joint
+    name, measured there with `measure` (point or pose) — schemas/campaign.schema.json."""
+    return {"measurement": "pose", "instrument": measure, "joint_names": list(desc.joint_names),
+            "urdf": {"path": urdf_path, "root": desc.root, "tip": desc.tip, "robot": desc.name},
+            "measurements": [{"index": i, "candidate": int(j), "joints_rad": q[j].tolist()}
+                             for i, j in enumerate(idx)]}

@@ -38,12 +38,20 @@ def decode(data: bytes) -> object:
 class LazyMessages(Mapping[str, list[dict]]):
     """topic -> decoded message bodies, decoded on first access (raw bytes kept)."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, encodings: dict[str, str] | None = None) -> None:
         self._path = path
         self.raw: dict[str, list[bytes]] = {}
         self._decoded: dict[str, list[dict]] = {}
+        self._encodings = {} if encodings is None else encodings  # topic -> message encoding
 
     def __getitem__(self, topic: str) -> list[dict]:
+        if topic not in self._decoded and self._encodings.get(topic) == "protobuf":
+            from pipeline.recording import joint_state_batch as JSB
+
+            try:  # robocal's one protobuf channel, in its JSON form
+                self._decoded[topic] = [JSB.to_dict(b, i) for i, b in enumerate(self.raw[topic])]
+            except JSB.BatchError as e:
+                raise RobocalError(f"{where(self._path, topic, e.record)}: {e.why}") from None
         if topic not in self._decoded:
             out = []
             for i, data in enumerate(self.raw[topic]):
@@ -76,6 +84,7 @@ class Recording:
     messages: LazyMessages = None  # type: ignore[assignment]  # topic -> message bodies (lazy)
     log_times: dict[str, list[int]] = field(default_factory=dict)  # topic -> log_time ns
     schemas: dict[str, tuple[str, str]] = field(default_factory=dict)  # topic -> (schema name, encoding)
+    encodings: dict[str, str] = field(default_factory=dict)  # topic -> the channel's message encoding
     warnings: list[str] = field(default_factory=list)
     complete: bool = False  # the footer was reached
     registration: dict[str, str] = field(default_factory=dict)  # topic -> '' or what is wrong with its schema
@@ -83,7 +92,7 @@ class Recording:
 
     def __post_init__(self) -> None:
         if self.messages is None:
-            self.messages = LazyMessages(self.path)
+            self.messages = LazyMessages(self.path, self.encodings)
 
     def require(self, topic: str) -> list[dict]:
         if not self.messages.raw.get(topic):
@@ -108,6 +117,10 @@ def read_recording(path: str | Path, topics: set[str] | None = None, skip: froze
     counts per channel.  Inside `cached_reads()` a second read of the same unchanged file is served
     from memory (a run reads its recording once)."""
     path = Path(path)
+    from pipeline.importers.bagkind import not_a_recording_hint
+
+    if (hint := not_a_recording_hint(path)) is not None:
+        raise RobocalError(hint)
     if not path.is_file():
         raise RobocalError(f"{path}: no such file")
     key = None
@@ -239,6 +252,7 @@ class _Reader:
         self.channels[ch.id] = ch
         s = self.schemas.get(ch.schema_id) or self.summary.schemas.get(ch.schema_id)
         self.rec.schemas[ch.topic] = (s.name if s else "", s.encoding if s else "")
+        self.rec.encodings[ch.topic] = ch.message_encoding
         self.rec.registration[ch.topic] = registration_problem(ch, s)
         self.rec.messages.raw.setdefault(ch.topic, [])
 
@@ -274,12 +288,20 @@ class _Reader:
 
 
 def registration_problem(ch: Channel, schema: Schema | None) -> str:
-    """'' when a robocal channel is registered as robocal writes it (JSON messages, its JSON Schema),
-    else what is wrong.  Channels robocal does not know are only required to carry JSON."""
-    from pipeline.recording.schemas import CHANNELS, schema_title
+    """'' when a robocal channel is registered as robocal writes it (JSON messages, its JSON Schema;
+    the encoder stream: protobuf `robocal.JointStateBatch` with its FileDescriptorSet, or JSON as
+    archived recordings have it), else what is wrong.  Channels robocal does not know are only
+    required to carry JSON."""
+    from pipeline.recording import joint_state_batch as JSB
+    from pipeline.recording.schemas import CHANNELS, STREAM, schema_title
 
+    if ch.topic == STREAM and ch.message_encoding == JSB.ENCODING:
+        if schema is None:
+            return f"no schema registered (expected {JSB.SCHEMA_NAME!r}, protobuf)"
+        return JSB.descriptor_problem(schema.name, schema.encoding, schema.data)
     if ch.message_encoding != "json":
-        return f"message_encoding is {ch.message_encoding!r}, robocal reads 'json'"
+        also = " (or 'protobuf' on /robot/joint_state)" if ch.topic == STREAM else ""
+        return f"message_encoding is {ch.message_encoding!r}, robocal reads 'json'{also}"
     stem = CHANNELS.get(ch.topic)
     if stem is None:
         return ""

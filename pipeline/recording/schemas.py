@@ -23,6 +23,8 @@ CHANNELS: dict[str, str] = {
     "/measure/coincidence": "measure_coincidence",
 }
 
+STREAM = "/robot/joint_state"  # the encoder stream: protobuf `robocal.JointStateBatch` (JSON when archived)
+
 # metadata record names
 META_ROBOT = "robocal.robot_model"
 META_FIXTURE = "robocal.fixture"

@@ -10,7 +10,8 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from pipeline import __version__
-from pipeline.recording.schemas import CHANNELS, schema_bytes, schema_title
+from pipeline.recording import joint_state_batch as JSB
+from pipeline.recording.schemas import CHANNELS, STREAM, schema_bytes, schema_title
 
 PROFILE = "robocal"
 
@@ -34,14 +35,19 @@ def encode(msg: dict) -> bytes:
 
 
 class RecordingWriter:
-    """MCAP writer with one JSON-Schema channel per robocal topic.
+    """MCAP writer with one channel per robocal topic: JSON with its JSON Schema, except the encoder
+    stream (`/robot/joint_state`), protobuf `robocal.JointStateBatch` with its FileDescriptorSet
+    (`stream_encoding="json"` writes it as archived recordings have it, for tests and comparisons).
 
     Chunks are closed every `chunk_size` bytes; call `flush_chunk()` to force one out (the
     acquisition does so every second so a killed process loses at most that much).
     """
 
     def __init__(self, out: str | Path | IO[bytes], chunk_size: int = 1 << 20,
-                 compression: CompressionType = CompressionType.ZSTD):
+                 compression: CompressionType = CompressionType.ZSTD, stream_encoding: str = JSB.ENCODING):
+        if stream_encoding not in (JSB.ENCODING, "json"):
+            raise ValueError(f"stream_encoding {stream_encoding!r}: 'protobuf' or 'json'")
+        self.stream_encoding = stream_encoding
         self._own = not hasattr(out, "write")
         self._f = open(out, "wb") if self._own else out
         self._w = Writer(self._f, chunk_size=chunk_size, compression=compression)
@@ -51,6 +57,10 @@ class RecordingWriter:
         self._closed = False
 
     def channel(self, topic: str) -> int:
+        if topic not in self._channels and topic == STREAM and self.stream_encoding == JSB.ENCODING:
+            sid = self._w.register_schema(name=JSB.SCHEMA_NAME, encoding=JSB.ENCODING, data=JSB.FILE_DESCRIPTOR_SET)
+            self._channels[topic] = self._w.register_channel(topic=topic, message_encoding=JSB.ENCODING, schema_id=sid)
+            self._seq[topic] = 0
         if topic not in self._channels:
             stem = CHANNELS[topic]
             sid = self._w.register_schema(name=schema_title(stem), encoding="jsonschema", data=schema_bytes(stem))
@@ -59,12 +69,31 @@ class RecordingWriter:
         return self._channels[topic]
 
     def write(self, topic: str, msg: dict, log_time_ns: int | None = None) -> None:
-        """Write one message; `log_time` defaults to the message's `timestamp_ns`."""
+        """Write one message; `log_time` defaults to the message's `timestamp_ns`.  On the protobuf
+        encoder stream `msg` is a batch in its JSON form (`joint_state_batch.from_dict`)."""
         cid = self.channel(topic)
         t = int(msg["timestamp_ns"] if log_time_ns is None else log_time_ns)
+        data = JSB.from_dict(msg) if topic == STREAM and self.stream_encoding == JSB.ENCODING else encode(msg)
+        self._add(topic, cid, t, int(msg["timestamp_ns"]), data)
+
+    def _add(self, topic: str, cid: int, log_time: int, publish_time: int, data: bytes) -> None:
         self._seq[topic] += 1
-        self._w.add_message(cid, log_time=t, data=encode(msg), publish_time=int(msg["timestamp_ns"]),
-                            sequence=self._seq[topic])
+        self._w.add_message(cid, log_time=log_time, data=data, publish_time=publish_time, sequence=self._seq[topic])
+
+    def write_batch(self, t_ns: np.ndarray, q: np.ndarray, names: list[str] | tuple[str, ...],
+                    device_t_ns: np.ndarray | None = None, host_t_ns: np.ndarray | None = None) -> None:
+        """One encoder-stream message: samples `t_ns` (n,) ns, positions `q` (n, n_joints) rad,
+        optional raw device and host receive times (n,) ns; log time = the first sample's."""
+        t0 = int(t_ns[0])
+        if self.stream_encoding == JSB.ENCODING:
+            self._add(STREAM, self.channel(STREAM), t0, t0, JSB.encode(t_ns, q, names, device_t_ns, host_t_ns))
+            return
+        msg = {"timestamp_ns": t0, "timestamps_ns": np.asarray(t_ns).tolist(), "joint_names": list(names),
+               "positions": np.asarray(q).tolist()}
+        for key, v in zip(JSB.OPTIONAL_TIMES, (device_t_ns, host_t_ns)):
+            if v is not None:
+                msg[key] = np.asarray(v).tolist()
+        self.write(STREAM, msg)
 
     def metadata(self, name: str, value: dict | str) -> None:
         """A metadata record; dicts are stored as {'json': <compact JSON>}."""
@@ -108,14 +137,20 @@ def joint_state_messages(t_ns: np.ndarray, q: np.ndarray, names: list[str] | tup
 
 
 def write_campaign(path: str | Path, metadata: dict[str, dict], stream: tuple[np.ndarray, np.ndarray, list[str]],
-                   events: list[tuple[str, dict]], batch: int = 250) -> None:
-    """Write a whole campaign: metadata, the batched encoder stream and the measurement
-    events, all messages in log-time order."""
+                   events: list[tuple[str, dict]], batch: int = 250, stream_encoding: str = JSB.ENCODING) -> None:
+    """Write a whole campaign: metadata, the batched encoder stream (positions at 1 nrad
+    resolution, as before issue 17, so both encodings carry the same numbers) and the
+    measurement events, all messages in log-time order."""
     t_ns, q, names = stream
-    msgs = [("/robot/joint_state", m) for m in joint_state_messages(t_ns, q, names, batch)] + list(events)
-    msgs.sort(key=lambda tm: tm[1]["timestamp_ns"])
-    with RecordingWriter(path) as w:
+    q = np.round(q, 9)
+    starts = range(0, t_ns.size, batch)
+    msgs = [(int(t_ns[s]), 0, STREAM, s) for s in starts] + [(int(m["timestamp_ns"]), 1, tp, m) for tp, m in events]
+    msgs.sort(key=lambda tm: tm[0])  # stable: a batch before an event of the same time, as before
+    with RecordingWriter(path, stream_encoding=stream_encoding) as w:
         for name, value in metadata.items():
             w.metadata(name, value)
-        for topic, m in msgs:
-            w.write(topic, m)
+        for _, kind, topic, m in msgs:
+            if kind == 0:
+                w.write_batch(t_ns[m:m + batch], q[m:m + batch], names)
+            else:
+                w.write(topic, m)

@@ -73,10 +73,18 @@ def _settle(model: Composed, x: np.ndarray, q: np.ndarray, target, rows_normal=N
 
 
 def campaign(model: Composed, truth_x: np.ndarray, n: int, seed: int, measure: str, noise_m: float = 0.0,
-             noise_rad: float = 0.0, n_groups: int = 2, planes: list[dict] | None = None):
-    """(table for `write_urdf_recording`, Truth): n measurements of `measure` on the true robot."""
+             noise_rad: float = 0.0, n_groups: int = 2, planes: list[dict] | None = None,
+             q: np.ndarray | None = None):
+    """(table for `write_urdf_recording`, Truth): n measurements of `measure` on the true robot, at
+    random configurations or, given `q` (n, n_joints), at a campaign's (for plane and coincidence
+    measurements the robot starts there and moves onto its plane / socket)."""
     rng = np.random.default_rng(seed)
-    q = configurations(model.kin, n, seed)
+    given = q is not None
+    if given:
+        q = np.asarray(q, float)
+        n = q.shape[0]
+    else:
+        q = configurations(model.kin, n, seed)
     truth_planes, truth_points = planes or [], np.zeros((0, 3))
     if measure == "plane":
         p, *_ = model.tool(truth_x, q)
@@ -97,7 +105,8 @@ def campaign(model: Composed, truth_x: np.ndarray, n: int, seed: int, measure: s
         g = np.arange(n) % n_groups
         seeds = configurations(model.kin, n_groups, seed + 7)
         P, *_ = model.tool(truth_x, seeds)
-        q = np.clip(seeds[g] + rng.normal(0, 0.35, q.shape), model.kin.lower, model.kin.upper)
+        if not given:
+            q = np.clip(seeds[g] + rng.normal(0, 0.35, q.shape), model.kin.lower, model.kin.upper)
         q = _settle(model, truth_x, q, P[g])
         p, *_ = model.tool(truth_x, q)
         ok = np.linalg.norm(p - P[g], axis=1) < 1e-10

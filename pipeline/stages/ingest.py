@@ -156,7 +156,7 @@ def write_messages(path: Path, rec) -> None:
     from it (`load_system`) instead of decompressing the whole MCAP again."""
     topics = [t for t in rec.messages.raw if t != JOINT_STATE]
     rows = [(t, lt, b) for t in topics for lt, b in zip(rec.log_times.get(t, []), rec.messages.raw[t])]
-    doc = {"topics": list(rec.messages.raw), "schemas": rec.schemas, "metadata": rec.metadata,
+    doc = {"topics": list(rec.messages.raw), "schemas": rec.schemas, "encodings": rec.encodings, "metadata": rec.metadata,
            "complete": rec.complete, "warnings": rec.warnings, "profile": rec.profile}
     table = pa.table({"topic": pa.array([r[0] for r in rows], pa.string()),
                       "log_time_ns": pa.array([r[1] for r in rows], pa.int64()),
@@ -185,6 +185,7 @@ def read_messages(run_dir: Path, info: dict):
                                f"{Path(run_dir) / NAME / 'recording.json'} says {ch['messages']} (re-run ingest)")
     rec = Recording(path=Path(info["source"]["path"]), metadata=doc["metadata"],
                     schemas={t: tuple(v) for t, v in doc["schemas"].items()}, warnings=doc["warnings"],
+                    encodings=doc.get("encodings", {}),
                     complete=doc["complete"], profile=doc["profile"])
     for t in doc["topics"]:
         rec.messages.raw[t] = []

@@ -9,6 +9,7 @@ import numpy as np
 
 from pipeline.ingest.streams import JOINT_STATE
 from pipeline.ingest.temperature import TEMPERATURE
+from pipeline.recording import joint_state_batch as JSB
 from pipeline.recording.reader import read_recording
 from pipeline.recording.schemas import CHANNELS, META_FIXTURE, META_ROBOT, validator
 from pipeline.stages.artefacts import read_table, write_json
@@ -60,6 +61,24 @@ def _stream_times(messages: list[dict]) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(ts), np.concatenate(rec)
 
 
+def check_protobuf_stream(raw: list[bytes]) -> tuple[C.Check, tuple[np.ndarray, np.ndarray]]:
+    """The protobuf encoder stream against `robocal.JointStateBatch`: every message that does not
+    decode, has fields the schema lacks, inconsistent counts, other joint names or NaN/inf is
+    named (fail); the sample times (ns) and message of each sample of the messages that do."""
+    bad = JSB.bad_records(raw)
+    check = C.make("schema", JOINT_STATE, [i for i, _ in bad], C.FAIL,
+                   f"{JOINT_STATE}: {len(raw)} messages decode as {JSB.SCHEMA_NAME} (protobuf)",
+                   f"do not match {JSB.SCHEMA_NAME} (first: record {bad[0][0]}: {bad[0][1]})" if bad else "")
+    good = np.setdiff1d(np.arange(len(raw)), [i for i, _ in bad])
+    if not good.size:
+        return check, (np.zeros(0, np.int64), np.zeros(0, int))
+    try:
+        b = JSB.decode([raw[i] for i in good])
+    except JSB.BatchError:  # only when no message names its joints: nothing to time
+        return check, (np.zeros(0, np.int64), np.zeros(0, int))
+    return check, (b.t_ns, good[b.message_index])
+
+
 def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
     from pipeline.systems.registry import SYSTEMS
 
@@ -73,7 +92,13 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
     for topic, why in getattr(rec, "registration", {}).items():
         if why:
             out.append(C.Check("registration", C.FAIL, f"{topic}: {why}", topic, []))
+    stream_times = None
     for topic in topics:
+        if topic == JOINT_STATE and getattr(rec, "encodings", {}).get(topic) == JSB.ENCODING:
+            if not rec.registration.get(topic):  # else the registration check has failed
+                check, stream_times = check_protobuf_stream(_raw(rec, topic))
+                out.append(check)
+            continue
         try:
             decoded[topic] = rec.messages[topic]
         except Exception as e:  # noqa: BLE001 — a message that is not JSON: fail naming it
@@ -84,8 +109,8 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         out.append(C.check_finite(topic, msgs))
     # time
     span = None
-    if JOINT_STATE in decoded:
-        t, r = _stream_times(decoded[JOINT_STATE])
+    if JOINT_STATE in decoded or stream_times is not None:
+        t, r = _stream_times(decoded[JOINT_STATE]) if stream_times is None else stream_times
         out += C.check_stream_time(JOINT_STATE, t, r, float(params.get("gap_factor", 5.0)))
         if t.size:
             span = (int(t.min()), int(t.max()))

@@ -222,13 +222,21 @@ class Campaign:
     along_normal_noise_sigma_m: float
     search_speed: np.ndarray
     wild_record: int | None = None
+    # what a controller logs beside the contacts (for `write_recording`)
+    stream_t_ns: np.ndarray | None = None
+    stream_q: np.ndarray | None = None
+    payload_changes: list = field(default_factory=list)  # [(t_ns, kg)] when the payload actually changed
+    planned_schedule: list = field(default_factory=list)  # the campaign's programmed schedule
+    search_direction: np.ndarray | None = None  # (n, 3) unit, into the face
 
 
 def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n: int = 100,
         jig: Jig | None = None, repeatability_3sigma_m: float = 1e-4, jig_error_m: float = 2e-5,
-        noise: float = 1.0) -> Campaign:
+        noise: float = 1.0, payload_late: int = 0) -> Campaign:
     """One campaign of n contacts on the first touching targets: payload 0/6 kg in blocks of 10,
-    search speeds 5/10/20 mm/s, the true robot with `effects` (its own forms)."""
+    search speeds 5/10/20 mm/s, the true robot with `effects` (its own forms).  `payload_late`: the
+    operator changes the payload this many contacts after the programmed block boundary (the
+    table then follows the changes as they happened)."""
     jig = jig or stepped_block()
     rng = np.random.default_rng(seed)
     idx = np.arange(n)
@@ -308,17 +316,24 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
         q_stream = np.round(q_stream / COUNT) * COUNT
     t_ns = EPOCH_NS + np.round(t_stream * 1e9).astype(np.int64)
     tc_ns = EPOCH_NS + np.round(t_contact * 1e9).astype(np.int64)
-    payload = np.where((rows // 10) % 2 == 1, 6.0, 0.0)
+    planned = np.where((rows // 10) % 2 == 1, 6.0, 0.0)
+    payload = np.where((np.maximum(rows - payload_late, 0) // 10) % 2 == 1, 6.0, 0.0)
     change = np.flatnonzero(np.r_[True, np.diff(payload) != 0])
     schedule = [{"t_ns": int(tc_ns[i] - 3e9), "payload_kg": float(payload[i])} for i in change]
     schedule[0]["t_ns"] = int(t_ns[0])
+    p_change = np.flatnonzero(np.r_[True, np.diff(planned) != 0])
+    planned_schedule = [{"t_ns": int(t_ns[0]) if k == 0 else int(tc_ns[i] - 3e9), "payload_kg": float(planned[i])}
+                        for k, i in enumerate(p_change)]
     ids = np.array([jig.faces[f].id for f in face], object)
     table = {"timestamp_ns": tc_ns, "joint_positions": q_latch, "face": ids, "axis": ax, "coordinate": coord,
              "record": rows}
     table = add_context(table, t_ns, q_stream, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
                         payload_schedule=schedule, default_payload_kg=0.0)
+    direction = np.zeros((n, 3))
+    direction[rows, ax] = -sg
     return Campaign(table, q_latch, float(np.hypot(repeatability_3sigma_m / 3, jig_error_m / np.sqrt(3))) * noise,
-                    speed, wild)
+                    speed, wild, t_ns, q_stream, [(d["t_ns"], d["payload_kg"]) for d in schedule], planned_schedule,
+                    direction)
 
 
 # ----- minimum detectable size, computed here (3σ over the projected signature) --------------

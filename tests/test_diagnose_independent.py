@@ -84,3 +84,35 @@ def test_an_impossible_derived_approach_speed_marks_the_record(world):
     assert [o["record"] for o in d["outlier_records"]] == [52]
     assert "approach speed" in d["outlier_records"][0]["reason"]
     assert not d["findings"] and d["status"] == "clean"
+
+
+def test_a_quadratic_pair_coupling_is_named_in_its_quadratic_form(world):
+    """δq3 = k·(q2 − q̄2)² (the generator's form): the library's second-order coupling term names it;
+    before it existed, a J2 eccentricity or transmission error took it (issue 18)."""
+    _, clean = _diagnose(world, None, 104)
+    _, d = _diagnose(world, it.Effect("quad_coupling", 1.0), 104)
+    assert [(f["effect"], f["location"]) for f in d["findings"]] == [("joint_coupling", "J2->J3 (quadratic)")]
+    assert d["holdout_rms_after_m"] <= 1.2 * clean["holdout_rms_before_m"]
+
+
+def test_a_saturating_link_growth_gets_its_warm_up_form_by_held_out_error(world):
+    """a2, d4 × (1 + α(1 − e^(−t/300 s))): named thermal_growth@links with a warm-up form; the form kept
+    is the one with the lowest grouped cross-validated RMS of every form tried, and the linear form
+    (what the library had) is worse out of sample."""
+    _, clean = _diagnose(world, None, 105)
+    _, d = _diagnose(world, it.Effect("thermal_growth", 1.0, {"tau_s": 300.0}), 105)
+    (f,) = [f for f in d["findings"] if f["effect"] == "thermal_growth"]
+    assert f["location"].startswith("links (warm-up τ")
+    tried = {t["form"]: t["cv_rms_m"] for t in f["evidence"]["forms_cv_rms_m"]}
+    assert len(tried) == 5 and min(tried, key=tried.get) == f["location"]
+    assert tried["links"] > tried[f["location"]]
+    assert d["holdout_rms_after_m"] <= 1.2 * clean["holdout_rms_before_m"]
+
+
+def test_a_linear_link_growth_keeps_the_linear_form(world):
+    """Every a, d × (1 + αt): a warm-up with τ ≈ the campaign's duration fits it almost as well out of
+    sample; the one-standard-error rule keeps the simplest form (`forms.choose`)."""
+    _, d = _diagnose(world, it.Effect("linear_growth", 1.0), 106)
+    (f,) = [f for f in d["findings"] if f["effect"] == "thermal_growth"]
+    assert f["location"] == "links"
+    assert len(f["evidence"]["forms_cv_rms_m"]) == 5

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.blas import one_thread
-from pipeline.diagnose import confirm, document, grading, judge, outliers, refit
+from pipeline.diagnose import confirm, document, forms, grading, judge, outliers, refit
 from pipeline.diagnose.adapter import Adapter, _extremeness, physical_lack_of_fit, physical_reference  # noqa: F401
 from pipeline.diagnose.effects import Effect, tip_speed_vector
 from pipeline.diagnose.grading import MIN_BOOTSTRAP  # noqa: F401  (re-exported)
@@ -178,12 +178,20 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             steps = conditional_steps(r_w, Sp, dof, [testable.index(i) for i in accepted], tols, len(testable))
             accepted = [testable[st.index] for st in steps]
 
+    groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
+    folds = kfold_indices(nk, s.folds, s.seed, groups)
+    # 3c. each finding's functional form among its family's forms: the held-out error decides (`forms`)
+    form_cv: dict = {}
+    if W is None and accepted:
+        chosen, form_cv = forms.choose(lib, accepted, testable, S, Jf, r, folds)
+        if chosen != accepted:
+            steps = conditional_steps(r_w, Sp, dof, [testable.index(i) for i in chosen], tols, len(testable))
+            accepted = [testable[st.index] for st in steps]
+
     # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
     alikes = look_alikes(r_w, Sp, dof, [testable.index(i) for i in accepted], tols) if accepted else {}
 
     # 4. joint refit
-    groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
-    folds = kfold_indices(nk, s.folds, s.seed, groups)
     before_cv = confirm.holdout(Jf, r, folds)
     rf = refit.joint_refit(model, table, f, ad, adapter, lib, accepted, Jf, r, dof, cl, nm, src)
     z, A, r_final, sigma_after = rf.z, rf.A, rf.r_final, rf.sigma_after
@@ -195,6 +203,9 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     ng = len(names)
     findings, contributions, col_of = refit.finding_records(rf, table, ad, lib, accepted, steps, ng, k, folds,
                                                             after_cv, gates, testable, alikes, robust_p, boot)
+    for fd, i in zip(findings, accepted):
+        if i in form_cv:
+            fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
 
     # 5b. the held-out arbiter (judge.arbiter) and the influence of single records (judge.carried)
     fin = judge.Final(findings, accepted, contributions, col_of, A, r_final, after_cv)

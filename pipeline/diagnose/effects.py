@@ -73,6 +73,12 @@ class Effect:
     def k(self) -> int:
         return len(self.parameters)
 
+    @property
+    def family(self) -> tuple[str, str, str]:
+        """(name, place, variable) shared by the forms of one effect (`forms`): the location up to a
+        form in brackets, e.g. joint_coupling J2->J3 and J2->J3 (quadratic)."""
+        return self.name, str(self.location).split(" (")[0], self.variable
+
 
 # ----- physics helpers ------------------------------------------------------------------
 _TORQUES: dict = {}  # (arm id, x, q, payload) bytes -> (arm, torques): the compliance candidates of all joints share them
@@ -194,6 +200,22 @@ def _drift_temperature(arm, x, t):
     return dT[:, None, None] * np.eye(3)[None]
 
 
+def temperature_columns(table: Table) -> list[tuple[str, str]]:
+    """(column, sensor) of each recorded temperature rise: ``temperature_rise_K`` (the first sensor)
+    and ``temperature_rise_K@<sensor>`` (each other sensor, `diagnose.table`)."""
+    out = []
+    if "temperature_rise_K" in table:
+        out.append(("temperature_rise_K", str(np.asarray(table["temperature_sensor"])[0])
+                    if "temperature_sensor" in table else "sensor"))
+    return out + [(k, k.split("@", 1)[1]) for k in table if k.startswith("temperature_rise_K@")]
+
+
+def _drift_column(column: str):
+    def basis(arm, x, t):
+        return np.asarray(t[column], float)[:, None, None] * np.eye(3)[None]
+    return basis
+
+
 def thermal_drift_effect(table: Table) -> Effect:
     """thermal_drift: the tip (in {W}) moves by v·t (m/s, time since start) — or, when the table
     carries a recorded temperature (``temperature_rise_K``), by g·ΔT (m/K) located on that sensor."""
@@ -313,6 +335,10 @@ def touch_library(arm: SerialArm, table: Table, jig_tolerance_m: float = 2e-5) -
                               P["wrist_coupling"], "joint", _coupling(src, dst), 60, f"q_{J[src]}",
                               ADVICE["wrist_coupling"]))
     lib.append(thermal_drift_effect(table))
+    for col, sensor in temperature_columns(table)[1:]:  # several sensors: a drift against each
+        lib.append(Effect("thermal_drift", f"temperature {sensor}", ("drift_x", "drift_y", "drift_z"), ("m/K",) * 3,
+                          PLAUSIBLE_THERMAL_M_PER_K, "tip", _drift_column(col), 70, col, ADVICE["thermal_drift"],
+                          confounders=("face_offset",)))
     lib.append(Effect("trigger_pretravel", "touch sensor", ("pretravel",), ("m",), P["trigger_pretravel"], "tip",
                       _pretravel, 80, "approach", ADVICE["trigger_pretravel"]))
     speed = np.linalg.norm(tip_speed_vector(arm.vector(), table), axis=1) if "approach_joint_velocity" in table else None

@@ -6,11 +6,16 @@ true tip by D·θ in {W}):
 
 - ``joint_coupling`` Ji->Jj: δq_j = κ·q_i (rad/rad), for neighbouring joints of the arm
   (J1..J4; the wrist pairs are `wrist_coupling`) — e.g. a J3 driven through a parallelogram;
+- ``joint_coupling`` Ji->Jj (quadratic): δq_j = κ₂·(q_i − q̄_i)² (rad/rad²), q̄_i the campaign's mean
+  angle of joint i: the second-order term of a coupling about the campaign (the linear term is the
+  entry above) — a parallelogram or a belt whose transmission is not linear in the driving angle;
 - ``coupling_difference`` Ji-Jj on Jj: δq_j = κ·(q_i − q_j) (rad/rad): an error linear in the
   relative angle of two parallel joints (J2, J3);
 - ``thermal_growth``: every D-H length (a, d) grows by ε·L·t (1/s), or by ε·L·ΔT (1/K) when a
   temperature is recorded — the tip moves by ε·t·Σ L ∂p/∂L, pose-dependent, unlike the rigid
-  `thermal_drift`;
+  `thermal_drift`; and as a first-order warm-up, ε·L·(1 − e^(−t/τ)) (1), τ on a grid over the
+  campaign's duration T (T/8, T/4, T/2, T): ``links (warm-up τ = T/4)`` (τ in s: the finding's ``form``) — the forms of one family,
+  the held-out error chooses among them (`forms`);
 - ``face_tilt`` (per face, m/m along each in-plane axis) and ``face_flatness`` (per face, m/m²,
   a bowl about the face's contacts' centre): the face is not the plane of the drawing (the
   true tip meets it displaced by D·θ along the face's axis);
@@ -22,11 +27,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.effects import Effect, Table
+from pipeline.diagnose.effects import Effect, Table, temperature_columns
 from pipeline.models import serial_arm
 
 NEIGHBOURS = ((0, 1), (1, 0), (1, 2), (2, 1), (2, 3), (3, 2))
-PLAUSIBLE = {"joint_coupling": 1e-2, "coupling_difference": 1e-2, "thermal_growth": 1e-6,
+WARM_UP_FRACTIONS = (0.125, 0.25, 0.5, 1.0)  # τ / campaign duration of the warm-up forms
+PLAUSIBLE = {"joint_coupling": 1e-2, "joint_coupling_quadratic": 1e-2, "thermal_growth_warm_up": 1e-3, "coupling_difference": 1e-2, "thermal_growth": 1e-6,
              "thermal_growth_K": 5e-5, "face_tilt": 2e-3, "face_flatness": 0.1, "wire_stickout": 1e-6}
 ADVICE = {
     "joint_coupling": "move the driving joint alone over its range while the driven one stays put",
@@ -50,6 +56,13 @@ def _coupling(i: int, j: int):
     return basis
 
 
+def _quadratic(i: int, j: int):
+    def basis(arm, x, t):
+        qi = np.asarray(t["joint_positions"], float)[:, i]
+        return _joint(arm.n_joints, j, (qi - qi.mean()) ** 2)
+    return basis
+
+
 def _difference(i: int, j: int):
     def basis(arm, x, t):
         q = np.asarray(t["joint_positions"], float)
@@ -68,6 +81,13 @@ def _growth(column: str):
     def basis(arm, x, t):
         tau = np.asarray(t[column], float)
         return (tau[:, None] * _length_columns(arm, x, np.asarray(t["joint_positions"], float)))[:, :, None]
+    return basis
+
+
+def _warm_up(tau_s: float):
+    def basis(arm, x, t):
+        w = 1.0 - np.exp(-np.asarray(t["time_since_start_s"], float) / tau_s)
+        return (w[:, None] * _length_columns(arm, x, np.asarray(t["joint_positions"], float)))[:, :, None]
     return basis
 
 
@@ -124,17 +144,29 @@ def more_effects(arm, table: Table, min_on_face: int = 8) -> list[Effect]:
         if max(i, j) < arm.n_joints:
             lib.append(Effect("joint_coupling", f"{J[i]}->{J[j]}", (f"coupling_{J[i]}_{J[j]}",), ("rad/rad",),
                               P["joint_coupling"], "joint", _coupling(i, j), 62, f"q_{J[i]}", ADVICE["joint_coupling"]))
+            lib.append(Effect("joint_coupling", f"{J[i]}->{J[j]} (quadratic)", (f"coupling2_{J[i]}_{J[j]}",),
+                              ("rad/rad^2",), P["joint_coupling_quadratic"], "joint", _quadratic(i, j), 63,
+                              f"q_{J[i]}", ADVICE["joint_coupling"]))
     if arm.n_joints >= 3:
         for i, j in ((1, 2), (2, 1)):
             lib.append(Effect("coupling_difference", f"{J[i]}-{J[j]} on {J[j]}", (f"diff_{J[i]}_{J[j]}",),
                               ("rad/rad",), P["coupling_difference"], "joint", _difference(i, j), 64, f"q_{J[i]}",
                               ADVICE["coupling_difference"]))
     if "temperature_rise_K" in table:
-        lib.append(Effect("thermal_growth", "links (temperature)", ("growth_per_K",), ("1/K",), P["thermal_growth_K"],
-                          "tip", _growth("temperature_rise_K"), 72, "temperature_rise_K", ADVICE["thermal_growth"]))
+        for col, sensor in temperature_columns(table):  # the first sensor, then each other one
+            lib.append(Effect("thermal_growth", "links (temperature)" if col == "temperature_rise_K" else
+                              f"links (temperature {sensor})", ("growth_per_K",), ("1/K",), P["thermal_growth_K"],
+                              "tip", _growth(col), 72, col, ADVICE["thermal_growth"]))
     elif "time_since_start_s" in table or lookup:
         lib.append(Effect("thermal_growth", "links", ("growth_rate",), ("1/s",), P["thermal_growth"], "tip",
                           _growth("time_since_start_s"), 72, "time", ADVICE["thermal_growth"]))
+        t = np.asarray(table.get("time_since_start_s", np.zeros(0)), float)
+        span = float(np.max(t)) if t.size else 0.0
+        for frac in WARM_UP_FRACTIONS if span > 0 else ():
+            tau = frac * span
+            lib.append(Effect("thermal_growth", f"links (warm-up τ = {'T' if frac == 1 else f'T/{1 / frac:.0f}'})", ("growth_warm_up",), ("1",),
+                              P["thermal_growth_warm_up"], "tip", _warm_up(tau), 73, "time",
+                              ADVICE["thermal_growth"], data={"form": {"tau_s": tau, "campaign_duration_s": span}}))
     if "time_since_start_s" in table or lookup:
         lib.append(Effect("wire_stickout", "wire", ("stickout_rate",), ("m/s",), P["wire_stickout"], "tip", _stickout,
                           76, "time", ADVICE["wire_stickout"]))

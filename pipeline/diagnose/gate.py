@@ -125,8 +125,8 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
         e, sp = effects[i], proj[i]
         tot, absorbed, absorbed_by, conf_label, smin = parts["per"][i]
         # pairwise: an earlier (simpler) identifiable candidate that reproduces this one
-        for j in kept:
-            if _share(parts["unit"][i], basis[j]) > CONFOUND:
+        for j in kept:  # (the forms of one effect may be alike: the held-out error chooses, `forms`)
+            if effects[j].family != e.family and _share(parts["unit"][i], basis[j]) > CONFOUND:
                 smin = 0.0
                 conf_label = effects[j].label
                 break

@@ -74,10 +74,11 @@ def touch_variables(x: np.ndarray, table, joint_names: list[str], speed: np.ndar
     v = smooth_variable("time_since_start_s", "s", table["time_since_start_s"], onehot_axis, K=6)
     if v is not None:
         out.append(v)
-    if "temperature_rise_K" in table:  # a recorded temperature channel (diagnose.table)
-        v = smooth_variable("temperature_rise_K", "K", table["temperature_rise_K"], onehot_axis, K=6)
-        if v is not None:
-            out.append(v)
+    if "temperature_rise_K" in table:  # a recorded temperature channel (diagnose.table); several sensors: each
+        for col in ["temperature_rise_K"] + [k for k in table if k.startswith("temperature_rise_K@")]:
+            v = smooth_variable(col, "K", table[col], onehot_axis, K=6)
+            if v is not None:
+                out.append(v)
     if speed is not None and np.ptp(speed) > 0.2 * np.max(np.abs(speed)):
         v = smooth_variable("approach_speed_m_s", "m/s", speed, np.asarray(table["normal_sign"], float)[:, None], K=4)
         if v is not None:

@@ -99,7 +99,9 @@ def growth(x: np.ndarray, table, names: list[str]) -> list[Variable]:
             names.index(nm.split(".")[0]) + (1 if nm.endswith(".d") else 2) for nm in pnames]
     g = (Jr[:, idx] @ x[idx])[:, None]
     out = []
-    for col, unit in (("time_since_start_s", "s"), ("temperature_rise_K", "K")):
+    cols = [("time_since_start_s", "s"), ("temperature_rise_K", "K")]
+    cols += [(k, "K") for k in table if k.startswith("temperature_rise_K@")]  # several sensors
+    for col, unit in cols:
         if col in table:
             v = smooth_variable(f"{col}→growth", unit, np.asarray(table[col], float), g, K=6)
             if v is not None:

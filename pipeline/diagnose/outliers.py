@@ -1,7 +1,8 @@
 """Records, not physics: the influence screen around a diagnosis (issue 18, `verdict`).
 
 Before the diagnosis: a record whose derived approach speed is beyond any touch search
-(`verdict.implausible_speed`), or whose residual is far off the geometric fit (externally
+(`verdict.implausible_speed`) or, when the recording has each contact's search command, off the
+commanded search speed (`verdict.speed_mismatch`), or whose residual is far off the geometric fit (externally
 studentized, Bonferroni at the family α: `verdict.studentized_outliers`), is set aside and
 named.  After it: a finding that is no longer significant with one or two records left out
 (`verdict.carried_by`, computed inside the diagnosis) is reported as an outlier of those records
@@ -42,6 +43,14 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
             bad.append(int(i))
             out.append(_entry(table, i, r, f"derived approach speed {sp[i]:.3g} m/s is beyond any touch search "
                                            f"(> {verdict.MAX_SEARCH_SPEED_M_S} m/s): a fault of this record"))
+        if "search_speed_m_s" in table:  # the recorded search command: the derived speed must match it
+            cmd = np.asarray(table["search_speed_m_s"], float)
+            for i in verdict.speed_mismatch(sp, cmd):
+                if int(i) not in bad:
+                    bad.append(int(i))
+                    out.append(_entry(table, i, r, f"derived approach speed {sp[i]:.3g} m/s is not the commanded "
+                                                   f"search speed {cmd[i]:.3g} m/s (beyond ×{verdict.SPEED_FACTOR:g}): "
+                                                   f"a fault of this record's encoder stream or latch"))
     Jf = model.jacobian(f.x, table)[:, :, f.free].reshape(n, -1)
     flagged = verdict.studentized_outliers(Jf, r, alpha)
     if flagged and hasattr(model, "points") and "face" in table:  # a local structure is not an outlier

@@ -5,7 +5,7 @@ honest 1σ) and the evidence of each finding (ablation cross-validation, ΔBIC, 
   pose clusters, cluster-robust (CR2) standard errors; with errors shared within groups (a jig
   face), the sandwich covariance; t degrees of freedom per parameter;
 - `finding_records`: one finding dict per accepted effect (parameters with `ci95`, the selection's
-  grouped F and Holm p, ablation CV, ΔBIC, bootstrap frequency, look-alikes), with its fitted
+  grouped F and Holm p, ablation CV, ΔBIC, bootstrap frequency — of any of its forms — look-alikes), with its fitted
   contribution (n, k) and its columns of the final design.
 """
 
@@ -74,6 +74,13 @@ def joint_refit(model, table, f: Fit, ad, adapter, lib: list, accepted: list[int
     return Refit(z, r_final, A, std, par_dof, fa.sigma, free_a)
 
 
+def _family_frequency(lib: list, i: int, testable: list[int], boot: np.ndarray) -> float:
+    """How often the bootstrap re-selects effect i in any of its forms (`forms`: a resample picks one
+    form of a family, and which one is the held-out choice's business, not the selection's)."""
+    fam = [c for c, j in enumerate(testable) if lib[j].family == lib[i].family]
+    return float(min(1.0, sum(boot[c] for c in fam))) if len(fam) > 1 else float(boot[testable.index(i)])
+
+
 def finding_records(rf: Refit, table, ad, lib: list, accepted: list[int], steps: list, ng: int, k: int,
                     folds: list, after_cv: np.ndarray, gates: list, testable: list[int], alikes: dict,
                     robust_p: dict, boot: np.ndarray) -> tuple[list[dict], list[np.ndarray], dict]:
@@ -107,7 +114,7 @@ def finding_records(rf: Refit, table, ad, lib: list, accepted: list[int], steps:
         delta_bic = nk * np.log(max(rss_wo, 1e-300) / max(rss_full, 1e-300)) - e.k * np.log(nk)
         cv_wo = confirm.holdout(A_wo, r_wo, folds)
         findings.append({
-            "effect": e.name, "location": str(e.location),
+            "effect": e.name, "location": str(e.location), **({"form": e.data["form"]} if "form" in e.data else {}),
             "parameters": [{"name": p, "value": float(th[m]), "std": float(std[pos + m]), "unit": e.units[m],
                             "dof": _dof(par_dof[pos + m]),
                             "ci95": confirm.t_interval(float(th[m]), float(std[pos + m]), par_dof[pos + m])}
@@ -117,7 +124,7 @@ def finding_records(rf: Refit, table, ad, lib: list, accepted: list[int], steps:
                          **({"p_value_sign_flips": robust_p[i]} if i in robust_p else {}),
                          "delta_bic": float(delta_bic),
                          "cv_rms_before_m": confirm.rms(cv_wo), "cv_rms_after_m": confirm.rms(after_cv),
-                         "bootstrap_frequency": float(boot[testable.index(i)])},
+                         "bootstrap_frequency": _family_frequency(lib, i, testable, boot)},
             "absorbed_fraction": gates[i].absorbed_fraction,
             "look_alikes": [{"effect": lib[testable[c]].name, "location": str(lib[testable[c]].location),
                              "delta_chi2": dl} for c, dl in alikes.get(testable.index(i), [])],

@@ -79,6 +79,8 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
         settings = replace(settings, repeatability_3sigma_m=float(info["repeatability_3sigma_m"]))
     doc = diagnose(model, tab, jig_tolerance_m=info["jig_tolerance_m"], x0=x0, settings=settings)
     doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
+    if info.get("searches_without_contact", {}).get("counts"):  # /touch/miss: no contact, or a faulted search
+        doc["searches_without_contact"] = info["searches_without_contact"]
     return doc
 
 

@@ -3,10 +3,12 @@
 Columns added to the system's measurement table (one row per measurement):
 ``last_motion_sign`` (n, n_joints) in {−1, 0, +1}, ``approach_joint_velocity`` (n, n_joints)
 rad/s just before the measurement, ``time_since_start_s`` (n,), ``payload_kg`` (n,) from the
-campaign's payload schedule (or the robot model's payload), ``normal_sign`` (n,) of the
-touched face (from the fixture); when the recording has a temperature channel,
+`/arm/payload` change events (else the campaign's payload schedule, else the robot model's payload), ``normal_sign`` (n,) of the
+touched face (from the fixture); with each contact's recorded search command (`ingest.events`),
+``search_speed_m_s`` (n,) m/s and ``search_direction`` (n, 3); when the recording has a temperature channel,
 ``temperature_rise_K`` (n,) since its first reading (interpolated to each measurement) and
-``temperature_sensor`` (n,) the sensor's name.  Nothing here reads anything but what a real controller logs.
+``temperature_sensor`` (n,) the sensor's name (the first sensor; each other sensor as
+``temperature_rise_K@<sensor>``).  Nothing here reads anything but what a real controller logs.
 """
 
 from __future__ import annotations
@@ -60,7 +62,8 @@ def add_temperature(table: dict, temperature: TemperatureStream, path: object = 
 
 def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray, *, normal_sign_of: dict[str, int],
                 payload_schedule: list[dict] | None, default_payload_kg: float,
-                temperature: TemperatureStream | None = None, path: object = "") -> dict:
+                temperature: TemperatureStream | None = None, path: object = "",
+                more_temperatures: tuple | list = ()) -> dict:
     """A copy of a touch table with the diagnosis columns (module docstring)."""
     t_ns = np.asarray(table["timestamp_ns"], np.int64)
     out = dict(table)
@@ -71,14 +74,17 @@ def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray, *, norm
     out["normal_sign"] = np.array([normal_sign_of[str(f)] for f in table["face"]], float)
     if temperature is not None:
         out = add_temperature(out, temperature, path)
+    for ts in more_temperatures:  # several sensors: the others as temperature_rise_K@<sensor>
+        out[f"temperature_rise_K@{ts.sensor}"] = rise_at(ts, t_ns, path, "/touch/contact", table.get("record"))
     return out
 
 
 def from_recording(rec, stream=None):
     """(TouchModel, diagnosis table, info) of an arc-welder recording; `stream` (a
     `JointStream` already decoded, e.g. by the ingest stage) saves decoding it again."""
+    from pipeline.ingest.events import misses, payload_schedule, search_commands
     from pipeline.ingest.streams import joint_stream
-    from pipeline.ingest.temperature import temperature_stream
+    from pipeline.ingest.temperature import temperature_streams
     from pipeline.models.jig import Jig
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE
     from pipeline.systems import arc_welder as aw
@@ -87,9 +93,18 @@ def from_recording(rec, stream=None):
     jig = Jig.from_dict(rec.meta(META_FIXTURE))
     campaign = rec.metadata.get(META_CAMPAIGN, {})
     stream = joint_stream(rec) if stream is None else stream
+    temps = temperature_streams(rec)
+    events = payload_schedule(rec)  # payload changes logged when they happen, else the campaign's schedule
     tab = add_context(table, stream.t_ns, stream.q, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
-                      payload_schedule=campaign.get("payload_schedule"), default_payload_kg=model.arm.payload_kg,
-                      temperature=temperature_stream(rec), path=rec.path)
+                      payload_schedule=events if events is not None else campaign.get("payload_schedule"),
+                      default_payload_kg=model.arm.payload_kg, temperature=temps[0] if temps else None,
+                      path=rec.path, more_temperatures=temps[1:])
+    cmd = search_commands(rec)
+    if cmd is not None:
+        rows = np.asarray(tab["record"], int)
+        tab.update({k: v[rows] for k, v in cmd.items()})
     return model, tab, {"jig_tolerance_m": jig.tolerance_m, "system": aw.SYSTEM,
                         # the robot's declared repeatability (3σ, m) when the integrator recorded it
-                        "repeatability_3sigma_m": campaign.get("robot_repeatability_3sigma_m")}
+                        "repeatability_3sigma_m": campaign.get("robot_repeatability_3sigma_m"),
+                        "payload_from": "events" if events is not None else "campaign schedule",
+                        "searches_without_contact": misses(rec)}

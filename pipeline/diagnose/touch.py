@@ -36,9 +36,9 @@ def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Eff
             return f"{e.variable[2:]} (rad)", np.asarray(table["joint_positions"])[:, jn.index(e.variable[2:])]
         if e.variable == "time":
             return "time since start (s)", np.asarray(table["time_since_start_s"], float)
-        if e.variable == "temperature_rise_K" and "temperature_rise_K" in table:
+        if e.variable.startswith("temperature_rise_K") and e.variable in table:
             return (f"temperature rise of {e.location.removeprefix('temperature ')} (K)",
-                    np.asarray(table["temperature_rise_K"], float))
+                    np.asarray(table[e.variable], float))
         if e.variable == "approach" and "approach_joint_velocity" in table:
             return "approach speed (m/s)", np.linalg.norm(tip_speed_vector(arm.vector(), table), axis=1)
         if e.variable == "face":

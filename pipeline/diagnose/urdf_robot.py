@@ -7,6 +7,9 @@ a joint reading, whatever the measurement type —
 * ``encoder_eccentricity@J`` (revolute joints): it reads q + a·sin q + b·cos q (a once-per-turn
   error of an encoder mounted off-centre, or a bent shaft);
 
+* ``joint_compliance@J`` (a URDF with `<inertial>` masses): it deflects by c·τ under the gravity
+  torque τ of the links it carries (`urdf_gravity`; c = 1/k, k the joint stiffness, rad/(N·m));
+
 and the lack-of-fit test against smooth functions of every joint reading and of the measurement
 order, which locates structure no term names.  Each effect's signature is the residual's
 derivative with respect to the joint reading (central differences of the model's own residuals,
@@ -19,9 +22,11 @@ import numpy as np
 
 from pipeline.diagnose import lack_of_fit
 from pipeline.diagnose.effects import Effect
+from pipeline.diagnose.urdf_gravity import gravity_torques, inertials
 
-PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3}
+PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3, "joint_compliance": 1e-4}
 ADVICE = {
+    "joint_compliance": "measure the same points with the arm stretched and folded (gravity torque varied)",
     "joint_scale": "measure over a wider range of this joint's travel",
     "encoder_eccentricity": "measure over at least half a turn of this joint, spread evenly",
 }
@@ -60,6 +65,14 @@ def library(model, table) -> list[Effect]:
                               ("rad", "rad"), PLAUSIBLE["encoder_eccentricity"], "direct", ("eccentricity", j), 40,
                               f"q_{jt.name}", ADVICE["encoder_eccentricity"],
                               data={"located": (f"{jt.name} (rad)", q[:, j])}))
+    if inertials(model.kin.desc):
+        tau = gravity_torques(model.kin.desc, q)
+        for j, jt in enumerate(joints):
+            if jt.type != "prismatic" and np.ptp(tau[:, j]) > 0:
+                lib.append(Effect("joint_compliance", jt.name, (f"{jt.name}.compliance",), ("rad/(N*m)",),
+                                  PLAUSIBLE["joint_compliance"], "direct", ("compliance", j), 10, f"q_{jt.name}",
+                                  ADVICE["joint_compliance"],
+                                  data={"located": (f"gravity torque on {jt.name} (N·m)", tau[:, j])}))
     return lib
 
 
@@ -70,12 +83,15 @@ def signatures(model, x: np.ndarray, data, effects) -> list[np.ndarray]:
     D = joint_derivative(model, x, data)
     q = np.asarray(data["joint_positions"], float)
     live = _rows(data)[:, None]
+    tau = gravity_torques(model.kin.desc, q) if any(e.basis[0] == "compliance" for e in effects) else None
     out = []
     for e in effects:
         kind, j = e.basis
         g = D[:, :, j] * live
         if kind == "scale":
             out.append((g * q[:, j:j + 1])[:, :, None])
+        elif kind == "compliance":
+            out.append((g * tau[:, j:j + 1])[:, :, None])
         else:
             out.append(np.stack([g * np.sin(q[:, j:j + 1]), g * np.cos(q[:, j:j + 1])], axis=2))
     return out

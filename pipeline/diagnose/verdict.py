@@ -129,6 +129,18 @@ def implausible_speed(speed_m_s: np.ndarray, limit: float = MAX_SEARCH_SPEED_M_S
     return np.flatnonzero(~np.isfinite(speed_m_s) | (np.asarray(speed_m_s, float) > limit))
 
 
+SPEED_FACTOR = 2.0  # a derived approach speed this far from the commanded search speed is not that search
+
+
+def speed_mismatch(derived_m_s: np.ndarray, commanded_m_s: np.ndarray, factor: float = SPEED_FACTOR) -> np.ndarray:
+    """Rows whose derived approach speed is more than `factor` off the recorded commanded search
+    speed (rows without a command, NaN, are not tested)."""
+    d, c = np.asarray(derived_m_s, float), np.asarray(commanded_m_s, float)
+    has = np.isfinite(c) & (c > 0)
+    ratio = np.where(has, d / np.where(has, c, 1.0), 1.0)
+    return np.flatnonzero(has & ~((ratio <= factor) & (ratio >= 1 / factor)))
+
+
 def _p_without(y: np.ndarray, D: np.ndarray, S: np.ndarray, rows: np.ndarray) -> float:
     keep = np.ones(y.size, bool)
     keep[rows] = False

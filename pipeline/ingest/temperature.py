@@ -92,6 +92,29 @@ def _number(path, i: int, msg: dict, key: str, kind: type):
     return v
 
 
+def _sensor(rec, msgs: list, idx: list[int], name: str) -> TemperatureStream:
+    t = np.array([_number(rec.path, i, msgs[i], "timestamp_ns", int) for i in idx], np.int64)
+    k = np.array([_number(rec.path, i, msgs[i], "temperature_k", float) for i in idx], float)
+    rec_i = np.asarray(idx, int)
+    for _name, bad, reason in problems(t, k, rec_i):
+        raise RobocalError(f"{where(rec.path, TEMPERATURE, bad[0])}: {reason}")
+    return TemperatureStream(name, str(msgs[idx[0]].get("location", "")), t, k, rec_i)
+
+
+def temperature_streams(rec) -> list[TemperatureStream]:
+    """The readings of every sensor, in the order of their first reading ([] when the channel is
+    absent or empty).  Raises a one-line `RobocalError` on the first problem (`problems`)."""
+    if not rec.messages.raw.get(TEMPERATURE):
+        return []
+    msgs = rec.messages[TEMPERATURE]
+    sensors = [m.get("sensor") for m in msgs]
+    for i, nm in enumerate(sensors):
+        if not isinstance(nm, str) or not nm:
+            raise RobocalError(f"{where(rec.path, TEMPERATURE, i)}: field 'sensor' missing or empty")
+    names = list(dict.fromkeys(sensors))
+    return [_sensor(rec, msgs, [i for i, s in enumerate(sensors) if s == nm], nm) for nm in names]
+
+
 def temperature_stream(rec) -> TemperatureStream | None:
     """The readings of the recording's first sensor (None when the channel is absent or
     empty).  Raises a one-line `RobocalError` on the first problem (`problems`)."""
@@ -102,13 +125,7 @@ def temperature_stream(rec) -> TemperatureStream | None:
     first = sensors[0]
     if not isinstance(first, str) or not first:
         raise RobocalError(f"{where(rec.path, TEMPERATURE, 0)}: field 'sensor' missing or empty")
-    idx = [i for i, s in enumerate(sensors) if s == first]
-    t = np.array([_number(rec.path, i, msgs[i], "timestamp_ns", int) for i in idx], np.int64)
-    k = np.array([_number(rec.path, i, msgs[i], "temperature_k", float) for i in idx], float)
-    rec_i = np.asarray(idx, int)
-    for _name, bad, reason in problems(t, k, rec_i):
-        raise RobocalError(f"{where(rec.path, TEMPERATURE, bad[0])}: {reason}")
-    return TemperatureStream(first, str(msgs[idx[0]].get("location", "")), t, k, rec_i)
+    return _sensor(rec, msgs, [i for i, s in enumerate(sensors) if s == first], first)
 
 
 def rise_at(stream: TemperatureStream, meas_t_ns: np.ndarray, path: object = "", channel: str = "",

@@ -16,6 +16,7 @@ CHANNELS: dict[str, str] = {
     "/scanner/stripe": "scanner_stripe",
     "/tracker/point": "tracker_point",
     "/arm/temperature": "temperature",
+    "/arm/payload": "payload",
     "/measure/point": "measure_point",
     "/measure/pose": "measure_pose",
     "/measure/plane": "measure_plane",

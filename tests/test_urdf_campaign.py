@@ -65,3 +65,19 @@ def test_campaign_for_other_joints_fails_in_one_line(tmp_path):
             "--campaign", tmp_path / "c.json", "--out", tmp_path / "x.mcap")
     assert p.returncode != 0
     assert "do not match the robot's joints" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_plan_urdf_campaign_runs_through_simulate_urdf(tmp_path):
+    """`robocal plan urdf --out P.json` → `robocal simulate urdf --campaign P.json`: the planned
+    configurations are the ones measured."""
+    (tmp_path / "r.urdf").write_text(PR6)
+    p = cli("plan", "urdf", "--urdf", tmp_path / "r.urdf", "--root", "base", "--tip", "flange", "--measure", "point",
+            "--candidates", "200", "--select", "30", "--out", tmp_path / "p.json")
+    assert p.returncode == 0, p.stderr
+    q = np.array([m["joints_rad"] for m in json.loads((tmp_path / "p.json").read_text())["measurements"]])
+    rec = tmp_path / "sim.mcap"
+    p = cli("simulate", "urdf", "--urdf", tmp_path / "r.urdf", "--root", "base", "--tip", "flange", "--measure", "point",
+            "--campaign", tmp_path / "p.json", "--out", rec)
+    assert p.returncode == 0, p.stderr
+    got = np.array([m["joint_positions"] for m in read_recording(rec).messages["/measure/point"]])
+    np.testing.assert_array_equal(got, q)

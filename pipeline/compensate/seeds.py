@@ -6,7 +6,7 @@ Anchors: every `stride`-th target without a hint is solved by the controller's r
 (`serial.multistart`: the seeds in turn, the first converged within limits).  Every other
 target starts from the solution of its nearest anchor in pose space (position, and the
 rotation matrix scaled by `LEVER_M/√2`, so that a distance reads as lever-weighted pose error);
-its solution is accepted when it converged within limits and stayed on the anchor's branch
+its solution (at most `near_iters` Newton/LM steps) is accepted when it converged within limits and stayed on the anchor's branch
 (no joint moved more than `branch_step_rad` from the start, and for a 6 × 6 Jacobian the same
 sign of det J); else the next nearest anchor is tried (`neighbours` in all).  The rest (few, mostly
 unreachable or singular targets) fall back to the multistart rule, so the result is the rule's
@@ -14,6 +14,8 @@ answer wherever a neighbour's branch does not reach.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -35,7 +37,7 @@ def _wrap(q: np.ndarray) -> np.ndarray:
 def nominal_ik(kin: S.Kinematics, x: np.ndarray, p_t: np.ndarray, R_t: np.ndarray | None, seeds: np.ndarray,
                options: S.IKOptions = S.IKOptions(), hint: np.ndarray | None = None, stride: int = 32,
                min_rows: int = 256, branch_step_rad: float = 1.5,
-               neighbours: int = 2) -> tuple[np.ndarray, np.ndarray]:
+               neighbours: int = 2, near_iters: int = 15) -> tuple[np.ndarray, np.ndarray]:
     """The nominal controller's solutions (q (N, n), ok (N,)): rows with a finite hint from it
     (as `multistart`), the others by nearest-anchor starts (module docstring)."""
     n = p_t.shape[0]
@@ -59,12 +61,13 @@ def nominal_ik(kin: S.Kinematics, x: np.ndarray, p_t: np.ndarray, R_t: np.ndarra
     if solved.size == 0:
         q[rest], ok[rest] = S.multistart(kin, x, *rows(rest), seeds, options)
         return q, ok
+    near_options = replace(options, iters=min(options.iters, near_iters))  # a near start converges in a few
     tree = cKDTree(features(*rows(solved)))
     near = tree.query(features(*rows(rest)), k=min(neighbours, solved.size))[1].reshape(rest.size, -1)
     back = rest
     for k in range(near.shape[1]):  # the nearest anchor's solution, then the next nearest for rows that failed
         q0 = q[solved[near[rest.searchsorted(back), k]]]
-        qs, err = S.solve(kin, x, *rows(back), q0, options)
+        qs, err = S.solve(kin, x, *rows(back), q0, near_options)
         qs = _wrap(qs)
         good = ((err <= 1e-9) & np.all((qs >= kin.lower) & (qs <= kin.upper), axis=1)
                 & (np.abs(_wrap(qs - q0)).max(axis=1) <= branch_step_rad))

@@ -29,13 +29,15 @@ def base_campaign(n_contacts: int = 40) -> tuple[dict, list[dict], list[dict]]:
     return copy.deepcopy(meta), copy.deepcopy(js), copy.deepcopy(contacts)
 
 
-def write(path: Path, meta: dict, js: list[dict], contacts: list[dict], raw: dict[int, bytes] | None = None) -> Path:
+def write(path: Path, meta: dict, js: list[dict], contacts: list[dict], raw: dict[int, bytes] | None = None,
+          stream_encoding: str = "protobuf") -> Path:
     """Write a recording; `raw` replaces the encoded body of contact i (e.g. to put a NaN
-    literal in, which the JSON encoder refuses)."""
+    literal in, which the JSON encoder refuses); `stream_encoding="json"` writes the encoder
+    stream as archived recordings have it."""
     raw = raw or {}
     msgs = [(JS, m, None) for m in js] + [(TC, m, raw.get(i)) for i, m in enumerate(contacts)]
     msgs.sort(key=lambda x: x[1].get("timestamp_ns", 0) if isinstance(x[1].get("timestamp_ns"), int) else 0)
-    with RecordingWriter(path) as w:
+    with RecordingWriter(path, stream_encoding=stream_encoding) as w:
         for k, v in meta.items():
             w.metadata(k, v)
         for topic, m, body in msgs:

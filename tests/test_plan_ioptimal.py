@@ -85,3 +85,15 @@ def test_groups_are_covered_and_stay_covered():
     A[groups == 4] *= 0.01  # a group that I-optimality alone would skip
     s = ioptimal.select(A, 8, info0, ioptimal.eval_matrix(G), groups=groups)
     assert set(groups[s.index].tolist()) == set(range(5))
+
+
+def test_one_row_swap_formula_equals_the_block_formula():
+    A, G, info0 = tiny(4, 1, N=25, P=5)
+    H = ioptimal.eval_matrix(G)
+    sel, out = np.arange(6), np.arange(6, 25)
+    M = info0 + np.einsum("nkp,nkq->pq", A[sel], A[sel])
+    S = np.linalg.inv(M)
+    fast = ioptimal._swap_deltas_rows(A[sel, 0], A[out, 0], S, H)
+    A2 = np.concatenate([A, np.zeros_like(A)], axis=1)  # the same rows as 2-row blocks with a zero row: general path
+    slow = ioptimal._swap_deltas(A2[sel], A2[out], S, H)
+    np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-15)

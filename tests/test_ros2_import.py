@@ -21,7 +21,7 @@ from conftest import run_cli
 from pipeline.importers import standstill
 from pipeline.importers.bagkind import ros2_kind
 from pipeline.models import urdf
-from pipeline.simulate.ros2_bag import BagLayout, simulate_bag
+from pipeline.simulate.ros2_bag import JOINT_STATE, BagLayout, simulate_bag
 from test_bad_input import assert_one_line_error
 from test_urdf_import import REAL, needs_real
 from test_urdf_simulate import R6T
@@ -116,10 +116,43 @@ def test_ros2_bags_are_recognised_and_not_misread_as_recordings(tmp_path, robot)
     assert ros2_kind(Path(__file__).resolve().parents[1] / "recordings" / "arc-welder-touch.mcap") is None
     for args in (["run", truth["storage"], "--out", tmp_path / "r"], ["calibrate", truth["storage"], "--out", tmp_path / "c"]):
         assert_one_line_error(run_cli(*args), str(truth["storage"]), "is a ROS 2 bag", "--urdf")
+    rec = Path(__file__).resolve().parents[1] / "recordings" / "arc-welder-touch.mcap"
+    assert_one_line_error(run_cli("run", rec, *robot_args(upath), "--out", tmp_path / "w"), "is not a ROS 2 bag")
+    # an MCAP of CDR channels under another profile is recognised too (rosbags then names the profile)
+    from mcap.writer import Writer
+
+    other = tmp_path / "other.mcap"
+    with open(other, "wb") as f:
+        w = Writer(f)
+        w.start(profile="x-custom", library="test")
+        sid = w.register_schema(name=JOINT_STATE, encoding="ros2msg", data=b"")
+        w.register_channel(topic="/joint_states", message_encoding="cdr", schema_id=sid)
+        w.finish()
+    assert ros2_kind(other) == "mcap"
+    assert_one_line_error(_import(tmp_path, upath, other), str(other), "cannot read as a ROS 2 bag", "ros2")
     # the storage file alone (no metadata.yaml) reads the same
     proc = run_cli("import", "ros2", truth["storage"], *robot_args(upath), "--out", tmp_path / "a.mcap")
     assert proc.returncode == 0, proc.stderr
     assert "imported 6 point measurements" in proc.stderr
+
+
+@pytest.mark.parametrize("zero,args,warned", [((), ("--time", "log"), False), (("/tracker/point",), (), True)])
+def test_clocks_offset_and_missing_stamps_still_pair(tmp_path, robot, zero, args, warned):
+    """The tracker's clock 80 ms off the controller's changes nothing while the robot stands still;
+    a topic without header stamps falls back to receive times (with a warning when the other topic
+    has stamps); `--time log` uses receive times for both."""
+    upath, desc = robot
+    truth = bag_of(tmp_path, desc, n=8, seed=6, layout=BagLayout(clock_offset_s=0.08, zero_stamps=zero, moving=(2,)))
+    proc = _import(tmp_path, upath, tmp_path / "bag", *args)
+    assert proc.returncode == 0, proc.stderr
+    assert "7 paired, 1 taken while moving" in proc.stderr
+    assert ("receive time" in proc.stderr) == warned, proc.stderr
+    camp = campaign_of(tmp_path / "out.mcap")["ros2"]
+    assert camp["time_measurements"] == ("receive time" if zero or args else "header.stamp")
+    from pipeline.recording.reader import read_recording
+
+    q = np.array([m["joint_positions"] for m in read_recording(tmp_path / "out.mcap").messages["/measure/point"]])
+    np.testing.assert_allclose(q, np.delete(truth["q_stops"], 2, axis=0), atol=1e-12)
 
 
 # ----- bad input: one line naming file, topic and record -----------------------------------------

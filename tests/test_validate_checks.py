@@ -12,13 +12,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pipeline.errors import RobocalError
+from pipeline.recording.writer import RecordingWriter
 from pipeline.stages.runner import StageFailed, run_stage
 from pipeline.validate import checks as C
 from tests.pipeline_support import base_campaign, write
 
 
-def validate(tmp_path: Path, meta, js, contacts, raw=None, expect_fail: bool = False) -> dict[str, list[dict]]:
-    rec = write(tmp_path / "bad.mcap", meta, js, contacts, raw)
+def validate(tmp_path: Path, meta, js, contacts, raw=None, expect_fail: bool = False,
+             stream_encoding: str = "protobuf") -> dict[str, list[dict]]:
+    rec = write(tmp_path / "bad.mcap", meta, js, contacts, raw, stream_encoding=stream_encoding)
     run = tmp_path / "run"
     run_stage(run, "ingest", recording=rec)
     if expect_fail:
@@ -57,11 +59,47 @@ def test_schema_violation_fails_naming_the_record(tmp_path):
 
 
 def test_schema_checks_every_sample_of_a_long_array(tmp_path):
+    """Archived JSON stream: one string deep inside a 250×6 batch."""
     meta, js, contacts = base_campaign()
-    js[3]["positions"][200][2] = "oops"  # one string deep inside a 250×6 batch
-    checks = validate(tmp_path, meta, js, contacts, expect_fail=True)
+    js[3]["positions"][200][2] = "oops"
+    checks = validate(tmp_path, meta, js, contacts, expect_fail=True, stream_encoding="json")
     c = status_of(checks, "schema", "/robot/joint_state")
     assert c["status"] == "fail" and c["records"] == [3]
+
+
+def test_protobuf_stream_messages_that_break_the_schema_are_all_named(tmp_path):
+    """Protobuf stream: NaN deep inside batch 3, too few positions in batch 8 — both named, one fail;
+    the stream's times from the other batches and every other channel still checked."""
+    meta, js, contacts = base_campaign()
+    js[3]["positions"][200][2] = float("nan")
+    js[8]["positions"] = js[8]["positions"][:-1]
+    from pipeline.recording import joint_state_batch as JSB
+
+    rec = tmp_path / "pb.mcap"
+    with RecordingWriter(rec) as w:  # write the damaged batches as raw protobuf (the encoder refuses them)
+        for k, v in meta.items():
+            w.metadata(k, v)
+        items = [(m["timestamp_ns"], 0, i, m) for i, m in enumerate(js)] + [(m["timestamp_ns"], 1, i, m)
+                                                                            for i, m in enumerate(contacts)]
+        for t, kind, i, m in sorted(items, key=lambda x: x[0]):
+            if kind == 1:
+                w.write("/touch/contact", m)
+                continue
+            body = JSB.JointStateBatch(timestamp_ns=m["timestamp_ns"], joint_names=m["joint_names"],
+                                       sample_offsets_ns=[x - m["timestamp_ns"] for x in m["timestamps_ns"]],
+                                       positions=[v for row in m["positions"] for v in row]).SerializeToString()
+            w._add("/robot/joint_state", w.channel("/robot/joint_state"), t, t, body)
+    run = tmp_path / "run"
+    run_stage(run, "ingest", recording=rec)
+    with pytest.raises(StageFailed):
+        run_stage(run, "validate")
+    checks = json.loads((run / "validate" / "validate.json").read_text())["checks"]
+    (c,) = [c for c in checks if c["name"] == "schema" and c["channel"] == "/robot/joint_state"]
+    assert c["status"] == "fail" and c["records"] == [3, 8] and str(rec) in c["message"]
+    assert "record 3: positions hold NaN or inf" in c["message"] and "\n" not in c["message"]
+    assert any(c["name"] == "time_monotonic" and c["status"] == "pass" for c in checks)
+    assert any(c["name"] == "duplicates" and c["channel"] == "/robot/joint_state" for c in checks)
+    assert any(c["channel"] == "/touch/contact" and c["name"] == "schema" and c["status"] == "pass" for c in checks)
 
 
 def test_non_monotonic_encoder_time_fails(tmp_path):

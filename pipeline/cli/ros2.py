@@ -51,8 +51,10 @@ def import_bag(bag: Path, urdf: Path, root: str, tip: str, out: Path, joint_topi
         err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
     r = extras["ros2"]
     p = r["pairing"]
-    err.print(f"{bag}: {r['joint_states']['n_used']} joint states on {r['joint_topic']} "
-              f"(ignored joints: {', '.join(r['joint_states']['ignored_joints']) or 'none'}), "
+    js = r["joint_states"]
+    skipped = f", {js['n_skipped_other_joints']} naming only other joints skipped" if js["n_skipped_other_joints"] else ""
+    err.print(f"{bag}: {js['n_used']} joint states on {r['joint_topic']} "
+              f"(ignored joints: {', '.join(js['ignored_joints']) or 'none'}{skipped}), "
               f"{p['n_measurements']} measurements on {r['measure_topic']} in frame {r['frame_id']!r}", highlight=False,
               soft_wrap=True)
     err.print(f"standstill pairing (window {p['window_s']:g} s, max speed {p['max_speed_rad_s_or_m_s']:g} rad/s): "

@@ -2,8 +2,8 @@
 
 A ROS 2 bag is a folder with ``metadata.yaml`` (what ``ros2 bag record`` writes), or one of its
 storage files on its own: an SQLite3 database (``.db3``) or an MCAP file whose header profile is
-``ros2`` (robocal's own recordings carry profile ``robocal``).  An MCAP file with another profile is
-looked at no further here: its channels' encodings say the rest when it is read.
+``ros2`` (robocal's own recordings carry profile ``robocal``) or, under another profile, whose
+summary lists CDR-encoded channels (rosbags then says which profile it cannot read).
 """
 
 from __future__ import annotations
@@ -30,6 +30,18 @@ def mcap_profile(path: Path) -> str | None:
     return head[21:21 + n].decode("utf-8", "replace")
 
 
+def _cdr_channels(path: Path) -> bool:
+    """The MCAP summary lists a channel with message encoding 'cdr' (False when it cannot be read)."""
+    from mcap.reader import make_reader
+
+    try:
+        with open(path, "rb") as f:
+            summary = make_reader(f).get_summary()
+    except Exception:  # noqa: BLE001 — a damaged file is not recognised here; its reader says what is wrong
+        return False
+    return summary is not None and any(c.message_encoding == "cdr" for c in summary.channels.values())
+
+
 def ros2_kind(path: str | Path) -> str | None:
     """'folder', 'mcap' or 'sqlite3' when `path` is a ROS 2 bag (or its storage file), else None."""
     p = Path(path)
@@ -37,7 +49,8 @@ def ros2_kind(path: str | Path) -> str | None:
         return "folder" if (p / "metadata.yaml").is_file() else None
     if not p.is_file():
         return None
-    if mcap_profile(p) == "ros2":
+    profile = mcap_profile(p)
+    if profile == "ros2" or (profile not in (None, "robocal") and _cdr_channels(p)):
         return "mcap"
     try:
         with open(p, "rb") as f:

@@ -90,20 +90,25 @@ def choose_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> tuple[st
     return jt, mt, measure
 
 
-def _raw(path: Path, reader, topics: tuple[str, ...]) -> dict[str, tuple[list[int], list[bytes]]]:
-    """topic -> (receive times ns, CDR bytes) in bag order."""
-    out: dict[str, tuple[list[int], list[bytes]]] = {t: ([], []) for t in topics}
-    conns = [c for c in reader.connections if c.topic in topics]
+def _stream(path: Path, reader, joint_topic: str, measure_topic: str, side: list):
+    """Yield (receive time ns, CDR bytes) of the joint topic in bag order, one message at a time (the
+    long topic is never held whole); the measurement topic's go to `side`.  A storage failure is one
+    line saying how far the bag was read."""
+    conns = [c for c in reader.connections if c.topic in (joint_topic, measure_topic)]
+    it = reader.messages(connections=conns)
     n = 0
-    try:
-        for conn, t, data in reader.messages(connections=conns):
-            times, datas = out[conn.topic]
-            times.append(t)
-            datas.append(bytes(data))
-            n += 1
-    except Exception as e:  # noqa: BLE001
-        raise RobocalError(f"{path}: cannot read the bag after message {n} ({type(e).__name__}: {e})") from None
-    return out
+    while True:
+        try:
+            conn, t, data = next(it)
+        except StopIteration:
+            return
+        except Exception as e:  # noqa: BLE001 — the storage layer's failure is the file's problem
+            raise RobocalError(f"{path}: cannot read the bag after message {n} ({type(e).__name__}: {e})") from None
+        n += 1
+        if conn.topic == joint_topic:
+            yield t, data
+        else:
+            side.append((t, bytes(data)))
 
 
 def _decoder(path: Path, topic: str, typename: str):
@@ -124,19 +129,43 @@ def _stamp(msg) -> int:
     return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
 
 
-def read_joint_states(path: Path, topic: str, datas: list[bytes], joints: list[str]):
-    """(header stamps ns (n,), positions (n, J) in `joints` order, report): every JointState that
-    names any chain joint; one naming only other joints is skipped and counted."""
+class _Rows:
+    """Rows appended one at a time into preallocated blocks (no Python object per row)."""
+
+    def __init__(self, width: int, dtype=float, block: int = 65536) -> None:
+        self.width, self.dtype, self.block = width, dtype, block
+        self.done: list[np.ndarray] = []
+        self.cur = np.empty((block, width), dtype)
+        self.n = 0
+
+    def append(self, row) -> None:
+        if self.n == self.block:
+            self.done.append(self.cur)
+            self.cur = np.empty((self.block, self.width), self.dtype)
+            self.n = 0
+        self.cur[self.n] = row
+        self.n += 1
+
+    def array(self) -> np.ndarray:
+        return np.concatenate([*self.done, self.cur[:self.n]])
+
+
+def read_joint_states(path: Path, topic: str, messages, joints: list[str]):
+    """Every JointState of `messages` ((receive time ns, CDR bytes), streamed) that names the chain's
+    joints → (header stamps ns (n,), receive times ns (n,), positions (n, J) rad/m in `joints` order,
+    report).  One naming only other joints is skipped and counted."""
     decode = _decoder(path, topic, JOINT_STATE)
     J = len(joints)
-    Q = np.empty((len(datas), J))
-    stamps = np.empty(len(datas), np.int64)
-    keep = np.zeros(len(datas), bool)
+    Q = _Rows(J)
+    T = _Rows(2, np.int64)  # header stamp, receive time
+    rec = _Rows(1, np.int64)  # record index on the topic
     prev: list | None = None
     idx = np.zeros(J, np.intp)
     seen: set[str] = set()
     ignored: set[str] = set()
-    for i, data in enumerate(datas):
+    n = 0
+    for i, (log_t, data) in enumerate(messages):
+        n += 1
         msg = decode(i, data)
         names = msg.name
         if names != prev:
@@ -155,19 +184,21 @@ def read_joint_states(path: Path, topic: str, datas: list[bytes], joints: list[s
         pos = np.asarray(msg.position, float)
         if len(pos) != len(prev):
             raise RobocalError(f"{at(path, topic, i)}: {len(pos)} positions for {len(prev)} joint names")
-        Q[i] = pos[idx]
-        stamps[i] = _stamp(msg)
-        keep[i] = True
-    if not keep.any():
+        Q.append(pos[idx])
+        T.append((_stamp(msg), log_t))
+        rec.append(i)
+    if n == 0:
+        raise RobocalError(f"{at(path, topic)}: no messages")
+    q, t, r = Q.array(), T.array(), rec.array()[:, 0]
+    if len(q) == 0:
         raise RobocalError(f"{at(path, topic)}: joint names match none of the URDF chain's "
                            f"(chain: {', '.join(joints)}; bag: {', '.join(sorted(seen)) or 'none'})")
-    bad = np.argwhere(~np.isfinite(Q) & keep[:, None])
+    bad = np.argwhere(~np.isfinite(q))
     if len(bad):
         i, k = bad[0]
-        raise RobocalError(f"{at(path, topic, int(i))}: joint {joints[k]!r} position is NaN or inf")
-    report = {"n_messages": len(datas), "n_used": int(keep.sum()), "n_skipped_other_joints": int((~keep).sum()),
-              "ignored_joints": sorted(ignored)}
-    return stamps[keep], Q[keep], np.flatnonzero(keep), report
+        raise RobocalError(f"{at(path, topic, int(r[i]))}: joint {joints[k]!r} position is NaN or inf")
+    report = {"n_messages": n, "n_used": len(q), "n_skipped_other_joints": n - len(q), "ignored_joints": sorted(ignored)}
+    return t[:, 0], t[:, 1], q, report
 
 
 def read_measurements(path: Path, topic: str, typename: str, datas: list[bytes]):
@@ -204,7 +235,7 @@ def read_measurements(path: Path, topic: str, typename: str, datas: list[bytes])
     return stamps, P, O, frame or ""
 
 
-def _times(stamps: np.ndarray, log: list[int], use_header: bool) -> tuple[np.ndarray, str]:
+def _times(stamps: np.ndarray, log, use_header: bool) -> tuple[np.ndarray, str]:
     if use_header and np.all(stamps > 0):
         return stamps, "header.stamp"
     return np.asarray(log, np.int64), "receive time"
@@ -217,21 +248,19 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     if spec.time not in ("header", "log"):
         raise RobocalError(f"--time {spec.time!r}: expected header or log")
     reader = _open(path)
+    side: list[tuple[int, bytes]] = []
     try:
         topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
         jt, mt, measure = choose_topics(path, topics, spec)
-        raw = _raw(path, reader, (jt, mt))
+        joints = desc.joint_names
+        js, jlog, Q, jreport = read_joint_states(path, jt, _stream(path, reader, jt, mt, side), joints)
     finally:
         reader.close()
-    if not raw[mt][1]:
+    if not side:
         raise RobocalError(f"{at(path, mt)}: no messages")
-    if not raw[jt][1]:
-        raise RobocalError(f"{at(path, jt)}: no messages")
-    joints = desc.joint_names
-    js, Q, used, jreport = read_joint_states(path, jt, raw[jt][1], joints)
-    tj, jsrc = _times(js, [raw[jt][0][i] for i in used], spec.time == "header")
-    ms, P, O, frame = read_measurements(path, mt, topics[mt], raw[mt][1])
-    tm, msrc = _times(ms, raw[mt][0], spec.time == "header")
+    tj, jsrc = _times(js, jlog, spec.time == "header")
+    ms, P, O, frame = read_measurements(path, mt, topics[mt], [d for _, d in side])
+    tm, msrc = _times(ms, [t for t, _ in side], spec.time == "header")
     warnings = []
     if jsrc != msrc:
         warnings.append(f"{path}: joint states timed by {jsrc}, measurements by {msrc} (a topic without "
@@ -246,16 +275,18 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         raise RobocalError(f"{at(path, mt)}: none of the {len(tm)} measurements was taken while the robot stood "
                            f"still ({summ['n_moving']} moving, {summ['n_not_covered']} outside the joint states; "
                            f"window {spec.window_s} s, max speed {spec.max_speed}; see --still-window, --still-speed)")
-    table: dict = {"joint_positions": pairing.q[ok], "position": P[ok], "timestamp_ns": tm[ok]}
+    keep = np.flatnonzero(ok)
+    keep = keep[np.argsort(tm[keep], kind="stable")]  # recorded in time order (bag order is receive order)
+    table: dict = {"joint_positions": pairing.q[keep], "position": P[keep], "timestamp_ns": tm[keep]}
     if measure == "pose":
-        table["orientation"] = O[ok]
+        table["orientation"] = O[keep]
     else:
-        table["target"] = np.zeros(int(ok.sum()), int)
+        table["target"] = np.zeros(len(keep), int)
     extras = {
         "source_files": [str(path)],
         "ros2": {"joint_topic": jt, "measure_topic": mt, "measure_type": topics[mt], "frame_id": frame,
                  "time_joint_states": jsrc, "time_measurements": msrc, "t0_ns": t0, "joint_states": jreport,
-                 "pairing": summ, "measurement_records": np.flatnonzero(ok).tolist()},
+                 "pairing": summ, "measurement_records": keep.tolist()},
     }
     if measure == "point":
         extras["n_targets"] = 1

@@ -74,10 +74,13 @@ def greedy(A: np.ndarray, m: int, info0: np.ndarray, H: np.ndarray, allowed: np.
     order: list[int] = []
     I = np.eye(k)
     for _ in range(min(m, int((~chosen).sum()))):
-        U = np.einsum("nkp,pq->nkq", A, Sigma)
-        D = np.einsum("nkp,nlp->nkl", U, A)
-        W = np.einsum("nkp,pq,nlq->nkl", U, H, U)
-        gain = np.trace(np.linalg.solve(I + D, W), axis1=1, axis2=2)
+        U = A @ Sigma  # (N, k, P): A_jΣ
+        if k == 1:
+            gain = np.einsum("np,np->n", U[:, 0] @ H, U[:, 0]) / (1 + np.einsum("np,np->n", U[:, 0], A[:, 0]))
+        else:
+            D = U @ np.swapaxes(A, 1, 2)
+            W = (U @ H) @ np.swapaxes(U, 1, 2)
+            gain = np.trace(np.linalg.solve(I + D, W), axis1=1, axis2=2)
         gain[chosen] = -np.inf
         if todo:
             gain[~np.isin(groups, list(todo))] = -np.inf
@@ -97,6 +100,8 @@ def _swap_deltas(A_in: np.ndarray, A_out: np.ndarray, Sigma: np.ndarray, H: np.n
     V = U_j + F_ijᵀU_i (F_ij = E_i D_ij), S = I + D_jj + D_ijᵀF_ij, so that
     VHVᵀ = W_jj + F_ijᵀW_ij + W_ijᵀF_ij + F_ijᵀW_iiF_ij.  Only k × k blocks per pair."""
     k = A_in.shape[1]
+    if k == 1:
+        return _swap_deltas_rows(A_in[:, 0], A_out[:, 0], Sigma, H)
     I = np.eye(k)
     U_i = np.einsum("mkp,pq->mkq", A_in, Sigma)
     U_j = np.einsum("nkp,pq->nkq", A_out, Sigma)
@@ -106,7 +111,7 @@ def _swap_deltas(A_in: np.ndarray, A_out: np.ndarray, Sigma: np.ndarray, H: np.n
     E = np.linalg.inv(I - D_ii)
     rise = np.trace(E @ W_ii, axis1=1, axis2=2)
     D_jj = np.einsum("nkp,nlp->nkl", U_j, A_out)
-    W_jj = np.einsum("nkp,pq,nlq->nkl", U_j, H, U_j)
+    W_jj = (U_j @ H) @ np.swapaxes(U_j, 1, 2)
     D_ij = np.einsum("mkp,nlp->mnkl", U_i, A_out)
     W_ij = np.einsum("mkp,nlp->mnkl", HU_i, U_j)
     F = np.einsum("mab,mnbc->mnac", E, D_ij)
@@ -117,6 +122,20 @@ def _swap_deltas(A_in: np.ndarray, A_out: np.ndarray, Sigma: np.ndarray, H: np.n
     drop = np.trace(np.linalg.solve(S, VHV), axis1=2, axis2=3)
     ok = np.all(np.linalg.eigvalsh(I - D_ii) > 1e-12, axis=1)  # a block carrying all the information cannot go
     return np.where(ok[:, None], rise[:, None] - drop, np.inf)
+
+
+def _swap_deltas_rows(a_in: np.ndarray, a_out: np.ndarray, Sigma: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """`_swap_deltas` for one-row blocks (k = 1): the same formulas with scalars per pair."""
+    U_i, U_j = a_in @ Sigma, a_out @ Sigma
+    HU_i = U_i @ H
+    d_ii, w_ii = np.einsum("mp,mp->m", U_i, a_in), np.einsum("mp,mp->m", HU_i, U_i)
+    d_jj, w_jj = np.einsum("np,np->n", U_j, a_out), np.einsum("np,np->n", U_j @ H, U_j)
+    D, W = U_i @ a_out.T, HU_i @ U_j.T  # (m, n)
+    ok = 1 - d_ii > 1e-12
+    e = 1 / np.where(ok, 1 - d_ii, 1.0)
+    F = e[:, None] * D
+    drop = (w_jj[None] + 2 * F * W + F**2 * w_ii[:, None]) / (1 + d_jj[None] + D * F)
+    return np.where(ok[:, None], (e * w_ii)[:, None] - drop, np.inf)
 
 
 def exchange(A: np.ndarray, sel: np.ndarray, info0: np.ndarray, H: np.ndarray, allowed: np.ndarray | None = None,

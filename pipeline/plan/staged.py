@@ -45,7 +45,7 @@ def prior_cov(arm: SerialArm) -> np.ndarray:
 def landing_probability(x: np.ndarray, cov: np.ndarray, jig: Jig, pool: TouchPool, standoff_m: float) -> np.ndarray:
     """P(land) per candidate under parameter covariance `cov` (linearised at x), (N,)."""
     _, J = serial_arm.tip_jacobian(x, pool.q_contact)  # (N, 3, P)
-    var = np.einsum("nip,pq,niq->ni", J, cov, J)
+    var = np.einsum("nip,nip->ni", J @ cov, J)
     sd = np.sqrt(np.clip(var, 1e-30, None))
     n = pool.face.size
     other = np.array([f.other_axes() for f in jig.faces])[pool.face]
@@ -110,12 +110,22 @@ def map_fit(model, table: dict, cov0: np.ndarray, sigma_m: float, x0: np.ndarray
     return x, post
 
 
-def _allowed(p: np.ndarray, p_min: float, at_least: int) -> np.ndarray:
-    """Candidates landing with P ≥ p_min, else the `at_least` likeliest."""
+def _allowed(p: np.ndarray, p_min: float, at_least: int, face: np.ndarray | None = None, per_face: int = 3,
+             p_floor: float = 0.5) -> np.ndarray:
+    """Candidates landing with P ≥ p_min, else the `at_least` likeliest; with `face`, also the
+    `per_face` likeliest of every face where P ≥ p_floor, so that those faces can be covered
+    (under the prior no candidate reaches p_min, and without this the y faces were never planned;
+    the 30 mm risers, P ≈ 0.43 under the prior, wait for stage 2)."""
     allowed = p >= p_min
     if allowed.sum() < at_least:
         allowed = np.zeros(p.size, bool)
         allowed[np.argsort(-p)[:at_least]] = True
+    if face is not None:
+        order = np.lexsort((-p, face))  # by face, likeliest first
+        rank = np.arange(p.size) - np.searchsorted(face[order], face[order])
+        best = np.zeros(p.size, bool)
+        best[order[rank < per_face]] = True
+        allowed |= best & (p >= p_floor)
     return allowed
 
 
@@ -134,13 +144,14 @@ def plan_first_stage(nominal: SerialArm, jig: Jig, pool: TouchPool, m: int, sigm
                      standoff_m: float = 0.04, p_min: float = 0.95, criterion: str = "I",
                      cover: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Stage 1: (indices into pool, their landing probabilities) under the prior: among the
-    candidates landing with P ≥ p_min (else the 3m likeliest), I-optimal given the prior, one
-    contact on every face first (`cover`: the MAP update between the stages sees every face)."""
+    candidates landing with P ≥ p_min (else the 3m likeliest) and the likeliest few of every face,
+    I-optimal given the prior, one contact on every face first (`cover`: the MAP update between
+    the stages sees every face and axis)."""
     x = nominal.vector()
     cov0 = prior_cov(nominal)
     keep = np.diag(cov0) > 0
     p = landing_probability(x, cov0, jig, pool, standoff_m)
-    allowed = _allowed(p, p_min, 3 * m)
+    allowed = _allowed(p, p_min, 3 * m, pool.face if cover else None)
     idx = _select(x, pool, m, np.diag(1 / np.diag(cov0)[keep]), keep, allowed, sigma_m, criterion,
                   pool.face if cover else None)
     return idx, p[idx]
@@ -148,10 +159,12 @@ def plan_first_stage(nominal: SerialArm, jig: Jig, pool: TouchPool, m: int, sigm
 
 def plan_next_stage(x: np.ndarray, cov: np.ndarray, jig: Jig, pool: TouchPool, m: int, sigma_m: float = 5e-5,
                     standoff_m: float = 0.04, p_min: float = 0.99, criterion: str = "I",
-                    prior: np.ndarray | None = None, prior_weight: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                    prior: np.ndarray | None = None, prior_weight: float = 1.0,
+                    cover: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Stage 2: (indices into a pool planned on the updated model x, landing probabilities under
     the posterior `cov`) given what the earlier stages already know, among the candidates landing
-    with P ≥ p_min (else the 2m likeliest): I-optimal (default) or D-optimal.  The final
+    with P ≥ p_min (else the 2m likeliest) and the likeliest few of every face (`cover`: one
+    contact on every face, as in stage 1): I-optimal (default) or D-optimal.  The final
     calibration has no prior: with `prior` (the stage-1 prior covariance) its information in
     cov⁻¹ is counted at `prior_weight` only."""
     keep = np.diag(cov) > 0
@@ -160,5 +173,6 @@ def plan_next_stage(x: np.ndarray, cov: np.ndarray, jig: Jig, pool: TouchPool, m
     if prior is not None and prior_weight != 1.0:
         info0 = info0 - (1 - prior_weight) * np.linalg.inv(prior[np.ix_(keep, keep)])
         info0 = 0.5 * (info0 + info0.T)
-    idx = _select(x, pool, m, info0, keep, _allowed(p, p_min, 2 * m), sigma_m, criterion, None)
+    face = pool.face if cover else None
+    idx = _select(x, pool, m, info0, keep, _allowed(p, p_min, 2 * m, face), sigma_m, criterion, face)
     return idx, p[idx]

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import chain
 
 import numpy as np
 from google.protobuf import descriptor_pb2 as D
@@ -106,19 +105,6 @@ def encode(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], device_t_ns: n
     return m.SerializeToString()
 
 
-def encode_stream(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], batch: int = 250,
-                  device_t_ns: np.ndarray | None = None,
-                  host_t_ns: np.ndarray | None = None) -> list[tuple[int, bytes]]:
-    """A whole stream as (first sample time ns, message) per batch of `batch` samples."""
-    out = []
-    for s in range(0, len(t_ns), batch):
-        sl = slice(s, s + batch)
-        out.append((int(t_ns[s]), encode(t_ns[sl], q[sl], names,
-                                          None if device_t_ns is None else device_t_ns[sl],
-                                          None if host_t_ns is None else host_t_ns[sl])))
-    return out
-
-
 def from_dict(msg: dict) -> bytes:
     """A JSON-form batch (the legacy `robocal.JointState` body) as one protobuf message."""
     q = np.asarray(msg["positions"], np.float64)
@@ -138,6 +124,11 @@ def _parse(record: int, body: bytes):
         nums = sorted({f.field_number for f in UnknownFieldSet(m)})
         raise BatchError(record, f"holds fields {nums} that {SCHEMA_NAME} does not define (or of another type)")
     return m
+
+
+def _join(msgs: list, key: str, dtype: type) -> np.ndarray:
+    """One repeated field of every message, concatenated (numpy reads each packed field in C)."""
+    return np.concatenate([np.array(getattr(m, key), dtype) for m in msgs])
 
 
 def decode(raw: Sequence[bytes]) -> Batches:
@@ -164,11 +155,14 @@ def decode(raw: Sequence[bytes]) -> Batches:
     total = int(n.sum())
     index = np.repeat(np.arange(len(msgs)), n)
     t0 = np.fromiter((m.timestamp_ns for m in msgs), np.int64, len(msgs))
-    t = t0[index] + np.fromiter(chain.from_iterable(m.sample_offsets_ns for m in msgs), np.int64, total)
-    q = np.fromiter(chain.from_iterable(m.positions for m in msgs), np.float64, total * nj).reshape(total, nj)
-    bad = ~np.isfinite(q).all(axis=1)
-    if bad.any():
-        raise BatchError(int(index[np.argmax(bad)]), "positions hold NaN or inf")
+    t = t0[index] + _join(msgs, "sample_offsets_ns", np.int64)
+    q = _join(msgs, "positions", np.float64).reshape(total, nj)
+    with np.errstate(over="ignore", invalid="ignore"):
+        total_q = q.sum()
+    if not np.isfinite(total_q):  # one pass; NaN/inf (or an overflowing sum) located below
+        bad = ~np.isfinite(q).all(axis=1)
+        if bad.any():
+            raise BatchError(int(index[np.argmax(bad)]), "positions hold NaN or inf")
     extra = []
     for key in OPTIONAL_TIMES:
         k = np.fromiter((len(getattr(m, key)) for m in msgs), np.int64, len(msgs))
@@ -179,7 +173,7 @@ def decode(raw: Sequence[bytes]) -> Batches:
         if wrong.size:
             i = int(wrong[0])
             raise BatchError(i, f"{key} has {k[i]} values for {n[i]} samples")
-        extra.append(np.fromiter(chain.from_iterable(getattr(m, key) for m in msgs), np.int64, total))
+        extra.append(_join(msgs, key, np.int64))
     return Batches(t, q, names, index, *extra)
 
 

@@ -38,6 +38,8 @@ class BagLayout:
     rename: dict[str, str] = field(default_factory=dict)  # chain joint -> name used in the bag
     moving: tuple[int, ...] = ()  # measurements taken mid-move (into their stop) instead of mid-dwell
     corrupt: tuple[str, int] | None = None  # (topic, record): raw bytes that are not valid CDR
+    zero_stamps: tuple[str, ...] = ()  # topics whose header.stamp is left 0 (publishers that never set it)
+    clock_offset_s: float = 0.0  # the instrument's clock minus the controller's (header stamps and receive times)
 
 
 def timeline(q_stops: np.ndarray, layout: BagLayout) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -83,7 +85,7 @@ def write_bag(out: str | Path, joint_names: list[str], t_joint_s: np.ndarray, q_
     mtype = POSE if orientations is not None else POINT
     events = []  # (t ns, kind, index)
     tj = T0_NS + np.round(np.asarray(t_joint_s) * 1e9).astype(np.int64)
-    tm = T0_NS + np.round(np.asarray(t_meas_s) * 1e9).astype(np.int64)
+    tm = T0_NS + np.round((np.asarray(t_meas_s) + layout.clock_offset_s) * 1e9).astype(np.int64)
     if layout.joint_topic is not None:
         events += [(int(t), 0, i) for i, t in enumerate(tj)]
     events += [(int(t), 1, i) for i, t in enumerate(tm)]
@@ -93,7 +95,8 @@ def write_bag(out: str | Path, joint_names: list[str], t_joint_s: np.ndarray, q_
         cm = w.add_connection(layout.measure_topic, mtype, typestore=store)
         count = {0: 0, 1: 0}
         for t, kind, i in events:
-            hdr = _header(store, t, "" if kind == 0 else layout.frame_id)
+            topic = layout.joint_topic if kind == 0 else layout.measure_topic
+            hdr = _header(store, 0 if topic in layout.zero_stamps else t, "" if kind == 0 else layout.frame_id)
             if kind == 0:
                 pos = np.concatenate([q_joint[i, cols], extra])
                 msg = T[JOINT_STATE](header=hdr, name=names, position=pos, velocity=empty, effort=empty)

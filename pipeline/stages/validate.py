@@ -130,7 +130,7 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         t_msg = np.array([m["timestamp_ns"] if isinstance(m.get("timestamp_ns"), int) else -1 - i
                           for i, m in enumerate(msgs)], np.int64)
         out.append(C.check_duplicates(mchan, _raw(rec, mchan), t_msg))
-    for topic in decoded:
+    for topic in [*decoded, *([JOINT_STATE] if stream_times is not None else [])]:
         if topic != mchan:
             out.append(C.check_duplicates(topic, _raw(rec, topic)))
     if TEMPERATURE in decoded:

@@ -12,7 +12,10 @@ after modelling over the clean floor of the same seed (same noise draws).  Out-o
 count as *located* when the status is `partially_explained` / `unexplained` (the wild contact:
 when the injected record is among `outlier_records`; the encoder glitch — J1 reads 50 mrad off over the 30 ms
 before one latch, an impossible derived approach speed — likewise); in-library ones (linear coupling J2→J3,
-linear link growth) count as *named* when the matching finding is reported.
+linear link growth) count as *named* when the matching finding is reported.  The saturating link growth and the
+quadratic coupling, whose forms the library has in a family of forms (`pipeline.diagnose.forms`), count as found
+when located or named in the right family (`located_or_family_named`; `form_named`: in the generator's form), and
+`named_with_high_confidence` there counts only names outside that family.
 
 Usage: ``python benchmarks/bench_diagnose_independent.py [--seeds 40] [--mult 4] [--cases a,b]``
 (CI runs a bounded version: tests/test_diagnose_independent.py).

@@ -65,12 +65,11 @@ class TouchCampaign:
         return len(self.face_id)
 
 
-def read(path: str | Path, system: str | None = None, n_joints: int | None = None,
-         jig: Jig | None = None) -> TouchCampaign:
-    """Read and check a touch campaign file (one-line RobocalError naming file and measurement)."""
+def load_document(path: str | Path) -> dict:
+    """A campaign file as JSON, checked against schemas/campaign.schema.json (one-line RobocalError
+    naming the file and the first offending measurement)."""
     from pipeline.recording.schemas import validator
 
-    path = str(path)
     try:
         doc = json.loads(Path(path).read_text())
     except FileNotFoundError:
@@ -79,10 +78,16 @@ def read(path: str | Path, system: str | None = None, n_joints: int | None = Non
         raise RobocalError(f"{path}: not a JSON campaign file ({e})") from None
     errors = sorted(validator("campaign").iter_errors(doc), key=lambda e: list(e.absolute_path))
     if errors:
-        e = errors[0]
-        where = "/".join(str(p) for p in e.absolute_path) or "document"
-        where = where.replace("measurements/", "measurement ")
-        raise RobocalError(f"{path}: {where}: {e.message} (schemas/campaign.schema.json)")
+        where = "/".join(str(p) for p in errors[0].absolute_path).replace("measurements/", "measurement ") or "document"
+        raise RobocalError(f"{path}: {where}: {errors[0].message} (schemas/campaign.schema.json)")
+    return doc
+
+
+def read(path: str | Path, system: str | None = None, n_joints: int | None = None,
+         jig: Jig | None = None) -> TouchCampaign:
+    """Read and check a touch campaign file (one-line RobocalError naming file and measurement)."""
+    path = str(path)
+    doc = load_document(path)
     if system is not None and doc["system"] != system:
         raise RobocalError(f"{path}: is a {doc['system']} campaign, not {system}")
     if doc["measurement"] != "touch":
@@ -151,19 +156,8 @@ def from_pool(system: str, arm, jig: Jig, pool: TouchPool, campaign: Campaign = 
 def read_pose(path: str | Path, system: str, joint_names: list[str]) -> np.ndarray:
     """Joint configurations (n, len(joint_names)) rad of a `measurement: pose` campaign of `system`,
     columns reordered to `joint_names` (the campaign must name exactly those joints); one-line errors."""
-    from pipeline.recording.schemas import validator
-
     path = str(path)
-    try:
-        doc = json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise RobocalError(f"{path}: no such campaign file") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise RobocalError(f"{path}: not a JSON campaign file ({e})") from None
-    errors = sorted(validator("campaign").iter_errors(doc), key=lambda e: list(e.absolute_path))
-    if errors:
-        where = "/".join(str(p) for p in errors[0].absolute_path).replace("measurements/", "measurement ") or "document"
-        raise RobocalError(f"{path}: {where}: {errors[0].message} (schemas/campaign.schema.json)")
+    doc = load_document(path)
     if doc["system"] != system or doc["measurement"] != "pose":
         raise RobocalError(f"{path}: is a {doc['system']} {doc['measurement']} campaign, not a {system} pose campaign")
     names = list(doc["joint_names"])

@@ -40,28 +40,6 @@ def pose_campaign(table: dict[str, np.ndarray], idx: np.ndarray) -> dict:
 
 def read_pose_campaign(path) -> np.ndarray:
     """Actuator angles (n, 3) rad of a delta-tracker pose campaign (one-line errors)."""
-    import json
-    from pathlib import Path
+    from pipeline.plan.campaign import read_pose
 
-    from pipeline.errors import RobocalError
-    from pipeline.recording.schemas import validator
-
-    try:
-        doc = json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise RobocalError(f"{path}: no such campaign file") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise RobocalError(f"{path}: not a JSON campaign file ({e})") from None
-    errors = sorted(validator("campaign").iter_errors(doc), key=lambda e: list(e.absolute_path))
-    if errors:
-        where = "/".join(str(p) for p in errors[0].absolute_path).replace("measurements/", "measurement ") or "document"
-        raise RobocalError(f"{path}: {where}: {errors[0].message} (schemas/campaign.schema.json)")
-    if doc["system"] != dt.SYSTEM or doc["measurement"] != "pose":
-        raise RobocalError(f"{path}: is a {doc['system']} {doc['measurement']} campaign, not a {dt.SYSTEM} pose campaign")
-    out = []
-    for m in doc["measurements"]:
-        q = np.asarray(m.get("joints_rad", []), float)
-        if q.shape != (3,) or not np.all(np.isfinite(q)):
-            raise RobocalError(f"{path}: measurement {m['index']}: joints_rad must be 3 finite numbers")
-        out.append(q)
-    return np.array(out)
+    return read_pose(path, dt.SYSTEM, JOINT_NAMES)

@@ -81,6 +81,20 @@ def plan_cmd(
     mod = candidate_module(system)
     with err.status(f"generating {candidates} candidates…"):
         model, table = mod.candidates(candidates, seed)
+    if hasattr(mod, "plan_poses"):  # measurements grouped by pose (the scanner's crossings)
+        sel, free = mod.plan_poses(model, table, select_m)
+        doc = {"kind": "robocal.campaign", "version": 1, "system": system, "stage": 1, "stages": 1,
+               "n_candidates": candidates, "select": select_m, "seed": seed,
+               "criterion": "D-optimal over poses: log det of the free parameters' information (scaled columns)",
+               "free_parameters": [n for n, f in zip(model.parameter_names(), free) if f],
+               "logdet": sel.logdet, "greedy_logdet": sel.greedy_logdet, "exchanges": sel.exchanges,
+               "selection_s": sel.elapsed_s, **mod.pose_campaign(table, sel.index)}
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_json(out, doc)
+        err.print(f"selected {select_m} of {candidates} candidate poses in {sel.elapsed_s:.3f} s (log det "
+                  f"{sel.logdet:.2f}; greedy {sel.greedy_logdet:.2f}; {sel.exchanges} exchanges)")
+        print(out)
+        return
     p = plan(model, table, select_m)
     s = p.selection
     J = model.jacobian(model.nominal(), table)[:, :, p.free]

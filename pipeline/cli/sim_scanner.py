@@ -27,6 +27,8 @@ def scorbot_scanner_cmd(
     capture_speed: float = typer.Option(0.0, "--capture-speed", min=0.0, help="Joint speed (rad/s) of a sweep through each pose during the capture (exposes a camera time offset)."),
     spread: bool = typer.Option(False, "--spread", help="Stripe rows over 10-90 %% of the image and crossings spread along the stripe (exposes lens distortion)."),
     robot_id: str = typer.Option("sim-scorbot-scanner", "--robot-id", help="Robot identity written to the campaign metadata."),
+    campaign_file: Path = typer.Option(None, "--campaign", help="Execute a planned campaign (robocal plan scorbot-scanner): "
+                                       "each pose servoed onto its grid line from its planned joints on the true arm."),
 ) -> None:
     """Laser-stripe scanner on a SCORBOT-ER VII (seed 001): stripe crossings of a printed 30 mm grid."""
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
@@ -48,18 +50,28 @@ def scorbot_scanner_cmd(
         x = nominal.vector()
         x[6 + 5 * np.arange(nominal.n_joints)] += rng.normal(0, np.radians(joint_offset_deg), nominal.n_joints)
         arm_true = nominal.with_vector(x)
+    planned = None
+    if campaign_file is not None:
+        from pipeline.plan.scorbot_scanner import read_campaign
+
+        planned = read_campaign(campaign_file)
+        poses = len(planned)
     campaign, noise, pattern = sim.Campaign(poses=poses, corners=corners, seed=seed, capture_speed_rad_s=capture_speed, spread=spread), sim.Noise(scale=noise_scale), sim.Pattern()
     with err.status(f"simulating {poses} poses x {corners} corners…"):
         for attempt in range(50):
             s_true = sc.random_scanner(rng) if random_errors else sc.reference_scanner()
             try:
-                result = sim.simulate(nominal, arm_true, s_true, campaign, noise, pattern, effects=injected)
+                result = sim.simulate(nominal, arm_true, s_true, campaign, noise, pattern, effects=injected,
+                                      planned=planned)
                 break
             except RuntimeError:
                 if not random_errors:
                     raise
         else:
             raise RuntimeError("no usable random scanner truth in 50 draws")
+    if planned is not None and len(result.observations) < 3:
+        raise RobocalError(f"{campaign_file}: only {len(result.observations)} of {len(planned)} planned poses found "
+                           "their grid line on the true robot (a calibration needs ≥ 3)")
     lo, hi = sc.bounds()
     meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: pattern.to_dict(),
             META_CAMPAIGN: {"system": sc.SYSTEM, "simulated": True, "poses": poses, "corners_per_pose": corners,
@@ -76,3 +88,6 @@ def scorbot_scanner_cmd(
         truth.write_text(json.dumps(sim.truth_document(arm_true, s_true, noise, campaign, result, injected), indent=2) + "\n")
     err.print(f"wrote {out} ({result.stream_t_ns.size} encoder samples, {len(result.observations)} stripe "
               f"observations, {sum(len(o.corner_idx) for o in result.observations)} corner crossings)")
+    if result.misses:
+        err.print(f"[yellow]{len(result.misses)} planned pose(s) found no usable stripe on the true robot: "
+                  f"{', '.join(map(str, result.misses))}[/]")

@@ -103,6 +103,7 @@ class SimResult:
     observations: list[Observation]
     corner_error_rms_m: float
     attempts: int
+    misses: tuple[int, ...] = ()  # planned poses (`simulate(..., planned=)`) that found no usable stripe
 
 
 def _camera_pose(xa: np.ndarray, s: np.ndarray, q: np.ndarray, dT=None):
@@ -320,13 +321,17 @@ def _plan_pose(arm: SerialArm, xa: np.ndarray, s: np.ndarray, pattern: Pattern, 
 
 def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.ndarray, campaign: Campaign = Campaign(),
              noise: Noise = Noise(), pattern: Pattern = Pattern(), image_size: tuple[int, int] = (640, 480),
-             max_attempts: int = 400, effects: tuple = (), plan_cache: dict | None = None) -> SimResult:
+             max_attempts: int = 400, effects: tuple = (), plan_cache: dict | None = None,
+             planned: list[tuple[np.ndarray, np.ndarray, float]] | None = None) -> SimResult:
     """Run the campaign (module docstring).  Raises RuntimeError if the truth cannot see
     enough corners from reachable poses.  `effects` (`pipeline.simulate.effects.Injected`,
     names of `EFFECTS`) are injected into the TRUE camera/arm (`pipeline.diagnose.scanner`).
     `plan_cache` (a dict the caller keeps): the planned poses (the operator's IK, most of the
     time; the effects do not change them) memoised by the random generator's state before each
-    plan — bit-identical results, several times faster when one campaign is re-simulated."""
+    plan — bit-identical results, several times faster when one campaign is re-simulated.
+    `planned`: execute a planned campaign instead — (joints rad, grid-line corner indices, image row
+    px) per pose,
+    servoed on the true arm (`scanner_servo`); the ones that fail are `misses`."""
     fx = effect_values(effects, arm_truth.n_joints)
     rng = np.random.default_rng(campaign.seed)
     s = np.asarray(scanner_truth, float)
@@ -340,12 +345,23 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
     attempts = 0
     used_lines: list[frozenset] = []
     sweeps: list[np.ndarray] = []
-    while len(obs) < campaign.poses:
+    queue = None if planned is None else list(enumerate(planned))
+    misses: list[int] = []
+    while (len(obs) < campaign.poses) if queue is None else queue:
         attempts += 1
-        if attempts > max_attempts:
+        if queue is None and attempts > max_attempts:
             raise RuntimeError(f"could only place {len(obs)} of {campaign.poses} poses with {campaign.corners} "
                                f"visible corners")
-        if plan_cache is None:
+        if queue is not None:
+            from pipeline.simulate.scanner_servo import servo_pose
+
+            i_plan, (q0, line, row) = queue.pop(0)
+            plan = servo_pose(arm_nominal.lower, arm_nominal.upper, xa, s, pattern, q0, line, row, image_size,
+                              campaign.corners)
+            if plan is None:
+                misses.append(i_plan)
+                continue
+        elif plan_cache is None:
             plan = _plan_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
         else:
             key = (xa.tobytes(), s.tobytes(), pattern, campaign, image_size, repr(rng.bit_generator.state))
@@ -357,7 +373,7 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
         if plan is None:
             continue
         q, idx = plan  # q: where the TRUE arm stands at the capture
-        if frozenset(idx.tolist()) in used_lines:
+        if queue is None and frozenset(idx.tolist()) in used_lines:
             continue
         w = np.zeros_like(q)
         if campaign.capture_speed_rad_s > 0:  # sweep direction of this pose (drawn only for moving captures)
@@ -398,6 +414,8 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
         spx[:, 0] = np.clip(spx[:, 0], 0, W - 1)
         spx[:, 1] = np.clip(spx[:, 1], 0, H - 1)
         if np.any((px < 0) | (px > [W - 1, H - 1])):
+            if queue is not None:
+                misses.append(i_plan)
             continue
         used_lines.append(frozenset(idx.tolist()))
         obs.append(Observation(q=q_enc, corner_idx=idx, corner_px=px, stripe_px=spx, corner_true=X))
@@ -405,7 +423,8 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
     t_ns, q_stream, t_obs = _timeline(np.array([o.q for o in obs]), campaign, np.array(sweeps))
     err = np.concatenate([o.corner_true - P_nom[o.corner_idx] for o in obs])
     return SimResult(stream_t_ns=t_ns, stream_q=q_stream, obs_t_ns=t_obs, observations=obs,
-                     corner_error_rms_m=float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), attempts=attempts)
+                     corner_error_rms_m=float(np.sqrt(np.mean(np.sum(err**2, axis=1)))), attempts=attempts,
+                     misses=tuple(misses))
 
 
 def _timeline(Q: np.ndarray, c: Campaign, W: np.ndarray | None = None):
@@ -459,11 +478,12 @@ def truth_document(arm_truth: SerialArm, scanner_truth: np.ndarray, noise: Noise
 
 def simulate_in_memory(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.ndarray,
                        campaign: Campaign = Campaign(), noise: Noise = Noise(), pattern: Pattern = Pattern(),
-                       effects: tuple = (), plan_cache: dict | None = None):
+                       effects: tuple = (), plan_cache: dict | None = None,
+                       planned: list[tuple[np.ndarray, np.ndarray, float]] | None = None):
     """The measurement table a recording of this campaign would load to (for tests/benchmarks);
     with effects it also has timestamp_ns (the diagnosis rebuilds its context from the stream)."""
     sim = simulate(arm_nominal, arm_truth, scanner_truth, campaign, noise, pattern, effects=effects,
-                   plan_cache=plan_cache)
+                   plan_cache=plan_cache, planned=planned)
     rows = [(i, o.q, px, pattern.corners()[j]) for i, o in enumerate(sim.observations)
             for px, j in zip(o.corner_px, o.corner_idx)]
     table = {"joint_positions": np.array([r[1] for r in rows]), "pixel": np.array([r[2] for r in rows]),

@@ -97,7 +97,8 @@ def test_resume_after_the_client_is_killed(archive, tmp_path):
     arch, recs = archive
     recs = [r for r in recs if r.relative_to(arch).parts[0] in ("robot-1", "robot-2")]
     out, pattern = tmp_path / "out", "robot-[12]/**/*.mcap"
-    p = cli("reprocess", arch, "--out", out, "--workers", "2", "--stages", FAST, "--pattern", pattern)
+    # rows flushed 0.1 s after they finish, so the kill lands after the first rows and before the last
+    p = cli("reprocess", arch, "--out", out, "--workers", "2", "--stages", FAST, "--pattern", pattern, "--flush-s", "0.1")
     t0 = time.monotonic()
     while not list((out / "results").glob("part-*.parquet")):
         assert time.monotonic() - t0 < 120 and p.poll() is None, "no part written"

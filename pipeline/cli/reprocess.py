@@ -51,6 +51,8 @@ def reprocess_cmd(
     allowed_failures: Optional[int] = typer.Option(None, "--allowed-failures", min=0, help="Local cluster: times a "
                                                    "task may lose its worker before it is recorded as lost "
                                                    "(Dask's distributed.scheduler.allowed-failures, default 3)."),
+    flush_s: float = typer.Option(2.0, "--flush-s", min=0.01, help="A finished row is on disk (a new Parquet part) "
+                                  "at most this many seconds later: what an interrupted run keeps."),
 ) -> None:
     """Reprocess every recording of ARCHIVE; exit 1 on any regression or failed recording."""
     from pipeline.errors import RobocalError
@@ -95,8 +97,8 @@ def reprocess_cmd(
     with progress:
         res = reprocess_archive(archive, out, patterns=tuple(pattern) or ("**/*.mcap",), stages=stages,
                                 robot_id=robot_id, engine=engine, workers=workers, scheduler=scheduler,
-                                allowed_failures=allowed_failures, resume=resume, on_plan=on_plan, on_row=on_row,
-                                on_start=on_start)
+                                allowed_failures=allowed_failures, resume=resume, flush_s=flush_s, on_plan=on_plan,
+                                on_row=on_row, on_start=on_start)
     rows = res.all_rows
     for s in res.skipped_paths:
         err.print(f"[yellow]skipped[/] {s}", highlight=False)

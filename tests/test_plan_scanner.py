@@ -41,7 +41,8 @@ def test_planned_campaign_runs_on_the_true_robot_and_calibrates(tmp_path):
     assert r.returncode == 0, r.stderr
     measured = sc.stripe_table(read_recording(rec))["corner"]
     planned = sim.Pattern().corners()[[sim.Pattern().ids().index(c) for m in doc["measurements"] for c in m["corner_ids"]]]
-    assert len(measured) >= 15 and np.isin(measured.round(9), planned.round(9)).all(axis=1).mean() >= 0.8
+    hit = np.linalg.norm(measured[:, None, :] - planned[None], axis=2).min(axis=1) < 1e-9  # whole corners, not coordinates
+    assert len(measured) >= 15 and hit.mean() >= 0.8, hit
     r = run_cli("run", rec, "--out", run)
     assert r.returncode == 0, r.stderr
     res = json.loads((run / "results.json").read_text())["summary"]

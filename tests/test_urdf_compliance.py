@@ -14,9 +14,9 @@ import pytest
 from pipeline.diagnose.diagnose import Settings, diagnose
 from pipeline.diagnose.urdf_gravity import gravity_torques
 from pipeline.diagnose.urdf_robot import adapter
-from pipeline.measurements.point import PointModel
 from pipeline.models import urdf, urdf_arm
 from pipeline.plan.urdf_robot import configurations
+from test_urdf_diagnose import point_campaign
 from test_urdf_plan import URDF as BARE
 
 G = 9.80665
@@ -64,23 +64,17 @@ def torques(q: np.ndarray, h: float = 1e-6) -> np.ndarray:
 
 
 def campaign(compliance: dict[int, float], seed: int, n: int = 120, noise: float = 2e-5):
-    arm = urdf_arm.UrdfArm(urdf.parse(URDF, "b", "l6"))
-    model = PointModel(arm)
-    rng = np.random.default_rng(seed)
-    truth = model.nominal() + rng.normal(0, 5e-4, len(model.nominal()))
-    truth[model.parameter_names().index("tool.z")] = 0.05
-    q = configurations(arm, n, seed + 1)
-    q_true = q.copy()
-    c = np.zeros(q.shape[1])
+    c = np.zeros(6)
     for j, v in compliance.items():
         c[j] = v
-    for _ in range(3):  # the deflection moves the links it is computed from: a fixed point
-        q_true = q + torques(q_true) * c
-    p, *_ = model.tool(truth, q_true)
-    table = {"joint_positions": q, "position": p + rng.normal(0, noise, p.shape), "target": np.zeros(n, int),
-             "record": np.arange(n), "timestamp_ns": np.arange(n) * 1_000_000_000,
-             "time_since_start_s": np.arange(n, dtype=float)}
-    return model, table
+
+    def deflected(q: np.ndarray) -> np.ndarray:
+        q_true = q.copy()
+        for _ in range(3):  # the deflection moves the links it is computed from: a fixed point
+            q_true = q + torques(q_true) * c
+        return q_true
+
+    return point_campaign(deflected, seed, n, noise, text=URDF)
 
 
 def test_gravity_torques_agree_with_the_potential_energy():

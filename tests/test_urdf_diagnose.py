@@ -15,20 +15,25 @@ from pipeline.plan.urdf_robot import configurations
 from test_urdf_plan import URDF
 
 
-def campaign(scale: float, seed: int, n: int = 120, noise: float = 2e-5):
-    arm = urdf_arm.UrdfArm(urdf.parse(URDF, "b", "l6"))
+def point_campaign(true_joints, seed: int, n: int = 120, noise: float = 2e-5, text: str = URDF):
+    """(PointModel, table) of a 3-D point campaign on the chain of `text` (b → l6): joints read q,
+    the true robot stands at `true_joints(q)`; a random truth (0.5 mm / 0.5 mrad) and tracker noise."""
+    arm = urdf_arm.UrdfArm(urdf.parse(text, "b", "l6"))
     model = PointModel(arm)
     rng = np.random.default_rng(seed)
     truth = model.nominal() + rng.normal(0, 5e-4, len(model.nominal()))
     truth[model.parameter_names().index("tool.z")] = 0.05
     q = configurations(arm, n, seed + 1)
-    q_true = q.copy()
-    q_true[:, 1] *= 1 + scale  # joint j2 turns more than it reads
-    p, *_ = model.tool(truth, q_true)
+    p, *_ = model.tool(truth, true_joints(q))
     table = {"joint_positions": q, "position": p + rng.normal(0, noise, p.shape), "target": np.zeros(n, int),
              "record": np.arange(n), "timestamp_ns": np.arange(n) * 1_000_000_000,
              "time_since_start_s": np.arange(n, dtype=float)}
     return model, table
+
+
+def campaign(scale: float, seed: int, n: int = 120, noise: float = 2e-5):
+    """Joint j2 turns (1 + scale) times what it reads."""
+    return point_campaign(lambda q: q * np.r_[1, 1 + scale, 1, 1, 1, 1], seed, n, noise)
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pipeline.errors import RobocalError
+
 
 @dataclass
 class Selection:
@@ -53,6 +55,10 @@ def woodbury_update(Minv: np.ndarray, a: np.ndarray, sign: float = 1.0) -> np.nd
     return Minv - Ma @ np.linalg.solve(S, Ma.T)
 
 
+class SelectionError(RobocalError, ValueError):
+    """The requested selection is impossible (more than the candidates, or too few to identify)."""
+
+
 def select(A: np.ndarray, m: int, *, ridge: float = 1e-8, max_exchanges: int | None = None,
            tol: float = 1e-9) -> Selection:
     """Choose `m` of the N candidate blocks A (N, k, L) maximising log det of the information."""
@@ -62,7 +68,8 @@ def select(A: np.ndarray, m: int, *, ridge: float = 1e-8, max_exchanges: int | N
         A = A[:, None, :]
     N, k, L = A.shape
     if not L <= m * k or m > N:
-        raise ValueError(f"cannot select {m} of {N} candidates for {L} parameters ({k} residuals each)")
+        raise SelectionError(f"cannot select {m} of {N} candidates for {L} identifiable parameters ({k} residuals "
+                             f"each): need --select ≤ --candidates and --select × {k} ≥ {L}")
     A, _ = scale(A)
     Minv = np.eye(L) / ridge
     chosen = np.zeros(N, bool)

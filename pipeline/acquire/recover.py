@@ -18,6 +18,7 @@ from mcap.writer import CompressionType, Writer
 
 from pipeline import __version__
 from pipeline.errors import RobocalError
+from pipeline.recording.output import check_output
 from pipeline.recording.reader import MAGIC
 
 META_RECOVERY = "robocal.recovery"
@@ -30,6 +31,7 @@ def recover(src: str | Path, dst: str | Path) -> dict:
         raise RobocalError(f"{src}: no such file")
     if src.resolve() == dst.resolve():
         raise RobocalError(f"{dst}: recover writes a new file; choose another output path")
+    check_output(dst)
     with open(src, "rb") as f:
         if f.read(len(MAGIC)) != MAGIC:
             raise RobocalError(f"{src}: not an MCAP file (bad magic bytes)")

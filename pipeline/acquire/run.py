@@ -67,7 +67,9 @@ def acquire(devices: dict[str, str], out: Path, *, max_s: float | None = None, c
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     ports = {role: Port(role, path) for role, path in devices.items()}
     sel = selectors.DefaultSelector()
-    f = open(out, "wb")
+    from pipeline.recording.output import check_output
+
+    f = open(check_output(out), "wb")
     writer = RecordingWriter(f)
     acq = Acquisition(writer, devices)
     t_start = time.monotonic()

@@ -28,6 +28,7 @@ from mcap.writer import CompressionType, Writer
 
 from pipeline import __version__
 from pipeline.errors import RobocalError, where
+from pipeline.recording.output import check_output
 from pipeline.ingest.legacy_json_stream import decode_json_stream
 from pipeline.recording import joint_state_batch as JSB
 from pipeline.recording.reader import MAGIC, decode
@@ -59,6 +60,7 @@ def upgrade(src: str | Path, dst: str | Path) -> dict:
         raise RobocalError(f"{src}: no such file")
     if src.resolve() == dst.resolve():
         raise RobocalError(f"{dst}: upgrade writes a new file; choose another output path")
+    check_output(dst)
     data = src.read_bytes()
     if data[:len(MAGIC)] != MAGIC:
         raise RobocalError(f"{src}: not an MCAP file (bad magic bytes)")

@@ -49,6 +49,10 @@ class RecordingWriter:
             raise ValueError(f"stream_encoding {stream_encoding!r}: 'protobuf' or 'json'")
         self.stream_encoding = stream_encoding
         self._own = not hasattr(out, "write")
+        if self._own:
+            from pipeline.recording.output import check_output
+
+            check_output(out)
         self._f = open(out, "wb") if self._own else out
         self._w = Writer(self._f, chunk_size=chunk_size, compression=compression)
         self._w.start(profile=PROFILE, library=f"robocal/{__version__}")

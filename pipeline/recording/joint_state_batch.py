@@ -11,6 +11,11 @@ tests/test_binary_stream.py checks it against the .proto text compiled by protoc
 Core functions are pure: `encode` (arrays → one message), `decode` (all messages → arrays, each
 message checked; a bad one raises `BatchError` with its index), `descriptor_problem`.
 Units: times ns since the Unix epoch, positions rad (row-major, sample × joint).
+
+Optional drive state (issue 18), same (sample, joint) layout as `positions`, empty when not logged:
+`commanded_positions` (rad / m, what the controller commanded) and `efforts` (the drive's measured
+torque on the link along the joint axis, N·m; force N for a prismatic joint — ROS JointState.effort's
+convention).  A registered schema written before these fields (fields 1–6 only) is still robocal's.
 """
 
 from __future__ import annotations
@@ -40,8 +45,12 @@ FIELDS: tuple[tuple[str, int, int, int], ...] = (
     ("positions", 4, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
     ("device_timestamps_ns", 5, _NS, _F.LABEL_REPEATED),
     ("host_receive_times_ns", 6, _NS, _F.LABEL_REPEATED),
+    ("commanded_positions", 7, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
+    ("efforts", 8, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
 )
 OPTIONAL_TIMES = ("device_timestamps_ns", "host_receive_times_ns")  # empty or one per sample
+OPTIONAL_SAMPLES = ("commanded_positions", "efforts")  # drive state: empty or samples × joints, finite
+ADDED_LATER = frozenset({7, 8})  # fields a registered schema of an older robocal may lack
 
 
 def _json_name(name: str) -> str:
@@ -75,7 +84,8 @@ class BatchError(ValueError):
 @dataclass(frozen=True)
 class Batches:
     """The decoded stream: sample times (T,) ns, positions (T, n_joints) rad, joint names, the
-    message of each sample (T,), and the optional raw device / host receive times (T,) ns."""
+    message of each sample (T,), the optional raw device / host receive times (T,) ns, and the
+    optional drive state (T, n_joints): commanded positions rad / m, efforts N·m / N."""
 
     t_ns: np.ndarray
     q: np.ndarray
@@ -83,13 +93,16 @@ class Batches:
     message_index: np.ndarray
     device_t_ns: np.ndarray | None = None
     host_t_ns: np.ndarray | None = None
+    q_cmd: np.ndarray | None = None
+    effort: np.ndarray | None = None
 
 
 def encode(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], device_t_ns: np.ndarray | None = None,
-           host_t_ns: np.ndarray | None = None) -> bytes:
+           host_t_ns: np.ndarray | None = None, q_cmd: np.ndarray | None = None,
+           effort: np.ndarray | None = None) -> bytes:
     """One message: samples at `t_ns` (n,) ns since the epoch (stored as `timestamp_ns` = t[0] and
     offsets t − t[0]), positions `q` (n, len(names)) rad; optional raw device times and host
-    receive times (n,) ns."""
+    receive times (n,) ns; optional commanded positions (rad / m) and efforts (N·m / N), (n, len(names))."""
     t = np.asarray(t_ns, np.int64)
     q = np.asarray(q, np.float64)
     if t.ndim != 1 or not t.size or q.shape != (t.size, len(names)):
@@ -102,6 +115,12 @@ def encode(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], device_t_ns: n
             if v.shape != t.shape:
                 raise ValueError(f"{key} has {v.size} values for {t.size} samples")
             getattr(m, key).extend(v.tolist())
+    for key, v in zip(OPTIONAL_SAMPLES, (q_cmd, effort)):
+        if v is not None:
+            v = np.asarray(v, np.float64)
+            if v.shape != q.shape:
+                raise ValueError(f"{key} of shape {v.shape} for positions of shape {q.shape}")
+            getattr(m, key).extend(v.ravel().tolist())
     return m.SerializeToString()
 
 
@@ -110,8 +129,9 @@ def from_dict(msg: dict) -> bytes:
     q = np.asarray(msg["positions"], np.float64)
     names = msg["joint_names"]
     q = q.reshape(-1, len(names)) if q.size == 0 else q
+    drive = [None if msg.get(k) is None else np.asarray(msg[k], np.float64).reshape(q.shape) for k in OPTIONAL_SAMPLES]
     return encode(np.asarray(msg["timestamps_ns"], np.int64), q, names,
-                  *(msg.get(k) for k in OPTIONAL_TIMES))
+                  *(msg.get(k) for k in OPTIONAL_TIMES), *drive)
 
 
 def _parse(record: int, body: bytes):
@@ -174,7 +194,27 @@ def decode(raw: Sequence[bytes]) -> Batches:
             i = int(wrong[0])
             raise BatchError(i, f"{key} has {k[i]} values for {n[i]} samples")
         extra.append(_join(msgs, key, np.int64))
+    for key in OPTIONAL_SAMPLES:
+        extra.append(_drive(msgs, key, n * nj, index, total, nj))
     return Batches(t, q, names, index, *extra)
+
+
+def _drive(msgs: list, key: str, want: np.ndarray, index: np.ndarray, total: int, nj: int) -> np.ndarray | None:
+    """One optional drive-state field of every message as (T, nj), None when no message has it;
+    a message whose field is neither empty nor samples × joints, or holds NaN/inf, is a `BatchError`."""
+    k = np.fromiter((len(getattr(m, key)) for m in msgs), np.int64, len(msgs))
+    if not k.any():
+        return None
+    wrong = np.flatnonzero(k != want)
+    if wrong.size:
+        i = int(wrong[0])
+        raise BatchError(i, f"{key} has {k[i]} values, expected {want[i] // nj} samples × {nj} joints "
+                            "(or none in every message)")
+    v = _join(msgs, key, np.float64).reshape(total, nj)
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        raise BatchError(int(index[np.argmax(bad)]), f"{key} hold NaN or inf")
+    return v
 
 
 def to_dict(body: bytes, record: int = 0) -> dict:
@@ -189,6 +229,10 @@ def to_dict(body: bytes, record: int = 0) -> dict:
     for key in OPTIONAL_TIMES:
         if len(getattr(m, key)):
             out[key] = list(getattr(m, key))
+    for key in OPTIONAL_SAMPLES:
+        v = np.asarray(getattr(m, key), np.float64)
+        if v.size:
+            out[key] = v.reshape(-1, nj).tolist() if v.size % nj == 0 else v.tolist()
     return out
 
 
@@ -201,7 +245,8 @@ def _describe(f: tuple | None) -> str:
 
 def descriptor_problem(schema_name: str, schema_encoding: str, data: bytes) -> str:
     """'' when a channel's registered schema is robocal.JointStateBatch as robocal defines it
-    (a FileDescriptorSet whose message has exactly `FIELDS`), else what differs."""
+    (a FileDescriptorSet whose message has exactly `FIELDS`, or lacks only the fields added later,
+    `ADDED_LATER`: a recording written before them), else what differs."""
     if schema_encoding != ENCODING or schema_name != SCHEMA_NAME:
         return f"registered schema is {schema_name!r} ({schema_encoding}), expected {SCHEMA_NAME!r} ({ENCODING})"
     try:
@@ -216,6 +261,8 @@ def descriptor_problem(schema_name: str, schema_encoding: str, data: bytes) -> s
                 got = {f.number: (f.name, f.number, f.type, f.label) for f in msg.field}
                 for want in FIELDS:
                     have = got.pop(want[1], None)
+                    if have is None and want[1] in ADDED_LATER:
+                        continue
                     if have != want:
                         return (f"registered {SCHEMA_NAME}: field {want[1]} is {_describe(have)}, robocal reads "
                                 f"{_describe(want)}")
@@ -244,7 +291,10 @@ def bad_records(raw: Sequence[bytes]) -> list[tuple[int, str]]:
                f"positions has {nq} values, expected {n} samples × {len(nm)} joints" if nq != n * len(nm) else
                next((f"{k} has {len(getattr(m, k))} values for {n} samples" for k in OPTIONAL_TIMES
                      if len(getattr(m, k)) not in (0, n)), "") or
-               ("positions hold NaN or inf" if not np.isfinite(np.asarray(m.positions, np.float64)).all() else ""))
+               next((f"{k} has {len(getattr(m, k))} values, expected {n} samples × {len(nm)} joints"
+                     for k in OPTIONAL_SAMPLES if len(getattr(m, k)) not in (0, nq)), "") or
+               next((f"{k} hold NaN or inf" for k in ("positions", *OPTIONAL_SAMPLES)
+                     if not np.isfinite(np.asarray(getattr(m, k), np.float64)).all()), ""))
         if why:
             out.append((i, why))
     return out

@@ -85,13 +85,18 @@ class RecordingWriter:
         self._w.add_message(cid, log_time=log_time, data=data, publish_time=publish_time, sequence=self._seq[topic])
 
     def write_batch(self, t_ns: np.ndarray, q: np.ndarray, names: list[str] | tuple[str, ...],
-                    device_t_ns: np.ndarray | None = None, host_t_ns: np.ndarray | None = None) -> None:
+                    device_t_ns: np.ndarray | None = None, host_t_ns: np.ndarray | None = None,
+                    q_cmd: np.ndarray | None = None, effort: np.ndarray | None = None) -> None:
         """One encoder-stream message: samples `t_ns` (n,) ns, positions `q` (n, n_joints) rad,
-        optional raw device and host receive times (n,) ns; log time = the first sample's."""
+        optional raw device and host receive times (n,) ns, optional drive state (n, n_joints):
+        commanded positions rad / m and efforts N·m / N (protobuf only); log time = the first sample's."""
         t0 = int(t_ns[0])
         if self.stream_encoding == JSB.ENCODING:
-            self._add(STREAM, self.channel(STREAM), t0, t0, JSB.encode(t_ns, q, names, device_t_ns, host_t_ns))
+            self._add(STREAM, self.channel(STREAM), t0, t0,
+                      JSB.encode(t_ns, q, names, device_t_ns, host_t_ns, q_cmd, effort))
             return
+        if q_cmd is not None or effort is not None:
+            raise ValueError("drive state (commanded positions, efforts) is written on the protobuf stream only")
         msg = {"timestamp_ns": t0, "timestamps_ns": np.asarray(t_ns).tolist(), "joint_names": list(names),
                "positions": np.asarray(q).tolist()}
         for key, v in zip(JSB.OPTIONAL_TIMES, (device_t_ns, host_t_ns)):

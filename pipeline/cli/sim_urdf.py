@@ -30,14 +30,23 @@ def urdf_cmd(
     campaign_file: Path = typer.Option(None, "--campaign",
                                        help="Execute this planned campaign (CAMPAIGN.json, measurement: pose) "
                                             "instead of random configurations."),
+    drive: bool = typer.Option(False, "--drive", help="Also write the encoder stream with the drive state: "
+                               "commanded positions and measured efforts (N·m) at standstill around each measurement."),
+    effort_noise: float = typer.Option(0.05, "--effort-noise", min=0.0, help="--drive: effort noise, 1σ per sample, N·m."),
+    compliance: str = typer.Option("", "--compliance", help="True joint compliance, e.g. j2=2e-6,j3=1e-6 "
+                                   "(rad/(N·m)): deflection under gravity of the URDF's inertials and the payload."),
+    payload_kg: float = typer.Option(0.0, "--payload-kg", min=0.0, help="A payload at the tip the URDF does not describe, kg."),
+    payload_com: str = typer.Option("0,0,0.05", "--payload-com",
+                                    help="The payload's centre of mass in the tip link's frame, m (x,y,z)."),
 ) -> None:
     """Random truth (errors of the stated size) and a campaign (random configurations, or a planned
     CAMPAIGN.json executed on the true robot), written as a URDF recording."""
     from pipeline.errors import RobocalError
-    from pipeline.importers.recording import write_urdf_recording
+    from pipeline.importers.recording import T0_NS, write_urdf_recording
     from pipeline.models import urdf as urdf_mod
     from pipeline.models.urdf_arm import UrdfArm
     from pipeline.plan.campaign import read_pose
+    from pipeline.simulate import urdf_drive
     from pipeline.simulate.urdf_robot import campaign, random_truth
     from pipeline.systems.urdf_robot import model_for
 
@@ -49,7 +58,29 @@ def urdf_cmd(
     rng = np.random.default_rng(seed)
     x = random_truth(model, rng, error_mm * 1e-3, np.radians(error_deg), registration=measure in ("point", "pose"))
     q = None if campaign_file is None else read_pose(campaign_file, "urdf", list(arm.joint_names))
-    table, tr = campaign(model, x, poses, seed, measure, noise_mm * 1e-3, np.radians(noise_deg), n_groups=groups, q=q)
+    try:
+        c = urdf_drive.parse_compliance(compliance, desc.joint_names)
+    except ValueError as e:
+        raise RobocalError(str(e)) from None
+    try:
+        com = np.array([float(v) for v in payload_com.split(",")])
+    except ValueError:
+        com = np.zeros(0)
+    if com.shape != (3,) or not np.all(np.isfinite(com)):
+        raise RobocalError(f"--payload-com {payload_com!r}: expected x,y,z in m")
+    payload = (payload_kg, com) if payload_kg > 0 else None
+    if (c.any() or payload) and measure not in ("point", "pose"):
+        raise RobocalError(f"--compliance / --payload-kg: simulated for --measure point or pose, not {measure}")
+    true_joints = (lambda qr: urdf_drive.deflect(desc, qr, c, payload)) if c.any() else None
+    table, tr = campaign(model, x, poses, seed, measure, noise_mm * 1e-3, np.radians(noise_deg), n_groups=groups, q=q,
+                         true_joints=true_joints)
+    stream = None
+    if drive:
+        qr = table["joint_positions"]
+        tau = urdf_drive.true_torques(desc, qr if true_joints is None else true_joints(qr), payload)
+        table["timestamp_ns"] = T0_NS + np.arange(len(qr), dtype=np.int64) * 1_000_000_000
+        stream = urdf_drive.drive_stream(table["timestamp_ns"], qr, table["commanded_positions"], -tau,
+                                         np.random.default_rng(seed + 1), effort_noise)
     camp: dict = {"simulated": True, "robot_id": f"{desc.name}-sim-{seed}"}
     if campaign_file is not None:
         camp["campaign_file"] = str(campaign_file)
@@ -57,10 +88,13 @@ def urdf_cmd(
         camp["planes"] = [{**p, "known": True} for p in tr.planes]
     if measure == "pose":
         camp |= {"sigma_m": max(noise_mm * 1e-3, 1e-6), "sigma_rad": max(np.radians(noise_deg), 1e-6)}
-    n = write_urdf_recording(out, desc, measure, camp, table)
+    n = write_urdf_recording(out, desc, measure, camp, table, stream=stream)
     if truth is not None:
         names = model.parameter_names()
+        drive_truth = {"compliance_rad_per_Nm": dict(zip(desc.joint_names, map(float, c))),
+                       "payload_kg": payload_kg, "payload_com_m": com.tolist(), "effort_noise_Nm": effort_noise}
         truth.write_text(json.dumps({"parameters": dict(zip(names, map(float, x[:len(names)]))),
                                      "planes": tr.planes, "points": tr.points.tolist(),
-                                     "noise_mm": noise_mm, "noise_deg": noise_deg}, indent=1) + "\n")
+                                     "noise_mm": noise_mm, "noise_deg": noise_deg,
+                                     **(drive_truth if drive or c.any() or payload else {})}, indent=1) + "\n")
     err.print(f"simulated {n} {measure} measurements of {desc.name} ({root} → {tip}) into {out}", highlight=False)

@@ -115,6 +115,7 @@ def finding_records(rf: Refit, table, ad, lib: list, accepted: list[int], steps:
         cv_wo = confirm.holdout(A_wo, r_wo, folds)
         findings.append({
             "effect": e.name, "location": str(e.location), **({"form": e.data["form"]} if "form" in e.data else {}),
+            **({"source": e.data["source"]} if "source" in e.data else {}),
             "parameters": [{"name": p, "value": float(th[m]), "std": float(std[pos + m]), "unit": e.units[m],
                             "dof": _dof(par_dof[pos + m]),
                             "ci95": confirm.t_interval(float(th[m]), float(std[pos + m]), par_dof[pos + m])}

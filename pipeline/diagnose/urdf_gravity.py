@@ -49,8 +49,10 @@ def _rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return T
 
 
-def gravity_torques(desc, q: np.ndarray, gravity: np.ndarray = GRAVITY_ROOT) -> np.ndarray:
-    """Generalised gravity force on each movable joint (n, n_joints): N·m (revolute) or N (prismatic)."""
+def gravity_torques(desc, q: np.ndarray, gravity: np.ndarray = GRAVITY_ROOT,
+                    payload: tuple[float, np.ndarray] | None = None) -> np.ndarray:
+    """Generalised gravity force on each movable joint (n, n_joints): N·m (revolute) or N (prismatic);
+    `payload`: an extra (mass kg, centre of mass (3,) m in the tip link's frame) carried at the tip."""
     q = np.atleast_2d(np.asarray(q, float))
     n = q.shape[0]
     masses = inertials(desc)
@@ -77,6 +79,8 @@ def gravity_torques(desc, q: np.ndarray, gravity: np.ndarray = GRAVITY_ROOT) -> 
         if j.child in masses:
             m, c = masses[j.child]
             loads.append((m * gravity, T[:, :3, :3] @ c + T[:, :3, 3], ji))
+    if payload is not None and payload[0] > 0:
+        loads.append((payload[0] * gravity, T[:, :3, :3] @ np.asarray(payload[1], float) + T[:, :3, 3], ji))
     tau = np.zeros((n, ji + 1))
     for f, p, last in loads:
         for k in range(last + 1):

@@ -9,6 +9,9 @@ a joint reading, whatever the measurement type —
 
 * ``joint_compliance@J`` (a URDF with `<inertial>` masses): it deflects by c·τ under the gravity
   torque τ of the links it carries (`urdf_gravity`; c = 1/k, k the joint stiffness, rad/(N·m));
+  where the encoder stream carries measured efforts (``joint_efforts``, the drive's torque on the
+  link at standstill, N·m) the torque is the measured one instead, τ = −effort (source "measured
+  torque"): it includes payloads and tools the URDF does not describe, and needs no inertials;
 
 and the lack-of-fit test against smooth functions of every joint reading and of the measurement
 order, which locates structure no term names.  Each effect's signature is the residual's
@@ -65,15 +68,26 @@ def library(model, table) -> list[Effect]:
                               ("rad", "rad"), PLAUSIBLE["encoder_eccentricity"], "direct", ("eccentricity", j), 40,
                               f"q_{jt.name}", ADVICE["encoder_eccentricity"],
                               data={"located": (f"{jt.name} (rad)", q[:, j])}))
-    if inertials(model.kin.desc):
-        tau = gravity_torques(model.kin.desc, q)
+    measured = "joint_efforts" in table
+    if measured or inertials(model.kin.desc):
+        tau = load_torques(model, table)
+        what, kind, source = (("measured torque", "compliance_measured", "measured torque") if measured else
+                              ("gravity torque", "compliance", "URDF inertials"))
         for j, jt in enumerate(joints):
             if jt.type != "prismatic" and np.ptp(tau[:, j]) > 0:
                 lib.append(Effect("joint_compliance", jt.name, (f"{jt.name}.compliance",), ("rad/(N*m)",),
-                                  PLAUSIBLE["joint_compliance"], "direct", ("compliance", j), 10, f"q_{jt.name}",
+                                  PLAUSIBLE["joint_compliance"], "direct", (kind, j), 10, f"q_{jt.name}",
                                   ADVICE["joint_compliance"],
-                                  data={"located": (f"gravity torque on {jt.name} (N·m)", tau[:, j])}))
+                                  data={"located": (f"{what} on {jt.name} (N·m)", tau[:, j]), "source": source}))
     return lib
+
+
+def load_torques(model, data) -> np.ndarray:
+    """The torque (n, J) N·m each joint's compliance acts on: the measured one, −effort (the drive holds
+    the link against its load), where the table has ``joint_efforts``; else the URDF's gravity torques."""
+    if "joint_efforts" in data:
+        return -np.asarray(data["joint_efforts"], float)
+    return gravity_torques(model.kin.desc, np.asarray(data["joint_positions"], float))
 
 
 def signatures(model, x: np.ndarray, data, effects) -> list[np.ndarray]:
@@ -83,14 +97,14 @@ def signatures(model, x: np.ndarray, data, effects) -> list[np.ndarray]:
     D = joint_derivative(model, x, data)
     q = np.asarray(data["joint_positions"], float)
     live = _rows(data)[:, None]
-    tau = gravity_torques(model.kin.desc, q) if any(e.basis[0] == "compliance" for e in effects) else None
+    tau = load_torques(model, data) if any(e.basis[0].startswith("compliance") for e in effects) else None
     out = []
     for e in effects:
         kind, j = e.basis
         g = D[:, :, j] * live
         if kind == "scale":
             out.append((g * q[:, j:j + 1])[:, :, None])
-        elif kind == "compliance":
+        elif kind.startswith("compliance"):
             out.append((g * tau[:, j:j + 1])[:, :, None])
         else:
             out.append(np.stack([g * np.sin(q[:, j:j + 1]), g * np.cos(q[:, j:j + 1])], axis=2))
@@ -133,11 +147,17 @@ def adapter(model, table, held: tuple[str, ...] | None = None):
 
 def from_recording(rec):
     """(model, diagnosis table, info) of a URDF recording: its measurements with the time since
-    the first one (the measurement order where a table came without times)."""
+    the first one (the measurement order where a table came without times) and, where the encoder
+    stream carries drive state, ``joint_efforts`` (N·m) and ``commanded_positions`` (rad) at each
+    measurement (`pipeline.ingest.drive`)."""
+    from pipeline.ingest import drive, streams
     from pipeline.systems import urdf_robot
 
     model, table = urdf_robot.load(rec)
     t = np.asarray(table["timestamp_ns"], np.int64)
     tab = dict(table)
     tab["time_since_start_s"] = (t - t.min()) * 1e-9 if t.size else np.zeros(0)
+    if rec.messages.raw.get(streams.JOINT_STATE):
+        tab |= drive.at_measurements(streams.joint_stream(rec), t, list(model.kin.joint_names), rec.path,
+                                     urdf_robot.channel_for(rec))
     return model, tab, {"system": urdf_robot.SYSTEM}

@@ -18,10 +18,14 @@ T0_NS = 1_700_000_000_000_000_000  # a fixed epoch for tables without times (bit
 
 
 def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, campaign: dict,
-                         table: dict[str, np.ndarray], labels: list[str] | None = None) -> int:
+                         table: dict[str, np.ndarray], labels: list[str] | None = None,
+                         stream: dict[str, np.ndarray] | None = None, batch: int = 250) -> int:
     """Write `table` (rows: ``joint_positions`` (n, n_joints) in the chain's joint order, plus
     the type's columns: ``position`` (n,3), ``target`` (n,), ``orientation`` (n,4) xyzw,
-    ``plane``/``group`` (n,) names; optional ``timestamp_ns``) to `out`.  Returns rows written."""
+    ``plane``/``group`` (n,) names; optional ``timestamp_ns``) to `out`.  With `stream` (``t_ns`` (T,)
+    sorted, ns; ``q`` (T, n_joints) rad / m; optional drive state ``q_cmd`` rad / m and ``effort``
+    N·m / N, (T, n_joints), chain order) also the encoder stream, `batch` samples a message.
+    Returns rows written."""
     q = np.asarray(table["joint_positions"], float)
     n = len(q)
     t = np.asarray(table.get("timestamp_ns", T0_NS + np.arange(n) * 1_000_000_000), np.int64)
@@ -42,4 +46,11 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
                 if key in table:
                     m[key] = str(table[key][i])
             w.write(topic, m)
+        if stream is not None:
+            ts = np.asarray(stream["t_ns"], np.int64)
+            for s in range(0, ts.size, batch):
+                sl = slice(s, s + batch)
+                w.write_batch(ts[sl], np.asarray(stream["q"])[sl], desc.joint_names,
+                              q_cmd=None if stream.get("q_cmd") is None else np.asarray(stream["q_cmd"])[sl],
+                              effort=None if stream.get("effort") is None else np.asarray(stream["effort"])[sl])
     return n

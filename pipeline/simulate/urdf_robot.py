@@ -74,10 +74,13 @@ def _settle(model: Composed, x: np.ndarray, q: np.ndarray, target, rows_normal=N
 
 def campaign(model: Composed, truth_x: np.ndarray, n: int, seed: int, measure: str, noise_m: float = 0.0,
              noise_rad: float = 0.0, n_groups: int = 2, planes: list[dict] | None = None,
-             q: np.ndarray | None = None):
+             q: np.ndarray | None = None, true_joints=None):
     """(table for `write_urdf_recording`, Truth): n measurements of `measure` on the true robot, at
     random configurations or, given `q` (n, n_joints), at a campaign's (for plane and coincidence
-    measurements the robot starts there and moves onto its plane / socket)."""
+    measurements the robot starts there and moves onto its plane / socket).  `true_joints` (point and
+    pose): readings (n, J) → where the joints truly stand (a compliant joint's deflection).  The table's
+    ``commanded_positions`` are the configurations the controller was sent (before a plane / socket
+    move and joint reading noise)."""
     rng = np.random.default_rng(seed)
     given = q is not None
     if given:
@@ -97,24 +100,29 @@ def campaign(model: Composed, truth_x: np.ndarray, n: int, seed: int, measure: s
         N = np.array([truth_planes[i]["normal"] for i in k], float)
         N /= np.linalg.norm(N, axis=1, keepdims=True)
         d = np.array([truth_planes[i]["offset"] for i in k], float)
+        q_cmd = q.copy()
         q = _settle(model, truth_x, q, d, rows_normal=N)
         p, *_ = model.tool(truth_x, q)
         ok = np.abs(np.einsum("ni,ni->n", N, p) - d) < 1e-10
-        table = {"joint_positions": q[ok], "plane": np.array([truth_planes[i]["name"] for i in k[ok]], object)}
+        table = {"joint_positions": q[ok], "plane": np.array([truth_planes[i]["name"] for i in k[ok]], object),
+                 "commanded_positions": q_cmd[ok]}
     elif measure == "coincidence":
         g = np.arange(n) % n_groups
         seeds = configurations(model.kin, n_groups, seed + 7)
         P, *_ = model.tool(truth_x, seeds)
         if not given:
             q = np.clip(seeds[g] + rng.normal(0, 0.35, q.shape), model.kin.lower, model.kin.upper)
+        q_cmd = q.copy()
         q = _settle(model, truth_x, q, P[g])
         p, *_ = model.tool(truth_x, q)
         ok = np.linalg.norm(p - P[g], axis=1) < 1e-10
-        table = {"joint_positions": q[ok], "group": np.array([f"socket{i}" for i in g[ok]], object)}
+        table = {"joint_positions": q[ok], "group": np.array([f"socket{i}" for i in g[ok]], object),
+                 "commanded_positions": q_cmd[ok]}
         truth_points = P
     else:
-        p, _, R, _ = model.tool(truth_x, q)
-        table = {"joint_positions": q, "position": p + rng.normal(0, noise_m, p.shape) if noise_m else p}
+        p, _, R, _ = model.tool(truth_x, q if true_joints is None else true_joints(q))
+        table = {"joint_positions": q, "position": p + rng.normal(0, noise_m, p.shape) if noise_m else p,
+                 "commanded_positions": q.copy()}
         if measure == "pose":
             rot = Rotation.from_matrix(R)
             if noise_rad:

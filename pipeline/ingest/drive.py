@@ -1,0 +1,63 @@
+"""Drive state at each measurement, from the encoder stream's optional fields (issue 18).
+
+A controller that logs its drive state puts, per sample and joint, the commanded position (rad / m)
+and the measured effort (the drive's torque on the link, N·m; N for a prismatic joint) into
+`/robot/joint_state` (`robocal.JointStateBatch` fields 7 and 8).  The diagnosis needs them at each
+measurement: the mean over the samples within ±`window_s`/2 of its time (the robot stands still
+while it is measured, so the mean lowers the drive's noise).  Vectorised: `np.searchsorted` finds
+every window, a cumulative sum gives its mean; no Python loop over measurements or samples.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.errors import RobocalError, where
+from pipeline.ingest.streams import JOINT_STATE, JointStream
+
+DEFAULT_WINDOW_S = 0.5
+COLUMNS = {"effort": "joint_efforts", "q_cmd": "commanded_positions"}  # stream field → table column
+
+
+def window_means(t_ns: np.ndarray, v: np.ndarray, t_meas_ns: np.ndarray, window_s: float = DEFAULT_WINDOW_S
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(means (m, J), samples per window (m,)) of `v` (T, J) at sorted sample times `t_ns` (T,) ns over
+    [t − w/2, t + w/2] around each measurement time (m,) ns; NaN rows where a window holds no sample."""
+    t = np.asarray(t_ns, np.int64)
+    v = np.asarray(v, float)
+    tm = np.asarray(t_meas_ns, np.int64)
+    half = int(round(window_s * 5e8))
+    a = np.searchsorted(t, tm - half, side="left")
+    b = np.searchsorted(t, tm + half, side="right")
+    n = b - a
+    csum = np.vstack([np.zeros((1, v.shape[1])), np.cumsum(v, axis=0)])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = (csum[b] - csum[a]) / n[:, None]
+    mean[n == 0] = np.nan
+    return mean, n
+
+
+def at_measurements(stream: JointStream, t_meas_ns: np.ndarray, joints: list[str], path, topic: str,
+                    window_s: float = DEFAULT_WINDOW_S) -> dict[str, np.ndarray]:
+    """{table column: (m, len(joints))} of the drive state the stream carries, in `joints` order (matched
+    by name), at each measurement; {} when it carries none.  A chain joint missing from the stream, or
+    a measurement without a drive sample in its window, is a `RobocalError` naming file and record."""
+    have = {k: getattr(stream, k) for k in COLUMNS if getattr(stream, k) is not None}
+    if not have:
+        return {}
+    missing = [j for j in joints if j not in stream.names]
+    if missing:
+        raise RobocalError(f"{where(path, JOINT_STATE)}: drive state lacks chain joint(s) {', '.join(missing)} "
+                           f"(stream joints: {', '.join(stream.names)})")
+    cols = np.array([stream.names.index(j) for j in joints], np.intp)
+    order = np.argsort(stream.t_ns, kind="stable")
+    t = stream.t_ns[order]
+    out = {}
+    for key, v in have.items():
+        mean, n = window_means(t, v[order][:, cols], t_meas_ns, window_s)
+        empty = np.flatnonzero(n == 0)
+        if empty.size:
+            raise RobocalError(f"{where(path, topic, int(empty[0]))}: no {JOINT_STATE} drive sample within "
+                               f"±{window_s / 2:g} s of the measurement")
+        out[COLUMNS[key]] = mean
+    return out

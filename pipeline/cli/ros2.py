@@ -70,7 +70,10 @@ def import_bag(bag: Path, urdf: Path, root: str, tip: str, out: Path, joint_topi
     if listed < p["n_moving"] + p["n_not_covered"]:
         err.print(f"… and {p['n_moving'] + p['n_not_covered'] - listed} more excluded (all counted in the "
                   "recording's campaign metadata)", highlight=False)
-    n = write_urdf_recording(out, desc, kind, campaign, table)
+    stream = table.pop("stream", None)
+    n = write_urdf_recording(out, desc, kind, campaign, table, stream=stream)
+    if stream is not None:
+        err.print(f"kept the efforts of {len(stream['t_ns'])} joint states in the encoder stream", highlight=False)
     err.print(f"imported {n} {kind} measurements of {len(desc.joint_names)} joints ({desc.root} → {desc.tip}) "
               f"into {out}", highlight=False, soft_wrap=True)
     return r

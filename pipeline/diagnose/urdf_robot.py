@@ -151,6 +151,7 @@ def from_recording(rec):
     stream carries drive state, ``joint_efforts`` (N·m) and ``commanded_positions`` (rad) at each
     measurement (`pipeline.ingest.drive`)."""
     from pipeline.ingest import drive, streams
+    from pipeline.recording.schemas import META_CAMPAIGN
     from pipeline.systems import urdf_robot
 
     model, table = urdf_robot.load(rec)
@@ -158,6 +159,7 @@ def from_recording(rec):
     tab = dict(table)
     tab["time_since_start_s"] = (t - t.min()) * 1e-9 if t.size else np.zeros(0)
     if rec.messages.raw.get(streams.JOINT_STATE):
+        window = rec.meta(META_CAMPAIGN).get("ros2", {}).get("pairing", {}).get("window_s", drive.DEFAULT_WINDOW_S)
         tab |= drive.at_measurements(streams.joint_stream(rec), t, list(model.kin.joint_names), rec.path,
-                                     urdf_robot.channel_for(rec))
+                                     urdf_robot.channel_for(rec), float(window))
     return model, tab, {"system": urdf_robot.SYSTEM}

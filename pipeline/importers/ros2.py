@@ -7,7 +7,9 @@ chain's joints by name (any order, other joints ignored), and ``geometry_msgs/ms
 orientations as unit quaternions x, y, z, w).  Times are the messages' ``header.stamp`` (the
 sensors' own clocks, ns), or the bag's receive times where a topic has no stamps.  Each measurement
 is paired with the joint state where the robot stood still around it (`standstill.pair`); the rest
-are reported and left out.  Every input problem is one `RobocalError` line naming the file, topic
+are reported and left out.  Where every JointState carries ``effort`` (the drive's measured torque,
+N·m; force N for a prismatic joint), the joint states go into the recording's encoder stream with
+their efforts, name-matched like the positions (`robocal.JointStateBatch` field 8), for the diagnosis.  Every input problem is one `RobocalError` line naming the file, topic
 and record.
 """
 
@@ -153,10 +155,15 @@ class _Rows:
 def read_joint_states(path: Path, topic: str, messages, joints: list[str]):
     """Every JointState of `messages` ((receive time ns, CDR bytes), streamed) that names the chain's
     joints → (header stamps ns (n,), receive times ns (n,), positions (n, J) rad/m in `joints` order,
-    report).  One naming only other joints is skipped and counted."""
+    report, efforts (n, J) N·m / N or None).  One naming only other joints is skipped and counted.
+    Efforts are kept when every used message has one per name; some with and some without, an effort
+    count that is neither 0 nor one per name, or NaN/inf is one line naming the record."""
     decode = _decoder(path, topic, JOINT_STATE)
     J = len(joints)
     Q = _Rows(J)
+    E = _Rows(J)
+    with_effort: list[int] = []  # record of the first used message with efforts, and of the first without
+    without: list[int] = []
     T = _Rows(2, np.int64)  # header stamp, receive time
     rec = _Rows(1, np.int64)  # record index on the topic
     prev: list | None = None
@@ -185,6 +192,14 @@ def read_joint_states(path: Path, topic: str, messages, joints: list[str]):
         if len(pos) != len(prev):
             raise RobocalError(f"{at(path, topic, i)}: {len(pos)} positions for {len(prev)} joint names")
         Q.append(pos[idx])
+        eff = msg.effort
+        if len(eff) == len(prev):
+            E.append(np.asarray(eff, float)[idx])
+            with_effort[:] = with_effort or [i]
+        elif len(eff) == 0:
+            without[:] = without or [i]
+        else:
+            raise RobocalError(f"{at(path, topic, i)}: {len(eff)} efforts for {len(prev)} joint names")
         T.append((_stamp(msg), log_t))
         rec.append(i)
     if n == 0:
@@ -198,7 +213,18 @@ def read_joint_states(path: Path, topic: str, messages, joints: list[str]):
         i, k = bad[0]
         raise RobocalError(f"{at(path, topic, int(r[i]))}: joint {joints[k]!r} position is NaN or inf")
     report = {"n_messages": n, "n_used": len(q), "n_skipped_other_joints": n - len(q), "ignored_joints": sorted(ignored)}
-    return t[:, 0], t[:, 1], q, report
+    effort = None
+    if with_effort and without:
+        raise RobocalError(f"{at(path, topic, without[0])}: JointState without effort, but record {with_effort[0]} "
+                           "has them (efforts are kept only when every joint state carries them)")
+    if with_effort:
+        effort = E.array()
+        bad = np.argwhere(~np.isfinite(effort))
+        if len(bad):
+            i, k = bad[0]
+            raise RobocalError(f"{at(path, topic, int(r[i]))}: joint {joints[k]!r} effort is NaN or inf")
+        report["efforts"] = True
+    return t[:, 0], t[:, 1], q, report, effort
 
 
 def read_measurements(path: Path, topic: str, typename: str, datas: list[bytes]):
@@ -243,7 +269,9 @@ def _times(stamps: np.ndarray, log, use_header: bool) -> tuple[np.ndarray, str]:
 
 def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()) -> tuple[dict, dict]:
     """(table for `write_urdf_recording`, campaign extras) of a ROS 2 bag: the paired measurements
-    (joint positions in the chain's order, rad / m; positions m; orientations x,y,z,w)."""
+    (joint positions in the chain's order, rad / m; positions m; orientations x,y,z,w); where the joint
+    states carry efforts, ``table["stream"]``: the encoder stream for `write_urdf_recording`'s `stream`
+    (t_ns (T,), q (T, J), effort (T, J) N·m)."""
     path = Path(path)
     if spec.time not in ("header", "log"):
         raise RobocalError(f"--time {spec.time!r}: expected header or log")
@@ -253,7 +281,7 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
         jt, mt, measure = choose_topics(path, topics, spec)
         joints = desc.joint_names
-        js, jlog, Q, jreport = read_joint_states(path, jt, _stream(path, reader, jt, mt, side), joints)
+        js, jlog, Q, jreport, effort = read_joint_states(path, jt, _stream(path, reader, jt, mt, side), joints)
     finally:
         reader.close()
     if not side:
@@ -267,6 +295,7 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
                         "header stamps): the pairing assumes one clock")
     order = np.argsort(tj, kind="stable")
     tj, Q = tj[order], Q[order]
+    effort = None if effort is None else effort[order]
     t0 = int(min(tj[0], tm.min()))
     pairing = standstill.pair((tj - t0) * 1e-9, Q, (tm - t0) * 1e-9, spec.window_s, spec.max_speed)
     summ = standstill.summary(pairing, (tm - t0) * 1e-9, joints)
@@ -292,4 +321,6 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         extras["n_targets"] = 1
     if warnings:
         extras["import_warnings"] = warnings
+    if effort is not None:  # the joint states with their efforts, as the recording's encoder stream
+        table["stream"] = {"t_ns": tj, "q": Q, "effort": effort}
     return table, extras

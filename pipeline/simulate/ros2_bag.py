@@ -65,8 +65,9 @@ def _header(store, t_ns: int, frame_id: str = ""):
 
 def write_bag(out: str | Path, joint_names: list[str], t_joint_s: np.ndarray, q_joint: np.ndarray,
               t_meas_s: np.ndarray, positions: np.ndarray, orientations: np.ndarray | None, layout: BagLayout,
-              storage: str = "mcap") -> Path:
-    """Write the bag folder `out` (rosbag2, `storage` mcap | sqlite3); returns its storage file."""
+              storage: str = "mcap", effort: np.ndarray | None = None) -> Path:
+    """Write the bag folder `out` (rosbag2, `storage` mcap | sqlite3); returns its storage file.
+    `effort` (n, J) N·m in chain order: each JointState's effort (0 for the extra joints); else empty."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -99,7 +100,8 @@ def write_bag(out: str | Path, joint_names: list[str], t_joint_s: np.ndarray, q_
             hdr = _header(store, 0 if topic in layout.zero_stamps else t, "" if kind == 0 else layout.frame_id)
             if kind == 0:
                 pos = np.concatenate([q_joint[i, cols], extra])
-                msg = T[JOINT_STATE](header=hdr, name=names, position=pos, velocity=empty, effort=empty)
+                eff = empty if effort is None else np.concatenate([effort[i, cols], np.zeros(extra.size)])
+                msg = T[JOINT_STATE](header=hdr, name=names, position=pos, velocity=empty, effort=eff)
                 conn, typ = cj, JOINT_STATE
             else:
                 p = T["geometry_msgs/msg/Point"](x=float(positions[i, 0]), y=float(positions[i, 1]),

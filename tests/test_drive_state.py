@@ -1,0 +1,236 @@
+"""Drive state in the encoder stream and compliance from measured joint torques (issue 18).
+
+Campaigns from the independent generator `independent_drive` (own FK of the URDF text, torques as
+∂V/∂q of the potential energy by central differences, a payload the URDF does not describe):
+the new `robocal.JointStateBatch` fields round-trip bit for bit (robocal's reader and mcap's standard
+protobuf decoder); an unmodelled payload's compliance, which the URDF inertial model gets wrong, is
+found and named from the measured torques with the held-out RMS back to the floor; a rigid robot with
+efforts gives no finding; a ROS 2 bag (rosbags' writer) with JointState.effort is imported and
+diagnosed; optional arrays of the wrong length or with NaN are one line naming file, channel, record.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+import independent_drive as gen
+from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose.urdf_robot import adapter, from_recording
+from pipeline.importers.recording import T0_NS, write_urdf_recording
+from pipeline.ingest.streams import JOINT_STATE, joint_stream
+from pipeline.models import urdf
+from pipeline.recording import joint_state_batch as JSB
+from pipeline.recording.reader import read_recording
+from pipeline.recording.writer import RecordingWriter
+from test_bad_input import assert_one_line_error
+from test_urdf_compliance import URDF
+from test_urdf_diagnose import point_campaign
+
+ROOT = Path(__file__).resolve().parents[1]
+S = Settings(n_boot=10, sign_flips=0)
+DESC = urdf.parse(URDF, "b", "l6")
+PAYLOAD_KG = 10.0  # at 5 cm along the tip's z: not in the URDF
+C_J2 = 2e-6  # rad/(N·m): ~10× the minimum detectable size of this campaign
+
+
+def bits(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a).view(np.int64)
+
+
+def cli(*args) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run([sys.executable, "-m", "pipeline", *map(str, args)], capture_output=True, text=True,
+                          env=env, timeout=600)
+
+
+def recording(path: Path, seed: int, c_j2: float, payload_kg: float = PAYLOAD_KG, efforts: bool = True, n: int = 120):
+    """Write an independent campaign (joint j2 of compliance c_j2 under the links and the payload) as a
+    URDF recording with the drive state in its stream; return (model, diagnosis table) read back."""
+    c = np.r_[0.0, c_j2, 0, 0, 0, 0]
+    model, table = point_campaign(lambda q: gen.deflected(q, c, payload_kg), seed, n, 2e-5, text=URDF)
+    q = table["joint_positions"]
+    t = T0_NS + table["timestamp_ns"]
+    stream = gen.standstill_stream(t, q, gen.holding_efforts(gen.deflected(q, c, payload_kg), payload_kg),
+                                   np.random.default_rng(seed + 99), 0.05) if efforts else None
+    tab = {"joint_positions": q, "position": table["position"], "target": table["target"], "timestamp_ns": t}
+    write_urdf_recording(path, DESC, "point", {"n_targets": 1}, tab, stream=stream)
+    model, tab, _ = from_recording(read_recording(path))
+    return model, tab
+
+
+def run(model, tab) -> dict:
+    return diagnose(model, tab, settings=S, adapter=adapter(model, tab, held=()))
+
+
+# ----- (a) the schema: round trip, independent decoder, old recordings ------------------------------
+def test_drive_state_round_trips_bit_for_bit_and_the_standard_decoder_reads_it(tmp_path):
+    rng = np.random.default_rng(3)
+    T, nj = 777, 6
+    t = T0_NS + np.cumsum(rng.integers(1, 10**7, T))
+    q, qc = rng.normal(0, 2, (T, nj)), rng.normal(0, 2, (T, nj))
+    e = rng.normal(0, 50, (T, nj))
+    e[0, 0], e[1, 1], qc[2, 2] = -0.0, 5e-324, np.finfo(float).max  # signed zero, subnormal, largest double
+    names = [f"j{i + 1}" for i in range(nj)]
+    path = tmp_path / "s.mcap"
+    with RecordingWriter(path) as w:
+        for s in range(0, T, 250):
+            w.write_batch(t[s:s + 250], q[s:s + 250], names, q_cmd=qc[s:s + 250], effort=e[s:s + 250])
+    s = joint_stream(read_recording(path))
+    assert np.array_equal(s.t_ns, t) and np.array_equal(bits(s.q), bits(q))
+    assert np.array_equal(bits(s.q_cmd), bits(qc)) and np.array_equal(bits(s.effort), bits(e))
+
+    from mcap_protobuf.decoder import DecoderFactory
+
+    rows = []
+    with open(path, "rb") as f:
+        for _, _, _, m in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=[JOINT_STATE]):
+            k = len(m.sample_offsets_ns)
+            rows.append((np.array(m.commanded_positions).reshape(k, nj), np.array(m.efforts).reshape(k, nj)))
+    assert np.array_equal(bits(np.concatenate([r[0] for r in rows])), bits(qc))
+    assert np.array_equal(bits(np.concatenate([r[1] for r in rows])), bits(e))
+
+
+def test_a_stream_without_drive_state_and_an_older_registered_schema_still_read():
+    """The bundled protobuf recording registers the schema of fields 1–6: accepted, no drive state."""
+    rec = read_recording(ROOT / "recordings" / "arc-welder-touch-pb.mcap")
+    assert not any(rec.registration.values())
+    s = joint_stream(rec)
+    assert s.q_cmd is None and s.effort is None
+    older = JSB.file_descriptor()
+    del older.message_type[0].field[6:]
+    data = JSB.D.FileDescriptorSet(file=[older]).SerializeToString()
+    assert JSB.descriptor_problem(JSB.SCHEMA_NAME, JSB.ENCODING, data) == ""
+    wrong = JSB.file_descriptor()
+    wrong.message_type[0].field[7].type = JSB._F.TYPE_FLOAT
+    assert "field 8" in JSB.descriptor_problem(JSB.SCHEMA_NAME, JSB.ENCODING,
+                                               JSB.D.FileDescriptorSet(file=[wrong]).SerializeToString())
+
+
+# ----- (b) an unmodelled payload: found from the measured torques ---------------------------------
+@pytest.mark.parametrize("seed", [0, 1])
+def test_unmodelled_payload_compliance_is_found_from_measured_torques(tmp_path, seed):
+    """j2 at 2e-6 rad/(N·m) under the links and a 10 kg payload the URDF lacks.  From the measured
+    torques: the only finding, source "measured torque", within 10 % of the truth, held-out back to
+    ≤ 1.2× the floor (the rigid robot's held-out geometric fit).  The URDF inertial model on the same
+    measurements (efforts dropped) misjudges it: its j2 compliance is > 50 % off or it needs other terms."""
+    model, tab = recording(tmp_path / "p.mcap", seed, C_J2)
+    assert tab["joint_efforts"].shape == tab["joint_positions"].shape
+    floor = run(*recording(tmp_path / "c.mcap", seed, 0.0))["holdout_rms_before_m"]
+    doc = run(model, tab)
+    (f,) = doc["findings"]
+    assert (f["effect"], f["location"], f["source"]) == ("joint_compliance", "j2", "measured torque")
+    assert abs(f["parameters"][0]["value"] / C_J2 - 1) < 0.1, f["parameters"]
+    assert doc["holdout_rms_after_m"] <= 1.2 * floor
+    inertial = run(model, {k: v for k, v in tab.items() if k not in ("joint_efforts", "commanded_positions")})
+    j2 = [g for g in inertial["findings"] if (g["effect"], g["location"]) == ("joint_compliance", "j2")]
+    assert all(g["source"] == "URDF inertials" for g in j2)
+    assert not j2 or abs(j2[0]["parameters"][0]["value"] / C_J2 - 1) > 0.5 or len(inertial["findings"]) > 1
+
+
+# ----- (c) a rigid robot with efforts: no finding ----------------------------------------------------
+@pytest.mark.parametrize("seed", [2, 3])
+def test_rigid_robot_with_efforts_gives_no_finding(tmp_path, seed):
+    model, tab = recording(tmp_path / "c.mcap", seed, 0.0)
+    doc = run(model, tab)
+    assert doc["findings"] == [], doc["findings"]
+    assert any(c["effect"] == "joint_compliance" for c in doc["candidates"])
+
+
+# ----- (d) a ROS 2 bag with JointState.effort --------------------------------------------------------
+def test_ros2_bag_with_efforts_is_imported_and_diagnosed(tmp_path):
+    """Stops of the compliant robot with the payload, written by rosbags' writer with each JointState's
+    effort (joint names in another order plus a gripper joint); imported with `robocal import ros2`:
+    the efforts are in the recording's stream, name-matched, and the diagnosis names j2's compliance
+    from the measured torque."""
+    from pipeline.measurements.point import PointModel
+    from pipeline.models.urdf_arm import UrdfArm
+    from pipeline.plan.urdf_robot import configurations
+    from pipeline.simulate.ros2_bag import BagLayout, timeline, write_bag
+
+    arm = UrdfArm(DESC)
+    model = PointModel(arm)
+    rng = np.random.default_rng(5)
+    truth = model.nominal() + rng.normal(0, 5e-4, len(model.nominal()))
+    truth[model.parameter_names().index("tool.z")] = 0.05
+    c = np.r_[0.0, C_J2, 0, 0, 0, 0]
+    stops = configurations(arm, 120, 6)
+    q_true = gen.deflected(stops, c, PAYLOAD_KG)
+    p, *_ = model.tool(truth, q_true)
+    layout = BagLayout(rate_hz=50.0, move_s=0.5, dwell_s=0.6, name_order=(5, 4, 3, 2, 1, 0),
+                       extra_joints={"finger": 0.01})
+    t, q, t_meas, _ = timeline(stops, layout)
+    _, effort, _, _ = timeline(gen.holding_efforts(q_true, PAYLOAD_KG), layout)
+    effort = effort + rng.normal(0, 0.05, effort.shape)
+    bag = tmp_path / "bag"
+    write_bag(bag, DESC.joint_names, t, q, t_meas, p + rng.normal(0, 2e-5, p.shape), None, layout, effort=effort)
+    robot = tmp_path / "r.urdf"
+    robot.write_text(URDF)
+    out = tmp_path / "r.mcap"
+    proc = cli("import", "ros2", bag, "--urdf", robot, "--root", "b", "--tip", "l6", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    assert "kept the efforts" in proc.stderr
+    s = joint_stream(read_recording(out))
+    assert s.names == tuple(DESC.joint_names) and s.effort.shape == s.q.shape
+    model, tab, _ = from_recording(read_recording(out))
+    assert np.allclose(-tab["joint_efforts"][:, 1], -gen.holding_efforts(q_true, PAYLOAD_KG)[:, 1], atol=0.05)
+    doc = run(model, tab)
+    (f,) = doc["findings"]
+    assert (f["effect"], f["location"], f["source"]) == ("joint_compliance", "j2", "measured torque")
+    assert abs(f["parameters"][0]["value"] / C_J2 - 1) < 0.1
+
+
+def test_ros2_bag_with_nan_effort_is_one_line(tmp_path):
+    from pipeline.simulate.ros2_bag import BagLayout, timeline, write_bag
+
+    stops = np.zeros((3, 6)) + np.r_[0, 0.3, 0.2, 0, 0.1, 0]
+    layout = BagLayout(rate_hz=20.0, move_s=0.5, dwell_s=0.6)
+    t, q, t_meas, _ = timeline(stops, layout)
+    effort = np.ones_like(q)
+    effort[7, 3] = np.nan
+    bag = tmp_path / "bag"
+    write_bag(bag, DESC.joint_names, t, q, t_meas, np.zeros((3, 3)), None, layout, effort=effort)
+    robot = tmp_path / "r.urdf"
+    robot.write_text(URDF)
+    assert_one_line_error(cli("import", "ros2", bag, "--urdf", robot, "--root", "b", "--tip", "l6",
+                              "--out", tmp_path / "r.mcap"), "/joint_states: record 7", "'j4' effort is NaN")
+
+
+# ----- (e) bad optional arrays: one line naming the record --------------------------------------------
+@pytest.mark.parametrize("field,edit,why", [
+    ("efforts", lambda m: m.efforts.extend([1.0] * 5), "efforts has 5 values, expected 250 samples × 6 joints"),
+    ("commanded_positions", lambda m: m.commanded_positions.extend([0.0] * 1499 + [float("nan")]),
+     "commanded_positions hold NaN or inf"),
+])
+def test_bad_drive_arrays_are_one_line_naming_file_channel_record(tmp_path, field, edit, why):
+    """Message 1 of a recording's stream carries a drive array of the wrong length or a NaN: validate
+    names it (schema check), and diagnose stops with one line naming file, channel and record."""
+    src = tmp_path / "ok.mcap"
+    recording(src, 4, 0.0, n=12)
+    rec = read_recording(src)
+    raw = list(rec.messages.raw[JOINT_STATE])
+    assert len(raw) == 3
+    m = JSB.JointStateBatch.FromString(raw[1])
+    m.ClearField(field)
+    edit(m)
+    raw[1] = m.SerializeToString()
+    assert JSB.bad_records(raw) == [(1, why)]
+    bad = tmp_path / "bad.mcap"
+    from pipeline.recording.schemas import META_CAMPAIGN, META_URDF, STREAM
+
+    with RecordingWriter(bad) as w:
+        for name in (META_URDF, META_CAMPAIGN):
+            w.metadata(name, rec.metadata[name])
+        for body in rec.messages["/measure/point"]:
+            w.write("/measure/point", body)
+        for i, body in enumerate(raw):
+            t = JSB.JointStateBatch.FromString(body).timestamp_ns
+            w._add(STREAM, w.channel(STREAM), t, t, body)
+    assert_one_line_error(cli("diagnose", bad, "--out", tmp_path / "d"), str(bad), f"channel {JOINT_STATE}",
+                          "record 1", why.split(" values")[0].split(" hold")[0])

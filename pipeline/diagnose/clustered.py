@@ -344,10 +344,10 @@ def sign_flip_elimination(W: Whitener, r: np.ndarray, Jw: np.ndarray, S: list[np
                           cluster: np.ndarray, m: int, alpha: float, draws: int,
                           seed: int) -> tuple[list[int], dict, list[int]]:
     """Backward elimination of the accepted blocks under the restricted wild cluster bootstrap
-    (`stepwise.cluster_sign_flip_p`, whitened problem): while Holm's step-down over a family of m
+    (`sign_flips.cluster_sign_flip_p`, whitened problem): while Holm's step-down over a family of m
     does not reject every block given the others, drop the least significant.  Returns (kept,
     {kept block: Holm-adjusted p}, dropped blocks)."""
-    from pipeline.diagnose.stepwise import cluster_sign_flip_p
+    from pipeline.diagnose.sign_flips import cluster_sign_flip_p
 
     rw = W(r)
     Sw = {i: W(S[i]) for i in accepted}

@@ -14,7 +14,9 @@ true tip by D·θ in {W}):
 - ``thermal_growth``: every D-H length (a, d) grows by ε·L·t (1/s), or by ε·L·ΔT (1/K) when a
   temperature is recorded — the tip moves by ε·t·Σ L ∂p/∂L, pose-dependent, unlike the rigid
   `thermal_drift`; and as a first-order warm-up, ε·L·(1 − e^(−t/τ)) (1), τ on a grid over the
-  campaign's duration T (T/8, T/4, T/2, T): ``links (warm-up τ = T/4)`` (τ in s: the finding's ``form``) — the forms of one family,
+  campaign's duration T (T/8, T/4, T/2, T): ``links (warm-up τ = T/4)`` (τ in s: the finding's ``form``); and the
+  same warm-ups with one growth fraction per link (each joint's a and d of nominal length ≥ 1 mm):
+  ``links (warm-up τ = T/4, per link)`` — the links that warm need not be all the links.  The forms of one family:
   the held-out error chooses among them (`forms`);
 - ``face_tilt`` (per face, m/m along each in-plane axis) and ``face_flatness`` (per face, m/m²,
   a bowl about the face's contacts' centre): the face is not the plane of the drawing (the
@@ -32,6 +34,8 @@ from pipeline.models import serial_arm
 
 NEIGHBOURS = ((0, 1), (1, 0), (1, 2), (2, 1), (2, 3), (3, 2))
 WARM_UP_FRACTIONS = (0.125, 0.25, 0.5, 1.0)  # τ / campaign duration of the warm-up forms
+MIN_LINK_M = 1e-3  # a link whose nominal D-H a and d are shorter than this grows by nothing measurable
+LONG_LINK_FRACTION = 1 / 3  # a long link: at least this fraction of the longest (`link_groups`)
 PLAUSIBLE = {"joint_coupling": 1e-2, "joint_coupling_quadratic": 1e-2, "thermal_growth_warm_up": 1e-3, "coupling_difference": 1e-2, "thermal_growth": 1e-6,
              "thermal_growth_K": 5e-5, "face_tilt": 2e-3, "face_flatness": 0.1, "wire_stickout": 1e-6}
 ADVICE = {
@@ -89,6 +93,30 @@ def _warm_up(tau_s: float):
         w = 1.0 - np.exp(-np.asarray(t["time_since_start_s"], float) / tau_s)
         return (w[:, None] * _length_columns(arm, x, np.asarray(t["joint_positions"], float)))[:, :, None]
     return basis
+
+
+def _group_columns(x: np.ndarray, q: np.ndarray, groups: tuple[tuple[int, ...], ...]) -> np.ndarray:
+    """(n, 3, len(groups)) m: per group of joints, Σ L·∂p/∂L over their D-H a and d (θ, d, a, α, β per joint)."""
+    _, J = serial_arm.tip_jacobian(x, q)
+    x = np.asarray(x, float)
+    idx = [[6 + 5 * j + m for j in g for m in (1, 2)] for g in groups]
+    return np.stack([np.einsum("nip,p->ni", J[:, :, ix], x[ix]) for ix in idx], axis=2)
+
+
+def _warm_up_groups(tau_s: float, groups: tuple[tuple[int, ...], ...]):
+    def basis(arm, x, t):
+        w = 1.0 - np.exp(-np.asarray(t["time_since_start_s"], float) / tau_s)
+        return w[:, None, None] * _group_columns(x, np.asarray(t["joint_positions"], float), groups)
+    return basis
+
+
+def link_groups(arm) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """(long, short) joint indices: the links whose nominal D-H length (|a| + |d|) is at least
+    `LONG_LINK_FRACTION` of the longest (the upper arm and forearm of an anthropomorphic arm), the others
+    of length ≥ `MIN_LINK_M`."""
+    L = np.array([abs(j.a) + abs(j.d) for j in arm.joints])
+    long_ = tuple(int(j) for j in np.flatnonzero(L >= LONG_LINK_FRACTION * L.max()))
+    return long_, tuple(int(j) for j in np.flatnonzero((L >= MIN_LINK_M) & (L < LONG_LINK_FRACTION * L.max())))
 
 
 def _in_plane(arm, x, t, face: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -167,6 +195,17 @@ def more_effects(arm, table: Table, min_on_face: int = 8) -> list[Effect]:
             lib.append(Effect("thermal_growth", f"links (warm-up τ = {'T' if frac == 1 else f'T/{1 / frac:.0f}'})", ("growth_warm_up",), ("1",),
                               P["thermal_growth_warm_up"], "tip", _warm_up(tau), 73, "time",
                               ADVICE["thermal_growth"], data={"form": {"tau_s": tau, "campaign_duration_s": span}}))
+        # the same warm-ups of the long links alone (the links that warm need not be all the links; a
+        # growth per link or per group is beyond the campaign's detectable size): forms of the same family,
+        # kept only when the held-out error asks for them (`forms`)
+        long_, short = link_groups(arm)
+        for frac in WARM_UP_FRACTIONS if span > 0 and long_ and short else ():
+            tau = frac * span
+            lib.append(Effect("thermal_growth", f"links (warm-up τ = {'T' if frac == 1 else f'T/{1 / frac:.0f}'}, "
+                              "long links)", ("growth_warm_up_long",), ("1",),
+                              P["thermal_growth_warm_up"], "tip", _warm_up_groups(tau, (long_,)), 73, "time",
+                              ADVICE["thermal_growth"], data={"form": {
+                                  "tau_s": tau, "campaign_duration_s": span, "links": [J[j] for j in long_]}}))
     if "time_since_start_s" in table or lookup:
         lib.append(Effect("wire_stickout", "wire", ("stickout_rate",), ("m/s",), P["wire_stickout"], "tip", _stickout,
                           76, "time", ADVICE["wire_stickout"]))

@@ -33,7 +33,7 @@ is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at
   fits of any set and the tests of every block or pair against it, no refits.
 
 The code lives in one module per concept (this module re-exports it): `projection` (orthonormal
-bases), `gate` (detectability), `stepwise` (selection, look-alikes, sign-flip checks), `clustered`
+bases), `gate` (detectability), `stepwise` (selection, look-alikes), `sign_flips` (the cluster sign-flip checks), `clustered`
 (pose-clustered inference and the physical cluster-error model).
 """
 
@@ -44,7 +44,9 @@ from pipeline.diagnose.projection import (  # noqa: F401
 from pipeline.diagnose.gate import (  # noqa: F401
     POWER_Z, RANK_REL, CONFOUND, Gate, _unit, _share, _explained, absorbing_parameters, _gate_parts, gate, sigma_given)
 from pipeline.diagnose.stepwise import (  # noqa: F401
-    Step, _batches, _single_batches, _pair_batches, _Design, _conditional, forward_select, _holm_steps, conditional_steps, wild_cluster_p, look_alikes, cluster_sign_flip_p)
+    Step, _batches, _single_batches, _pair_batches, _Design, _conditional, forward_select, _holm_steps, conditional_steps, look_alikes)
+from pipeline.diagnose.sign_flips import (  # noqa: F401
+    wild_cluster_p, cluster_sign_flip_p)
 from pipeline.diagnose.clustered import (  # noqa: F401
     Whitener, NoiseModel, noise_components, _covariance_and_scale, measurement_covariance, measurement_whitener, cluster_whitener, PhysicalModel, _cluster_gram, _block_columns, physical_components, physical_whitener,
     sign_flip_elimination)

@@ -36,3 +36,55 @@ def test_own_recordings_and_empty_files_are_replaced(tmp_path):
     up.write_text("a text file")
     r = run_cli("simulate", "arc-welder", "--out", up)
     assert r.returncode != 0 and up.read_text() == "a text file"
+
+
+def test_plan_and_compensate_never_overwrite_a_foreign_json_or_csv(tmp_path):
+    """`robocal plan … --out` and `robocal compensate … --out`: someone else's file (a JSON with other
+    keys, a CSV with other columns, a campaign-looking file without robocal's mark) is left byte for byte."""
+    robot = tmp_path / "r6.urdf"
+    robot.write_text(URDF)
+    targets = tmp_path / "targets.csv"
+    targets.write_text("x,y,z\n0.5,0.0,0.3\n")
+    foreign = {"plan.json": '{"measurements": [], "note": "mine"}\n', "program.csv": "row,name,status\n1,a,ok\n",
+               "old.json": '{"system": "urdf", "kind": "campaign"}\n'}
+    for name, text in foreign.items():
+        f = tmp_path / name
+        f.write_text(text)
+        before = f.read_bytes()
+        if name.endswith(".csv"):
+            args = ("compensate", tmp_path, "--targets", targets, "--out", f)
+        else:
+            args = ("plan", "urdf", "--urdf", robot, "--root", "b", "--tip", "l6", "--candidates", "50", "--select", "10",
+                    "--out", f)
+        r = run_cli(*args)
+        assert r.returncode != 0, (name, r.stdout)
+        assert "was not written by robocal" in r.stderr and "Traceback" not in r.stderr, r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1 and name in r.stderr
+        assert f.read_bytes() == before
+
+
+def test_own_plans_and_programs_are_recognised_and_replaced(tmp_path):
+    import numpy as np
+
+    from pipeline.compensate import program as pg
+    from pipeline.compensate.serial import Compensated
+
+    robot = tmp_path / "r6.urdf"
+    robot.write_text(URDF)
+    out = tmp_path / "plan.json"
+    for seed in ("0", "1"):  # a new file, then robocal's own plan (another selection) over it
+        r = run_cli("plan", "urdf", "--urdf", robot, "--root", "b", "--tip", "l6", "--candidates", "50", "--select", "10",
+                    "--seed", seed, "--out", out)
+        assert r.returncode == 0, r.stderr
+        assert written_by_robocal(out) and out.read_text().lstrip("{ \n").startswith('"generator": "robocal/')
+    # robocal's program CSV (the writer `robocal compensate` uses) carries its own header
+    n = 3
+    c = Compensated(q=np.zeros((n, 2)), q_nominal=np.zeros((n, 2)), p_corrected=np.zeros((n, 3)),
+                    R_corrected=np.repeat(np.eye(3)[None], n, 0), status=np.array(["ok"] * n),
+                    correction_m=np.zeros(n), sigma_min_m=np.ones(n), error_m=np.zeros(n))
+    prog = tmp_path / "program.csv"
+    pg.write_program(prog, c, {"names": ["a", "b", "c"], "R": None}, ["j1", "j2"], np.zeros(n))
+    assert written_by_robocal(prog)
+    other = tmp_path / "other.csv"
+    other.write_text(prog.read_text().replace("model_error_m", "my_column"))
+    assert not written_by_robocal(other)

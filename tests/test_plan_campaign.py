@@ -177,3 +177,37 @@ def test_delta_pose_campaign_is_planned_executed_and_calibrated(tmp_path):
     (tmp_path / "bad.json").write_text(json.dumps(bad))
     r = run_cli("simulate", "delta-tracker", "--campaign", tmp_path / "bad.json", "--out", tmp_path / "x.mcap")
     assert r.returncode == 2 and "not a delta-tracker pose campaign" in r.stderr
+
+
+def test_planned_campaign_with_an_effect_is_executed_and_diagnose_finds_it(tmp_path):
+    """`simulate arc-welder --campaign C.json --effect …`: the planned searches run on the true robot
+    with the effect (misses still logged as misses), and `robocal diagnose` names and sizes it."""
+    c, rec, truth = tmp_path / "c.json", tmp_path / "r.mcap", tmp_path / "t.json"
+    assert run_cli("plan", "arc-welder", "--select", "120", "--seed", "1", "--out", c).returncode == 0
+    r = run_cli("simulate", "arc-welder", "--campaign", c, "--effect", "joint_scale=1e-3@J3", "--out", rec,
+                "--truth", truth)
+    assert r.returncode == 0, r.stderr
+    t = json.loads(truth.read_text())
+    assert t["effects"] == [{"name": "joint_scale", "location": "J3", "values": [1e-3]}]
+    ex = t["campaign_execution"]
+    got = read_recording(rec).messages
+    assert len(got["/touch/contact"]) == ex["landed"] > 60 and len(got["/touch/miss"]) == ex["missed"] > 0
+    assert ex["landed"] + ex["missed"] == 120
+    r = run_cli("diagnose", rec, "--out", tmp_path / "d")
+    assert r.returncode == 0, r.stderr
+    found = json.loads((tmp_path / "d" / "diagnosis.json").read_text())["findings"]
+    assert [(f["effect"], f["location"]) for f in found] == [("joint_scale", "J3")]
+    est = found[0]["parameters"][0]
+    assert abs(est["value"] - 1e-3) < max(0.2e-3, 4 * est["std"])
+    # the same campaign without the effect: nothing to find
+    rec0 = tmp_path / "r0.mcap"
+    assert run_cli("simulate", "arc-welder", "--campaign", c, "--search-speeds", "0.01", "--out", rec0).returncode == 0
+    assert run_cli("diagnose", rec0, "--out", tmp_path / "d0").returncode == 0
+    assert json.loads((tmp_path / "d0" / "diagnosis.json").read_text())["findings"] == []
+
+
+def test_payload_pairs_do_not_combine_with_a_campaign(planned, tmp_path):
+    out = tmp_path / "r.mcap"
+    r = run_cli("simulate", "arc-welder", "--campaign", planned, "--payloads", "0,6", "--payload-pairs", "--out", out)
+    assert r.returncode != 0 and "--payload-pairs" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()

@@ -22,10 +22,12 @@ def compensate_cmd(
 
     from pipeline.compensate import program as pg
     from pipeline.errors import RobocalError
+    from pipeline.recording.output import check_output
     from pipeline.stages.artefacts import write_json
 
     if out.resolve() == targets.resolve():
         raise RobocalError(f"{out}: --out would overwrite the targets file")
+    check_output(out, "program")  # never over a file robocal did not create (its own programs are replaced)
     run = pg.load_run(run_dir)
     names = pg.joint_names(run["model"])
     tg = pg.read_targets(targets, names)

@@ -25,6 +25,17 @@ def candidate_module(system: str):
         raise RobocalError(f"no pose candidates for system {system!r} yet (pipeline/plan/{name}.py)") from None
 
 
+def write_plan(out: Path, doc: dict) -> None:
+    """The plan / campaign JSON, robocal's generator its first key (`recording.output`: robocal may
+    replace it later; it never replaces a file it did not create)."""
+    from pipeline.recording.output import GENERATOR, check_output
+    from pipeline.stages.artefacts import write_json
+
+    check_output(out, "plan")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_json(out, {"generator": GENERATOR, **{k: v for k, v in doc.items() if k != "generator"}})
+
+
 @app.command("plan")
 def plan_cmd(
     system: str = typer.Argument(..., help="System, e.g. arc-welder."),
@@ -51,18 +62,19 @@ def plan_cmd(
     For the arc welder the output is an executable campaign (schemas/campaign.schema.json)."""
     import numpy as np
 
+    from pipeline.recording.output import check_output
+
+    check_output(out, "plan")  # before any work: never over a file robocal did not create
     if system == "urdf":
         return plan_urdf(urdf, root, tip, measure, candidates, select_m, out, seed, check)
     if hasattr(candidate_module(system), "touch_campaign"):
         from pipeline.plan.arc_welder import touch_campaign
-        from pipeline.stages.artefacts import write_json
 
         if check:
             err.print("[yellow]--check is not run for touch campaigns: benchmarks/bench_plan_campaign.py executes "
                       "planned and random campaigns on the true robot[/]")
         doc = touch_campaign(candidates, select_m, seed, margin, stages, first_stage, after)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        write_json(out, doc)
+        write_plan(out, doc)
         p = [m.get("landing_probability", 1.0) for m in doc["measurements"]]
         err.print(f"stage {doc['stage']} of {doc['stages']}: {len(doc['measurements'])} measurements planned from "
                   f"{doc['n_candidates']} candidates in {doc['selection_s']:.3f} s; predicted landing probability "
@@ -76,7 +88,6 @@ def plan_cmd(
     from pipeline.identify.model import take
     from pipeline.plan.doptimal import logdet_info, scale
     from pipeline.plan.select import compare, plan
-    from pipeline.stages.artefacts import write_json
 
     mod = candidate_module(system)
     with err.status(f"generating {candidates} candidates…"):
@@ -89,8 +100,7 @@ def plan_cmd(
                "free_parameters": [n for n, f in zip(model.parameter_names(), free) if f],
                "logdet": sel.logdet, "greedy_logdet": sel.greedy_logdet, "exchanges": sel.exchanges,
                "selection_s": sel.elapsed_s, **mod.pose_campaign(table, sel.index)}
-        out.parent.mkdir(parents=True, exist_ok=True)
-        write_json(out, doc)
+        write_plan(out, doc)
         err.print(f"selected {select_m} of {candidates} candidate poses in {sel.elapsed_s:.3f} s (log det "
                   f"{sel.logdet:.2f}; greedy {sel.greedy_logdet:.2f}; {sel.exchanges} exchanges)")
         print(out)
@@ -124,8 +134,7 @@ def plan_cmd(
     if hasattr(mod, "pose_campaign"):  # an executable campaign (schemas/campaign.schema.json)
         doc = {"kind": "robocal.campaign", "version": 1, **doc, "stage": 1, "stages": 1,
                **mod.pose_campaign(table, s.index)}
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json(out, doc)
+    write_plan(out, doc)
     err.print(f"selected {select_m} of {len(As)} candidates in {s.elapsed_s:.3f} s "
               f"(log det {s.logdet:.2f}; greedy {s.greedy_logdet:.2f}; {s.exchanges} exchanges; "
               f"median of 20 random sets {np.median(rand):.2f}); O1 {p.observability['O1']:.4f}")
@@ -147,7 +156,6 @@ def plan_urdf(urdf: Path | None, root: str | None, tip: str | None, measure: str
     from pipeline.models.urdf_arm import UrdfArm
     from pipeline.plan import urdf_robot as pu
     from pipeline.plan.select import compare, plan
-    from pipeline.stages.artefacts import write_json
     from pipeline.systems.urdf_robot import model_for
 
     if urdf is None or root is None or tip is None:
@@ -183,8 +191,7 @@ def plan_urdf(urdf: Path | None, root: str | None, tip: str | None, measure: str
 
         with err.status(f"checking against {check} random sets on a simulated truth…"):
             doc["check"] = compare(model, cand, test, select_m, n_random=check, seed=seed, error=tip_error)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json(out, doc)
+    write_plan(out, doc)
     err.print(f"{desc.name} ({root} → {tip}), {measure}: selected {select_m} of {candidates} configurations in "
               f"{s.elapsed_s:.3f} s (log det {s.logdet:.2f}; {len(doc['free_parameters'])} free parameters); "
               f"O1 {p.observability['O1']:.4g}", highlight=False)

@@ -56,12 +56,15 @@ def arc_welder_cmd(
     if start:
         campaign = replace(campaign, start_ns=_start_ns(start))
     jig = stepped_block()
-    if campaign_file:
-        _run_campaign(out, truth, nominal, true, jig, campaign_file, noise, seed)
-        return
     thermal = (warm_up, temperature_sensor)
-    if (effect or payloads or search_speeds or face_order != "shuffled" or warm_up or temperature_sensor
-            or payload_pairs):
+    effects = (effect or payloads or search_speeds or face_order != "shuffled" or warm_up or temperature_sensor
+               or payload_pairs)
+    if campaign_file:  # a planned campaign on the true robot, with the effects when any are asked for
+        _run_campaign(out, truth, nominal, true, jig, campaign_file, noise, seed, robot_id,
+                      _effect_options(effect, payloads, search_speeds, face_order, thermal, payload_pairs) if effects
+                      else None)
+        return
+    if effects:
         _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
                       thermal, payload_pairs, robot_id)  # the effects simulator (issue 7)
         return
@@ -107,18 +110,27 @@ def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc
 
 
 def _run_campaign(out: Path, truth: Path | None, nominal, true, jig, campaign_files: list[Path], noise,
-                  seed: int) -> None:
-    """Execute planned campaign files, back to back, on the true robot (`pipeline.simulate.campaign_run`)."""
+                  seed: int, robot_id: str = "sim-arc-welder", effects: tuple | None = None) -> None:
+    """Execute planned campaign files, back to back, on the true robot (`pipeline.simulate.campaign_run`);
+    `effects` (injected, variations) puts library effects into the true robot as `_with_effects` does."""
+    from pipeline.errors import RobocalError
     from pipeline.plan.campaign import concat, read
+    from pipeline.simulate import effects as se
     from pipeline.simulate.arc_welder import truth_document
+    from pipeline.simulate.campaign_run import execute, execute_with_effects
     from pipeline.systems import arc_welder as aw
 
     plan = concat([read(f, aw.SYSTEM, nominal.n_joints, jig) for f in campaign_files])
     campaign_file = ", ".join(str(f) for f in campaign_files)
-    from pipeline.simulate.campaign_run import execute
-
     with err.status(f"executing {plan.n} planned contacts…"):
-        ex = execute(nominal, true, jig, plan, noise, seed)
+        if effects is None:
+            ex, es, extra = execute(nominal, true, jig, plan, noise, seed), None, []
+        else:
+            try:
+                es, ex = execute_with_effects(nominal, true, jig, plan, noise, seed, *effects)
+            except (ValueError, RuntimeError) as e:
+                raise RobocalError(f"{campaign_file}: {e}") from None
+            extra = es.temperature.messages() if es.temperature is not None else []
     sim = ex.sim
     camp = replace(plan.campaign, contacts=int(sim.contact_t_ns.size), seed=seed)
     meta = {"campaign_file": str(campaign_file), "planned": plan.n, "landed": int(ex.landed.sum()),
@@ -127,18 +139,21 @@ def _run_campaign(out: Path, truth: Path | None, nominal, true, jig, campaign_fi
         "campaign_execution": {**meta, "land_rate": ex.land_rate,
                                "misses": [{"index": int(i), "face": plan.face_id[i], "reason": r}
                                           for i, r in zip(ex.miss_index, ex.miss_reason)]}}
-    _write(out, truth, nominal, jig, camp, sim, doc, meta, ex.miss_messages())
+    if es is not None:
+        doc |= se.truth_effects(es)
+        meta = se.campaign_metadata(es, camp) | meta | {"robot_id": robot_id}
+    _write(out, truth, nominal, jig, camp, sim, doc, meta, ex.miss_messages() + list(extra))
     err.print(f"wrote {out}: {plan.n} planned contacts, {meta['landed']} landed, {meta['missed']} missed "
-              f"(logged on /touch/miss); {sim.stream_t_ns.size} encoder samples")
+              f"(logged on /touch/miss); {sim.stream_t_ns.size} encoder samples"
+              + (f"; {len(effects[0])} concealed effect(s)" if effects else ""))
 
 
-def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
-                  thermal_opts: tuple[str, bool] = ("", False), payload_pairs: bool = False,
-                  robot_id: str = "sim-arc-welder") -> None:
-    """Campaign with concealed effects and campaign variations (`pipeline.simulate.effects`)."""
+def _effect_options(effect, payloads, search_speeds, face_order, thermal_opts, payload_pairs,
+                    planned: bool = True) -> tuple:
+    """(injected effects, Variations) from the command's options (one-line errors); `planned`: for a
+    campaign file (which fixes the targets: no --payload-pairs)."""
     from pipeline.errors import RobocalError
     from pipeline.simulate import effects as se
-    from pipeline.simulate.arc_welder import truth_document
     from pipeline.simulate.thermal import parse_warm_up
 
     def floats(text: str, what: str) -> tuple[float, ...]:
@@ -150,10 +165,26 @@ def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, paylo
     try:
         injected = [se.parse_effect(e) for e in effect]
         warm = parse_warm_up(thermal_opts[0])
-        var = se.Variations(payloads_kg=floats(payloads, "--payloads"),
-                            search_speeds_m_s=floats(search_speeds, "--search-speeds"), face_order=face_order,
-                            warm_up=(warm.tau_s, warm.rise_k) if warm else (), temperature_sensor=thermal_opts[1],
-                            payload_pairs=payload_pairs)
+    except ValueError as e:
+        raise RobocalError(str(e)) from None
+    if payload_pairs and planned:
+        raise RobocalError("--payload-pairs chooses its own targets; it does not combine with --campaign")
+    return injected, se.Variations(payloads_kg=floats(payloads, "--payloads"),
+                                   search_speeds_m_s=floats(search_speeds, "--search-speeds"), face_order=face_order,
+                                   warm_up=(warm.tau_s, warm.rise_k) if warm else (),
+                                   temperature_sensor=thermal_opts[1], payload_pairs=payload_pairs)
+
+
+def _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
+                  thermal_opts: tuple[str, bool] = ("", False), payload_pairs: bool = False,
+                  robot_id: str = "sim-arc-welder") -> None:
+    """Campaign with concealed effects and campaign variations (`pipeline.simulate.effects`)."""
+    from pipeline.errors import RobocalError
+    from pipeline.simulate import effects as se
+    from pipeline.simulate.arc_welder import truth_document
+
+    injected, var = _effect_options(effect, payloads, search_speeds, face_order, thermal_opts, payload_pairs, False)
+    try:
         if payload_pairs and len(var.payloads_kg) < 2:
             raise ValueError("--payload-pairs needs two or more --payloads (e.g. --payloads 0,6)")
         with err.status(f"planning {campaign.contacts} contacts…"):

@@ -1,25 +1,32 @@
-"""Where robocal may write a recording: a new path, an empty file, or a recording robocal wrote.
+"""Where robocal may write a file the user named: a new path, an empty file, or a file robocal wrote.
 
 robocal never overwrites a file it did not create: an existing non-empty file is replaced only
-when it is an MCAP whose header names robocal as the writing library (every robocal writer sets
-`library` to "robocal/<version>…").  Anything else is a one-line error."""
+when robocal's own mark is at its start —
+* a recording: an MCAP whose header names robocal as the writing library (every robocal writer
+  sets `library` to "robocal/<version>…");
+* a JSON document (plan / campaign files): its first key is `"generator": "robocal/<version>"`
+  (or `"kind": "robocal.…"`, the campaign files written before the generator key);
+* a CSV (compensated programs): robocal's program header (`"row","name","status",` … ending in
+  `"predicted_sigma_m","correction_m","sigma_min_m","model_error_m"`).
+Anything else is a one-line error naming the file."""
 
 from __future__ import annotations
 
+import re
 import struct
 from pathlib import Path
 
+from pipeline import __version__
 from pipeline.errors import RobocalError
 from pipeline.recording.framing import MAGIC
 
+GENERATOR = f"robocal/{__version__}"  # the first key of every JSON document robocal writes for the user
+PROGRAM_HEADER_START = b'"row","name","status",'
+PROGRAM_HEADER_END = b'"predicted_sigma_m","correction_m","sigma_min_m","model_error_m"'
+_JSON_MARK = re.compile(rb'^\s*\{\s*"(?:generator|kind)"\s*:\s*"robocal[./]')
 
-def written_by_robocal(path: Path) -> bool:
-    """True when `path` starts with an MCAP header record whose library is robocal's."""
-    try:
-        with open(path, "rb") as f:
-            head = f.read(4096)
-    except OSError:
-        return False
+
+def _mcap_by_robocal(head: bytes) -> bool:
     if not head.startswith(MAGIC) or len(head) < 17 or head[8] != 0x01:
         return False
     try:
@@ -33,11 +40,27 @@ def written_by_robocal(path: Path) -> bool:
     return library.startswith("robocal")
 
 
-def check_output(path: str | Path) -> Path:
-    """`path` if robocal may write a recording there, else RobocalError (see module docstring)."""
+def _csv_by_robocal(head: bytes) -> bool:
+    first = head.split(b"\n", 1)[0].rstrip(b"\r")
+    return first.startswith(PROGRAM_HEADER_START) and first.endswith(PROGRAM_HEADER_END)
+
+
+def written_by_robocal(path: Path) -> bool:
+    """True when `path` starts with robocal's mark: an MCAP header whose library is robocal's, a
+    JSON document whose first key is robocal's generator, or robocal's program CSV header."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+    except OSError:
+        return False
+    return _mcap_by_robocal(head) or bool(_JSON_MARK.match(head)) or _csv_by_robocal(head)
+
+
+def check_output(path: str | Path, what: str = "recording") -> Path:
+    """`path` if robocal may write its `what` there, else RobocalError (see module docstring)."""
     p = Path(path)
     if p.is_dir():
-        raise RobocalError(f"{p}: is a folder; give the recording's file name")
+        raise RobocalError(f"{p}: is a folder; give the {what}'s file name")
     if p.exists() and p.stat().st_size > 0 and not written_by_robocal(p):
         raise RobocalError(f"{p}: exists and was not written by robocal; robocal never overwrites a file it did "
                            "not create (choose another output path)")

@@ -102,3 +102,34 @@ def execute(nominal: SerialArm, truth: SerialArm, jig: Jig, plan: TouchCampaign,
     names = {1: "no_contact", 2: "contact_at_approach"}
     return Executed(sim=sim, landed=hit, miss_index=m, miss_reason=[names[int(r)] for r in reason[m]],
                     miss_t_ns=t_end[m], miss_q=q_end[m], sim_faces=list(plan.face_id))
+
+
+def execute_with_effects(nominal: SerialArm, truth: SerialArm, jig: Jig, plan: TouchCampaign, noise: Noise,
+                         seed: int, injected, variations) -> tuple:
+    """Run a planned campaign on a true robot *with* library effects (`pipeline.simulate.effects`,
+    `run(planned=True)`): every planned search, in the plan's order (or blocked by face), the
+    effects in the contacts.  Returns (EffectSim, Executed).  Simplification: a miss takes no time
+    on the timeline; it is logged just after the contact before it, with the encoders at the end of
+    its search (at the approach pose when the wire already touched there)."""
+    from pipeline.simulate import effects as se
+
+    ids = [f.id for f in jig.faces]
+    face = np.array([ids.index(f) for f in plan.face_id], int)
+    sign = np.array([jig.faces[f].normal_sign for f in face], float)
+    targets = se.Targets(face, plan.q_approach, plan.dq, plan.axis, sign)
+    camp = replace(plan.campaign, contacts=plan.n, seed=seed)
+    es = se.run(nominal, truth, jig, targets, camp, noise, injected, variations, planned=True)
+    landed = np.zeros(plan.n, bool)
+    landed[es.kept] = True
+    m = np.flatnonzero(~landed)
+    _, reason, _ = landing(truth.vector(), jig, face[m], plan.q_approach[m], plan.dq[m], camp.search_travel_m)
+    at_approach = reason == 2
+    q_end = plan.q_approach[m] + np.where(at_approach, 0.0, camp.search_travel_m)[:, None] * plan.dq[m]
+    t_c = es.sim.contact_t_ns
+    ks = np.argsort(es.kept)
+    before = np.searchsorted(es.kept[ks], m) - 1  # the contact of the plan's row just before each miss
+    t_miss = np.where(before >= 0, t_c[ks[np.maximum(before, 0)]] + 1_000_000, es.sim.stream_t_ns[0])
+    ex = Executed(sim=es.sim, landed=landed, miss_index=m,
+                  miss_reason=["contact_at_approach" if a else "no_contact" for a in at_approach],
+                  miss_t_ns=t_miss, miss_q=q_end, sim_faces=list(plan.face_id))
+    return es, ex

@@ -200,6 +200,7 @@ class EffectSim:
     variations: Variations
     face_errors_m: dict[str, float] = field(default_factory=dict)
     temperature: thermal.Readings | None = None  # the /arm/temperature channel, when a sensor is logged
+    kept: np.ndarray | None = None  # indices of the targets (as given) that ran to a contact, in contact order
 
 
 def _resolve(injected, arm, jig):
@@ -215,8 +216,10 @@ def _resolve(injected, arm, jig):
 
 def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campaign: Campaign = Campaign(),
         noise: Noise = Noise(), injected: tuple[Injected, ...] | list[Injected] = (),
-        variations: Variations = Variations(), seed: int | None = None) -> EffectSim:
-    """Run the contact searches on planned targets with the effects in the true robot."""
+        variations: Variations = Variations(), seed: int | None = None, planned: bool = False) -> EffectSim:
+    """Run the contact searches on planned targets with the effects in the true robot.  `planned`:
+    the targets are an executed campaign — every one is run, those that find no contact are
+    misses (`EffectSim.kept` says which ran to a contact), `campaign.contacts` is ignored."""
     rng = np.random.default_rng(campaign.seed + 7919 if seed is None else seed)
     xt = truth.vector()
     k = noise.scale
@@ -260,8 +263,10 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
     good, s1 = _touches(Targets(faces, q_a, dq, axis, sign), xt, jig, campaign, eps, c_true)
     pairs = bool(variations.payload_pairs and variations.payloads_kg)
     n_points = -(-campaign.contacts // len(variations.payloads_kg)) if pairs else campaign.contacts
-    keep = np.flatnonzero(good)[:n_points]
-    if keep.size < n_points:
+    keep = np.flatnonzero(good)[:n_points] if not planned else np.flatnonzero(good)
+    if planned and (pairs or not keep.size):
+        raise RuntimeError("a planned campaign runs its own targets (no --payload-pairs), and needs one that lands")
+    if keep.size < n_points and not planned:
         raise RuntimeError(f"only {keep.size} of {n_points} targets touch the jig; plan more targets")
     payload_idx = None
     if pairs:  # block b of points, touched with payload 0, then 1, …: [b0·p0, b0·p1, b1·p0, b1·p1, …]
@@ -316,7 +321,7 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
                     contact_face=list(ids[keep]), contact_axis=axis[keep], contact_coordinate=coord,
                     injected_along_normal_m=injected_n, face_errors_m=face_err, dropped_targets=int(m - n))
     return EffectSim(sim=sim, payload_schedule=payload_schedule, search_speeds=speeds, injected=list(injected),
-                     variations=variations, face_errors_m=face_err,
+                     variations=variations, face_errors_m=face_err, kept=order[keep],
                      temperature=_thermal_readings(variations, t_ns, campaign.seed + 7919 if seed is None else seed, k))
 
 

@@ -145,11 +145,11 @@ def adapter(model, table, held: tuple[str, ...] | None = None):
                    located=lambda e: e.data.get("located"))
 
 
-def from_recording(rec):
+def from_recording(rec, stream=None):
     """(model, diagnosis table, info) of a URDF recording: its measurements with the time since
     the first one (the measurement order where a table came without times) and, where the encoder
     stream carries drive state, ``joint_efforts`` (N·m) and ``commanded_positions`` (rad) at each
-    measurement (`pipeline.ingest.drive`)."""
+    measurement (`pipeline.ingest.drive`).  `stream`: the encoder stream when already decoded."""
     from pipeline.ingest import drive, streams
     from pipeline.recording.schemas import META_CAMPAIGN
     from pipeline.systems import urdf_robot
@@ -158,8 +158,10 @@ def from_recording(rec):
     t = np.asarray(table["timestamp_ns"], np.int64)
     tab = dict(table)
     tab["time_since_start_s"] = (t - t.min()) * 1e-9 if t.size else np.zeros(0)
-    if rec.messages.raw.get(streams.JOINT_STATE):
+    if stream is None and rec.messages.raw.get(streams.JOINT_STATE):
+        stream = streams.joint_stream(rec)
+    if stream is not None:
         window = rec.meta(META_CAMPAIGN).get("ros2", {}).get("pairing", {}).get("window_s", drive.DEFAULT_WINDOW_S)
-        tab |= drive.at_measurements(streams.joint_stream(rec), t, list(model.kin.joint_names), rec.path,
+        tab |= drive.at_measurements(stream, t, list(model.kin.joint_names), rec.path,
                                      urdf_robot.channel_for(rec), float(window))
     return model, tab, {"system": urdf_robot.SYSTEM}

@@ -234,3 +234,19 @@ def test_bad_drive_arrays_are_one_line_naming_file_channel_record(tmp_path, fiel
             w._add(STREAM, w.channel(STREAM), t, t, body)
     assert_one_line_error(cli("diagnose", bad, "--out", tmp_path / "d"), str(bad), f"channel {JOINT_STATE}",
                           "record 1", why.split(" values")[0].split(" hold")[0])
+
+
+def test_the_ingest_stage_keeps_the_drive_state_for_later_stages(tmp_path):
+    """`encoder.parquet` carries the efforts and commanded positions bit for bit; the diagnosis table built
+    from it (as the diagnose stage does) equals the one built from the MCAP."""
+    from pipeline.stages.ingest import read_encoder
+    from pipeline.stages.runner import run_pipeline
+
+    src = tmp_path / "r.mcap"
+    recording(src, 6, C_J2, n=20)
+    run_pipeline(src, tmp_path / "run", stages=["ingest"])
+    s, direct = read_encoder(tmp_path / "run"), joint_stream(read_recording(src))
+    assert np.array_equal(bits(s.effort), bits(direct.effort)) and np.array_equal(bits(s.q_cmd), bits(direct.q_cmd))
+    _, a, _ = from_recording(read_recording(src), s)
+    _, b, _ = from_recording(read_recording(src))
+    assert np.array_equal(bits(a["joint_efforts"]), bits(b["joint_efforts"]))

@@ -250,3 +250,28 @@ def test_the_ingest_stage_keeps_the_drive_state_for_later_stages(tmp_path):
     _, a, _ = from_recording(read_recording(src), s)
     _, b, _ = from_recording(read_recording(src))
     assert np.array_equal(bits(a["joint_efforts"]), bits(b["joint_efforts"]))
+
+
+def test_simulate_urdf_drive_writes_the_true_robots_efforts(tmp_path):
+    """`robocal simulate urdf --drive --compliance --payload-kg`: a gap-free stream whose efforts at each
+    measurement are the independent generator's holding torques at the deflected joints (links and the
+    payload), to the effort noise; commanded = read at standstill; bad options are one line."""
+    robot = tmp_path / "r.urdf"
+    robot.write_text(URDF)
+    out, truth = tmp_path / "s.mcap", tmp_path / "t.json"
+    args = ("simulate", "urdf", "--urdf", robot, "--root", "b", "--tip", "l6", "--poses", 30, "--seed", 2)
+    proc = cli(*args, "--out", out, "--truth", truth, "--drive", "--compliance", "j2=3e-6",
+               "--payload-kg", 7, "--payload-com", "0.02,0,0.06")
+    assert proc.returncode == 0, proc.stderr
+    model, tab, _ = from_recording(read_recording(out))
+    c = np.r_[0.0, 3e-6, 0, 0, 0, 0]
+    want = gen.holding_efforts(gen.deflected(tab["joint_positions"], c, 7.0, (0.02, 0, 0.06)), 7.0, (0.02, 0, 0.06))
+    assert np.abs(tab["joint_efforts"] - want).max() < 0.02  # 0.05 N·m per sample, 125 samples a mean
+    assert np.allclose(tab["commanded_positions"], tab["joint_positions"], rtol=0, atol=1e-12)
+    s = joint_stream(read_recording(out))
+    assert np.diff(s.t_ns).max() <= 5 * np.median(np.diff(s.t_ns))  # no gaps for validate to warn about
+    import json
+    assert json.loads(truth.read_text())["compliance_rad_per_Nm"]["j2"] == 3e-6
+    assert_one_line_error(cli(*args, "--out", tmp_path / "x.mcap", "--compliance", "j9=1e-6"), "--compliance", "j9")
+    assert_one_line_error(cli(*args, "--out", tmp_path / "y.mcap", "--payload-kg", 3, "--measure", "plane"),
+                          "--measure point or pose")

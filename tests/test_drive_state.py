@@ -54,7 +54,7 @@ K_NM_PER_A = np.array([40.0, 60.0, 50.0, 20.0, 20.0, 10.0])  # torque constants 
 
 
 def recording(path: Path, seed: int, c_j2: float, payload_kg: float = PAYLOAD_KG, efforts: bool = True, n: int = 120,
-              currents: bool = False, campaign: dict | None = None):
+              currents: bool = False, campaign: dict | None = None, desc=DESC):
     """Write an independent campaign (joint j2 of compliance c_j2 under the links and the payload) as a
     URDF recording with the drive state in its stream (efforts, or with `currents` motor currents =
     effort / K_NM_PER_A instead); return (model, diagnosis table) read back."""
@@ -67,7 +67,7 @@ def recording(path: Path, seed: int, c_j2: float, payload_kg: float = PAYLOAD_KG
     if currents:
         stream["current"] = stream.pop("effort") / K_NM_PER_A
     tab = {"joint_positions": q, "position": table["position"], "target": table["target"], "timestamp_ns": t}
-    write_urdf_recording(path, DESC, "point", {"n_targets": 1, **(campaign or {})}, tab, stream=stream)
+    write_urdf_recording(path, desc, "point", {"n_targets": 1, **(campaign or {})}, tab, stream=stream)
     model, tab, _ = from_recording(read_recording(path))
     return model, tab
 
@@ -141,6 +141,21 @@ def test_unmodelled_payload_compliance_is_found_from_measured_torques(tmp_path, 
     j2 = [g for g in inertial["findings"] if (g["effect"], g["location"]) == ("joint_compliance", "j2")]
     assert all(g["source"] == "URDF inertials" for g in j2)
     assert not j2 or abs(j2[0]["parameters"][0]["value"] / C_J2 - 1) > 0.5 or len(inertial["findings"]) > 1
+
+
+def test_a_urdf_without_inertials_gets_compliance_only_from_measured_torques(tmp_path):
+    """The same robot described by a URDF with no `<inertial>` at all: the inertial model has no compliance
+    candidate (nothing to find it with), the measured torques find j2 within 10 %."""
+    from test_urdf_plan import URDF as BARE
+
+    bare = urdf.parse(BARE, "b", "l6")
+    model, tab = recording(tmp_path / "b.mcap", 3, C_J2, desc=bare)
+    (f,) = run(model, tab)["findings"]
+    assert (f["effect"], f["location"], f["source"]) == ("joint_compliance", "j2", "measured torque")
+    assert abs(f["parameters"][0]["value"] / C_J2 - 1) < 0.1
+    blind = run(model, {k: v for k, v in tab.items() if k not in ("joint_efforts", "commanded_positions")})
+    assert not any(c["effect"] == "joint_compliance" for c in blind["candidates"])
+    assert not any(g["effect"] == "joint_compliance" for g in blind["findings"])
 
 
 # ----- (c) a rigid robot with efforts: no finding ----------------------------------------------------

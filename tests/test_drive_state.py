@@ -50,17 +50,24 @@ def cli(*args) -> subprocess.CompletedProcess:
                           env=env, timeout=600)
 
 
-def recording(path: Path, seed: int, c_j2: float, payload_kg: float = PAYLOAD_KG, efforts: bool = True, n: int = 120):
+K_NM_PER_A = np.array([40.0, 60.0, 50.0, 20.0, 20.0, 10.0])  # torque constants at the joints (N·m/A)
+
+
+def recording(path: Path, seed: int, c_j2: float, payload_kg: float = PAYLOAD_KG, efforts: bool = True, n: int = 120,
+              currents: bool = False, campaign: dict | None = None, desc=DESC):
     """Write an independent campaign (joint j2 of compliance c_j2 under the links and the payload) as a
-    URDF recording with the drive state in its stream; return (model, diagnosis table) read back."""
+    URDF recording with the drive state in its stream (efforts, or with `currents` motor currents =
+    effort / K_NM_PER_A instead); return (model, diagnosis table) read back."""
     c = np.r_[0.0, c_j2, 0, 0, 0, 0]
     model, table = point_campaign(lambda q: gen.deflected(q, c, payload_kg), seed, n, 2e-5, text=URDF)
     q = table["joint_positions"]
     t = T0_NS + table["timestamp_ns"]
     stream = gen.standstill_stream(t, q, gen.holding_efforts(gen.deflected(q, c, payload_kg), payload_kg),
-                                   np.random.default_rng(seed + 99), 0.05) if efforts else None
+                                   np.random.default_rng(seed + 99), 0.05) if efforts or currents else None
+    if currents:
+        stream["current"] = stream.pop("effort") / K_NM_PER_A
     tab = {"joint_positions": q, "position": table["position"], "target": table["target"], "timestamp_ns": t}
-    write_urdf_recording(path, DESC, "point", {"n_targets": 1}, tab, stream=stream)
+    write_urdf_recording(path, desc, "point", {"n_targets": 1, **(campaign or {})}, tab, stream=stream)
     model, tab, _ = from_recording(read_recording(path))
     return model, tab
 
@@ -75,16 +82,18 @@ def test_drive_state_round_trips_bit_for_bit_and_the_standard_decoder_reads_it(t
     T, nj = 777, 6
     t = T0_NS + np.cumsum(rng.integers(1, 10**7, T))
     q, qc = rng.normal(0, 2, (T, nj)), rng.normal(0, 2, (T, nj))
-    e = rng.normal(0, 50, (T, nj))
+    e, i = rng.normal(0, 50, (T, nj)), rng.normal(0, 3, (T, nj))
     e[0, 0], e[1, 1], qc[2, 2] = -0.0, 5e-324, np.finfo(float).max  # signed zero, subnormal, largest double
     names = [f"j{i + 1}" for i in range(nj)]
     path = tmp_path / "s.mcap"
     with RecordingWriter(path) as w:
         for s in range(0, T, 250):
-            w.write_batch(t[s:s + 250], q[s:s + 250], names, q_cmd=qc[s:s + 250], effort=e[s:s + 250])
+            w.write_batch(t[s:s + 250], q[s:s + 250], names, q_cmd=qc[s:s + 250], effort=e[s:s + 250],
+                          current=i[s:s + 250])
     s = joint_stream(read_recording(path))
     assert np.array_equal(s.t_ns, t) and np.array_equal(bits(s.q), bits(q))
     assert np.array_equal(bits(s.q_cmd), bits(qc)) and np.array_equal(bits(s.effort), bits(e))
+    assert np.array_equal(bits(s.current), bits(i))
 
     from mcap_protobuf.decoder import DecoderFactory
 
@@ -92,9 +101,9 @@ def test_drive_state_round_trips_bit_for_bit_and_the_standard_decoder_reads_it(t
     with open(path, "rb") as f:
         for _, _, _, m in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=[JOINT_STATE]):
             k = len(m.sample_offsets_ns)
-            rows.append((np.array(m.commanded_positions).reshape(k, nj), np.array(m.efforts).reshape(k, nj)))
-    assert np.array_equal(bits(np.concatenate([r[0] for r in rows])), bits(qc))
-    assert np.array_equal(bits(np.concatenate([r[1] for r in rows])), bits(e))
+            rows.append([np.array(v).reshape(k, nj) for v in (m.commanded_positions, m.efforts, m.motor_currents)])
+    for col, want in enumerate((qc, e, i)):
+        assert np.array_equal(bits(np.concatenate([r[col] for r in rows])), bits(want))
 
 
 def test_a_stream_without_drive_state_and_an_older_registered_schema_still_read():
@@ -132,6 +141,21 @@ def test_unmodelled_payload_compliance_is_found_from_measured_torques(tmp_path, 
     j2 = [g for g in inertial["findings"] if (g["effect"], g["location"]) == ("joint_compliance", "j2")]
     assert all(g["source"] == "URDF inertials" for g in j2)
     assert not j2 or abs(j2[0]["parameters"][0]["value"] / C_J2 - 1) > 0.5 or len(inertial["findings"]) > 1
+
+
+def test_a_urdf_without_inertials_gets_compliance_only_from_measured_torques(tmp_path):
+    """The same robot described by a URDF with no `<inertial>` at all: the inertial model has no compliance
+    candidate (nothing to find it with), the measured torques find j2 within 10 %."""
+    from test_urdf_plan import URDF as BARE
+
+    bare = urdf.parse(BARE, "b", "l6")
+    model, tab = recording(tmp_path / "b.mcap", 3, C_J2, desc=bare)
+    (f,) = run(model, tab)["findings"]
+    assert (f["effect"], f["location"], f["source"]) == ("joint_compliance", "j2", "measured torque")
+    assert abs(f["parameters"][0]["value"] / C_J2 - 1) < 0.1
+    blind = run(model, {k: v for k, v in tab.items() if k not in ("joint_efforts", "commanded_positions")})
+    assert not any(c["effect"] == "joint_compliance" for c in blind["candidates"])
+    assert not any(g["effect"] == "joint_compliance" for g in blind["findings"])
 
 
 # ----- (c) a rigid robot with efforts: no finding ----------------------------------------------------
@@ -234,3 +258,67 @@ def test_bad_drive_arrays_are_one_line_naming_file_channel_record(tmp_path, fiel
             w._add(STREAM, w.channel(STREAM), t, t, body)
     assert_one_line_error(cli("diagnose", bad, "--out", tmp_path / "d"), str(bad), f"channel {JOINT_STATE}",
                           "record 1", why.split(" values")[0].split(" hold")[0])
+
+
+def test_the_ingest_stage_keeps_the_drive_state_for_later_stages(tmp_path):
+    """`encoder.parquet` carries the efforts and commanded positions bit for bit; the diagnosis table built
+    from it (as the diagnose stage does) equals the one built from the MCAP."""
+    from pipeline.stages.ingest import read_encoder
+    from pipeline.stages.runner import run_pipeline
+
+    src = tmp_path / "r.mcap"
+    recording(src, 6, C_J2, n=20)
+    run_pipeline(src, tmp_path / "run", stages=["ingest"])
+    s, direct = read_encoder(tmp_path / "run"), joint_stream(read_recording(src))
+    assert np.array_equal(bits(s.effort), bits(direct.effort)) and np.array_equal(bits(s.q_cmd), bits(direct.q_cmd))
+    _, a, _ = from_recording(read_recording(src), s)
+    _, b, _ = from_recording(read_recording(src))
+    assert np.array_equal(bits(a["joint_efforts"]), bits(b["joint_efforts"]))
+
+
+def test_simulate_urdf_drive_writes_the_true_robots_efforts(tmp_path):
+    """`robocal simulate urdf --drive --compliance --payload-kg`: a gap-free stream whose efforts at each
+    measurement are the independent generator's holding torques at the deflected joints (links and the
+    payload), to the effort noise; commanded = read at standstill; bad options are one line."""
+    robot = tmp_path / "r.urdf"
+    robot.write_text(URDF)
+    out, truth = tmp_path / "s.mcap", tmp_path / "t.json"
+    args = ("simulate", "urdf", "--urdf", robot, "--root", "b", "--tip", "l6", "--poses", 30, "--seed", 2)
+    proc = cli(*args, "--out", out, "--truth", truth, "--drive", "--compliance", "j2=3e-6",
+               "--payload-kg", 7, "--payload-com", "0.02,0,0.06")
+    assert proc.returncode == 0, proc.stderr
+    model, tab, _ = from_recording(read_recording(out))
+    c = np.r_[0.0, 3e-6, 0, 0, 0, 0]
+    want = gen.holding_efforts(gen.deflected(tab["joint_positions"], c, 7.0, (0.02, 0, 0.06)), 7.0, (0.02, 0, 0.06))
+    assert np.abs(tab["joint_efforts"] - want).max() < 0.02  # 0.05 N·m per sample, 125 samples a mean
+    assert np.allclose(tab["commanded_positions"], tab["joint_positions"], rtol=0, atol=1e-12)
+    s = joint_stream(read_recording(out))
+    assert np.diff(s.t_ns).max() <= 5 * np.median(np.diff(s.t_ns))  # no gaps for validate to warn about
+    import json
+    assert json.loads(truth.read_text())["compliance_rad_per_Nm"]["j2"] == 3e-6
+    assert_one_line_error(cli(*args, "--out", tmp_path / "x.mcap", "--compliance", "j9=1e-6"), "--compliance", "j9")
+    assert_one_line_error(cli(*args, "--out", tmp_path / "y.mcap", "--payload-kg", 3, "--measure", "plane"),
+                          "--measure point or pose")
+
+
+# ----- motor currents: per ampere, or through the campaign's torque constants -------------------------
+def test_compliance_from_motor_currents_per_ampere_and_with_torque_constants(tmp_path):
+    """Currents only (effort / k, k per joint): without torque constants j2's compliance is fitted per
+    ampere (c·k, rad/A, source "motor current"); with the campaign's `torque_constants_Nm_per_A` the
+    currents become torques at ingest and c itself is found (source "motor current × torque constant");
+    a constant missing for a chain joint is one line."""
+    model, tab = recording(tmp_path / "i.mcap", 0, C_J2, currents=True)
+    assert "joint_efforts" not in tab and tab["joint_currents"].shape == tab["joint_positions"].shape
+    (f,) = run(model, tab)["findings"]
+    assert (f["effect"], f["location"], f["source"]) == ("joint_compliance", "j2", "motor current")
+    assert f["parameters"][0]["unit"] == "rad/A" and abs(f["parameters"][0]["value"] / (C_J2 * 60.0) - 1) < 0.1
+    k = dict(zip(DESC.joint_names, K_NM_PER_A.tolist()))
+    model, tab = recording(tmp_path / "k.mcap", 0, C_J2, currents=True, campaign={"torque_constants_Nm_per_A": k})
+    (f,) = run(model, tab)["findings"]
+    assert (f["location"], f["source"]) == ("j2", "motor current × torque constant")
+    assert f["parameters"][0]["unit"] == "rad/(N*m)" and abs(f["parameters"][0]["value"] / C_J2 - 1) < 0.1
+    bad = tmp_path / "b.mcap"
+    with pytest.raises(Exception, match="torque_constants_Nm_per_A has no finite value for j2, j3"):
+        recording(bad, 1, 0.0, n=12, currents=True, campaign={"torque_constants_Nm_per_A": {"j1": 40.0}})
+    assert_one_line_error(cli("diagnose", bad, "--out", tmp_path / "d"), str(bad), "torque_constants_Nm_per_A",
+                          "j2, j3, j4, j5, j6")

@@ -80,7 +80,7 @@ def urdf_cmd(
         tau = urdf_drive.true_torques(desc, qr if true_joints is None else true_joints(qr), payload)
         table["timestamp_ns"] = T0_NS + np.arange(len(qr), dtype=np.int64) * 1_000_000_000
         stream = urdf_drive.drive_stream(table["timestamp_ns"], qr, table["commanded_positions"], -tau,
-                                         np.random.default_rng(seed + 1), effort_noise)
+                                         np.random.default_rng(seed + 1), effort_noise, dwell_s=1.0)  # no gaps
     camp: dict = {"simulated": True, "robot_id": f"{desc.name}-sim-{seed}"}
     if campaign_file is not None:
         camp["campaign_file"] = str(campaign_file)

@@ -53,7 +53,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
     if detect(rec).SYSTEM == "urdf":
         from pipeline.diagnose import urdf_robot as durdf
 
-        model, tab, _ = durdf.from_recording(rec)
+        model, tab, _ = durdf.from_recording(rec, stream)
         if drop_records:
             tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
         if x0 is not None and len(x0) != len(model.parameter_names()):

@@ -12,6 +12,9 @@ a joint reading, whatever the measurement type —
   where the encoder stream carries measured efforts (``joint_efforts``, the drive's torque on the
   link at standstill, N·m) the torque is the measured one instead, τ = −effort (source "measured
   torque"): it includes payloads and tools the URDF does not describe, and needs no inertials;
+  motor currents (``joint_currents``, A) serve the same way, converted with the campaign's torque
+  constants where it states them (source "motor current × torque constant"), else fitted per ampere
+  (``J.compliance_per_ampere``, rad/A = c·k, source "motor current");
 
 and the lack-of-fit test against smooth functions of every joint reading and of the measurement
 order, which locates structure no term names.  Each effect's signature is the residual's
@@ -27,7 +30,8 @@ from pipeline.diagnose import lack_of_fit
 from pipeline.diagnose.effects import Effect
 from pipeline.diagnose.urdf_gravity import gravity_torques, inertials
 
-PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3, "joint_compliance": 1e-4}
+PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3, "joint_compliance": 1e-4,
+             "joint_compliance_per_ampere": 1e-2}  # rad/A: 1e-4 rad/(N·m) × a torque constant up to 100 N·m/A
 ADVICE = {
     "joint_compliance": "measure the same points with the arm stretched and folded (gravity torque varied)",
     "joint_scale": "measure over a wider range of this joint's travel",
@@ -68,25 +72,42 @@ def library(model, table) -> list[Effect]:
                               ("rad", "rad"), PLAUSIBLE["encoder_eccentricity"], "direct", ("eccentricity", j), 40,
                               f"q_{jt.name}", ADVICE["encoder_eccentricity"],
                               data={"located": (f"{jt.name} (rad)", q[:, j])}))
-    measured = "joint_efforts" in table
-    if measured or inertials(model.kin.desc):
+    kind = _torque_kind(model, table)
+    if kind is not None:
+        what, what_unit, basis, source, par, unit, plausible = kind
         tau = load_torques(model, table)
-        what, kind, source = (("measured torque", "compliance_measured", "measured torque") if measured else
-                              ("gravity torque", "compliance", "URDF inertials"))
         for j, jt in enumerate(joints):
             if jt.type != "prismatic" and np.ptp(tau[:, j]) > 0:
-                lib.append(Effect("joint_compliance", jt.name, (f"{jt.name}.compliance",), ("rad/(N*m)",),
-                                  PLAUSIBLE["joint_compliance"], "direct", (kind, j), 10, f"q_{jt.name}",
-                                  ADVICE["joint_compliance"],
-                                  data={"located": (f"{what} on {jt.name} (N·m)", tau[:, j]), "source": source}))
+                lib.append(Effect("joint_compliance", jt.name, (f"{jt.name}.{par}",), (unit,), plausible, "direct",
+                                  (basis, j), 10, f"q_{jt.name}", ADVICE["joint_compliance"],
+                                  data={"located": (f"{what} on {jt.name} ({what_unit})", tau[:, j]), "source": source}))
     return lib
 
 
+def _torque_kind(model, table) -> tuple | None:
+    """(located variable, its unit, basis, source, parameter, unit, plausible) of the compliance candidates: from the
+    measured torque, the motor current, the URDF inertials — the first the table / URDF has — or None."""
+    if "joint_efforts" in table:
+        source = str(table["torque_source"][0]) if "torque_source" in table else "measured torque"
+        return ("measured torque", "N·m", "compliance_measured", source, "compliance", "rad/(N*m)",
+                PLAUSIBLE["joint_compliance"])
+    if "joint_currents" in table:
+        return ("motor current", "A", "compliance_current", "motor current", "compliance_per_ampere", "rad/A",
+                PLAUSIBLE["joint_compliance_per_ampere"])
+    if inertials(model.kin.desc):
+        return ("gravity torque", "N·m", "compliance", "URDF inertials", "compliance", "rad/(N*m)",
+                PLAUSIBLE["joint_compliance"])
+    return None
+
+
 def load_torques(model, data) -> np.ndarray:
-    """The torque (n, J) N·m each joint's compliance acts on: the measured one, −effort (the drive holds
-    the link against its load), where the table has ``joint_efforts``; else the URDF's gravity torques."""
+    """The torque (n, J) each joint's compliance acts on: the measured one, −effort N·m (the drive holds
+    the link against its load), where the table has ``joint_efforts``; else −current (A) where it has
+    ``joint_currents``; else the URDF's gravity torques (N·m)."""
     if "joint_efforts" in data:
         return -np.asarray(data["joint_efforts"], float)
+    if "joint_currents" in data:
+        return -np.asarray(data["joint_currents"], float)
     return gravity_torques(model.kin.desc, np.asarray(data["joint_positions"], float))
 
 
@@ -145,11 +166,11 @@ def adapter(model, table, held: tuple[str, ...] | None = None):
                    located=lambda e: e.data.get("located"))
 
 
-def from_recording(rec):
+def from_recording(rec, stream=None):
     """(model, diagnosis table, info) of a URDF recording: its measurements with the time since
     the first one (the measurement order where a table came without times) and, where the encoder
     stream carries drive state, ``joint_efforts`` (N·m) and ``commanded_positions`` (rad) at each
-    measurement (`pipeline.ingest.drive`)."""
+    measurement (`pipeline.ingest.drive`).  `stream`: the encoder stream when already decoded."""
     from pipeline.ingest import drive, streams
     from pipeline.recording.schemas import META_CAMPAIGN
     from pipeline.systems import urdf_robot
@@ -158,8 +179,15 @@ def from_recording(rec):
     t = np.asarray(table["timestamp_ns"], np.int64)
     tab = dict(table)
     tab["time_since_start_s"] = (t - t.min()) * 1e-9 if t.size else np.zeros(0)
-    if rec.messages.raw.get(streams.JOINT_STATE):
+    if stream is None and rec.messages.raw.get(streams.JOINT_STATE):
+        stream = streams.joint_stream(rec)
+    if stream is not None:
         window = rec.meta(META_CAMPAIGN).get("ros2", {}).get("pairing", {}).get("window_s", drive.DEFAULT_WINDOW_S)
-        tab |= drive.at_measurements(streams.joint_stream(rec), t, list(model.kin.joint_names), rec.path,
+        tab |= drive.at_measurements(stream, t, list(model.kin.joint_names), rec.path,
                                      urdf_robot.channel_for(rec), float(window))
+        k = rec.meta(META_CAMPAIGN).get(drive.TORQUE_CONSTANTS)
+        if "joint_currents" in tab and "joint_efforts" not in tab and k is not None:
+            tab["joint_efforts"] = drive.efforts_from_currents(tab["joint_currents"], list(model.kin.joint_names),
+                                                               k if isinstance(k, dict) else {}, rec.path)
+            tab["torque_source"] = np.full(len(t), "motor current × torque constant", object)
     return model, tab, {"system": urdf_robot.SYSTEM}

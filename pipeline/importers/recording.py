@@ -23,8 +23,8 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
     """Write `table` (rows: ``joint_positions`` (n, n_joints) in the chain's joint order, plus
     the type's columns: ``position`` (n,3), ``target`` (n,), ``orientation`` (n,4) xyzw,
     ``plane``/``group`` (n,) names; optional ``timestamp_ns``) to `out`.  With `stream` (``t_ns`` (T,)
-    sorted, ns; ``q`` (T, n_joints) rad / m; optional drive state ``q_cmd`` rad / m and ``effort``
-    N·m / N, (T, n_joints), chain order) also the encoder stream, `batch` samples a message.
+    sorted, ns; ``q`` (T, n_joints) rad / m; optional drive state ``q_cmd`` rad / m, ``effort``
+    N·m / N and ``current`` A, (T, n_joints), chain order) also the encoder stream, `batch` samples a message.
     Returns rows written."""
     q = np.asarray(table["joint_positions"], float)
     n = len(q)
@@ -52,5 +52,6 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
                 sl = slice(s, s + batch)
                 w.write_batch(ts[sl], np.asarray(stream["q"])[sl], desc.joint_names,
                               q_cmd=None if stream.get("q_cmd") is None else np.asarray(stream["q_cmd"])[sl],
-                              effort=None if stream.get("effort") is None else np.asarray(stream["effort"])[sl])
+                              effort=None if stream.get("effort") is None else np.asarray(stream["effort"])[sl],
+                              current=None if stream.get("current") is None else np.asarray(stream["current"])[sl])
     return n

@@ -1,8 +1,10 @@
 """Drive state at each measurement, from the encoder stream's optional fields (issue 18).
 
-A controller that logs its drive state puts, per sample and joint, the commanded position (rad / m)
-and the measured effort (the drive's torque on the link, N·m; N for a prismatic joint) into
-`/robot/joint_state` (`robocal.JointStateBatch` fields 7 and 8).  The diagnosis needs them at each
+A controller that logs its drive state puts, per sample and joint, the commanded position (rad / m),
+the measured effort (the drive's torque on the link, N·m; N for a prismatic joint) and the motor
+current (A) into `/robot/joint_state` (`robocal.JointStateBatch` fields 7, 8 and 9).  A current is a
+torque only through the joint's torque constant k (N·m/A: motor constant × gear ratio, referred to the
+joint), which no URDF carries: `efforts_from_currents` converts where the campaign states k per joint.  The diagnosis needs them at each
 measurement: the mean over the samples within ±`window_s`/2 of its time (the robot stands still
 while it is measured, so the mean lowers the drive's noise).  Vectorised: `np.searchsorted` finds
 every window, a cumulative sum gives its mean; no Python loop over measurements or samples.
@@ -16,7 +18,8 @@ from pipeline.errors import RobocalError, where
 from pipeline.ingest.streams import JOINT_STATE, JointStream
 
 DEFAULT_WINDOW_S = 0.5
-COLUMNS = {"effort": "joint_efforts", "q_cmd": "commanded_positions"}  # stream field → table column
+COLUMNS = {"effort": "joint_efforts", "q_cmd": "commanded_positions", "current": "joint_currents"}  # field → column
+TORQUE_CONSTANTS = "torque_constants_Nm_per_A"  # campaign metadata: {joint: N·m at the joint per A of motor current}
 
 
 def window_means(t_ns: np.ndarray, v: np.ndarray, t_meas_ns: np.ndarray, window_s: float = DEFAULT_WINDOW_S
@@ -61,3 +64,13 @@ def at_measurements(stream: JointStream, t_meas_ns: np.ndarray, joints: list[str
                                f"±{window_s / 2:g} s of the measurement")
         out[COLUMNS[key]] = mean
     return out
+
+
+def efforts_from_currents(currents: np.ndarray, joints: list[str], constants: dict, path) -> np.ndarray:
+    """Efforts (m, J) N·m = k_j · current_j (A) with the campaign's torque constants k (N·m/A) per joint;
+    a chain joint without a finite k is a `RobocalError` naming the file and the metadata field."""
+    bad = [j for j in joints if not isinstance(constants.get(j), (int, float)) or not np.isfinite(constants[j])]
+    if bad:
+        raise RobocalError(f"{path}: metadata robocal.campaign: {TORQUE_CONSTANTS} has no finite value for "
+                           f"{', '.join(bad)} (N·m/A for every chain joint)")
+    return np.asarray(currents, float) * np.array([float(constants[j]) for j in joints])

@@ -15,7 +15,9 @@ Units: times ns since the Unix epoch, positions rad (row-major, sample × joint)
 Optional drive state (issue 18), same (sample, joint) layout as `positions`, empty when not logged:
 `commanded_positions` (rad / m, what the controller commanded) and `efforts` (the drive's measured
 torque on the link along the joint axis, N·m; force N for a prismatic joint — ROS JointState.effort's
-convention).  A registered schema written before these fields (fields 1–6 only) is still robocal's.
+convention), and `motor_currents` (A; a torque only once multiplied by the joint's torque constant,
+which `pipeline.ingest.drive` does where the campaign states one).  A registered schema written
+before these fields (fields 1–6 only) is still robocal's.
 """
 
 from __future__ import annotations
@@ -47,10 +49,11 @@ FIELDS: tuple[tuple[str, int, int, int], ...] = (
     ("host_receive_times_ns", 6, _NS, _F.LABEL_REPEATED),
     ("commanded_positions", 7, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
     ("efforts", 8, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
+    ("motor_currents", 9, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
 )
 OPTIONAL_TIMES = ("device_timestamps_ns", "host_receive_times_ns")  # empty or one per sample
-OPTIONAL_SAMPLES = ("commanded_positions", "efforts")  # drive state: empty or samples × joints, finite
-ADDED_LATER = frozenset({7, 8})  # fields a registered schema of an older robocal may lack
+OPTIONAL_SAMPLES = ("commanded_positions", "efforts", "motor_currents")  # drive state: empty or samples × joints
+ADDED_LATER = frozenset({7, 8, 9})  # fields a registered schema of an older robocal may lack
 
 
 def _json_name(name: str) -> str:
@@ -85,7 +88,7 @@ class BatchError(ValueError):
 class Batches:
     """The decoded stream: sample times (T,) ns, positions (T, n_joints) rad, joint names, the
     message of each sample (T,), the optional raw device / host receive times (T,) ns, and the
-    optional drive state (T, n_joints): commanded positions rad / m, efforts N·m / N."""
+    optional drive state (T, n_joints): commanded positions rad / m, efforts N·m / N, motor currents A."""
 
     t_ns: np.ndarray
     q: np.ndarray
@@ -95,14 +98,16 @@ class Batches:
     host_t_ns: np.ndarray | None = None
     q_cmd: np.ndarray | None = None
     effort: np.ndarray | None = None
+    current: np.ndarray | None = None
 
 
 def encode(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], device_t_ns: np.ndarray | None = None,
            host_t_ns: np.ndarray | None = None, q_cmd: np.ndarray | None = None,
-           effort: np.ndarray | None = None) -> bytes:
+           effort: np.ndarray | None = None, current: np.ndarray | None = None) -> bytes:
     """One message: samples at `t_ns` (n,) ns since the epoch (stored as `timestamp_ns` = t[0] and
     offsets t − t[0]), positions `q` (n, len(names)) rad; optional raw device times and host
-    receive times (n,) ns; optional commanded positions (rad / m) and efforts (N·m / N), (n, len(names))."""
+    receive times (n,) ns; optional commanded positions (rad / m), efforts (N·m / N) and motor currents (A),
+    (n, len(names))."""
     t = np.asarray(t_ns, np.int64)
     q = np.asarray(q, np.float64)
     if t.ndim != 1 or not t.size or q.shape != (t.size, len(names)):
@@ -115,7 +120,7 @@ def encode(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], device_t_ns: n
             if v.shape != t.shape:
                 raise ValueError(f"{key} has {v.size} values for {t.size} samples")
             getattr(m, key).extend(v.tolist())
-    for key, v in zip(OPTIONAL_SAMPLES, (q_cmd, effort)):
+    for key, v in zip(OPTIONAL_SAMPLES, (q_cmd, effort, current)):
         if v is not None:
             v = np.asarray(v, np.float64)
             if v.shape != q.shape:

@@ -86,17 +86,19 @@ class RecordingWriter:
 
     def write_batch(self, t_ns: np.ndarray, q: np.ndarray, names: list[str] | tuple[str, ...],
                     device_t_ns: np.ndarray | None = None, host_t_ns: np.ndarray | None = None,
-                    q_cmd: np.ndarray | None = None, effort: np.ndarray | None = None) -> None:
+                    q_cmd: np.ndarray | None = None, effort: np.ndarray | None = None,
+                    current: np.ndarray | None = None) -> None:
         """One encoder-stream message: samples `t_ns` (n,) ns, positions `q` (n, n_joints) rad,
         optional raw device and host receive times (n,) ns, optional drive state (n, n_joints):
-        commanded positions rad / m and efforts N·m / N (protobuf only); log time = the first sample's."""
+        commanded positions rad / m, efforts N·m / N, motor currents A (protobuf only); log time = the first
+        sample's."""
         t0 = int(t_ns[0])
         if self.stream_encoding == JSB.ENCODING:
             self._add(STREAM, self.channel(STREAM), t0, t0,
-                      JSB.encode(t_ns, q, names, device_t_ns, host_t_ns, q_cmd, effort))
+                      JSB.encode(t_ns, q, names, device_t_ns, host_t_ns, q_cmd, effort, current))
             return
-        if q_cmd is not None or effort is not None:
-            raise ValueError("drive state (commanded positions, efforts) is written on the protobuf stream only")
+        if q_cmd is not None or effort is not None or current is not None:
+            raise ValueError("drive state (commanded positions, efforts, currents) is written on the protobuf stream only")
         msg = {"timestamp_ns": t0, "timestamps_ns": np.asarray(t_ns).tolist(), "joint_names": list(names),
                "positions": np.asarray(q).tolist()}
         for key, v in zip(JSB.OPTIONAL_TIMES, (device_t_ns, host_t_ns)):

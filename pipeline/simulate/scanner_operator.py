@@ -13,6 +13,8 @@ in the image (how a first-stage planned pose is executed: `plan/scorbot_scanner.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from pipeline.models import camera as cam
@@ -21,6 +23,18 @@ from pipeline.simulate.scanner_geometry import camera_pose, floor_line, newton, 
 
 MIN_DEPTH_M, MAX_DEPTH_M = 0.12, 0.70  # stand-offs the operator uses (camera centre to aim point)
 BACK_OFF_M = 0.025
+ROLL_TRIES_RAD = (0.0, 0.25, -0.25, 0.5, -0.5)
+
+
+@dataclass(frozen=True)
+class OperatorPose:
+    """A first-stage pose as the operator takes it (no calibrated model yet): aim point (3,) m on the
+    pattern, starting stand-off m, tilt rad, wrist roll rad (`backed_off_pose`)."""
+
+    aim: tuple[float, float, float]
+    standoff: float
+    tilt: float
+    roll: float
 
 
 def draw_pose(arm, xa: np.ndarray, s: np.ndarray, pattern, campaign, rng: np.random.Generator,
@@ -54,23 +68,21 @@ def aim_box(pattern) -> tuple[np.ndarray, np.ndarray]:
 def backed_off_pose(arm, xa: np.ndarray, s: np.ndarray, pattern, campaign, image_size: tuple[int, int],
                     aim: np.ndarray, depth: float, tilt: float, roll: float):
     """`pose_on_line` from the given stand-off, backing off by 25 mm while fewer than `corners`
-    crossings are in the image (the operator watches the image), up to 0.70 m; None if never."""
-    for d in np.arange(max(depth, MIN_DEPTH_M), MAX_DEPTH_M + 1e-9, BACK_OFF_M):
-        plan = pose_on_line(arm, xa, s, pattern, campaign, image_size, np.asarray(aim, float), float(d), tilt, roll)
-        if plan is not None:
-            return plan
+    crossings are in the image (the operator watches the image), up to 0.70 m; if no stand-off
+    works, the same with the wrist rolled by ±0.25, ±0.5 rad (`ROLL_TRIES_RAD`); None if none does."""
+    for dr in ROLL_TRIES_RAD:
+        r = float(np.clip(roll + dr, -np.pi / 2, np.pi / 2))
+        for d in np.arange(max(depth, MIN_DEPTH_M), MAX_DEPTH_M + 1e-9, BACK_OFF_M):
+            plan = pose_on_line(arm, xa, s, pattern, campaign, image_size, np.asarray(aim, float), float(d), tilt, r)
+            if plan is not None:
+                return plan
     return None
 
 
-def pose_on_line(arm, xa: np.ndarray, s: np.ndarray, pattern, campaign, image_size: tuple[int, int],
-                 aim: np.ndarray, depth: float, tilt: float, roll: float):
-    """(q rad, corner indices) of the arm (parameters `xa`, scanner `s`) brought to the camera pose
-    of (aim, depth, tilt, roll) and jogged until its stripe lies on the nearest grid line; None when
-    the joints leave their limits or fewer than `corners` crossings are in the image."""
-    W, H = image_size
-    P = pattern.corners()
-    z0 = pattern.origin[2]
-    sq = pattern.square_m
+def camera_at(xa: np.ndarray, s: np.ndarray, aim: np.ndarray, depth: float, tilt: float, roll: float):
+    """Joints (5,) rad putting the camera centre `depth` (m) from `aim` (base frame) along an optical
+    axis tilted by `tilt` (rad) from the vertical towards the base's radial direction, wrist roll
+    `roll` (rad); None when the arm cannot (arm parameters `xa`, hand-eye of scanner `s`)."""
     q1 = np.arctan2(aim[1], aim[0])
     e_rad = np.array([np.cos(q1), np.sin(q1), 0.0])
     axis = -np.cos(tilt) * np.array([0, 0, 1.0]) + np.sin(tilt) * e_rad  # optical axis, roughly the flange z
@@ -85,7 +97,24 @@ def pose_on_line(arm, xa: np.ndarray, s: np.ndarray, pattern, campaign, image_si
     q4 = newton(stage1, np.array([q1, -0.4, 0.8, -0.4]))
     if np.linalg.norm(stage1(q4[None])) > 1e-9:
         return None
-    q = np.append(q4, roll)
+    return np.append(q4, roll)
+
+
+def pose_on_line(arm, xa: np.ndarray, s: np.ndarray, pattern, campaign, image_size: tuple[int, int],
+                 aim: np.ndarray, depth: float, tilt: float, roll: float):
+    """(q rad, corner indices) of the arm (parameters `xa`, scanner `s`) brought to the camera pose
+    of (aim, depth, tilt, roll) and jogged until its stripe lies on the nearest grid line; None when
+    the joints leave their limits or fewer than `corners` crossings are in the image."""
+    W, H = image_size
+    P = pattern.corners()
+    z0 = pattern.origin[2]
+    sq = pattern.square_m
+    q = camera_at(xa, s, aim, depth, tilt, roll)
+    if q is None:
+        return None
+    q1 = np.arctan2(aim[1], aim[0])
+    e_rad = np.array([np.cos(q1), np.sin(q1), 0.0])
+    axis = -np.cos(tilt) * np.array([0, 0, 1.0]) + np.sin(tilt) * e_rad
     # nearest grid line (rows, columns, diagonals) to the current stripe
     R_c, C = camera_pose(xa, s, q[None])
     p0, dvec = floor_line(R_c, C, s, z0)

@@ -27,7 +27,7 @@ from pipeline.simulate.scanner_geometry import floor_line as _floor_line
 from pipeline.simulate.scanner_geometry import newton as _newton  # noqa: F401  (used by scanner_servo's callers)
 from pipeline.simulate.scanner_geometry import project as _project
 from pipeline.simulate.scanner_geometry import stripe_normal as _stripe_normal
-from pipeline.simulate.scanner_operator import draw_pose
+from pipeline.simulate.scanner_operator import OperatorPose, backed_off_pose, draw_pose
 
 EPOCH_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
 
@@ -184,9 +184,9 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
     `plan_cache` (a dict the caller keeps): the planned poses (the operator's IK, most of the
     time; the effects do not change them) memoised by the random generator's state before each
     plan — bit-identical results, several times faster when one campaign is re-simulated.
-    `planned`: execute a planned campaign instead — (joints rad, grid-line corner indices, image row
-    px) per pose,
-    servoed on the true arm (`scanner_servo`); the ones that fail are `misses`."""
+    `planned`: execute a planned campaign instead — per pose (joints rad, grid-line corner indices,
+    image row px), servoed on the true arm (`scanner_servo`), or a first stage's `OperatorPose`
+    (`scanner_operator.backed_off_pose`); the ones that fail are `misses`."""
     fx = effect_values(effects, arm_truth.n_joints)
     rng = np.random.default_rng(campaign.seed)
     s = np.asarray(scanner_truth, float)
@@ -210,9 +210,14 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
         if queue is not None:
             from pipeline.simulate.scanner_servo import servo_pose
 
-            i_plan, (q0, line, row) = queue.pop(0)
-            plan = servo_pose(arm_nominal.lower, arm_nominal.upper, xa, s, pattern, q0, line, row, image_size,
-                              campaign.corners)
+            i_plan, item = queue.pop(0)
+            if isinstance(item, OperatorPose):  # a first-stage pose: the operator's, from the planned geometry
+                plan = backed_off_pose(arm_nominal, xa, s, pattern, campaign, image_size, np.asarray(item.aim),
+                                       item.standoff, item.tilt, item.roll)
+            else:
+                q0, line, row = item
+                plan = servo_pose(arm_nominal.lower, arm_nominal.upper, xa, s, pattern, q0, line, row, image_size,
+                                  campaign.corners)
             if plan is None:
                 misses.append(i_plan)
                 continue

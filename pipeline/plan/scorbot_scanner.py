@@ -16,7 +16,7 @@ import numpy as np
 from pipeline.identify.identifiability import analyse
 from pipeline.plan.doptimal import Selection, SelectionError, select
 from pipeline.simulate import scorbot_scanner as sim
-from pipeline.simulate.scanner_operator import OperatorPose, aim_box, camera_at
+from pipeline.simulate.scanner_operator import OperatorPose, aim_box, camera_at  # noqa: F401  (aim_box: tests)
 from pipeline.systems import scorbot_scanner as sc
 
 JOINT_NAMES = ["J1", "J2", "J3", "J4", "J5"]

@@ -1,6 +1,6 @@
 """Scanner planning against the paper's campaign, on the same true robot (Table 2 scanner).
 
-    python benchmarks/bench_plan_scanner.py [--seeds 10] [--first 3] [--second 5] [--candidates 200]
+    python benchmarks/bench_plan_scanner.py [--seeds 20] [--first 4] [--second 4] [--candidates 200]
 
 Per seed, three campaigns of the same size (--first + --second poses, 5 crossings each):
 - paper: the paper's operator (random stand-off, aim, tilt, roll; stripe onto the nearest grid line);
@@ -64,8 +64,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--first-seed", type=int, default=0)
-    ap.add_argument("--first", type=int, default=3)
-    ap.add_argument("--second", type=int, default=5)
+    ap.add_argument("--first", type=int, default=4)
+    ap.add_argument("--second", type=int, default=4)
     ap.add_argument("--candidates", type=int, default=200)
     a = ap.parse_args()
     total = a.first + a.second

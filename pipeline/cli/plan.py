@@ -48,9 +48,11 @@ def plan_cmd(
     margin: float = typer.Option(0.010, "--margin", min=0.0, help="Touch: predicted contacts at least this far (m) "
                                  "inside every face edge (narrow faces: 35 % of their width)."),
     stages: int = typer.Option(1, "--stages", min=1, max=2, help="2: write a short first stage (--first-stage "
-                               "contacts, most likely to land); calibrate it (robocal run), then plan the rest with --after."),
-    first_stage: int = typer.Option(15, "--first-stage", min=3, help="Contacts in the first stage of --stages 2."),
-    after: Path = typer.Option(None, "--after", help="Touch: plan the next stage on the run directory of the stages "
+                               "contacts most likely to land; scanner: operator poses); calibrate it (robocal run), "
+                               "then plan the rest with --after."),
+    first_stage: int = typer.Option(None, "--first-stage", min=3, help="Contacts in the first stage of --stages 2 "
+                                     "(default 15; scanner: poses, default 4)."),
+    after: Path = typer.Option(None, "--after", help="Touch, scanner: plan the next stage on the run directory of the stages "
                                "so far (robocal run REC --out RUN_DIR): its contacts, updated model and uncertainty."),
     urdf: Path = typer.Option(None, "--urdf", help="System urdf: the robot description (URDF)."),
     root: str = typer.Option(None, "--root", help="System urdf: root link of the chain."),
@@ -73,7 +75,7 @@ def plan_cmd(
         if check:
             err.print("[yellow]--check is not run for touch campaigns: benchmarks/bench_plan_campaign.py executes "
                       "planned and random campaigns on the true robot[/]")
-        doc = touch_campaign(candidates, select_m, seed, margin, stages, first_stage, after)
+        doc = touch_campaign(candidates, select_m, seed, margin, stages, first_stage or 15, after)
         write_plan(out, doc)
         p = [m.get("landing_probability", 1.0) for m in doc["measurements"]]
         err.print(f"stage {doc['stage']} of {doc['stages']}: {len(doc['measurements'])} measurements planned from "
@@ -90,6 +92,8 @@ def plan_cmd(
     from pipeline.plan.select import compare, plan
 
     mod = candidate_module(system)
+    if hasattr(mod, "plan_poses") and (stages == 2 or after is not None):  # the scanner in stages
+        return _scanner_stage(mod, system, out, candidates, select_m, seed, stages, first_stage, after)
     with err.status(f"generating {candidates} candidates…"):
         model, table = mod.candidates(candidates, seed)
     if hasattr(mod, "plan_poses"):  # measurements grouped by pose (the scanner's crossings)
@@ -142,6 +146,29 @@ def plan_cmd(
         c = doc["check"]
         err.print(f"held-out RMS: planned {c['planned_holdout_rms_m'] * 1e3:.4f} mm, random median "
                   f"{c['random_median_m'] * 1e3:.4f} mm ({c['planned_rank_among_random']} of {check} random sets better)")
+    print(out)
+
+
+def _scanner_stage(mod, system: str, out: Path, candidates: int, select_m: int, seed: int, stages: int,
+                   first_stage: int, after: Path | None) -> None:
+    """The scanner's two stages: a first stage of operator poses, or the next stage on a run."""
+    if after is not None:
+        with err.status(f"refitting {after} and drawing {candidates} candidates on the estimate…"):
+            doc = mod.after(after, select_m, n=candidates, seed=seed)
+        stage = {"stage": 2, "stages": 2}
+    else:
+        doc = mod.first_stage(first_stage or 4, seed=seed)
+        stage = {"stage": 1, "stages": 2}
+    write_plan(out, {"kind": "robocal.campaign", "version": 1, "system": system, **stage, "n_candidates": candidates,
+                     "select": len(doc["measurements"]), "seed": seed, **doc})
+    if after is not None:
+        err.print(f"stage 2 of 2: {len(doc['measurements'])} poses planned I-optimal on the estimate from "
+                  f"{doc['earlier_measurements']} crossings in {doc['selection_s']:.3f} s; predicted RMS 3-D error "
+                  f"{doc['predicted_rms_3d_error_m'] * 1e3:.4f} mm over the candidates' crossings")
+    else:
+        err.print(f"stage 1 of 2: {len(doc['measurements'])} operator poses (spread over aim, stand-off, tilt, roll); "
+                  f"next: robocal simulate {system} --campaign {out} --out REC.mcap (or take them on the robot); "
+                  f"robocal run REC.mcap --out RUN; robocal plan {system} --after RUN --select N --out NEXT.json")
     print(out)
 
 

@@ -27,8 +27,10 @@ def scorbot_scanner_cmd(
     capture_speed: float = typer.Option(0.0, "--capture-speed", min=0.0, help="Joint speed (rad/s) of a sweep through each pose during the capture (exposes a camera time offset)."),
     spread: bool = typer.Option(False, "--spread", help="Stripe rows over 10-90 %% of the image and crossings spread along the stripe (exposes lens distortion)."),
     robot_id: str = typer.Option("sim-scorbot-scanner", "--robot-id", help="Robot identity written to the campaign metadata."),
-    campaign_file: Path = typer.Option(None, "--campaign", help="Execute a planned campaign (robocal plan scorbot-scanner): "
-                                       "each pose servoed onto its grid line from its planned joints on the true arm."),
+    campaign_file: list[Path] = typer.Option([], "--campaign", help="Execute a planned campaign (robocal plan scorbot-scanner): "
+                                             "each pose servoed onto its grid line from its planned joints on the true arm "
+                                             "(a first stage's operator poses: jogged onto the nearest line). Repeat for the "
+                                             "stages of a staged campaign: run back to back, one recording."),
 ) -> None:
     """Laser-stripe scanner on a SCORBOT-ER VII (seed 001): stripe crossings of a printed 30 mm grid."""
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
@@ -51,10 +53,10 @@ def scorbot_scanner_cmd(
         x[6 + 5 * np.arange(nominal.n_joints)] += rng.normal(0, np.radians(joint_offset_deg), nominal.n_joints)
         arm_true = nominal.with_vector(x)
     planned = None
-    if campaign_file is not None:
+    if campaign_file:
         from pipeline.plan.scorbot_scanner import read_campaign
 
-        planned = read_campaign(campaign_file)
+        planned = [p for f in campaign_file for p in read_campaign(f)]
         poses = len(planned)
     campaign, noise, pattern = sim.Campaign(poses=poses, corners=corners, seed=seed, capture_speed_rad_s=capture_speed, spread=spread), sim.Noise(scale=noise_scale), sim.Pattern()
     with err.status(f"simulating {poses} poses x {corners} corners…"):
@@ -70,7 +72,7 @@ def scorbot_scanner_cmd(
         else:
             raise RuntimeError("no usable random scanner truth in 50 draws")
     if planned is not None and len(result.observations) < 3:
-        raise RobocalError(f"{campaign_file}: only {len(result.observations)} of {len(planned)} planned poses found "
+        raise RobocalError(f"{', '.join(map(str, campaign_file))}: only {len(result.observations)} of {len(planned)} planned poses found "
                            "their grid line on the true robot (a calibration needs ≥ 3)")
     lo, hi = sc.bounds()
     meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: pattern.to_dict(),

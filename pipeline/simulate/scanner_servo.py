@@ -15,11 +15,12 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.models import camera as cam
-from pipeline.simulate.scorbot_scanner import Pattern, _camera_pose, _newton, _project
+from pipeline.simulate.scanner_geometry import camera_pose as _camera_pose
+from pipeline.simulate.scanner_geometry import newton as _newton
+from pipeline.simulate.scanner_geometry import project as _project
 
 
-
-def servo_pose(lower: np.ndarray, upper: np.ndarray, xa: np.ndarray, s: np.ndarray, pattern: Pattern,
+def servo_pose(lower: np.ndarray, upper: np.ndarray, xa: np.ndarray, s: np.ndarray, pattern,
                q0: np.ndarray, line: np.ndarray, row: float, image_size: tuple[int, int], corners: int):
     """(q, corner indices) of the true arm (parameters `xa`, scanner `s`) with its stripe on the grid
     line through pattern corners `line` (first and last), its middle on image row `row` (px: the

@@ -20,9 +20,14 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from pipeline.models import camera as cam
-from pipeline.models import serial_arm
 from pipeline.models.serial_arm import SerialArm
 from pipeline.models.transforms import rot
+from pipeline.simulate.scanner_geometry import camera_pose as _camera_pose
+from pipeline.simulate.scanner_geometry import floor_line as _floor_line
+from pipeline.simulate.scanner_geometry import newton as _newton  # noqa: F401  (used by scanner_servo's callers)
+from pipeline.simulate.scanner_geometry import project as _project
+from pipeline.simulate.scanner_geometry import stripe_normal as _stripe_normal
+from pipeline.simulate.scanner_operator import OperatorPose, backed_off_pose, draw_pose
 
 EPOCH_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00:00Z
 
@@ -106,57 +111,6 @@ class SimResult:
     misses: tuple[int, ...] = ()  # planned poses (`simulate(..., planned=)`) that found no usable stripe
 
 
-def _camera_pose(xa: np.ndarray, s: np.ndarray, q: np.ndarray, dT=None):
-    """Camera rotation (N,3,3) and centre (N,3) in {B} for joint angles q (N,5)."""
-    R_f, t_f = serial_arm.forward(xa, q)
-    if dT is not None:
-        dR, dt = dT
-        R_f, t_f = dR @ R_f, t_f + dt
-    R_he = cam.hand_eye_rotation(s[cam.I_W], s[cam.I_PHI], s[cam.I_PSI])
-    return R_f @ R_he, t_f + np.einsum("nij,j->ni", R_f, s[cam.I_TX:cam.I_TZ + 1])
-
-
-def _floor_line(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, z0: float):
-    """Laser plane ∩ floor: a point (N,3) and unit direction (N,3); NaN where parallel."""
-    n_c, d_c = cam.laser_plane(s)
-    n = R_c @ n_c  # (N,3) plane normal in {B}
-    d = d_c + np.einsum("ni,ni->n", n, C)
-    direc = np.cross(n, [0.0, 0.0, 1.0])
-    nd = np.linalg.norm(direc, axis=1, keepdims=True)
-    direc = direc / np.where(nd > 1e-9, nd, np.nan)
-    # point on the floor: minimise |p| subject to n·p = d, p_z = z0 (2-D in x,y)
-    nxy = n[:, :2]
-    rhs = d - n[:, 2] * z0
-    pxy = nxy * (rhs / np.sum(nxy**2, axis=1))[:, None]
-    return np.concatenate([pxy, np.full((len(C), 1), z0)], axis=1), direc
-
-
-def _project(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, X: np.ndarray,
-             fx: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels (N,2) of base-frame points X (N,3) seen by cameras (R_c, C); and depth z_C.
-    With `fx` (`effect_values`), the true lens also has k2 and tangential (p1, p2) terms."""
-    p_c = np.einsum("nji,nj->ni", R_c, X - C)
-    if fx is None or not (fx["k2"] or fx["p1"] or fx["p2"]):
-        return cam.project(s, p_c), p_c[:, 2]
-    from pipeline.diagnose.scanner import lens_excess
-
-    x, y, z = p_c[:, 0], p_c[:, 1], p_c[:, 2]
-    u, v = s[cam.I_F] * y / z, s[cam.I_F] * x / z  # ideal sensor coordinates
-    ut, vt = cam.distort(u, v, s[cam.I_K])
-    with np.errstate(over="ignore", invalid="ignore"):  # far outside the image it may diverge: dropped as unseen
-        for _ in range(20):  # solve U_k(ũ, ṽ) + Δ(ũ, ṽ) = (u, v) for the distorted coordinates
-            du, dv = lens_excess(ut, vt, fx["k2"], fx["p1"], fx["p2"])
-            ut, vt = cam.distort(u - du, v - dv, s[cam.I_K])
-    return np.stack([ut / s[cam.I_SU] + s[cam.I_U0], vt / s[cam.I_SV] + s[cam.I_V0]], axis=1), z
-
-
-def _stripe_normal(px: np.ndarray) -> np.ndarray:
-    """Unit normal (2,) across the stripe through pixels px (M,2), +V side (V for one pixel)."""
-    from pipeline.diagnose.scanner import stripe_normal
-
-    return stripe_normal(px)
-
-
 # ----- concealed effects (issue 7) ------------------------------------------------------------
 EFFECTS = {  # name: (values, location kind) — conventions of `pipeline.diagnose.scanner`
     "tangential_distortion": (2, "camera"), "radial_k2": (1, "camera"), "time_offset": (1, "camera"),
@@ -220,105 +174,6 @@ def _bumps(fx: dict, q_enc: np.ndarray) -> np.ndarray:
     return out
 
 
-def _newton(fun, q0: np.ndarray, iters: int = 40, h: float = 1e-7) -> np.ndarray:
-    """Minimum-norm damped Newton on fun(q) = 0; `fun` maps a batch (B,d) to (B,m), so the
-    central-difference Jacobian is one call."""
-    q = q0.copy()
-    E = np.eye(q.size) * h
-    for _ in range(iters):
-        F = fun(np.vstack([q, q + E, q - E]))
-        r = F[0]
-        J = ((F[1:q.size + 1] - F[q.size + 1:]) / (2 * h)).T
-        step = np.clip(np.linalg.lstsq(J, r, rcond=None)[0], -0.2, 0.2)
-        q = q - step
-        if np.max(np.abs(step)) < 1e-12:
-            break
-    return q
-
-
-def _plan_pose(arm: SerialArm, xa: np.ndarray, s: np.ndarray, pattern: Pattern, campaign: Campaign,
-               rng: np.random.Generator, image_size: tuple[int, int]):
-    """One pose whose true stripe lies on a grid line with ≥ `corners` visible crossings, or None."""
-    W, H = image_size
-    P = pattern.corners()
-    z0 = pattern.origin[2]
-    sq = pattern.square_m
-    a_v = s[cam.I_SV] / s[cam.I_F]
-    # stand-off: stripe at a random image row in the middle 60 %, depth 0.12-0.70 m
-    vf = a_v * ((rng.uniform(0.1, 0.9) if campaign.spread else rng.uniform(0.2, 0.8)) * H - s[cam.I_V0])
-    den = np.tan(s[cam.I_TH]) + vf
-    if den <= 0:
-        return None
-    depth = s[cam.I_B] / den
-    if not 0.12 <= depth <= 0.70:
-        return None
-    lo_xy = P[:, :2].min(axis=0) + 0.06
-    hi_xy = P[:, :2].max(axis=0) - 0.06
-    aim = np.append(rng.uniform(lo_xy, hi_xy), z0)
-    tilt = rng.uniform(-campaign.max_tilt_rad, campaign.max_tilt_rad)
-    roll = rng.uniform(-np.pi / 2, np.pi / 2)
-    q1 = np.arctan2(aim[1], aim[0])
-    e_rad = np.array([np.cos(q1), np.sin(q1), 0.0])
-    axis = -np.cos(tilt) * np.array([0, 0, 1.0]) + np.sin(tilt) * e_rad  # optical axis, roughly the flange z
-    C_target = aim - depth * axis
-
-    def stage1(Q4: np.ndarray) -> np.ndarray:
-        Q = np.concatenate([Q4, np.full((len(Q4), 1), roll)], axis=1)
-        R_c, C = _camera_pose(xa, s, Q)
-        R_f, _ = serial_arm.forward(xa, Q)
-        return np.concatenate([C - C_target, (R_f[:, :, 2] @ e_rad - np.sin(tilt))[:, None]], axis=1)
-
-    q4 = _newton(stage1, np.array([q1, -0.4, 0.8, -0.4]))
-    if np.linalg.norm(stage1(q4[None])) > 1e-9:
-        return None
-    q = np.append(q4, roll)
-    # nearest grid line (rows, columns, diagonals) to the current stripe
-    R_c, C = _camera_pose(xa, s, q[None])
-    p0, dvec = _floor_line(R_c, C, s, z0)
-    if not np.all(np.isfinite(dvec)):
-        return None
-    ang = np.arctan2(dvec[0, 1], dvec[0, 0]) % np.pi
-    fams = np.array([0, np.pi / 4, np.pi / 2, 3 * np.pi / 4])
-    fam = int(np.argmin(np.abs(((ang - fams) + np.pi / 2) % np.pi - np.pi / 2)))
-    u = np.array([np.cos(fams[fam]), np.sin(fams[fam]), 0.0])
-    nrm = np.array([-u[1], u[0], 0.0])
-    spacing = sq * (np.sqrt(0.5) if fam in (1, 3) else 1.0)
-    o = np.asarray(pattern.origin)
-    # the stripe point seen at the image centre column
-    t_mid = np.dot(C[0] + depth * axis - p0[0], dvec[0])
-    mid = p0[0] + t_mid * dvec[0]
-    c = nrm @ o + np.round((nrm @ (mid - o)) / spacing) * spacing
-    foot = mid + (c - nrm @ mid) * nrm
-    A, B = foot - 0.05 * u, foot + 0.05 * u
-
-    n_c, d_c = cam.laser_plane(s)
-
-    def stage2(Q: np.ndarray) -> np.ndarray:
-        Rc, Cc = _camera_pose(xa, s, Q)
-        n = Rc @ n_c
-        return np.stack([np.sum(n * (A - Cc), axis=1) - d_c, np.sum(n * (B - Cc), axis=1) - d_c], axis=1)
-
-    q = _newton(stage2, q)
-    if np.max(np.abs(stage2(q[None]))) > 1e-10 or np.any(q < arm.lower) or np.any(q > arm.upper):
-        return None
-    on_line = np.abs((P - foot) @ nrm) < 1e-9
-    idx = np.flatnonzero(on_line)
-    if idx.size < campaign.corners:
-        return None
-    R_c, C = _camera_pose(xa, s, np.repeat(q[None], idx.size, axis=0))
-    px, z = _project(R_c, C, s, P[idx])
-    inside = (z > 0) & (px[:, 0] > 10) & (px[:, 0] < W - 11) & (px[:, 1] > 10) & (px[:, 1] < H - 11)
-    idx, px = idx[inside], px[inside]
-    if idx.size < campaign.corners:
-        return None
-    # M crossings closest to the image centre column
-    keep = np.argsort(np.abs(px[:, 0] - W / 2))[:campaign.corners]
-    if campaign.spread:  # evenly along the visible stripe, out to the image edges
-        order = np.argsort(px[:, 0])
-        keep = order[np.unique(np.linspace(0, order.size - 1, campaign.corners).round().astype(int))]
-    return q, idx[np.sort(keep)]
-
-
 def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.ndarray, campaign: Campaign = Campaign(),
              noise: Noise = Noise(), pattern: Pattern = Pattern(), image_size: tuple[int, int] = (640, 480),
              max_attempts: int = 400, effects: tuple = (), plan_cache: dict | None = None,
@@ -329,9 +184,9 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
     `plan_cache` (a dict the caller keeps): the planned poses (the operator's IK, most of the
     time; the effects do not change them) memoised by the random generator's state before each
     plan — bit-identical results, several times faster when one campaign is re-simulated.
-    `planned`: execute a planned campaign instead — (joints rad, grid-line corner indices, image row
-    px) per pose,
-    servoed on the true arm (`scanner_servo`); the ones that fail are `misses`."""
+    `planned`: execute a planned campaign instead — per pose (joints rad, grid-line corner indices,
+    image row px), servoed on the true arm (`scanner_servo`), or a first stage's `OperatorPose`
+    (`scanner_operator.backed_off_pose`); the ones that fail are `misses`."""
     fx = effect_values(effects, arm_truth.n_joints)
     rng = np.random.default_rng(campaign.seed)
     s = np.asarray(scanner_truth, float)
@@ -355,18 +210,23 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
         if queue is not None:
             from pipeline.simulate.scanner_servo import servo_pose
 
-            i_plan, (q0, line, row) = queue.pop(0)
-            plan = servo_pose(arm_nominal.lower, arm_nominal.upper, xa, s, pattern, q0, line, row, image_size,
-                              campaign.corners)
+            i_plan, item = queue.pop(0)
+            if isinstance(item, OperatorPose):  # a first-stage pose: the operator's, from the planned geometry
+                plan = backed_off_pose(arm_nominal, xa, s, pattern, campaign, image_size, np.asarray(item.aim),
+                                       item.standoff, item.tilt, item.roll)
+            else:
+                q0, line, row = item
+                plan = servo_pose(arm_nominal.lower, arm_nominal.upper, xa, s, pattern, q0, line, row, image_size,
+                                  campaign.corners)
             if plan is None:
                 misses.append(i_plan)
                 continue
         elif plan_cache is None:
-            plan = _plan_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
+            plan = draw_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
         else:
             key = (xa.tobytes(), s.tobytes(), pattern, campaign, image_size, repr(rng.bit_generator.state))
             if key not in plan_cache:
-                plan = _plan_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
+                plan = draw_pose(arm_nominal, xa, s, pattern, campaign, rng, image_size)
                 plan_cache[key] = (plan, rng.bit_generator.state)
             plan, state = plan_cache[key]
             rng.bit_generator.state = state

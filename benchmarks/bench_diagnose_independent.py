@@ -38,6 +38,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import independent_touch as it  # noqa: E402
 
 from pipeline.diagnose.diagnose import Settings, diagnose  # noqa: E402
+from pipeline.diagnose.effects import pick  # noqa: E402
+from pipeline.diagnose.gate import CONFOUND, _explained  # noqa: E402
+from pipeline.diagnose.projection import orthonormal, project_out  # noqa: E402
+from pipeline.diagnose.touch import touch_adapter  # noqa: E402
+from pipeline.identify.least_squares import fit  # noqa: E402
 from pipeline.systems import arc_welder as aw  # noqa: E402
 
 REPEATABILITY = 1e-4
@@ -64,6 +69,24 @@ def cases(targets: it.Targets) -> dict[str, it.Effect]:
             "coupling_J3_J2": it.Effect("coupling", 1.0, {"pair": (2, 1)}),
             "coupling_J2_J3": it.Effect("coupling", 1.0, {"pair": (1, 2)}),
             "linear_growth": it.Effect("linear_growth", 1.0)}
+
+
+def coupling_share(table) -> dict:
+    """The gate's test of joint_coupling J2->J3 against encoder_eccentricity@J2 on a campaign: the share
+    of the coupling's signature (⊥ the free geometry) in the span of the eccentricity's, cos² of their
+    principal angle; above `gate.CONFOUND` the gate calls them indistinguishable."""
+    model = aw.TouchModel(aw.nominal_arm())
+    f = fit(model, table)
+    Jf = model.jacobian(f.x, table)[:, :, f.free].reshape(-1, int(f.free.sum()))
+    ad = touch_adapter(model, table, 2e-5, None, REPEATABILITY)
+    Q = orthonormal(Jf)
+    sp = {}
+    for name, loc in (("joint_coupling", "J2->J3"), ("encoder_eccentricity", "J2")):
+        (S,) = ad.signatures(f.x, table, (pick(ad.library, name, loc),))
+        sp[name] = project_out(S.reshape(Jf.shape[0], -1), Q)
+    cos2 = _explained(sp["joint_coupling"], orthonormal(sp["encoder_eccentricity"]))
+    return {"cos2": cos2, "principal_angle_deg": float(np.degrees(np.arccos(np.sqrt(min(cos2, 1.0))))),
+            "gate_threshold_cos2": CONFOUND, "indistinguishable": cos2 > CONFOUND}
 
 
 def one(nom, tru, targets, effect, seed, n_boot, jig=None):
@@ -93,6 +116,11 @@ def main() -> None:
     seeds = range(a.first_seed, a.first_seed + a.seeds)
     floor = {s: one(nom, tru, targets, None, s, a.n_boot, jig)[1] for s in seeds}
     report: dict = {"seeds": a.seeds, "mult": a.mult, "campaign": a.campaign}
+    if "coupling_J2_J3" in a.cases:  # the gate's test on this campaign's first clean recording
+        report["coupling_J2_J3_vs_eccentricity_J2"] = coupling_share(
+            it.run(nom, tru, targets, (), seed=a.first_seed, jig=jig).table)
+        print(json.dumps({"coupling_J2_J3_vs_eccentricity_J2": report["coupling_J2_J3_vs_eccentricity_J2"]}),
+              flush=True)
     if "clean" in a.cases:
         ds = list(floor.values())
         report["clean"] = {"runs": len(ds), "false_findings": float(np.mean([bool(d["findings"]) for d in ds])),

@@ -150,8 +150,11 @@ def main() -> None:
                 located = int(form.where["record"]) in [o["record"] for o in d["outlier_records"]]
             chosen = [f["location"] for f in d["findings"] if name in FORMS and f["effect"] == FORMS[name][0]
                       and f["location"].split(" (")[0] == FORMS[name][1]]
-            rows.append({"status": d["status"], "located": located, "named_high": bool(high), "high": high,
-                         "chosen": chosen,
+            rows.append({"seed": s, "status": d["status"], "located": located, "named_high": bool(high), "high": high,
+                         "chosen": chosen, "holdout_before_m": d["holdout_rms_before_m"],
+                         "holdout_after_m": d["holdout_rms_after_m"], "clean_holdout_m": floor[s]["holdout_rms_before_m"],
+                         "parameters": {f"{f['effect']}@{f['location']}": [p["value"] for p in f["parameters"]]
+                                        for f in d["findings"]},
                          "family_named": fam, "form_named": form_ok,
                          "named": named, "worse": d["holdout_rms_after_m"] > d["holdout_rms_before_m"] + 1e-15,
                          "after_over_floor": d["holdout_rms_after_m"] / floor[s]["holdout_rms_before_m"],
@@ -174,6 +177,7 @@ def main() -> None:
             row["after_over_floor_le_1.2"] = float(np.mean([r["after_over_floor"] <= 1.2 for r in rows]))
         report[name] = row
         print(json.dumps({name: row}), flush=True)
+        row["per_seed"] = rows  # in --out only
     report["elapsed_s"] = time.time() - t0
     print(f"elapsed {report['elapsed_s']:.0f} s")
     if a.out:

@@ -106,11 +106,12 @@ def main() -> None:
     ap.add_argument("--campaign", choices=("block", "two-stations"), default="block",
                     help="block: the stepped block alone; two-stations: and a copy 0.2 m farther, 0.3 m lower "
                          "(J2 over a wider range: the diagnosis's advice for a coupling it cannot tell apart)")
+    ap.add_argument("--station", default="0.2,-0.3", help="two-stations: the copy's offset DX,DZ (m)")
     ap.add_argument("--out", default="")
     a = ap.parse_args()
     t0 = time.time()
     nom, tru = it.default_arms()
-    jig = it.stepped_block() if a.campaign == "block" else it.two_stations()
+    jig = it.stepped_block() if a.campaign == "block" else it.two_stations(*map(float, a.station.split(",")))
     targets = it.plan(nom, jig, m=120, seed=1)
     sigma = it.run(nom, tru, targets, (), seed=0, jig=jig).along_normal_noise_sigma_m
     seeds = range(a.first_seed, a.first_seed + a.seeds)

@@ -18,7 +18,9 @@ outside the diagnosis's library:
 - in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` every D-H a, d
   grows by α·L·t.
 A second campaign layout, `two_stations`: the stepped block and a copy of it farther and lower (J2 over a
-wider range), the campaign change the diagnosis advises for a coupling it cannot tell from an eccentricity.
+wider range), the campaign change the diagnosis advises for a coupling it cannot tell from an eccentricity
+(default offset: of the eight tried, the one whose J2→J3 coupling and J2 eccentricity signatures ⊥ the
+geometry are furthest apart — principal angle 33° — a property of the campaign, not of any outcome).
 
 Only the numbers of the nominal/true arm are read from `pipeline.systems.arc_welder` (base,
 D-H + Hayati joint terms, tool) and the jig's faces from `pipeline.models.jig`.  The diagnosis
@@ -377,7 +379,7 @@ def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float
     return 3 * sigma / max(np.linalg.norm(Sp), 1e-300)
 
 
-def two_stations(dx: float = 0.2, dz: float = -0.3) -> Jig:
+def two_stations(dx: float = 0.45, dz: float = -0.35) -> Jig:
     """The stepped block and a copy of it `dx` farther along x and `dz` lower (m; faces `s_…`): a second
     station that takes J2 (and J3) over a wider range than the block alone."""
     base = stepped_block()

@@ -124,8 +124,8 @@ def test_a_linear_J2_J3_coupling_is_named_once_a_second_station_takes_J2_wider(w
     (J2 ∥ J3: cos² of the principal angle of their signatures ⊥ the geometry 0.97 > 0.95): the coupling is
     `not_identifiable` with the advice to move J2 alone, and the eccentricity that takes its place is not a
     high-confidence name and lists the coupling among what it cannot be told from.  With the campaign the
-    advice asks for — a second station 0.2 m farther and 0.3 m lower (`it.two_stations`) — the angle opens
-    (cos² 0.79), the coupling is identifiable, named and its k recovered within 3σ."""
+    advice asks for — a second station 0.45 m farther and 0.35 m lower (`it.two_stations`) — the angle opens
+    (cos² 0.70), the coupling is identifiable, named and its k recovered within 3σ."""
     c, d = _diagnose(world, it.Effect("coupling", 1.0, {"pair": (1, 2)}), 107)
     (ni,) = [n for n in d["not_identifiable"] if (n["effect"], n["location"]) == ("joint_coupling", "J2->J3")]
     assert "indistinguishable from encoder_eccentricity@J2" in ni["reason"] and "driving joint alone" in ni["advice"]
@@ -151,6 +151,4 @@ def test_a_linear_J2_J3_coupling_is_named_once_a_second_station_takes_J2_wider(w
     assert abs(p["value"] - k) < 0.3 * k and abs(p["value"] - k) < 3 * p["std"], (p, k)
     assert [c["identifiable"] for c in d["candidates"] if (c["effect"], c["location"]) == ("joint_coupling",
                                                                                             "J2->J3")] == [True]
-    # modelled, the held-out RMS improves (back to ≤ 1.2× the clean floor in 92.5 % of 40 seeds, not in this
-    # one — 1.29×: bench_diagnose_independent.py --campaign two-stations; docs/diagnose.md)
-    assert d["holdout_rms_after_m"] < d["holdout_rms_before_m"]
+    assert d["holdout_rms_after_m"] <= 1.2 * clean["holdout_rms_before_m"]  # back to the floor

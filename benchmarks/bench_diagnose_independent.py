@@ -15,9 +15,12 @@ before one latch, an impossible derived approach speed — likewise); in-library
 linear link growth) count as *named* when the matching finding is reported.  The saturating link growth and the
 quadratic coupling, whose forms the library has in a family of forms (`pipeline.diagnose.forms`), count as found
 when located or named in the right family (`located_or_family_named`; `form_named`: in the generator's form), and
-`named_with_high_confidence` there counts only names outside that family.
+`named_with_high_confidence` there counts only names outside that family (`warm_up_all`: every link warms, the
+library's all-links form; `thermal_growth`: a2 and d4 only).
 
-Usage: ``python benchmarks/bench_diagnose_independent.py [--seeds 40] [--mult 4] [--cases a,b]``
+Usage: ``python benchmarks/bench_diagnose_independent.py [--seeds 40] [--mult 4] [--cases a,b]
+[--campaign block|two-stations [--station DX,DZ]]`` (two-stations: the block and a copy farther and lower,
+`it.two_stations`, default 0.45 m farther, 0.35 m lower).
 (CI runs a bounded version: tests/test_diagnose_independent.py).
 """
 
@@ -36,6 +39,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import independent_touch as it  # noqa: E402
 
 from pipeline.diagnose.diagnose import Settings, diagnose  # noqa: E402
+from pipeline.diagnose.effects import pick  # noqa: E402
+from pipeline.diagnose.gate import CONFOUND, _explained  # noqa: E402
+from pipeline.diagnose.projection import orthonormal, project_out  # noqa: E402
+from pipeline.diagnose.touch import touch_adapter  # noqa: E402
+from pipeline.identify.least_squares import fit  # noqa: E402
 from pipeline.systems import arc_welder as aw  # noqa: E402
 
 REPEATABILITY = 1e-4
@@ -45,6 +53,7 @@ IN_LIBRARY = {"coupling_J3_J2": ("joint_coupling", "J3->J2"), "linear_growth": (
 # forms the library has in a family of forms (issue 18): the generator's own form of each; counted as
 # found when named in the right family (`family_named`) or located (partially_explained / unexplained)
 FORMS = {"thermal_growth": ("thermal_growth", "links", "links (warm-up"),
+         "warm_up_all": ("thermal_growth", "links", "links (warm-up"),
          "quad_coupling": ("joint_coupling", "J2->J3", "J2->J3 (quadratic)")}
 
 
@@ -55,6 +64,7 @@ def cases(targets: it.Targets) -> dict[str, it.Effect]:
             "dent": it.Effect("dent", 1.0, {"face": 1, "centre": (0.15, 0.1), "radius": 0.03}),
             "quad_coupling": it.Effect("quad_coupling", 1.0),
             "thermal_growth": it.Effect("thermal_growth", 1.0, {"tau_s": 300.0}),
+            "warm_up_all": it.Effect("warm_up_all", 1.0, {"tau_s": 300.0}),
             "wild": it.Effect("wild", 1.0, {"record": 37}),
             "glitch": it.Effect("glitch", 0.05, {"record": 52}),  # fixed size: 50 mrad on J1 (no MDS: not a residual)
             "coupling_J3_J2": it.Effect("coupling", 1.0, {"pair": (2, 1)}),
@@ -62,8 +72,26 @@ def cases(targets: it.Targets) -> dict[str, it.Effect]:
             "linear_growth": it.Effect("linear_growth", 1.0)}
 
 
-def one(nom, tru, targets, effect, seed, n_boot):
-    c = it.run(nom, tru, targets, () if effect is None else (effect,), seed=seed)
+def coupling_share(table) -> dict:
+    """The gate's test of joint_coupling J2->J3 against encoder_eccentricity@J2 on a campaign: the share
+    of the coupling's signature (⊥ the free geometry) in the span of the eccentricity's, cos² of their
+    principal angle; above `gate.CONFOUND` the gate calls them indistinguishable."""
+    model = aw.TouchModel(aw.nominal_arm())
+    f = fit(model, table)
+    Jf = model.jacobian(f.x, table)[:, :, f.free].reshape(-1, int(f.free.sum()))
+    ad = touch_adapter(model, table, 2e-5, None, REPEATABILITY)
+    Q = orthonormal(Jf)
+    sp = {}
+    for name, loc in (("joint_coupling", "J2->J3"), ("encoder_eccentricity", "J2")):
+        (S,) = ad.signatures(f.x, table, (pick(ad.library, name, loc),))
+        sp[name] = project_out(S.reshape(Jf.shape[0], -1), Q)
+    cos2 = _explained(sp["joint_coupling"], orthonormal(sp["encoder_eccentricity"]))
+    return {"cos2": cos2, "principal_angle_deg": float(np.degrees(np.arccos(np.sqrt(min(cos2, 1.0))))),
+            "gate_threshold_cos2": CONFOUND, "indistinguishable": cos2 > CONFOUND}
+
+
+def one(nom, tru, targets, effect, seed, n_boot, jig=None):
+    c = it.run(nom, tru, targets, () if effect is None else (effect,), seed=seed, jig=jig)
     d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     return c, d
@@ -76,15 +104,25 @@ def main() -> None:
     ap.add_argument("--mult", type=float, default=4.0)
     ap.add_argument("--cases", default="clean," + ",".join(OUT_OF_LIBRARY + tuple(FORMS) + tuple(IN_LIBRARY)))
     ap.add_argument("--n-boot", type=int, default=20)
+    ap.add_argument("--campaign", choices=("block", "two-stations"), default="block",
+                    help="block: the stepped block alone; two-stations: and a copy farther and lower (--station) "
+                         "(J2 over a wider range: the diagnosis's advice for a coupling it cannot tell apart)")
+    ap.add_argument("--station", default="0.45,-0.35", help="two-stations: the copy's offset DX,DZ (m)")
     ap.add_argument("--out", default="")
     a = ap.parse_args()
     t0 = time.time()
     nom, tru = it.default_arms()
-    targets = it.plan(nom, it.stepped_block(), m=120, seed=1)
-    sigma = it.run(nom, tru, targets, (), seed=0).along_normal_noise_sigma_m
+    jig = it.stepped_block() if a.campaign == "block" else it.two_stations(*map(float, a.station.split(",")))
+    targets = it.plan(nom, jig, m=120, seed=1)
+    sigma = it.run(nom, tru, targets, (), seed=0, jig=jig).along_normal_noise_sigma_m
     seeds = range(a.first_seed, a.first_seed + a.seeds)
-    floor = {s: one(nom, tru, targets, None, s, a.n_boot)[1] for s in seeds}
-    report: dict = {"seeds": a.seeds, "mult": a.mult}
+    floor = {s: one(nom, tru, targets, None, s, a.n_boot, jig)[1] for s in seeds}
+    report: dict = {"seeds": a.seeds, "mult": a.mult, "campaign": a.campaign}
+    if "coupling_J2_J3" in a.cases:  # the gate's test on this campaign's first clean recording
+        report["coupling_J2_J3_vs_eccentricity_J2"] = coupling_share(
+            it.run(nom, tru, targets, (), seed=a.first_seed, jig=jig).table)
+        print(json.dumps({"coupling_J2_J3_vs_eccentricity_J2": report["coupling_J2_J3_vs_eccentricity_J2"]}),
+              flush=True)
     if "clean" in a.cases:
         ds = list(floor.values())
         report["clean"] = {"runs": len(ds), "false_findings": float(np.mean([bool(d["findings"]) for d in ds])),
@@ -94,11 +132,11 @@ def main() -> None:
     for name, form in cases(targets).items():
         if name not in a.cases.split(","):
             continue
-        mds = it.mds(nom, tru, targets, form, sigma) if form.kind != "glitch" else float("nan")
+        mds = it.mds(nom, tru, targets, form, sigma, jig=jig) if form.kind != "glitch" else float("nan")
         eff = it.Effect(form.kind, a.mult * mds, form.where) if form.kind != "glitch" else form
         rows = []
         for s in seeds:
-            c, d = one(nom, tru, targets, eff, s, a.n_boot)
+            c, d = one(nom, tru, targets, eff, s, a.n_boot, jig)
             high = [f"{f['effect']}@{f['location']}" for f in d["findings"] if f["confidence"] == "high"]
             named = None
             if name in IN_LIBRARY:
@@ -112,7 +150,13 @@ def main() -> None:
                 high = [h for h in high if not (h.startswith(nm_ + "@") and h.split("@")[1].split(" (")[0] == place)]
             if name in ("wild", "glitch"):
                 located = int(form.where["record"]) in [o["record"] for o in d["outlier_records"]]
-            rows.append({"status": d["status"], "located": located, "named_high": bool(high), "high": high,
+            chosen = [f["location"] for f in d["findings"] if name in FORMS and f["effect"] == FORMS[name][0]
+                      and f["location"].split(" (")[0] == FORMS[name][1]]
+            rows.append({"seed": s, "status": d["status"], "located": located, "named_high": bool(high), "high": high,
+                         "chosen": chosen, "holdout_before_m": d["holdout_rms_before_m"],
+                         "holdout_after_m": d["holdout_rms_after_m"], "clean_holdout_m": floor[s]["holdout_rms_before_m"],
+                         "parameters": {f"{f['effect']}@{f['location']}": [p["value"] for p in f["parameters"]]
+                                        for f in d["findings"]},
                          "family_named": fam, "form_named": form_ok,
                          "named": named, "worse": d["holdout_rms_after_m"] > d["holdout_rms_before_m"] + 1e-15,
                          "after_over_floor": d["holdout_rms_after_m"] / floor[s]["holdout_rms_before_m"],
@@ -128,11 +172,14 @@ def main() -> None:
             row["form_named"] = float(np.mean([r["form_named"] for r in rows]))
             row["located_or_family_named"] = float(np.mean([r["located"] or r["family_named"] for r in rows]))
             row["after_over_floor_le_1.2"] = float(np.mean([r["after_over_floor"] <= 1.2 for r in rows]))
+            row["forms_chosen"] = {k: int(sum(k in r["chosen"] for r in rows))
+                                   for k in sorted({c for r in rows for c in r["chosen"]})}
         if name in IN_LIBRARY:
             row["found_named"] = float(np.mean([r["named"] for r in rows]))
             row["after_over_floor_le_1.2"] = float(np.mean([r["after_over_floor"] <= 1.2 for r in rows]))
         report[name] = row
         print(json.dumps({name: row}), flush=True)
+        row["per_seed"] = rows  # in --out only
     report["elapsed_s"] = time.time() - t0
     print(f"elapsed {report['elapsed_s']:.0f} s")
     if a.out:

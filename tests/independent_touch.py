@@ -11,11 +11,16 @@ outside the diagnosis's library:
                    inside the material, g a 2-D Gaussian of the position on the face);
 - ``quad_coupling``: δq_3 = k·(q_2 − q̄_2)² (a nonlinear coupling of J3 on J2's angle);
 - ``thermal_growth``: a2 and d4 grow by α·L·(1 − e^(−t/τ)) (a warm-up acting through the kinematics);
+  ``warm_up_all``: every D-H a, d grows so (the links that warm are all the links);
 - ``wild``:        one contact latched `size` metres further along its search (a bad latch);
 - ``glitch``:      J1's encoder stream reads `size` rad off over the 30 ms before one latch (the latch
                    itself is right; the approach speed derived from the stream is not);
 - in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` every D-H a, d
   grows by α·L·t.
+A second campaign layout, `two_stations`: the stepped block and a copy of it farther and lower (J2 over a
+wider range), the campaign change the diagnosis advises for a coupling it cannot tell from an eccentricity
+(default offset: of the eight tried, the one whose J2→J3 coupling and J2 eccentricity signatures ⊥ the
+geometry are furthest apart — principal angle 33° — a property of the campaign, not of any outcome).
 
 Only the numbers of the nominal/true arm are read from `pipeline.systems.arc_welder` (base,
 D-H + Hayati joint terms, tool) and the jig's faces from `pipeline.models.jig`.  The diagnosis
@@ -30,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.diagnose.table import add_context
-from pipeline.models.jig import Jig, stepped_block
+from pipeline.models.jig import Face, Jig, stepped_block
 from pipeline.systems import arc_welder as aw
 
 RATE_HZ = 250.0
@@ -173,7 +178,7 @@ def plan(nominal: Arm, jig: Jig, m: int = 160, seed: int = 0, offset: float = 0.
 # ----- effects (own forms) ----------------------------------------------------------------
 @dataclass(frozen=True)
 class Effect:
-    kind: str  # bump | dent | quad_coupling | thermal_growth | wild | glitch | coupling | linear_growth
+    kind: str  # bump | dent | quad_coupling | thermal_growth | warm_up_all | wild | glitch | coupling | linear_growth
     size: float
     where: dict = field(default_factory=dict)
 
@@ -193,10 +198,12 @@ def _joint_error(effects, q: np.ndarray, qbar: np.ndarray) -> np.ndarray:
 
 
 def _link_scale(effects, t: np.ndarray) -> np.ndarray | None:
-    """thermal_growth: (a2, d4) scale (n, 2); linear_growth: every a and d (n, 6)."""
+    """thermal_growth: (a2, d4) scale (n, 2); linear_growth, warm_up_all: every a and d (n, 6)."""
     for e in effects:
         if e.kind == "thermal_growth":
             return 1 + e.size * np.repeat((1 - np.exp(-t / e.where.get("tau_s", 600.0)))[:, None], 2, axis=1)
+        if e.kind == "warm_up_all":
+            return 1 + e.size * np.repeat((1 - np.exp(-t / e.where.get("tau_s", 600.0)))[:, None], 6, axis=1)
         if e.kind == "linear_growth":
             return 1 + e.size * np.repeat(t[:, None], 6, axis=1)
     return None
@@ -370,6 +377,19 @@ def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float
     U = U[:, sv > sv[0] * 1e-9]
     Sp = S - U @ (U.T @ S)
     return 3 * sigma / max(np.linalg.norm(Sp), 1e-300)
+
+
+def two_stations(dx: float = 0.45, dz: float = -0.35) -> Jig:
+    """The stepped block and a copy of it `dx` farther along x and `dz` lower (m; faces `s_…`): a second
+    station that takes J2 (and J3) over a wider range than the block alone."""
+    base = stepped_block()
+    off = (dx, 0.0, dz)
+    faces = []
+    for f in base.faces:
+        a, b = f.other_axes()
+        faces.append(Face("s_" + f.id, f.axis, f.coordinate + off[f.axis_index], f.normal_sign,
+                          (tuple(np.add(f.extent[0], off[a])), tuple(np.add(f.extent[1], off[b])))))
+    return Jig(name=f"{base.name}+station({dx:g},{dz:g})", faces=base.faces + tuple(faces))
 
 
 def default_arms() -> tuple[Arm, Arm]:

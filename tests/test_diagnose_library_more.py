@@ -40,6 +40,28 @@ def test_thermal_growth_signature_is_the_derivative_of_scaling_every_link_length
     assert np.allclose(S, fd, rtol=1e-5, atol=1e-9)
 
 
+def test_long_link_warm_up_signature_is_the_derivative_of_scaling_only_the_long_links():
+    """`links (warm-up τ = T/4, long links)`: only the links at least ⅓ as long as the longest grow (the
+    arc welder's a2 and d4, 0.35 m; not d3, d5 of 0.06–0.08 m), by ε·L·(1 − e^(−t/τ)), τ = T/4."""
+    t, x = _table(seed=2), TRUE.vector()
+    e = pick(touch_library(TRUE, t), "thermal_growth", "links (warm-up τ = T/4, long links)")
+    assert e.data["form"]["links"] == ["J2", "J4"] and e.k == 1
+    tau = 0.25 * float(np.max(t["time_since_start_s"]))
+    assert e.data["form"]["tau_s"] == pytest.approx(tau)
+    S = signature(e, TRUE, x, t)[:, 0]
+    names = TRUE.parameter_names()
+    grow = [names.index(n) for n in ("J2.a", "J2.d", "J4.a", "J4.d")]
+    eps = 1e-7
+    p0 = serial_arm.tip_position(x, t["joint_positions"])[:, 2]
+    fd = np.empty(len(p0))
+    for r, tr in enumerate(t["time_since_start_s"]):
+        xr = x.copy()
+        xr[grow] *= 1 + eps * (1 - np.exp(-tr / tau))
+        fd[r] = (serial_arm.tip_position(xr, t["joint_positions"][r:r + 1])[0, 2] - p0[r]) / eps
+    assert np.allclose(S, fd, rtol=1e-5, atol=1e-9)
+    assert np.any(np.abs(fd) > 1e-3)  # not a trivially zero signature
+
+
 def test_joint_coupling_and_wire_signatures_against_finite_differences():
     t, x = _table(seed=1), TRUE.vector()
     q = t["joint_positions"]

@@ -15,9 +15,10 @@ true tip by D·θ in {W}):
   temperature is recorded — the tip moves by ε·t·Σ L ∂p/∂L, pose-dependent, unlike the rigid
   `thermal_drift`; and as a first-order warm-up, ε·L·(1 − e^(−t/τ)) (1), τ on a grid over the
   campaign's duration T (T/8, T/4, T/2, T): ``links (warm-up τ = T/4)`` (τ in s: the finding's ``form``); and the
-  same warm-ups with one growth fraction per link (each joint's a and d of nominal length ≥ 1 mm):
-  ``links (warm-up τ = T/4, per link)`` — the links that warm need not be all the links.  The forms of one family:
-  the held-out error chooses among them (`forms`);
+  same warm-ups of the long links alone (`link_groups`: nominal |a| + |d| ≥ ⅓ of the longest link):
+  ``links (warm-up τ = T/4, long links)`` — the links that warm need not be all the links (one growth per link is
+  beyond what a touch campaign detects at a plausible size).  The forms of one family: the held-out error chooses
+  among them (`forms`);
 - ``face_tilt`` (per face, m/m along each in-plane axis) and ``face_flatness`` (per face, m/m²,
   a bowl about the face's contacts' centre): the face is not the plane of the drawing (the
   true tip meets it displaced by D·θ along the face's axis);

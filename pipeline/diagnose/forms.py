@@ -3,10 +3,10 @@
 Some library effects come in several forms of the same physics at the same place: a joint
 coupling Ji->Jj linear in q_i or quadratic about the campaign's mean angle; the growth of the
 links linear in time or a first-order warm-up 1 − e^(−t/τ) with τ on a grid over the
-campaign's duration, with one growth of every link or one per link.  The forms are candidates like any other (the selection's grouped F and
-Holm's correction count them); once the selection has accepted one, each other form of the same
-family is tried in its place, and the one with the lowest grouped cross-validated RMS of the
-linearised model (geometry + every accepted effect) is kept — unless a simpler form is within one
+campaign's duration, of every link or of the long links alone.  The forms are candidates like any
+other (the selection's grouped F and Holm's correction count them); once the selection has accepted
+one, each other form of the same family is tried in its place, and the one with the lowest grouped
+cross-validated RMS of the linearised model (geometry + every accepted effect) is kept — unless a simpler form is within one
 standard error of it (then the simpler stays): held-out error decides the form, not the in-sample fit.
 """
 
@@ -44,9 +44,8 @@ def choose(lib: list[Effect], accepted: list[int], testable: list[int], S: list[
     """(accepted with each finding's form replaced by the held-out best of its family, {kept entry:
     [{form, cv_rms_m}] of every form tried}).  The form with the lowest held-out mean square is kept
     unless a simpler one (fewer parameters, or as many and a lower `priority`: the linear form before a
-    warm-up, one growth of every link before one per link) is within one standard error of the paired
-    difference — then the best of those, and so on (the one-standard-error rule): forms that fit
-    equally well out of sample are not told apart by noise.  Unchanged when no accepted entry has
+    warm-up) is within one standard error of the paired difference — then the best of those, and so on
+    (the one-standard-error rule): forms that fit equally well out of sample are not told apart by noise.  Unchanged when no accepted entry has
     another form."""
     out = list(accepted)
     tried: dict[int, list[dict]] = {}

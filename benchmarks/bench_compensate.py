@@ -69,7 +69,8 @@ def arc_welder_seed(s: int) -> tuple[float, dict]:
 
 
 def delta_seed(s: int) -> tuple[float, dict]:
-    """Delta: random truth (seed s), the paper's campaign, 1 000 new targets over the workspace in {T}."""
+    """Delta: random truth (seed s), the paper's 27-point grid with its own tracker noise (campaign seed s),
+    1 000 new targets over the workspace in {T}."""
     from pipeline.compensate import delta as cd
     from pipeline.identify.least_squares import fit
     from pipeline.models import delta as dm
@@ -78,7 +79,7 @@ def delta_seed(s: int) -> tuple[float, dict]:
     from pipeline.systems import delta_tracker as dt
 
     tr = dsim.random_truth(np.random.default_rng(s))
-    sm = dsim.simulate(Delta(), tr, dsim.Campaign(), dsim.Noise())
+    sm = dsim.simulate(Delta(), tr, dsim.Campaign(seed=s), dsim.Noise())
     model = dt.TrackerModel()
     f = fit(model, {"joint_positions": sm.q, "point": sm.point_t})
     val = dsim.simulate(Delta(), tr, dsim.Campaign(points=1000, seed=1000 + s), dsim.Noise(scale=0.0))

@@ -32,25 +32,30 @@ def workspace_configs(n: int, seed: int = 0) -> np.ndarray:
     return np.clip(q, nominal.lower, nominal.upper)
 
 
+FIXTURE = True  # --no-fixture: the fit's covariance alone (the jig taken as exact)
+
+
 def rms(v: np.ndarray) -> float:
     return float(np.sqrt(np.mean(v**2)))
 
 
-def judge(f, Jp: np.ndarray, after: np.ndarray) -> dict:
+def judge(f, Jp: np.ndarray, after: np.ndarray, cov: np.ndarray | None = None) -> dict:
     """One calibration: the true RMS 3-D error of its compensated program, the predicted RMS (1σ:
     sqrt of the mean trace of Jp Σ Jpᵀ) and the 95 % bound on one calibration's RMS
     (`pipeline.accuracy.propagate.rms_bound`: generalized χ² of δθ ~ N(0, Σ), σ̂ on its dof)."""
     from pipeline.accuracy.propagate import rms_bound
 
     Jp = Jp[:, :, f.free]
+    cov = f.cov if cov is None else cov
     dof = int(f.residuals_after.size - f.free.sum())
-    pred = float(np.sqrt(np.einsum("nip,pq,niq->", Jp, f.cov, Jp) / Jp.shape[0]))
-    return {"true": rms(after), "pred": pred, "bound95": rms_bound(Jp, f.cov, 0.95, dof)}
+    pred = float(np.sqrt(np.einsum("nip,pq,niq->", Jp, cov, Jp) / Jp.shape[0]))
+    return {"true": rms(after), "pred": pred, "bound95": rms_bound(Jp, cov, 0.95, dof)}
 
 
 def arc_welder_seed(s: int) -> tuple[float, dict]:
     """Arc welder: Table 2 truth, a default 100-contact campaign (seed s) with noise, 1 000 pose
     targets around the jig (nominal joints given as hints)."""
+    from pipeline.accuracy.propagate import fixture_covariance
     from pipeline.identify.least_squares import fit
     from pipeline.models.jig import stepped_block
     from pipeline.plan.arc_welder import table_of
@@ -60,12 +65,17 @@ def arc_welder_seed(s: int) -> tuple[float, dict]:
     kin, model = SerialArmKinematics.of(nominal), aw.TouchModel(nominal)
     q = workspace_configs(1000, seed=99)
     R, p = serial_arm.forward(nominal.vector(), q)
-    f = fit(model, table_of(simulate(nominal, truth, stepped_block(), Campaign(contacts=100, seed=s), Noise())))
+    jig = stepped_block()
+    table = table_of(simulate(nominal, truth, jig, Campaign(contacts=100, seed=s), Noise()))
+    f = fit(model, table)
     c = compensate(kin, nominal.vector(), f.x, p, R, IK_SEEDS, hint=q)
+    # the jig's machining tolerance (per face, shared by its contacts) on top of σ̂²(JᵀJ)⁻¹
+    Jf = model.jacobian(f.x, table).reshape(-1, f.x.size)[:, f.free]
+    cov = f.cov + fixture_covariance(Jf, table["face"], 1, jig.tolerance_m) if FIXTURE else f.cov
     ok = c.status == "ok"
     after = np.linalg.norm(serial_arm.tip_position(truth.vector(), c.q[ok]) - p[ok], axis=1)
     before = np.linalg.norm(serial_arm.tip_position(truth.vector(), q) - p, axis=1)
-    return rms(before), judge(f, model.points(f.x, {"joint_positions": c.q[ok]})[1], after) | {"ok": int(ok.sum())}
+    return rms(before), judge(f, model.points(f.x, {"joint_positions": c.q[ok]})[1], after, cov) | {"ok": int(ok.sum())}
 
 
 def delta_seed(s: int) -> tuple[float, dict]:
@@ -164,7 +174,10 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0, help="first calibration seed of --accuracy-seeds")
     ap.add_argument("--systems", default="arc-welder,delta,urdf", help="systems of --accuracy-seeds")
     ap.add_argument("--n", type=int, default=10_000)
+    ap.add_argument("--no-fixture", action="store_true", help="arc welder: leave the jig's machining tolerance out of Σ")
     a = ap.parse_args()
+    global FIXTURE
+    FIXTURE = not a.no_fixture
     if a.accuracy_seeds:
         accuracy(a.accuracy_seeds, a.first_seed, a.systems)
         if a.n == 0:

@@ -138,3 +138,18 @@ def rms_bound(Jp: np.ndarray, cov: np.ndarray, confidence: float = 0.95, dof: in
     """Upper bound, at `confidence`, on one calibration's RMS 3-D error over the points, m
     (quantile of `rms_samples`)."""
     return float(np.quantile(rms_samples(Jp, cov, dof), confidence))
+
+
+def fixture_covariance(J_free: np.ndarray, labels: np.ndarray, residual_dim: int, tolerance_m: float) -> np.ndarray:
+    """Covariance of the free parameters (p,p) from a fixture's machining error: each face (label)
+    is off its drawing by f_k, uniform within ±`tolerance_m` (σ = tol/√3), the same for every
+    measurement on it — an error the fit's σ̂²(JᵀJ)⁻¹ cannot see (it is not independent between
+    measurements).  It moves the estimate by J⁺ D f (D: measurement rows × faces, one-hot), hence
+    σ_f² (J⁺D)(J⁺D)ᵀ.  J_free (m·k, p) residual Jacobian over the free parameters, labels (m,)."""
+    labels = np.asarray(labels).astype(str)
+    faces, idx = np.unique(labels, return_inverse=True)
+    D = np.zeros((labels.size, faces.size))
+    D[np.arange(labels.size), idx] = 1.0
+    D = np.repeat(D, residual_dim, axis=0)  # every residual row of a measurement on its face
+    PD = pinv(J_free) @ D
+    return (tolerance_m**2 / 3.0) * PD @ PD.T

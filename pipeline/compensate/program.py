@@ -88,6 +88,8 @@ def load_run(run_dir: Path) -> dict:
         raise RobocalError(f"{fit_path}: parameters do not match the {system.SYSTEM} model of the recording")
     free = np.asarray(fit["free"], bool)
     cov = np.asarray(fit["cov"], float).reshape(int(free.sum()), int(free.sum()))
+    if fit.get("cov_fixture") is not None:  # the fixture's machining tolerance (identify stage)
+        cov = cov + np.asarray(fit["cov_fixture"], float).reshape(cov.shape)
     n_used, k = fit.get("n_used"), fit.get("residual_dim")
     dof = int(n_used * k - free.sum()) if n_used is not None and k is not None else None
     return {"system": system.SYSTEM, "model": model, "x_nominal": np.asarray(fit["nominal"], float),

@@ -45,3 +45,24 @@ def test_the_95_bound_covers_95_percent_of_independent_calibrations():
         within_pred += true <= np.sqrt(np.einsum("nip,pq,niq->", Jp, cov, Jp) / 300)
     assert 0.918 <= within / trials <= 0.975, within / trials
     assert within_pred / trials < 0.8
+
+
+def test_fixture_covariance_matches_the_spread_of_estimates_with_shared_face_errors():
+    """Linear problems whose measurements on one face share an offset uniform in ±tol: the empirical
+    covariance of the least-squares estimates is σ²(AᵀA)⁻¹ + fixture_covariance, not the first alone."""
+    from pipeline.accuracy.propagate import fixture_covariance
+
+    rng = np.random.default_rng(2)
+    m, p, tol, sigma = 70, 5, 2e-5, 1e-5
+    A = rng.normal(size=(m, p))
+    labels = np.array([f"face{i % 7}" for i in range(m)])
+    D = (labels[:, None] == np.unique(labels)[None]).astype(float)
+    trials = 20_000
+    y = rng.uniform(-tol, tol, (trials, 7)) @ D.T + rng.normal(0, sigma, (trials, m))  # θ = 0
+    est = y @ np.linalg.pinv(A).T
+    emp = est.T @ est / trials
+    noise_only = sigma**2 * np.linalg.inv(A.T @ A)
+    model = noise_only + fixture_covariance(A, labels, 1, tol)
+    assert abs(np.trace(emp) / np.trace(model) - 1) < 0.04
+    assert np.trace(emp) / np.trace(noise_only) > 1.3  # the face errors matter here
+    assert np.abs(emp - model).max() < 0.1 * np.abs(model).max()

@@ -105,9 +105,12 @@ def test_jacobian_used_by_the_solver_matches_finite_differences(arms):
         assert np.allclose(np.stack([W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]], 1), J[:, 3:, j], atol=1e-8)
 
 
-def test_compensated_program_on_the_true_robot_is_within_1_2x_the_predicted_accuracy(arms):
+def test_compensated_program_on_the_true_robot_is_within_the_predicted_accuracy(arms):
     """Paper's error sizes (Table 2 truth, ~20 mm off), a default 100-contact campaign with noise,
-    1 000 new targets over the jig: the true tool-tip error of the compensated program."""
+    1 000 new targets over the jig: the true tool-tip error of the compensated program is within the
+    95 % bound on one calibration's RMS (the claim; `bench_compensate.py --accuracy-seeds 25` measures
+    how often over calibrations) and, for this calibration, within 1.2× the predicted 1σ RMS."""
+    from pipeline.accuracy.propagate import rms_bound
     from pipeline.models.jig import stepped_block
     from pipeline.plan.arc_welder import table_of
     from pipeline.simulate.arc_welder import Campaign, Noise, simulate
@@ -129,6 +132,9 @@ def test_compensated_program_on_the_true_robot_is_within_1_2x_the_predicted_accu
     sigma = np.sqrt(np.einsum("nip,pq,niq->n", Jp, f.cov, Jp))
     rms = lambda v: float(np.sqrt(np.mean(v**2)))  # noqa: E731
     assert rms(before) > 10e-3
+    bound = rms_bound(Jp, f.cov, 0.95, int(f.residuals_after.size - f.free.sum()))
+    assert rms(sigma) < bound < 1.6 * rms(sigma)  # an informative bound, not a vacuous one
+    assert rms(after) <= bound, (rms(after), bound)
     assert rms(after) <= 1.2 * rms(sigma), (rms(after), rms(sigma))
 
 

@@ -111,3 +111,45 @@ def measured_directions(Jm: np.ndarray, Jp: np.ndarray, residual_dim: int) -> tu
     M = np.einsum("nki,nkj->ij", D, D) / max(n, 1)
     w, V = np.linalg.eigh(M)
     return w / max(w[-1], 1e-300), V
+
+
+def rms_samples(Jp: np.ndarray, cov: np.ndarray, dof: int | None = None, n_samples: int = 20_000,
+                seed: int = 0) -> np.ndarray:
+    """The distribution of one calibration's RMS 3-D error over a set of points, m (n_samples,).
+
+    The error at point i is Jp_i δθ with the same δθ ~ N(0, Σ) at every point, so RMS² over the
+    points is δθᵀ M δθ, M = mean Jp_iᵀJp_i: a generalized χ², Σ λ_k χ²₁ with λ the eigenvalues of
+    Σ^½ M Σ^½ — few effective degrees of freedom, so one calibration's RMS spreads widely around
+    the predicted sqrt(Σλ).  With `dof` (measurements − free parameters of the fit), Σ ∝ σ̂² is
+    also scaled by dof/χ²_dof: the uncertainty of the σ estimate.  Jp (n,3,p) over the free
+    parameters, cov (p,p)."""
+    M = np.einsum("nip,niq->pq", Jp, Jp) / max(Jp.shape[0], 1)
+    w, V = np.linalg.eigh(cov)
+    L = V * np.sqrt(np.clip(w, 0, None))
+    lam = np.clip(np.linalg.eigvalsh(L.T @ M @ L), 0, None)
+    rng = np.random.default_rng(seed)
+    ms = rng.standard_normal((n_samples, lam.size)) ** 2 @ lam
+    if dof:
+        ms = ms * dof / rng.chisquare(dof, n_samples)
+    return np.sqrt(ms)
+
+
+def rms_bound(Jp: np.ndarray, cov: np.ndarray, confidence: float = 0.95, dof: int | None = None) -> float:
+    """Upper bound, at `confidence`, on one calibration's RMS 3-D error over the points, m
+    (quantile of `rms_samples`)."""
+    return float(np.quantile(rms_samples(Jp, cov, dof), confidence))
+
+
+def fixture_covariance(J_free: np.ndarray, labels: np.ndarray, residual_dim: int, tolerance_m: float) -> np.ndarray:
+    """Covariance of the free parameters (p,p) from a fixture's machining error: each face (label)
+    is off its drawing by f_k, uniform within ±`tolerance_m` (σ = tol/√3), the same for every
+    measurement on it — an error the fit's σ̂²(JᵀJ)⁻¹ cannot see (it is not independent between
+    measurements).  It moves the estimate by J⁺ D f (D: measurement rows × faces, one-hot), hence
+    σ_f² (J⁺D)(J⁺D)ᵀ.  J_free (m·k, p) residual Jacobian over the free parameters, labels (m,)."""
+    labels = np.asarray(labels).astype(str)
+    faces, idx = np.unique(labels, return_inverse=True)
+    D = np.zeros((labels.size, faces.size))
+    D[np.arange(labels.size), idx] = 1.0
+    D = np.repeat(D, residual_dim, axis=0)  # every residual row of a measurement on its face
+    PD = pinv(J_free) @ D
+    return (tolerance_m**2 / 3.0) * PD @ PD.T

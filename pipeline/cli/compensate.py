@@ -40,8 +40,10 @@ def compensate_cmd(
     write_json(Path(run_dir) / "compensation" / "compensation.json", doc)
     counts = ", ".join(f"{v} {k}" for k, v in doc["status_counts"].items())
     sig = doc["predicted_sigma_rms_m"]
+    b95 = doc["predicted_rms_bound95_m"]
     err.print(f"compensated {c.q.shape[0]} targets in {elapsed:.3f} s: {counts}; predicted 1σ tool-point error "
-              f"RMS {sig * 1e3 if sig is not None else float('nan'):.4f} mm; median correction "
+              f"RMS {sig * 1e3 if sig is not None else float('nan'):.4f} mm (this calibration's RMS ≤ "
+              f"{b95 * 1e3 if b95 is not None else float('nan'):.4f} mm at 95 % confidence); median correction "
               f"{(doc['correction_median_m'] or float('nan')) * 1e3:.3f} mm", highlight=False)
     bad = [r for r in doc["rows"] if r["status"] != "ok"][:5]
     for r in bad:

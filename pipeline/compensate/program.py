@@ -88,12 +88,16 @@ def load_run(run_dir: Path) -> dict:
         raise RobocalError(f"{fit_path}: parameters do not match the {system.SYSTEM} model of the recording")
     free = np.asarray(fit["free"], bool)
     cov = np.asarray(fit["cov"], float).reshape(int(free.sum()), int(free.sum()))
+    if fit.get("cov_fixture") is not None:  # the fixture's machining tolerance (identify stage)
+        cov = cov + np.asarray(fit["cov_fixture"], float).reshape(cov.shape)
+    n_used, k = fit.get("n_used"), fit.get("residual_dim")
+    dof = int(n_used * k - free.sum()) if n_used is not None and k is not None else None
     return {"system": system.SYSTEM, "model": model, "x_nominal": np.asarray(fit["nominal"], float),
-            "x": np.asarray(fit["x"], float), "free": free, "cov": cov}
+            "x": np.asarray(fit["x"], float), "free": free, "cov": cov, "dof": dof}
 
 
-def predicted_sigma(model, x: np.ndarray, free: np.ndarray, cov: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """1σ 3-D tool-point error of the calibrated model at joints q (N,), m."""
+def point_jacobian(model, x: np.ndarray, free: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """d tool point / d free parameters of the calibrated model at joints q, (N, 3, p) m per unit."""
     q = np.nan_to_num(q)
     if _chain_kin(model) is not None:
         J = serial.ChainKinematics.of(model.kin).point_jacobian(x, q)
@@ -101,8 +105,25 @@ def predicted_sigma(model, x: np.ndarray, free: np.ndarray, cov: np.ndarray, q: 
         Jp[:, :, : J.shape[2]] = J
     else:
         _, Jp = model.points(x, {"joint_positions": q})
-    Jp = Jp[:, :, free]
+    return Jp[:, :, free]
+
+
+def predicted_sigma(model, x: np.ndarray, free: np.ndarray, cov: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """1σ 3-D tool-point error of the calibrated model at joints q (N,), m."""
+    Jp = point_jacobian(model, x, free, q)
     return np.sqrt(np.einsum("nip,pq,niq->n", Jp, cov, Jp))
+
+
+def rms_bound95(run: dict, c: serial.Compensated) -> float | None:
+    """95 % upper bound on the true RMS 3-D error of the program's ok rows for this one calibration
+    (`pipeline.accuracy.propagate.rms_bound`: the predicted RMS is a mean over calibrations; one
+    calibration's RMS spreads around it with few effective degrees of freedom), m."""
+    from pipeline.accuracy.propagate import rms_bound
+
+    ok = c.status == "ok"
+    if not ok.any():
+        return None
+    return rms_bound(point_jacobian(run["model"], run["x"], run["free"], c.q[ok]), run["cov"], 0.95, run["dof"])
 
 
 def compensate_run(run: dict, targets: dict) -> serial.Compensated:
@@ -162,6 +183,7 @@ def summary(run: dict, c: serial.Compensated, sigma: np.ndarray, targets_path: P
             "status_counts": {s: int((c.status == s).sum()) for s in serial.STATUS if (c.status == s).any()},
             "orientation": bool(np.any(c.R_corrected != np.eye(3))) if run["system"] != "delta-tracker" else False,
             "predicted_sigma_rms_m": float(np.sqrt(np.mean(sigma[ok] ** 2))) if ok.any() else None,
+            "predicted_rms_bound95_m": rms_bound95(run, c),
             "correction_median_m": float(np.median(c.correction_m[ok])) if ok.any() else None,
             "max_model_error_m": float(c.error_m[ok].max()) if ok.any() else None,
             "rows": [{"row": i + 1, "status": str(s), "predicted_sigma_m": float(sg), "correction_m": float(cm)}

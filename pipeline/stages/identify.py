@@ -12,6 +12,7 @@ from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.outliers import fit_rejecting
 from pipeline.identify.results import parameter_table
 from pipeline.ingest.tables import model_columns
+from pipeline.recording.schemas import META_FIXTURE
 from pipeline.stages.artefacts import read_json, write_json, write_table
 from pipeline.stages.ingest import load_system, read_measurements
 
@@ -38,7 +39,7 @@ def options_of(params: dict) -> FitOptions:
 def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
     out = run_dir / NAME
-    system, model, _ = load_system(run_dir)
+    system, model, rec = load_system(run_dir)
     table = read_measurements(run_dir)
     data = model_columns(table)
     opts = options_of(params)
@@ -93,6 +94,12 @@ def run(run_dir: Path, params: dict) -> dict:
         "parameters": parameter_table(f),
         "warnings": [w for w in [holdout_warning(int(rf.kept.sum()), folds, k, int(free.sum()))] if w],
     }
+    tol = (rec.metadata.get(META_FIXTURE) or {}).get("tolerance_m")
+    if tol and "face" in kept_data:  # per-face machining error, shared by a face's contacts (not in σ̂²(JᵀJ)⁻¹)
+        from pipeline.accuracy.propagate import fixture_covariance
+        Jf = model.jacobian(f.x, kept_data).reshape(-1, f.x.size)[:, free]
+        doc |= {"fixture_tolerance_m": float(tol),
+                "cov_fixture": fixture_covariance(Jf, kept_data["face"], k, float(tol))}
     if selection is not None:
         from pipeline.identify.complexity import explain
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,

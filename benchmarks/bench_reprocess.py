@@ -27,12 +27,13 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # this checkout's robocal, as the CLI runs below (PYTHONPATH), not an installed one
 
 from pipeline.fleet.dataset import read_results  # noqa: E402
 from pipeline.recording.reader import read_recording  # noqa: E402
 from pipeline.recording.writer import RecordingWriter  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 JS, TC = "/robot/joint_state", "/touch/contact"
 
 
@@ -82,7 +83,8 @@ def run_engine(tmp: Path, engine: str, a: argparse.Namespace) -> float:
     if p.returncode not in (0, 1):  # 1: recordings that fail the gate (12 contacts: too few for its verdict)
         raise SystemExit(f"{engine}: exit {p.returncode}: {p.stderr.strip()[-500:]}")
     rows = read_results(out).to_pylist()
-    assert len(rows) == a.recordings and all(r["status"] not in ("error", "crash", "lost") for r in rows)
+    bad = [f"{r['recording']}: {r['status']}: {r['error']}" for r in rows if r["status"] != "pass"]
+    assert len(rows) == a.recordings and not bad, bad[:3]
     w = 1 if engine == "serial" else a.workers
     task = sum(r["elapsed_s"] for r in rows)
     over = (wall * w - task) / len(rows)

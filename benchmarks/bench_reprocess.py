@@ -2,16 +2,19 @@
 pool and on Dask (LocalCluster), side by side; Dask's overhead per recording.
 
     python benchmarks/bench_reprocess.py [--recordings 200] [--contacts 12] [--workers 2] [--stages ingest,validate,identify]
-        [--engines serial,processes,dask] [--repeats 1] [--probe 40]
+        [--engines serial,processes,dask] [--repeats 1] [--probe 40] [--startup 0]
 
 Each recording is the bundled arc-welder campaign cut to its first CONTACTS contacts (copied to
-RECORDINGS paths of a nested archive; each copy is a separate run).  Overhead per recording =
-(wall × workers − Σ task wall times) / recordings, the time a worker slot spends outside a task
-(scheduling, transfer, writing the dataset, idling at the end, and on a busy machine the CPU taken
-by the engine's own threads); Dask's is given with and without the cluster's start-up, and its own
-per-task cost is probed with tasks that only sleep (no CPU contention).  With --repeats N the engines
-run N times, in alternating order (on a shared box the load then weighs on each alike), and Dask's wall
-is compared with the process pool's run by run: the end-to-end figure.
+RECORDINGS paths of a nested archive; each copy is a separate run).  Each engine runs as a user runs
+it: `python -m pipeline reprocess ARCHIVE --engine E` in a fresh process, timed end to end.  Overhead
+per recording = (wall × workers − Σ task wall times) / recordings: all a worker slot spends outside a
+task (the interpreter's start and imports, discovery and hashing, the engine's start-up and shutdown,
+scheduling, writing the dataset, idling at the end, and on a busy machine the CPU taken by the
+engine's own threads).  With --repeats N the engines run N times in alternating order (on a shared box
+the load then weighs on each alike) and Dask's wall is compared with the process pool's, run by run:
+the end-to-end figure.  --startup N times a LocalCluster's start-up and shutdown alone, workers
+spawned (Dask's default) or forked from robocal's fork server; --probe N, Dask's own per-task cost
+with tasks that only sleep (no CPU contention).
 """
 
 from __future__ import annotations
@@ -95,6 +98,36 @@ def run_engine(tmp: Path, engine: str, a: argparse.Namespace) -> float:
     return wall
 
 
+STARTUP = """
+import json, sys, time
+t0 = time.perf_counter()
+from pipeline.fleet import engine
+if sys.argv[1] == "spawn":  # Dask's default: each worker a fresh interpreter that imports distributed and robocal
+    engine.FORK_SERVER, engine.start_fork_server = {}, lambda stages=None: None
+t1 = time.perf_counter()
+with engine.dask_client(None, int(sys.argv[2]), None, sys.argv[3].split(",")) as client:
+    t2 = time.perf_counter()
+print(json.dumps([t1 - t0, t2 - t1, time.perf_counter() - t2]))
+"""
+
+
+def startup_probe(workers: int, stages: str, repeats: int) -> None:
+    """LocalCluster up (workers ready, robocal's stages imported) and closed, in a fresh interpreter each
+    time, workers spawned (Dask's default) or forked from robocal's fork server, alternately."""
+    import json
+
+    times: dict[str, list[list[float]]] = {"spawn": [], "forkserver": []}
+    for rep in range(repeats):
+        for method in ("spawn", "forkserver") if rep % 2 == 0 else ("forkserver", "spawn"):
+            p = subprocess.run([sys.executable, "-c", STARTUP, method, str(workers), stages], capture_output=True,
+                               text=True, check=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+            times[method].append(json.loads(p.stdout.strip().splitlines()[-1]))
+    for method, ts in times.items():
+        med = [sorted(t[i] for t in ts)[len(ts) // 2] for i in range(3)]
+        print(f"LocalCluster of {workers}, workers {method:<10}: import {med[0]:.2f} s, up {med[1]:.2f} s, "
+              f"close {med[2]:.2f} s (medians of {len(ts)}; up + close {', '.join(f'{t[1] + t[2]:.2f}' for t in ts)} s)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--recordings", type=int, default=200)
@@ -104,6 +137,8 @@ def main() -> None:
     ap.add_argument("--engines", default="serial,processes,dask")
     ap.add_argument("--repeats", type=int, default=1, help="runs of the engines, in alternating order")
     ap.add_argument("--probe", type=int, default=40, help="sleep tasks (0.5 s) for Dask's own per-task cost; 0: none")
+    ap.add_argument("--startup", type=int, default=0, help="repeats of the LocalCluster start-up + shutdown probe, "
+                    "spawned vs fork-server workers; 0: none")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench-reprocess-") as tmp:
         tmp = Path(tmp)
@@ -127,6 +162,8 @@ def main() -> None:
         gaps = [100 * (d / p - 1) for d, p in zip(walls["dask"], walls["processes"])]
         print(f"Dask wall vs process-pool wall, run by run: {', '.join(f'{g:+.1f} %' for g in gaps)} "
               f"(mean {sum(gaps) / len(gaps):+.1f} %; walls {sum(walls['dask']):.1f} vs {sum(walls['processes']):.1f} s)")
+    if a.startup:
+        startup_probe(a.workers, a.stages, a.startup)
     if a.probe:
         per = scheduling_probe(a.workers, a.probe)
         print(f"Dask's own cost per task (LocalCluster, {a.probe} tasks sleeping 0.5 s): {per * 1e3:.1f} ms "

@@ -155,7 +155,7 @@ def main() -> None:
               flush=True)
         walls: dict[str, list[float]] = {}
         for rep in range(a.repeats):
-            engines = a.engines.split(",")
+            engines = [e for e in a.engines.split(",") if e]  # none: only the probes
             for engine in engines if rep % 2 == 0 else engines[::-1]:
                 walls.setdefault(engine, []).append(run_engine(tmp, engine, a))
     if "dask" in walls and "processes" in walls:

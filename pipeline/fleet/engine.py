@@ -41,7 +41,8 @@ RELAXED = {"distributed.admin.tick.interval": "1s", "distributed.admin.system-mo
            "distributed.worker.memory.monitor-interval": "1s", "distributed.scheduler.work-stealing": False}
 # LocalCluster's workers are forked from a fork server that has imported distributed and robocal's
 # stages once (started in the background while the archive is hashed), not spawned as fresh
-# interpreters that each import them: start-up and shutdown ≈ 0.3 s instead of ≈ 2.7 s.
+# interpreters that each import them: up + close 1.2 s instead of 2.4–3.0 s (2 workers, load 5,
+# `bench_reprocess.py --startup`), and the stages' imports overlap the hashing.
 FORK_SERVER = {"distributed.worker.multiprocessing-method": "forkserver"}
 
 

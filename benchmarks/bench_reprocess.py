@@ -2,13 +2,19 @@
 pool and on Dask (LocalCluster), side by side; Dask's overhead per recording.
 
     python benchmarks/bench_reprocess.py [--recordings 200] [--contacts 12] [--workers 2] [--stages ingest,validate,identify]
+        [--engines serial,processes,dask] [--repeats 1] [--probe 40] [--startup 0]
 
 Each recording is the bundled arc-welder campaign cut to its first CONTACTS contacts (copied to
-RECORDINGS paths of a nested archive; each copy is a separate run).  Overhead per recording =
-(wall × workers − Σ task wall times) / recordings, the time a worker slot spends outside a task
-(scheduling, transfer, writing the dataset, idling at the end, and on a busy machine the CPU taken
-by the engine's own threads); Dask's is given with and without the cluster's start-up, and its own
-per-task cost is probed with tasks that only sleep (no CPU contention).
+RECORDINGS paths of a nested archive; each copy is a separate run).  Each engine runs as a user runs
+it: `python -m pipeline reprocess ARCHIVE --engine E` in a fresh process, timed end to end.  Overhead
+per recording = (wall × workers − Σ task wall times) / recordings: all a worker slot spends outside a
+task (the interpreter's start and imports, discovery and hashing, the engine's start-up and shutdown,
+scheduling, writing the dataset, idling at the end, and on a busy machine the CPU taken by the
+engine's own threads).  With --repeats N the engines run N times in alternating order (on a shared box
+the load then weighs on each alike) and Dask's wall is compared with the process pool's, run by run:
+the end-to-end figure.  --startup N times a LocalCluster's start-up and shutdown alone, workers
+spawned (Dask's default) or forked from robocal's fork server; --probe N, Dask's own per-task cost
+with tasks that only sleep (no CPU contention).
 """
 
 from __future__ import annotations
@@ -16,18 +22,21 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # this checkout's robocal, as the CLI runs below (PYTHONPATH), not an installed one
 
-from pipeline.fleet.engine import reprocess_archive  # noqa: E402
+from pipeline.fleet.dataset import read_results  # noqa: E402
 from pipeline.recording.reader import read_recording  # noqa: E402
 from pipeline.recording.writer import RecordingWriter  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 JS, TC = "/robot/joint_state", "/touch/contact"
 
 
@@ -64,6 +73,61 @@ def scheduling_probe(workers: int, n: int = 40, seconds: float = 0.5) -> float:
         return (time.perf_counter() - t0) * workers / n - busy / n
 
 
+def run_engine(tmp: Path, engine: str, a: argparse.Namespace) -> float:
+    """One end-to-end run of `robocal reprocess` on `engine`, a fresh process as a user runs it
+    (interpreter, imports, discovery, hashing, the engine's start-up and shutdown); prints its row and
+    returns its wall time (s)."""
+    out = tmp / f"out-{engine}"
+    cmd = [sys.executable, "-m", "pipeline", "reprocess", str(tmp / "archive"), "--out", str(out), "--engine", engine,
+           "--workers", str(a.workers), "--stages", a.stages]
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True, check=False, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    wall = time.perf_counter() - t0
+    if p.returncode not in (0, 1):  # 1: recordings that fail the gate (12 contacts: too few for its verdict)
+        raise SystemExit(f"{engine}: exit {p.returncode}: {p.stderr.strip()[-500:]}")
+    rows = read_results(out).to_pylist()
+    bad = [f"{r['recording']}: {r['status']}: {r['error']}" for r in rows if r["status"] != "pass"]
+    assert len(rows) == a.recordings and not bad, bad[:3]
+    w = 1 if engine == "serial" else a.workers
+    task = sum(r["elapsed_s"] for r in rows)
+    over = (wall * w - task) / len(rows)
+    mean = task / len(rows)
+    print(f"{engine:<10} {wall:8.1f} {len(rows) / wall:7.2f} {mean:7.3f} {over:15.3f} {100 * over / mean:8.1f}%"
+          f"   load {os.getloadavg()[0]:.1f}", flush=True)
+    shutil.rmtree(out)
+    return wall
+
+
+STARTUP = """
+import json, sys, time
+t0 = time.perf_counter()
+from pipeline.fleet import engine
+if sys.argv[1] == "spawn":  # Dask's default: each worker a fresh interpreter that imports distributed and robocal
+    engine.FORK_SERVER, engine.start_fork_server = {}, lambda stages=None: None
+t1 = time.perf_counter()
+with engine.dask_client(None, int(sys.argv[2]), None, sys.argv[3].split(",")) as client:
+    t2 = time.perf_counter()
+print(json.dumps([t1 - t0, t2 - t1, time.perf_counter() - t2]))
+"""
+
+
+def startup_probe(workers: int, stages: str, repeats: int) -> None:
+    """LocalCluster up (workers ready, robocal's stages imported) and closed, in a fresh interpreter each
+    time, workers spawned (Dask's default) or forked from robocal's fork server, alternately."""
+    import json
+
+    times: dict[str, list[list[float]]] = {"spawn": [], "forkserver": []}
+    for rep in range(repeats):
+        for method in ("spawn", "forkserver") if rep % 2 == 0 else ("forkserver", "spawn"):
+            p = subprocess.run([sys.executable, "-c", STARTUP, method, str(workers), stages], capture_output=True,
+                               text=True, check=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+            times[method].append(json.loads(p.stdout.strip().splitlines()[-1]))
+    for method, ts in times.items():
+        med = [sorted(t[i] for t in ts)[len(ts) // 2] for i in range(3)]
+        print(f"LocalCluster of {workers}, workers {method:<10}: import {med[0]:.2f} s, up {med[1]:.2f} s, "
+              f"close {med[2]:.2f} s (medians of {len(ts)}; up + close {', '.join(f'{t[1] + t[2]:.2f}' for t in ts)} s)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--recordings", type=int, default=200)
@@ -71,9 +135,11 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--stages", default="ingest,validate,identify")
     ap.add_argument("--engines", default="serial,processes,dask")
+    ap.add_argument("--repeats", type=int, default=1, help="runs of the engines, in alternating order")
     ap.add_argument("--probe", type=int, default=40, help="sleep tasks (0.5 s) for Dask's own per-task cost; 0: none")
+    ap.add_argument("--startup", type=int, default=0, help="repeats of the LocalCluster start-up + shutdown probe, "
+                    "spawned vs fork-server workers; 0: none")
     a = ap.parse_args()
-    stages = a.stages.split(",")
     with tempfile.TemporaryDirectory(prefix="bench-reprocess-") as tmp:
         tmp = Path(tmp)
         first = tmp / "archive" / "robot-000" / "m00.mcap"
@@ -85,29 +151,19 @@ def main() -> None:
             shutil.copyfile(first, p)
         print(f"{a.recordings} recordings of {a.contacts} contacts ({first.stat().st_size / 1e6:.2f} MB each), "
               f"stages {a.stages}, {a.workers} worker(s), load {os.getloadavg()[0]:.1f}")
-        print(f"{'engine':<10} {'wall s':>8} {'rec/s':>7} {'task s':>7} {'overhead/rec s':>15} {'% of task':>9} "
-              f"{'after start-up':>15}")
-        for engine in a.engines.split(","):
-            out = tmp / f"out-{engine}"
-            started: list[float] = []
-            t0 = time.perf_counter()
-            res = reprocess_archive(tmp / "archive", out, stages=stages, engine=engine, workers=a.workers,
-                                    on_start=lambda c: started.append(time.perf_counter()))
-            wall = time.perf_counter() - t0
-            rows = res.rows
-            assert len(rows) == a.recordings and all(r["status"] not in ("error", "crash", "lost") for r in rows)
-            w = 1 if engine == "serial" else a.workers
-            task = sum(r["elapsed_s"] for r in rows)
-            over = (wall * w - task) / len(rows)
-            mean = task / len(rows)
-            after = ""
-            if started:
-                wall2 = time.perf_counter() - started[0]
-                over2 = (wall2 * w - task) / len(rows)
-                after = f"{over2:.3f} s ({100 * over2 / mean:.1f} %)"
-            print(f"{engine:<10} {wall:8.1f} {len(rows) / wall:7.2f} {mean:7.3f} {over:15.3f} {100 * over / mean:8.1f}% "
-                  f"{after:>15}")
-            shutil.rmtree(out)
+        print(f"{'engine':<10} {'wall s':>8} {'rec/s':>7} {'task s':>7} {'overhead/rec s':>15} {'% of task':>9}",
+              flush=True)
+        walls: dict[str, list[float]] = {}
+        for rep in range(a.repeats):
+            engines = [e for e in a.engines.split(",") if e]  # none: only the probes
+            for engine in engines if rep % 2 == 0 else engines[::-1]:
+                walls.setdefault(engine, []).append(run_engine(tmp, engine, a))
+    if "dask" in walls and "processes" in walls:
+        gaps = [100 * (d / p - 1) for d, p in zip(walls["dask"], walls["processes"])]
+        print(f"Dask wall vs process-pool wall, run by run: {', '.join(f'{g:+.1f} %' for g in gaps)} "
+              f"(mean {sum(gaps) / len(gaps):+.1f} %; walls {sum(walls['dask']):.1f} vs {sum(walls['processes']):.1f} s)")
+    if a.startup:
+        startup_probe(a.workers, a.stages, a.startup)
     if a.probe:
         per = scheduling_probe(a.workers, a.probe)
         print(f"Dask's own cost per task (LocalCluster, {a.probe} tasks sleeping 0.5 s): {per * 1e3:.1f} ms "

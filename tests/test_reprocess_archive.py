@@ -168,14 +168,21 @@ def _kill_when_executing(address: str, pids: dict, timeout: float = 120) -> int:
 
 
 def test_local_cluster_retries_a_task_whose_worker_died(archive, tmp_path):
-    """LocalCluster with nannies: a worker SIGKILLed mid-task is restarted and the task re-run (Dask's own
-    retry): every row ok, none lost."""
+    """LocalCluster with nannies: a worker SIGKILLed mid-task is restarted (forked again from robocal's fork
+    server) and the task re-run (Dask's own retry): every row ok, none lost.  The workers are forked from the
+    fork server, not spawned by this process, and run BLAS on one thread."""
     from pipeline.fleet.engine import reprocess_archive
 
     arch, _ = archive
-    killed = []
+    killed, facts = [], {}
 
     def on_start(client):
+        def worker_facts() -> tuple[int, list[int]]:
+            import threadpoolctl
+
+            return os.getppid(), [i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas"]
+
+        facts.update(client.run(worker_facts))
         pids = client.run(os.getpid)
 
         def kill():
@@ -195,6 +202,7 @@ def test_local_cluster_retries_a_task_whose_worker_died(archive, tmp_path):
 
     res = reprocess_archive(arch / "robot-4", tmp_path / "out", stages=FAST.split(","), workers=2,
                             on_start=on_start)
+    assert len(facts) == 2 and all(ppid != os.getpid() and blas and set(blas) == {1} for ppid, blas in facts.values()), facts
     assert killed
     assert len(res.rows) == 5 and all(r["ok"] for r in res.rows), [r["status"] for r in res.rows]
     assert all(int(r["worker"].split(":")[1]) != killed[0] for r in res.rows)

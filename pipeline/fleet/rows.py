@@ -123,19 +123,26 @@ def fill_from_run(row: dict, run_dir: Path, recording: Path, robot_id: str | Non
     row["campaign_start_ns"], row["campaign_end_ns"] = _campaign_time(run_dir)
 
 
-def warm_worker() -> int:
-    """Import every stage and system module once, at a worker's start, so that no task pays the
-    interpreter's imports (a Dask worker is a fresh process; a forked pool inherits them).
-    Returns the number of modules imported."""
-    import importlib
+def warm_modules(stages: list[str] | None = None) -> list[str]:
+    """The modules a task imports: the row's own, each of `stages`' (default: all) and every system's."""
     import pkgutil
 
     import pipeline.systems as systems
     from pipeline.stages.registry import STAGES
 
-    names = [s.module for s in STAGES] + [f"pipeline.systems.{m.name}" for m in pkgutil.iter_modules(systems.__path__)]
+    mods = [s.module for s in STAGES if stages is None or s.name in stages]
+    return ["pipeline.fleet.rows", "pipeline.stages.runner", *mods,
+            *(f"pipeline.systems.{m.name}" for m in pkgutil.iter_modules(systems.__path__))]
+
+
+def warm_worker(stages: list[str] | None = None) -> int:
+    """Import the modules of `stages` (default: every stage) and of every system once, at a worker's
+    start, so that no task pays the interpreter's imports (a spawned Dask worker is a fresh process;
+    one forked from robocal's fork server has them already).  Returns the number of modules imported."""
+    import importlib
+
     n = 0
-    for name in names:
+    for name in warm_modules(stages):
         try:
             importlib.import_module(name)
             n += 1

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.acquire.clock import ClockSync
-from pipeline.acquire.protocol import (BadFrame, Frame, FrameDecoder, FrameType, Garbage, MetaAssembler, SeqTracker,
-                                       DRIVE_FIELDS, DRIVE_NAMES, decode_any_samples, decode_event, decode_json)
+from pipeline.acquire.protocol import (DRIVE_FIELDS, DRIVE_NAMES, BadFrame, Frame, FrameDecoder, FrameType, Garbage,
+                                       MetaAssembler, SeqTracker, decode_any_samples, decode_event, decode_json)
 from pipeline.recording.schemas import CHANNELS, schema, validator
 from pipeline.recording.writer import RecordingWriter
 

@@ -41,7 +41,7 @@ def start_sim(tmp: Path, system: str, *args: str) -> tuple[subprocess.Popen, dic
 
 
 def expected_devices(system: str, args) -> int:
-    return {"arc-welder": 1}.get(system, 2)
+    return {"arc-welder": 1, "urdf": 1}.get(system, 2)
 
 
 def acquire(tmp: Path, devices: dict[str, str], out: Path, *extra: str, timeout: float = 120) -> dict:

@@ -81,8 +81,11 @@ def device_streams(rec: Recording, clock: Clock, batch: int = 1, announce_every_
         evs = events.get(role, [])
         hello = {"device": role, "protocol": P.VERSION, "system": system,
                  "channels": sorted({e[1] for e in evs}) + ([JOINT_STATE] if role == "bridge" else [])}
+        drive = {k: getattr(js, k) for k in P.DRIVE_FIELDS if getattr(js, k) is not None}
         if role == "bridge":
             hello["joint_names"] = list(js.names)
+            if drive:
+                hello["drive_state"] = [P.DRIVE_NAMES[P.DRIVE_FIELDS.index(k)] for k in drive]
         announce = [(P.FrameType.HELLO, P.encode_json(hello))]
         if role == "bridge":
             counts = {JOINT_STATE: int(js.t_ns.size)}
@@ -97,9 +100,15 @@ def device_streams(rec: Recording, clock: Clock, batch: int = 1, announce_every_
         n_samples = 0
         if role == "bridge":
             d = clock(js.t_ns)
-            for s in range(0, js.t_ns.size, batch):
-                sl = slice(s, s + batch)
-                items.append((int(js.t_ns[sl][-1]), 1, P.FrameType.SAMPLES, P.encode_samples(d[sl], js.q[sl])))
+            per = min(batch, P.max_drive_samples(js.q.shape[1], len(drive))) if drive else batch
+            for s in range(0, js.t_ns.size, per):
+                sl = slice(s, s + per)
+                if drive:  # the drive state rides in SAMPLES_DRIVE; without it, plain SAMPLES as before
+                    kind, payload = P.FrameType.SAMPLES_DRIVE, P.encode_samples_drive(
+                        d[sl], js.q[sl], {k: v[sl] for k, v in drive.items()})
+                else:
+                    kind, payload = P.FrameType.SAMPLES, P.encode_samples(d[sl], js.q[sl])
+                items.append((int(js.t_ns[sl][-1]), 1, kind, payload))
             n_samples = int(js.t_ns.size)
         else:
             items += [(int(t), 2, P.FrameType.HEARTBEAT, b"")

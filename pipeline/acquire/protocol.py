@@ -48,6 +48,7 @@ class FrameType(IntEnum):
     CAMPAIGN_END = 0x04  # JSON: totals sent
     HEARTBEAT = 0x05  # empty: device time only (clock sync while idle)
     SAMPLES = 0x10  # binary encoder samples with controller timestamps
+    SAMPLES_DRIVE = 0x11  # SAMPLES plus the drive state: commanded positions, efforts, motor currents (issue 18)
     EVENT = 0x20  # a measurement event of a channel: device time, topic, JSON body
 
 
@@ -236,6 +237,67 @@ def decode_samples(payload: bytes) -> tuple[np.ndarray, np.ndarray]:
     t = np.frombuffer(payload, "<i8", ns, o).astype(np.int64)
     q = np.frombuffer(payload, "<f8", ns * nj, o + 8 * ns).reshape(ns, nj).astype(float)
     return t, q
+
+
+# drive state of SAMPLES_DRIVE: flag bit → JointStream / RecordingWriter.write_batch keyword, in payload order
+DRIVE_FIELDS = ("q_cmd", "effort", "current")  # commanded positions rad / m, efforts N·m / N, motor currents A
+DRIVE_NAMES = ("commanded_positions", "efforts", "motor_currents")  # robocal.JointStateBatch fields 7, 8, 9
+_DRIVE_HEAD = struct.Struct("<BHB")  # n_joints, n_samples, flags
+
+
+def samples_drive_size(n: int, n_joints: int, n_arrays: int) -> int:
+    """Payload bytes of a SAMPLES_DRIVE frame of `n` samples carrying `n_arrays` drive arrays."""
+    return _DRIVE_HEAD.size + 8 * n + 8 * n * n_joints * (1 + n_arrays)
+
+
+def max_drive_samples(n_joints: int, n_arrays: int) -> int:
+    """Most samples one SAMPLES_DRIVE frame holds within MAX_PAYLOAD (a device splits larger batches)."""
+    return (MAX_PAYLOAD - _DRIVE_HEAD.size) // (8 + 8 * n_joints * (1 + n_arrays))
+
+
+def encode_samples_drive(t_ns: np.ndarray, q: np.ndarray, drive: dict[str, np.ndarray]) -> bytes:
+    """SAMPLES_DRIVE payload: uint8 n_joints, uint16 n_samples, uint8 flags (bit 0 commanded positions,
+    bit 1 efforts, bit 2 motor currents), int64[n] controller times (ns, device clock), float64[n, n_joints]
+    joint positions (rad), then for each set bit in bit order float64[n, n_joints] (rad / m, N·m / N, A),
+    row-major.  `drive` maps `DRIVE_FIELDS` keys to (n, n_joints) arrays; None values are left out."""
+    head = encode_samples(t_ns, q)
+    nj, n = head[0], int(np.asarray(t_ns).size)
+    flags, body = 0, []
+    for bit, key in enumerate(DRIVE_FIELDS):
+        v = drive.get(key)
+        if v is None:
+            continue
+        v = np.ascontiguousarray(v, dtype="<f8")
+        if v.shape != (n, nj):
+            raise ValueError(f"{key} must be ({n}, {nj}), not {v.shape}")
+        flags |= 1 << bit
+        body.append(v.tobytes())
+    return _DRIVE_HEAD.pack(nj, n, flags) + head[_SAMPLES_HEAD.size:] + b"".join(body)
+
+
+def decode_samples_drive(payload: bytes) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(times (n,) ns, positions (n, n_joints) rad, {DRIVE_FIELDS key: (n, n_joints)} for the set flags).
+    A payload whose length is not what its header declares, or with an undefined flag bit, is a ValueError."""
+    nj, ns, flags = _DRIVE_HEAD.unpack_from(payload, 0)
+    if flags >> len(DRIVE_FIELDS):
+        raise ValueError(f"SAMPLES_DRIVE flags 0x{flags:02x} set undefined bits")
+    keys = [k for bit, k in enumerate(DRIVE_FIELDS) if flags >> bit & 1]
+    if len(payload) != samples_drive_size(ns, nj, len(keys)):
+        raise ValueError(f"SAMPLES_DRIVE payload of {len(payload)} bytes does not hold {ns} x {nj} samples "
+                         f"with {len(keys)} drive arrays")
+    o = _DRIVE_HEAD.size
+    t = np.frombuffer(payload, "<i8", ns, o).astype(np.int64)
+    o += 8 * ns
+    arrays = [np.frombuffer(payload, "<f8", ns * nj, o + 8 * ns * nj * k).reshape(ns, nj).astype(float)
+              for k in range(1 + len(keys))]
+    return t, arrays[0], dict(zip(keys, arrays[1:]))
+
+
+def decode_any_samples(ftype: int, payload: bytes) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """A SAMPLES or SAMPLES_DRIVE payload as (times, positions, drive state ({} for SAMPLES))."""
+    if ftype == FrameType.SAMPLES_DRIVE:
+        return decode_samples_drive(payload)
+    return (*decode_samples(payload), {})
 
 
 _EVENT_HEAD = struct.Struct("<qB")  # device event time, topic length

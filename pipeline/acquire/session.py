@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.acquire.clock import ClockSync
-from pipeline.acquire.protocol import (BadFrame, Frame, FrameDecoder, FrameType, Garbage, MetaAssembler, SeqTracker,
-                                       decode_event, decode_json, decode_samples)
+from pipeline.acquire.protocol import (DRIVE_FIELDS, DRIVE_NAMES, BadFrame, Frame, FrameDecoder, FrameType, Garbage,
+                                       MetaAssembler, SeqTracker, decode_any_samples, decode_event, decode_json)
 from pipeline.recording.schemas import CHANNELS, schema, validator
 from pipeline.recording.writer import RecordingWriter
 
@@ -57,10 +57,11 @@ class Link:
     last_rx_ns: int = 0
     _d: list[int] = field(default_factory=list)
     _h: list[int] = field(default_factory=list)
-    _samples: list[tuple[bytes, int]] = field(default_factory=list)  # (payload, host receive ns)
+    _samples: list[tuple[int, bytes, int]] = field(default_factory=list)  # (frame type, payload, host receive ns)
     _events: list[tuple[int, str, dict, int]] = field(default_factory=list)
     _last_t: int | None = None
-    _unnamed: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
+    _unnamed: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]] = field(default_factory=list)
+    drive: tuple[str, ...] | None = None  # DRIVE_FIELDS keys the stream carries, fixed by its first samples frame
 
     @property
     def errors(self) -> int:
@@ -75,6 +76,7 @@ class Link:
                 "missing_frames": self.seq.missing, "bad_frames": self.decoder.bad_frames,
                 "garbage_bytes": self.decoder.garbage_bytes, "rejected_frames": self.rejected,
                 "bytes": self.decoder.bytes_in,
+                "drive_state": None if self.drive is None else [DRIVE_NAMES[DRIVE_FIELDS.index(k)] for k in self.drive],
                 "last_seq": None if self.seq.expected is None else (self.seq.expected - 1) % (1 << 32)}
 
 
@@ -117,8 +119,8 @@ class Acquisition:
         link._h.append(host_ns)
         t = f.type
         try:
-            if t is FrameType.SAMPLES:
-                link._samples.append((f.payload, host_ns))
+            if t is FrameType.SAMPLES or t is FrameType.SAMPLES_DRIVE:
+                link._samples.append((t, f.payload, host_ns))
             elif t is FrameType.EVENT:
                 td, topic, body = decode_event(f.payload)
                 if topic not in CHANNELS:
@@ -167,17 +169,22 @@ class Acquisition:
         if link._samples:
             payloads = link._samples
             link._samples = []
-            ts, qs, hs = [], [], []
-            for p, h in payloads:
+            ts, qs, hs, ds = [], [], [], []
+            for k, p, h in payloads:
                 try:
-                    t, q = decode_samples(p)
+                    t, q, d = decode_any_samples(k, p)
+                    if link.drive is None:
+                        link.drive = tuple(d)
+                    elif tuple(d) != link.drive:  # the stream's fields are all present or all absent
+                        raise ValueError(f"drive state {list(d) or 'none'} after frames with {list(link.drive) or 'none'}")
                 except (ValueError, Exception) as e:  # struct.error is an Exception
                     link.rejected += 1
-                    link.log("rejected", reason=f"SAMPLES: {e}")
+                    link.log("rejected", reason=f"{FrameType(k).name}: {e}")
                     continue
                 ts.append(t)
                 qs.append(q)
                 hs.append(np.full(t.size, h, np.int64))
+                ds.append(d)
             if ts:
                 nj = {q.shape[1] for q in qs}
                 if len(nj) > 1:
@@ -185,7 +192,8 @@ class Acquisition:
                     link.log("rejected", reason=f"SAMPLES with differing joint counts {sorted(nj)}")
                 else:
                     t = np.concatenate(ts)
-                    link._unnamed.append((t, np.concatenate(qs), np.concatenate(hs), fit.to_host(t)))
+                    drive = {k: np.concatenate([d[k] for d in ds]) for k in link.drive}
+                    link._unnamed.append((t, np.concatenate(qs), np.concatenate(hs), fit.to_host(t), drive))
         if not link._unnamed:
             return
         nj = link._unnamed[0][1].shape[1]
@@ -196,13 +204,15 @@ class Acquisition:
         q = np.concatenate([u[1] for u in link._unnamed])
         h_rx = np.concatenate([u[2] for u in link._unnamed])
         t = np.concatenate([u[3] for u in link._unnamed])
+        drive = {k: np.concatenate([u[4][k] for u in link._unnamed]) for k in link.drive or ()}
         link._unnamed.clear()
         t = strictly_increasing(t, link._last_t)
         link._last_t = int(t[-1])
         link.samples += t.size
         for s in range(0, t.size, self.batch):
             sl = slice(s, s + self.batch)
-            self.w.write_batch(t[sl], q[sl], names, device_t_ns=t_dev[sl], host_t_ns=h_rx[sl])
+            self.w.write_batch(t[sl], q[sl], names, device_t_ns=t_dev[sl], host_t_ns=h_rx[sl],
+                               **{k: v[sl] for k, v in drive.items()})
 
     def _write_events(self, link: Link, fit) -> None:
         if not link._events:

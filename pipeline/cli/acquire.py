@@ -71,7 +71,8 @@ def acquire_cmd(
         ev = ", ".join(f"{n} {t}" for t, n in d["events"].items()) or "no events"
         clk = d["clock"]
         clk_s = f"; clock offset {clk['offset_ns'] / 1e9:+.6f} s, drift {clk['drift_ppm']:+.2f} ppm" if clk else ""
-        err.print(f"{role}: {d['samples']} samples, {ev}; {d['frames']} frames, {d['missing_frames']} missing, "
+        drive = f" with {', '.join(d['drive_state'])}" if d.get("drive_state") else ""
+        err.print(f"{role}: {d['samples']} samples{drive}, {ev}; {d['frames']} frames, {d['missing_frames']} missing, "
                   f"{d['bad_frames']} bad, {d['garbage_bytes']} garbage bytes, {len(d['gaps'])} gaps{clk_s}",
                   highlight=False, soft_wrap=True)
     err.print(f"wrote {out} ({s['stop_reason']})", highlight=False)

@@ -19,8 +19,8 @@ when located or named in the right family (`located_or_family_named`; `form_name
 library's all-links form; `thermal_growth`: a2 and d4 only).
 
 Usage: ``python benchmarks/bench_diagnose_independent.py [--seeds 40] [--mult 4] [--cases a,b]
-[--campaign block|two-stations [--station DX,DZ]]`` (two-stations: the block and a copy farther and lower,
-`it.two_stations`, default 0.45 m farther, 0.35 m lower).
+[--campaign block|two-stations [--station DX,DZ]]`` (two-stations: the block and a copy shifted by DX along the
+jig's x and DZ along z, `it.two_stations`, default (0.45, −0.35) m).
 (CI runs a bounded version: tests/test_diagnose_independent.py).
 """
 
@@ -105,7 +105,7 @@ def main() -> None:
     ap.add_argument("--cases", default="clean," + ",".join(OUT_OF_LIBRARY + tuple(FORMS) + tuple(IN_LIBRARY)))
     ap.add_argument("--n-boot", type=int, default=20)
     ap.add_argument("--campaign", choices=("block", "two-stations"), default="block",
-                    help="block: the stepped block alone; two-stations: and a copy farther and lower (--station) "
+                    help="block: the stepped block alone; two-stations: and a shifted copy (--station) "
                          "(J2 over a wider range: the diagnosis's advice for a coupling it cannot tell apart)")
     ap.add_argument("--station", default="0.45,-0.35", help="two-stations: the copy's offset DX,DZ (m)")
     ap.add_argument("--out", default="")

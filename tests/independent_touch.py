@@ -17,7 +17,7 @@ outside the diagnosis's library:
                    itself is right; the approach speed derived from the stream is not);
 - in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` every D-H a, d
   grows by α·L·t.
-A second campaign layout, `two_stations`: the stepped block and a copy of it farther and lower (J2 over a
+A second campaign layout, `two_stations`: the stepped block and a copy of it shifted along x and down (J2 over a
 wider range), the campaign change the diagnosis advises for a coupling it cannot tell from an eccentricity
 (default offset: of the eight tried, the one whose J2→J3 coupling and J2 eccentricity signatures ⊥ the
 geometry are furthest apart — principal angle 33° — a property of the campaign, not of any outcome).
@@ -380,8 +380,8 @@ def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float
 
 
 def two_stations(dx: float = 0.45, dz: float = -0.35) -> Jig:
-    """The stepped block and a copy of it `dx` farther along x and `dz` lower (m; faces `s_…`): a second
-    station that takes J2 (and J3) over a wider range than the block alone."""
+    """The stepped block and a copy of it shifted by `dx` along the jig's x and `dz` along its z (m; faces `s_…`):
+    a second station that takes J2 (and J3) over other combinations than the block alone."""
     base = stepped_block()
     off = (dx, 0.0, dz)
     faces = []

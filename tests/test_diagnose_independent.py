@@ -124,8 +124,9 @@ def test_a_linear_J2_J3_coupling_is_named_once_a_second_station_takes_J2_wider(w
     (J2 ∥ J3: cos² of the principal angle of their signatures ⊥ the geometry 0.97 > 0.95): the coupling is
     `not_identifiable` with the advice to move J2 alone, and the eccentricity that takes its place is not a
     high-confidence name and lists the coupling among what it cannot be told from.  With the campaign the
-    advice asks for — a second station 0.45 m farther and 0.35 m lower (`it.two_stations`) — the angle opens
-    (cos² 0.70), the coupling is identifiable, named and its k recovered within 3σ."""
+    advice asks for — a second station, the block shifted 0.45 m along x and 0.35 m down (`it.two_stations`) —
+    the angle opens (cos² 0.70), the coupling is identifiable, named, its k recovered within 3σ, and the fit is
+    back to the floor."""
     c, d = _diagnose(world, it.Effect("coupling", 1.0, {"pair": (1, 2)}), 107)
     (ni,) = [n for n in d["not_identifiable"] if (n["effect"], n["location"]) == ("joint_coupling", "J2->J3")]
     assert "indistinguishable from encoder_eccentricity@J2" in ni["reason"] and "driving joint alone" in ni["advice"]

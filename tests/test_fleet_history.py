@@ -115,7 +115,9 @@ def fleet(tmp_path_factory):
 
 def test_the_fleet_page_flags_exactly_the_step_and_the_drift(fleet):
     root, page = fleet
-    flags = json.loads(page.with_suffix(".json").read_text())
+    doc = json.loads(page.with_suffix(".json").read_text())
+    assert doc["generator"].startswith("robocal/")
+    flags = doc["robots"]
     assert sorted(flags) == [f"arc-0{i}" for i in range(1, 6)]
     for rid, f in flags.items():
         assert f["calibrations"] == 12 and f["failed"] == [] and f["tolerance"] == []

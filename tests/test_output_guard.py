@@ -88,3 +88,24 @@ def test_own_plans_and_programs_are_recognised_and_replaced(tmp_path):
     other = tmp_path / "other.csv"
     other.write_text(prog.read_text().replace("model_error_m", "my_column"))
     assert not written_by_robocal(other)
+
+
+def test_fleet_page_and_flags_never_overwrite_a_foreign_file(tmp_path):
+    """`robocal fleet --out P.html` refuses a foreign P.html or P.json before reading anything; the
+    pages robocal renders carry its generator mark (so a re-run may replace them)."""
+    from pipeline.fleet.html import counts, render
+
+    for name in ("fleet.html", "fleet.json"):
+        foreign = tmp_path / name
+        foreign.write_text("<!DOCTYPE html><html><head><title>my notes</title></head></html>\n")
+        r = run_cli("fleet", tmp_path / "no-results", "--out", tmp_path / "fleet.html")
+        assert r.returncode != 0 and "was not written by robocal" in r.stderr and str(foreign) in r.stderr, r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+        assert "my notes" in foreign.read_text()
+        foreign.unlink()
+    page, flags = tmp_path / "fleet.html", tmp_path / "fleet.json"
+    page.write_text(render([], "archive", 2.5e-4, 0.01))
+    import json
+
+    flags.write_text(json.dumps(counts([])))
+    assert written_by_robocal(page) and written_by_robocal(flags)

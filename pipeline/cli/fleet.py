@@ -15,7 +15,7 @@ from pipeline.cli import app, err, simulate_app
 def fleet_cmd(
     summary: Path = typer.Argument(..., help="Reprocess results: the --out folder of `robocal reprocess`, its "
                                    "results/ dataset, or one Parquet file."),
-    out: Path = typer.Option(..., "--out", help="Page to write (self-contained HTML); fleet.json beside it."),
+    out: Path = typer.Option(..., "--out", help="Page to write (self-contained HTML); fleet.json beside it ({generator, robots: {id: flags}})."),
     tolerance_m: Optional[float] = typer.Option(None, "--tolerance-m", min=0.0, help="Stated accuracy tolerance: "
                                                 "held-out RMS (m) above it is flagged."),
     alpha: float = typer.Option(0.01, "--alpha", min=1e-9, max=0.5, help="Family false-flag rate per robot "
@@ -26,15 +26,18 @@ def fleet_cmd(
     from pipeline.fleet.dataset import read_results
     from pipeline.fleet.history import fleet_history
     from pipeline.fleet.html import counts, render
+    from pipeline.recording.output import check_output
     from pipeline.stages.artefacts import write_json
 
-    rows = read_results(summary).to_pylist()
-    if not rows:
-        raise RobocalError(f"{summary}: the results dataset has no rows")
     if out.suffix.lower() == ".json":
         raise RobocalError(f"{out}: the page is HTML (fleet.json is written beside it); give e.g. fleet.html")
     if out.exists() and out.is_dir():
         raise RobocalError(f"{out}: is a folder (give the page's file name, e.g. fleet.html)")
+    check_output(out, "fleet page")  # before any work: never over a file robocal did not create
+    check_output(out.with_suffix(".json"), "fleet flags")
+    rows = read_results(summary).to_pylist()
+    if not rows:
+        raise RobocalError(f"{summary}: the results dataset has no rows")
     hs = fleet_history(rows, tolerance_m, alpha)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(render(hs, str(summary), tolerance_m, alpha), encoding="utf-8")

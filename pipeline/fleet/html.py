@@ -132,7 +132,8 @@ def render(hs: list[RobotHistory], source: str, tolerance_m: float | None, alpha
               f'weighted least squares on time (one level per segment between flagged steps), slope σ scaled by '
               f'√(χ²/dof) when above 1, t test at α/(2P) over the robot\'s P parameters. Tolerance: {escape(tol)}. '
               f'Source: <code>{escape(source)}</code> ({n} recordings); robocal {__version__}.</p></section>')
-    head = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>robocal fleet — {escape(source)}'
+    head = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
+            f'<meta name="generator" content="robocal/{__version__}"><title>robocal fleet — {escape(source)}'
             f'</title><style>{CSS}</style></head><body><h1>Fleet calibration history</h1>')
     parts = [head, overview(hs), problems(hs)] + [robot_section(h, tolerance_m) for h in hs] + [method,
                                                                                               "</body></html>"]
@@ -140,8 +141,10 @@ def render(hs: list[RobotHistory], source: str, tolerance_m: float | None, alpha
 
 
 def counts(hs: list[RobotHistory]) -> dict:
-    """Machine-readable flags (fleet.json beside the page)."""
-    return {h.robot_id: {"calibrations": len(h.rows), "usable": len(h.usable),
+    """Machine-readable flags (fleet.json beside the page): {"generator", "robots": {robot id: flags}}."""
+    from pipeline.recording.output import GENERATOR
+
+    return {"generator": GENERATOR, "robots": {h.robot_id: {"calibrations": len(h.rows), "usable": len(h.usable),
                          "steps": [{k: s[k] for k in ("param", "t_ns", "recording", "delta", "sigma", "z",
                                                       "threshold")} for s in h.steps],
                          "trends": [{k: t[k] for k in ("param", "slope_per_year", "se_per_year", "z", "threshold")}
@@ -151,4 +154,4 @@ def counts(hs: list[RobotHistory]) -> dict:
                                     for r in h.failed],
                          "insufficient": [{"recording": r["recording"], "reason": r["reason"]}
                                           for r in h.insufficient]}
-            for h in hs}
+                                  for h in hs}}

@@ -6,6 +6,7 @@ when robocal's own mark is at its start —
   sets `library` to "robocal/<version>…");
 * a JSON document (plan / campaign files): its first key is `"generator": "robocal/<version>"`
   (or `"kind": "robocal.…"`, the campaign files written before the generator key);
+* an HTML page (report, fleet page): `<meta name="generator" content="robocal/…">` in its head;
 * a CSV (compensated programs): robocal's program header (`"row","name","status",` … ending in
   `"predicted_sigma_m","correction_m","sigma_min_m","model_error_m"`).
 Anything else is a one-line error naming the file."""
@@ -24,6 +25,7 @@ GENERATOR = f"robocal/{__version__}"  # the first key of every JSON document rob
 PROGRAM_HEADER_START = b'"row","name","status",'
 PROGRAM_HEADER_END = b'"predicted_sigma_m","correction_m","sigma_min_m","model_error_m"'
 _JSON_MARK = re.compile(rb'^\s*\{\s*"(?:generator|kind)"\s*:\s*"robocal[./]')
+_HTML_MARK = re.compile(rb'^\s*<!DOCTYPE html>[^\0]{0,600}?<meta name="generator" content="robocal/', re.I)
 
 
 def _mcap_by_robocal(head: bytes) -> bool:
@@ -47,13 +49,15 @@ def _csv_by_robocal(head: bytes) -> bool:
 
 def written_by_robocal(path: Path) -> bool:
     """True when `path` starts with robocal's mark: an MCAP header whose library is robocal's, a
-    JSON document whose first key is robocal's generator, or robocal's program CSV header."""
+    JSON document whose first key is robocal's generator, an HTML page with robocal's generator meta
+    tag, or robocal's program CSV header."""
     try:
         with open(path, "rb") as f:
             head = f.read(4096)
     except OSError:
         return False
-    return _mcap_by_robocal(head) or bool(_JSON_MARK.match(head)) or _csv_by_robocal(head)
+    return (_mcap_by_robocal(head) or bool(_JSON_MARK.match(head)) or bool(_HTML_MARK.match(head))
+            or _csv_by_robocal(head))
 
 
 def check_output(path: str | Path, what: str = "recording") -> Path:

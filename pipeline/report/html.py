@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+from pipeline import __version__
+
 from html import escape
 from typing import Any
 
@@ -324,6 +326,7 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     nav = "".join(f'<a href="#{i}">{escape(t)}</a>' for i, t in titles)
     src = prov.get("input_path") or "recording"
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+            f'<meta name="generator" content="robocal/{__version__}">'
             f'<meta name="viewport" content="width=device-width, initial-scale=1">'
             f"<title>robocal report — {escape(s['system'])}</title><style>{CSS}</style></head><body>"
             f"<header><h1>robocal calibration report — {escape(s['system'])}</h1>"

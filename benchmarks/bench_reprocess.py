@@ -2,7 +2,7 @@
 pool and on Dask (LocalCluster), side by side; Dask's overhead per recording.
 
     python benchmarks/bench_reprocess.py [--recordings 200] [--contacts 12] [--workers 2] [--stages ingest,validate,identify]
-        [--engines serial,processes,dask] [--repeats 1] [--probe 40] [--startup 0]
+        [--engines serial,processes,dask] [--repeats 1] [--probe 40] [--startup 0] [--phases 0]
 
 Each recording is the bundled arc-welder campaign cut to its first CONTACTS contacts (copied to
 RECORDINGS paths of a nested archive; each copy is a separate run).  Each engine runs as a user runs
@@ -111,6 +111,49 @@ print(json.dumps([t1 - t0, t2 - t1, time.perf_counter() - t2]))
 """
 
 
+PHASES = """
+import json, sys, time
+def main():
+    t0 = time.perf_counter()
+    from pipeline.fleet.engine import reprocess_archive
+    t = {"import": time.perf_counter() - t0}
+    ev, rows = {}, []
+    res = reprocess_archive(sys.argv[2], sys.argv[3], stages=sys.argv[5].split(","), engine=sys.argv[1],
+                            workers=int(sys.argv[4]), on_plan=lambda a, b: ev.setdefault("plan", time.perf_counter()),
+                            on_start=lambda c: ev.setdefault("start", time.perf_counter()),
+                            on_row=lambda r: rows.append(time.perf_counter()))
+    end = time.perf_counter()
+    start = ev.get("start", ev["plan"])
+    firsts = {}
+    for r in res.rows:
+        firsts.setdefault(r["worker"], []).append(r["elapsed_s"])
+    t.update(plan=ev["plan"] - t0 - t["import"], up=start - ev["plan"], tasks=rows[-1] - start, close=end - rows[-1],
+             first=max(v[0] for v in firsts.values()), median=sorted(r["elapsed_s"] for r in res.rows)[len(res.rows) // 2])
+    print(json.dumps(t))
+if __name__ == "__main__":
+    main()
+"""
+
+
+def phases_probe(tmp: Path, a: argparse.Namespace) -> None:
+    """Where each engine's wall goes, in-process timestamps (a fresh interpreter per run, engines alternating):
+    import, discovery + hashing, cluster up, tasks, shutdown; the first task of a worker against the median."""
+    import json
+
+    for rep in range(a.phases):
+        engines = [e for e in a.engines.split(",") if e and e != "serial"]
+        for engine in engines if rep % 2 == 0 else engines[::-1]:
+            out = tmp / f"phases-{engine}"
+            p = subprocess.run([sys.executable, "-c", PHASES, engine, str(tmp / "archive"), str(out), str(a.workers),
+                                a.stages], capture_output=True, text=True, check=True,
+                               env={**os.environ, "PYTHONPATH": str(ROOT)})
+            t = json.loads(p.stdout.strip().splitlines()[-1])
+            print(f"phases {engine:<10}: import {t['import']:.2f} s, discovery + hashing {t['plan']:.2f} s, engine up "
+                  f"{t['up']:.2f} s, tasks {t['tasks']:.2f} s, shutdown {t['close']:.2f} s; a worker's first task "
+                  f"{t['first']:.2f} s (median task {t['median']:.3f} s)   load {os.getloadavg()[0]:.1f}", flush=True)
+            shutil.rmtree(out)
+
+
 def startup_probe(workers: int, stages: str, repeats: int) -> None:
     """LocalCluster up (workers ready, robocal's stages imported) and closed, in a fresh interpreter each
     time, workers spawned (Dask's default) or forked from robocal's fork server, alternately."""
@@ -135,8 +178,9 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--stages", default="ingest,validate,identify")
     ap.add_argument("--engines", default="serial,processes,dask")
-    ap.add_argument("--repeats", type=int, default=1, help="runs of the engines, in alternating order")
+    ap.add_argument("--repeats", type=int, default=1, help="runs of the engines, in alternating order; 0: only probes")
     ap.add_argument("--probe", type=int, default=40, help="sleep tasks (0.5 s) for Dask's own per-task cost; 0: none")
+    ap.add_argument("--phases", type=int, default=0, help="runs per engine of the in-process phase timing; 0: none")
     ap.add_argument("--startup", type=int, default=0, help="repeats of the LocalCluster start-up + shutdown probe, "
                     "spawned vs fork-server workers; 0: none")
     a = ap.parse_args()
@@ -158,6 +202,8 @@ def main() -> None:
             engines = [e for e in a.engines.split(",") if e]  # none: only the probes
             for engine in engines if rep % 2 == 0 else engines[::-1]:
                 walls.setdefault(engine, []).append(run_engine(tmp, engine, a))
+        if a.phases:
+            phases_probe(tmp, a)
     if "dask" in walls and "processes" in walls:
         gaps = [100 * (d / p - 1) for d, p in zip(walls["dask"], walls["processes"])]
         print(f"Dask wall vs process-pool wall, run by run: {', '.join(f'{g:+.1f} %' for g in gaps)} "

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed as pool_completed
 from contextlib import contextmanager
@@ -158,9 +159,44 @@ def dask_client(scheduler: str | None, workers: int | None, allowed_failures: in
             yield client
 
 
+class EarlyCluster:
+    """`dask_client` for a LocalCluster, brought up in a background thread while the archive is
+    discovered and hashed (its start and the client's import of distributed overlap them).  The
+    thread also closes it (distributed's client context must be left in the context it was entered)."""
+
+    def __init__(self, workers: int | None, allowed_failures: int | None, stages: list[str] | None) -> None:
+        self._args = (workers, allowed_failures, stages)
+        self._client, self._error = None, None
+        self._ready, self._done = threading.Event(), threading.Event()
+        self._thread = threading.Thread(target=self._hold, name="robocal-cluster", daemon=True)
+        self._thread.start()
+
+    def _hold(self) -> None:
+        try:
+            with dask_client(None, *self._args) as client:
+                self._client = client
+                self._ready.set()
+                self._done.wait()
+        except BaseException as e:  # noqa: BLE001 — raised in the caller's thread by `client` / `close`
+            self._error = e
+        finally:
+            self._ready.set()
+
+    def client(self):
+        """The started client (waits for the start; its error, if any, is raised here)."""
+        self._ready.wait()
+        if self._error is not None:
+            raise self._error
+        return self._client
+
+    def close(self) -> None:
+        self._done.set()
+        self._thread.join()
+
+
 def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "dask", workers: int | None = None,
               scheduler: str | None = None, allowed_failures: int | None = None,
-              on_start: Callable[[object], None] | None = None) -> Iterator[dict]:
+              on_start: Callable[[object], None] | None = None, early: EarlyCluster | None = None) -> Iterator[dict]:
     """Yield each task's row as it completes (any order)."""
     if not tasks:
         return
@@ -184,7 +220,7 @@ def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "d
         raise RobocalError(f"unknown engine {engine!r} (one of {', '.join(ENGINES)})")
     from distributed import as_completed
 
-    with dask_client(scheduler, workers, allowed_failures, stages) as client:
+    with (_started(early) if early is not None else dask_client(scheduler, workers, allowed_failures, stages)) as client:
         if on_start:
             on_start(client)
         futs, by_key = [], {}
@@ -205,6 +241,14 @@ def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "d
             yield row
 
 
+@contextmanager
+def _started(early: EarlyCluster) -> Iterator:
+    try:
+        yield early.client()
+    finally:
+        early.close()
+
+
 def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, stages: list[str] | None = None,
                       robot_id: str | None = None, engine: str = "dask", workers: int | None = None,
                       scheduler: str | None = None, allowed_failures: int | None = None, resume: bool = True,
@@ -214,8 +258,20 @@ def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, st
     """The whole run: rows written to `out/results/` as they complete; returns them all."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    early = None
     if engine == "dask" and not scheduler:
         start_fork_server(stages)  # its imports overlap the archive's discovery and hashing
+        early = EarlyCluster(workers, allowed_failures, stages)  # and so does the cluster's start
+    try:
+        return _run(archive, out, patterns, stages, robot_id, engine, workers, scheduler, allowed_failures, resume,
+                    flush_s, on_plan, on_row, on_start, early)
+    finally:
+        if early is not None:
+            early.close()
+
+
+def _run(archive, out, patterns, stages, robot_id, engine, workers, scheduler, allowed_failures, resume, flush_s,
+         on_plan, on_row, on_start, early) -> Outcome:
     tasks, kept, skipped = plan(archive, out, patterns, stages, robot_id, resume)
     if on_plan:
         on_plan(len(tasks), len(kept))
@@ -226,7 +282,7 @@ def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, st
             if row.pop("_regated"):
                 w.add(row)  # a new verdict on an old result: the dataset says so too
         for row in run_tasks(tasks, stages, robot_id, config, engine, workers, scheduler, allowed_failures,
-                             on_start):
+                             on_start, early):
             w.add(row)
             res.rows.append(row)
             if on_row:

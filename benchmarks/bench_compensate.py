@@ -133,6 +133,10 @@ def urdf_seed(s: int, error_m: float = 4e-3, error_rad: float = 8e-3) -> tuple[f
         from test_compensate import URDF
 
         arm = UrdfArm(urdf.parse(URDF, "base", "tool"))
+    if not getattr(urdf_seed, "said", False):  # once per run: which arm the figures are of
+        urdf_seed.said = True
+        print(f"urdf arm: {'UR10 (' + str(UR10) + ')' if UR10.is_file() else 'the tests 6R arm (UR10 file missing)'}",
+              flush=True)
     model = PointModel(arm)
     kin = ChainKinematics.of(arm)
     x_true = random_truth(model, np.random.default_rng(s), error_m, error_rad, registration=False)

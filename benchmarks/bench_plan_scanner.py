@@ -1,6 +1,7 @@
 """Scanner planning against the paper's campaign, on the same true robot (Table 2 scanner).
 
     python benchmarks/bench_plan_scanner.py [--seeds 20] [--first 4] [--second 4] [--candidates 200]
+    python benchmarks/bench_plan_scanner.py --oracle 5 --seeds 10 | --misses 40
 
 Per seed, three campaigns of the same size (--first + --second poses, 5 crossings each):
 - paper: the paper's operator (random stand-off, aim, tilt, roll; stripe onto the nearest grid line);
@@ -23,6 +24,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
+from pipeline.identify.identifiability import analyse  # noqa: E402
 from pipeline.identify.least_squares import fit  # noqa: E402
 from pipeline.plan import scorbot_scanner as ps  # noqa: E402
 from pipeline.simulate import scorbot_scanner as sim  # noqa: E402
@@ -60,6 +62,42 @@ def merge(a: dict, b: dict) -> dict:
             for k in ("joint_positions", "pixel", "corner", "pose", "record")}
 
 
+def oracle(a: argparse.Namespace, model) -> None:
+    """The one-stage D-optimal plan made at the TRUE scanner (what no planner has before calibrating),
+    against the paper's campaign of the same size: is the one-stage plan's loss the nominal model's?"""
+    from pipeline.plan.doptimal import select
+
+    ps_model, pool = ps.candidates(a.candidates, 0, scanner=S_TRUE)
+    J = ps_model.jacobian(S_TRUE, pool)
+    ident = analyse(J.reshape(-1, J.shape[-1]), model.parameter_names(), priority=model.priority())
+    A = J[:, :, ident.free].reshape(int(pool["pose"].max()) + 1, -1, int(ident.free.sum()))
+    planned = executable(ps.pose_campaign(pool, select(A, a.oracle).index))
+    better, rows = 0, []
+    for seed in range(a.first_seed, a.first_seed + a.seeds):
+        _, exact = sim.simulate_in_memory(ARM, ARM, S_TRUE, sim.Campaign(poses=20, seed=1000 + seed), sim.Noise(scale=0.0))
+        _, paper = sim.simulate_in_memory(ARM, ARM, S_TRUE, sim.Campaign(poses=a.oracle, seed=seed))
+        _, orc = run(planned, seed, a.oracle)
+        e = (rms3(model, fit(model, paper).x, exact), rms3(model, fit(model, orc).x, exact))
+        rows.append(e)
+        better += e[1] < e[0]
+    R = np.median(np.array(rows), axis=0) * 1e3
+    print(f"oracle ({a.oracle} poses D-optimal at the true scanner): true 3-D error median {R[1]:.4f} mm against "
+          f"the paper's {R[0]:.4f} mm; better in {better} of {a.seeds}")
+
+
+def first_stage_misses(n_stages: int, poses: int) -> None:
+    """How often a first-stage operator pose finds no grid line on the Table 2 truth."""
+    from pipeline.simulate.scanner_operator import backed_off_pose
+
+    miss = 0
+    for seed in range(n_stages):
+        for m in ps.first_stage(poses, seed=seed)["measurements"]:
+            o = m["operator"]
+            miss += backed_off_pose(ARM, ARM.vector(), S_TRUE, sim.Pattern(), sim.Campaign(), sc.IMAGE_SIZE_PX,
+                                    np.array(o["aim_m"]), o["standoff_m"], o["tilt_rad"], o["roll_rad"]) is None
+    print(f"first stages: {miss} of {n_stages * poses} operator poses found no grid line ({n_stages} stages of {poses})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=10)
@@ -67,9 +105,17 @@ def main() -> None:
     ap.add_argument("--first", type=int, default=4)
     ap.add_argument("--second", type=int, default=4)
     ap.add_argument("--candidates", type=int, default=200)
+    ap.add_argument("--oracle", type=int, default=0, help="only: N poses D-optimal at the true scanner vs the paper (--seeds seeds)")
+    ap.add_argument("--misses", type=int, default=0, help="only: first-stage poses (--first each) missed over this many stages")
     a = ap.parse_args()
     total = a.first + a.second
     model = sc.ScannerModel()
+    if a.misses:
+        first_stage_misses(a.misses, a.first)
+    if a.oracle:
+        oracle(a, model)
+    if a.oracle or a.misses:
+        return  # those measurements only
     nom_model, pool = ps.candidates(a.candidates, 0)
     sel, _ = ps.plan_poses(nom_model, pool, total)
     one_stage = executable(ps.pose_campaign(pool, sel.index))

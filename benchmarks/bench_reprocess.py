@@ -83,7 +83,7 @@ def run_engine(tmp: Path, engine: str, a: argparse.Namespace) -> float:
     t0 = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True, check=False, env={**os.environ, "PYTHONPATH": str(ROOT)})
     wall = time.perf_counter() - t0
-    if p.returncode not in (0, 1):  # 1: recordings that fail the gate (12 contacts: too few for its verdict)
+    if p.returncode != 0:  # every recording must pass (no expected figures beside the copies)
         raise SystemExit(f"{engine}: exit {p.returncode}: {p.stderr.strip()[-500:]}")
     rows = read_results(out).to_pylist()
     bad = [f"{r['recording']}: {r['status']}: {r['error']}" for r in rows if r["status"] != "pass"]

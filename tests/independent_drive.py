@@ -13,8 +13,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 
 import numpy as np
-
-from test_urdf_compliance import INERTIAL, URDF
+from r6_robot import INERTIAL, URDF
 
 G = 9.80665
 

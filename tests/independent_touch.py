@@ -235,6 +235,7 @@ class Campaign:
     payload_changes: list = field(default_factory=list)  # [(t_ns, kg)] when the payload actually changed
     planned_schedule: list = field(default_factory=list)  # the campaign's programmed schedule
     search_direction: np.ndarray | None = None  # (n, 3) unit, into the face
+    payload_kg: np.ndarray | None = None  # (n,) the payload each contact was really made with (this generator's own)
 
 
 def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n: int = 100,
@@ -340,7 +341,7 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
     direction[rows, ax] = -sg
     return Campaign(table, q_latch, float(np.hypot(repeatability_3sigma_m / 3, jig_error_m / np.sqrt(3))) * noise,
                     speed, wild, t_ns, q_stream, [(d["t_ns"], d["payload_kg"]) for d in schedule], planned_schedule,
-                    direction)
+                    direction, payload)
 
 
 # ----- minimum detectable size, computed here (3σ over the projected signature) --------------

@@ -70,7 +70,9 @@ def test_first_stage_is_spread_reachable_and_schema_valid(tmp_path):
 
     doc = first_stage(5, n=400, seed=7)
     arm = sc.nominal_arm()
-    lo, hi = ps.aim_box(sim.Pattern())
+    from pipeline.simulate.scanner_operator import aim_box
+
+    lo, hi = aim_box(sim.Pattern())
     tilt = sim.Campaign().max_tilt_rad
     U = []
     for m in doc["measurements"]:

@@ -47,7 +47,7 @@ def test_payload_follows_the_changes_as_logged_not_the_programmed_schedule(world
     """The operator changed the payload 3 contacts after each programmed block boundary: the table
     follows the `/arm/payload` events; a recording without them falls back to the campaign's schedule."""
     c = it.run(*world, seed=6, payload_late=3)
-    truth = c.table["payload_kg"]
+    truth = c.payload_kg  # the generator's own payload per contact, not the diagnosis's table builder
     _, tab, info = from_recording(_write(tmp_path, c))
     assert info["payload_from"] == "events"
     assert np.array_equal(tab["payload_kg"], truth)
@@ -63,7 +63,6 @@ def test_a_stream_glitch_is_caught_by_the_commanded_search_speed(world, tmp_path
     """J1 reads 4 mrad off over the 30 ms before one latch: the derived approach speed is a few cm/s
     (below the 0.25 m/s any search stays under), but far from that contact's commanded speed."""
     c = it.run(*world, (it.Effect("glitch", 0.004, {"record": 52}),), seed=7)
-    assert c.search_speed[52] <= 0.02
     doc = diagnose_recording(_write(tmp_path, c), SETTINGS)
     hit = [o for o in doc["outlier_records"] if o["record"] == 52]
     assert hit and "commanded search speed" in hit[0]["reason"], doc["outlier_records"]

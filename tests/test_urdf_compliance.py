@@ -10,24 +10,16 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from r6_robot import INERTIAL, URDF
+from test_urdf_diagnose import point_campaign
 
 from pipeline.diagnose.diagnose import Settings, diagnose
 from pipeline.diagnose.urdf_gravity import gravity_torques
 from pipeline.diagnose.urdf_robot import adapter
 from pipeline.models import urdf, urdf_arm
 from pipeline.plan.urdf_robot import configurations
-from test_urdf_diagnose import point_campaign
-from test_urdf_plan import URDF as BARE
 
 G = 9.80665
-INERTIAL = {"l1": (6.0, "0 0 -0.05"), "l2": (9.0, "0.2 0 0.02"), "l3": (6.0, "0.17 0 0"), "l4": (2.5, "0 0 0.05"),
-            "l5": (1.5, "0 0 0.03"), "l6": (1.0, "0 0 0.04")}
-URDF = BARE
-for _ln, (_m, _c) in INERTIAL.items():
-    URDF = URDF.replace(f'<link name="{_ln}"/>', f'<link name="{_ln}"><inertial><origin xyz="{_c}"/><mass value="{_m}"/>'
-                        '<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>')
-
-
 # ----- the independent generator: own FK of the URDF text, torques from the potential energy -----
 def _rpy(r, p, y):
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)

@@ -5,28 +5,13 @@ configurations, on a truth with errors the plan did not know."""
 from __future__ import annotations
 
 import numpy as np
+from r6_robot import BARE_URDF as URDF  # noqa: E402
 
 from pipeline.identify.model import take
 from pipeline.measurements.point import PointModel
 from pipeline.models import urdf, urdf_arm
 from pipeline.plan.select import holdout_rms, plan
 from pipeline.plan.urdf_robot import configurations, table_at
-
-URDF = """<robot name="r6">
-  <link name="b"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="l4"/><link name="l5"/><link name="l6"/>
-  <joint name="j1" type="revolute"><parent link="b"/><child link="l1"/><origin xyz="0 0 0.2"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0.1 0" rpy="1.5708 0 0"/>
-    <axis xyz="0 0 1"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
-  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0.4 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>
-  <joint name="j4" type="revolute"><parent link="l3"/><child link="l4"/><origin xyz="0.35 0 0" rpy="0 1.5708 0"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j5" type="revolute"><parent link="l4"/><child link="l5"/><origin xyz="0 0 0.1" rpy="-1.5708 0 0"/>
-    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
-  <joint name="j6" type="continuous"><parent link="l5"/><child link="l6"/><origin xyz="0 0 0.08"/><axis xyz="0 0 1"/></joint>
-</robot>
-"""
 
 
 def test_planned_points_beat_random_sets():
@@ -52,6 +37,7 @@ def test_plan_urdf_cli_writes_an_executable_campaign(tmp_path):
     import json
 
     from conftest import run_cli
+
     from pipeline.recording.schemas import validator
 
     robot = tmp_path / "r6.urdf"

@@ -290,6 +290,9 @@ def decode_samples_drive(payload: bytes) -> tuple[np.ndarray, np.ndarray, dict[s
     o += 8 * ns
     arrays = [np.frombuffer(payload, "<f8", ns * nj, o + 8 * ns * nj * k).reshape(ns, nj).astype(float)
               for k in range(1 + len(keys))]
+    for k, a in zip(keys, arrays[1:]):  # the stream's schema holds finite drive values only: one NaN would
+        if not np.all(np.isfinite(a)):  # make the whole encoder stream unreadable, so the frame is rejected
+            raise ValueError(f"SAMPLES_DRIVE {k} hold NaN or inf")
     return t, arrays[0], dict(zip(keys, arrays[1:]))
 
 

@@ -58,6 +58,9 @@ def acquire(devices: dict[str, str], out: Path, *, max_s: float | None = None, c
     with back-off; a bridge down for `give_up_s` (0: never) stops the acquisition."""
     if "bridge" not in devices:
         raise RobocalError("acquire needs a controller bridge: --device bridge=PORT")
+    from pipeline.recording.output import check_output
+
+    check_output(out)  # before anything changes: no folder made, signal handlers untouched
     out.parent.mkdir(parents=True, exist_ok=True)
     stop = {"why": ""}
 
@@ -67,9 +70,7 @@ def acquire(devices: dict[str, str], out: Path, *, max_s: float | None = None, c
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     ports = {role: Port(role, path) for role, path in devices.items()}
     sel = selectors.DefaultSelector()
-    from pipeline.recording.output import check_output
-
-    f = open(check_output(out), "wb")
+    f = open(out, "wb")
     writer = RecordingWriter(f)
     acq = Acquisition(writer, devices)
     t_start = time.monotonic()

@@ -52,6 +52,8 @@ def import_bag(bag: Path, urdf: Path, root: str, tip: str, out: Path, joint_topi
     r = extras["ros2"]
     p = r["pairing"]
     js = r["joint_states"]
+    if js.get("efforts_dropped"):
+        err.print(f"[yellow]warning:[/] {js['efforts_dropped']}", highlight=False, soft_wrap=True)
     skipped = f", {js['n_skipped_other_joints']} naming only other joints skipped" if js["n_skipped_other_joints"] else ""
     err.print(f"{bag}: {js['n_used']} joint states on {r['joint_topic']} "
               f"(ignored joints: {', '.join(js['ignored_joints']) or 'none'}{skipped}), "

@@ -182,7 +182,7 @@ def from_recording(rec, stream=None):
     if stream is None and rec.messages.raw.get(streams.JOINT_STATE):
         stream = streams.joint_stream(rec)
     if stream is not None:
-        window = rec.meta(META_CAMPAIGN).get("ros2", {}).get("pairing", {}).get("window_s", drive.DEFAULT_WINDOW_S)
+        window = drive.window_of(rec.meta(META_CAMPAIGN), rec.path)
         tab |= drive.at_measurements(stream, t, list(model.kin.joint_names), rec.path,
                                      urdf_robot.channel_for(rec), float(window))
         k = rec.meta(META_CAMPAIGN).get(drive.TORQUE_CONSTANTS)

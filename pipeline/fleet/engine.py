@@ -102,6 +102,9 @@ def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot
     return tasks, kept, skipped
 
 
+_fork_server_started = False
+
+
 def start_fork_server(stages: list[str] | None = None) -> None:
     """Start, in the background, the process LocalCluster's workers are forked from (Python's
     forkserver), with distributed and the modules of `stages` (default: all) imported and one BLAS
@@ -109,6 +112,10 @@ def start_fork_server(stages: list[str] | None = None) -> None:
     import multiprocessing
     from multiprocessing import forkserver
 
+    global _fork_server_started
+    if _fork_server_started:  # (and never from a second thread while the first one hashes: os.environ is shared)
+        return
+    _fork_server_started = True
     multiprocessing.get_context("forkserver").set_forkserver_preload(["distributed", *warm_modules(stages)])
     saved = {k: os.environ.get(k) for k in SINGLE_THREADED}
     os.environ.update(SINGLE_THREADED)  # BLAS reads them when numpy loads: in the server, before the fork
@@ -166,7 +173,7 @@ class EarlyCluster:
 
     def __init__(self, workers: int | None, allowed_failures: int | None, stages: list[str] | None) -> None:
         self._args = (workers, allowed_failures, stages)
-        self._client, self._error = None, None
+        self._client, self._error, self._raised = None, None, False
         self._ready, self._done = threading.Event(), threading.Event()
         self._thread = threading.Thread(target=self._hold, name="robocal-cluster", daemon=True)
         self._thread.start()
@@ -186,12 +193,18 @@ class EarlyCluster:
         """The started client (waits for the start; its error, if any, is raised here)."""
         self._ready.wait()
         if self._error is not None:
+            self._raised = True
             raise self._error
         return self._client
 
     def close(self) -> None:
+        """Close the cluster (in its thread); an error of the start not yet raised, or of the close, is
+        raised here, not lost."""
         self._done.set()
         self._thread.join()
+        if self._error is not None and not self._raised:
+            self._raised = True
+            raise RobocalError(f"Dask LocalCluster: {type(self._error).__name__}: {self._error}") from self._error
 
 
 def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "dask", workers: int | None = None,

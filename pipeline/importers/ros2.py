@@ -214,16 +214,22 @@ def read_joint_states(path: Path, topic: str, messages, joints: list[str]):
         raise RobocalError(f"{at(path, topic, int(r[i]))}: joint {joints[k]!r} position is NaN or inf")
     report = {"n_messages": n, "n_used": len(q), "n_skipped_other_joints": n - len(q), "ignored_joints": sorted(ignored)}
     effort = None
+    # efforts are optional (many drivers publish NaN or none for joints without torque sensing): when they
+    # are not complete and finite, the import goes on without them and says why
     if with_effort and without:
-        raise RobocalError(f"{at(path, topic, without[0])}: JointState without effort, but record {with_effort[0]} "
-                           "has them (efforts are kept only when every joint state carries them)")
-    if with_effort:
+        report["efforts_dropped"] = (f"{at(path, topic, without[0])}: JointState without effort, but record "
+                                     f"{with_effort[0]} has them: efforts not imported (kept only when every joint "
+                                     "state carries them)")
+    elif with_effort:
         effort = E.array()
         bad = np.argwhere(~np.isfinite(effort))
         if len(bad):
             i, k = bad[0]
-            raise RobocalError(f"{at(path, topic, int(r[i]))}: joint {joints[k]!r} effort is NaN or inf")
-        report["efforts"] = True
+            report["efforts_dropped"] = (f"{at(path, topic, int(r[i]))}: joint {joints[k]!r} effort is NaN or inf: "
+                                         "efforts not imported")
+            effort = None
+        else:
+            report["efforts"] = True
     return t[:, 0], t[:, 1], q, report, effort
 
 

@@ -22,6 +22,18 @@ COLUMNS = {"effort": "joint_efforts", "q_cmd": "commanded_positions", "current":
 TORQUE_CONSTANTS = "torque_constants_Nm_per_A"  # campaign metadata: {joint: N·m at the joint per A of motor current}
 
 
+def window_of(campaign: dict, path) -> float:
+    """The averaging window, s: the ROS 2 import's standstill window (campaign `ros2.pairing.window_s`)
+    where the recording came from a bag, else `DEFAULT_WINDOW_S`; a bad value is a one-line error."""
+    ros2 = campaign.get("ros2") if isinstance(campaign, dict) else None
+    pairing = ros2.get("pairing") if isinstance(ros2, dict) else None
+    w = pairing.get("window_s", DEFAULT_WINDOW_S) if isinstance(pairing, dict) else DEFAULT_WINDOW_S
+    if isinstance(w, bool) or not isinstance(w, (int, float)) or not np.isfinite(w) or w <= 0:
+        raise RobocalError(f"{path}: metadata robocal.campaign ros2.pairing.window_s {w!r} is not a positive number "
+                           "of seconds")
+    return float(w)
+
+
 def window_means(t_ns: np.ndarray, v: np.ndarray, t_meas_ns: np.ndarray, window_s: float = DEFAULT_WINDOW_S
                  ) -> tuple[np.ndarray, np.ndarray]:
     """(means (m, J), samples per window (m,)) of `v` (T, J) at sorted sample times `t_ns` (T,) ns over

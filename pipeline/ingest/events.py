@@ -69,7 +69,10 @@ def search_commands(rec) -> dict[str, np.ndarray] | None:
             raise RobocalError(f"{where(rec.path, TOUCH_CONTACT, i)}: search speed_m_s {v!r} is not positive")
         speed[i] = v
         if "direction" in s:
-            d = np.asarray(s["direction"], float) if isinstance(s["direction"], list) else np.zeros(0)
+            try:
+                d = np.asarray(s["direction"], float) if isinstance(s["direction"], list) else np.zeros(0)
+            except (TypeError, ValueError):
+                d = np.zeros(0)
             if d.shape != (3,) or not np.all(np.isfinite(d)) or abs(np.linalg.norm(d) - 1) > 1e-3:
                 raise RobocalError(f"{where(rec.path, TOUCH_CONTACT, i)}: search direction {s['direction']!r} "
                                    "is not a unit 3-vector")

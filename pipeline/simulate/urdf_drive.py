@@ -26,6 +26,8 @@ def parse_compliance(text: str, joints: list[str]) -> np.ndarray:
             c[joints.index(name.strip())] = float(v)
         except ValueError:
             raise ValueError(f"--compliance {part!r}: expected JOINT=VALUE, rad/(N·m)") from None
+        if not np.isfinite(c[joints.index(name.strip())]) or c[joints.index(name.strip())] < 0:
+            raise ValueError(f"--compliance {part!r}: a compliance is a finite value ≥ 0, rad/(N·m)")
     return c
 
 

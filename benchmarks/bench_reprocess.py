@@ -117,18 +117,25 @@ def main():
     t0 = time.perf_counter()
     from pipeline.fleet.engine import reprocess_archive
     t = {"import": time.perf_counter() - t0}
-    ev, rows = {}, []
+    ev, done = {}, []
     res = reprocess_archive(sys.argv[2], sys.argv[3], stages=sys.argv[5].split(","), engine=sys.argv[1],
                             workers=int(sys.argv[4]), on_plan=lambda a, b: ev.setdefault("plan", time.perf_counter()),
                             on_start=lambda c: ev.setdefault("start", time.perf_counter()),
-                            on_row=lambda r: rows.append(time.perf_counter()))
+                            on_row=lambda r: done.append((time.perf_counter(), r["worker"], r["elapsed_s"])))
     end = time.perf_counter()
     start = ev.get("start", ev["plan"])
-    firsts = {}
-    for r in res.rows:
-        firsts.setdefault(r["worker"], []).append(r["elapsed_s"])
-    t.update(plan=ev["plan"] - t0 - t["import"], up=start - ev["plan"], tasks=rows[-1] - start, close=end - rows[-1],
-             first=max(v[0] for v in firsts.values()), median=sorted(r["elapsed_s"] for r in res.rows)[len(res.rows) // 2])
+    by = {}
+    for at, w, e in done:
+        by.setdefault(w, []).append((at, e))
+    first = min(v[0][0] - v[0][1] for v in by.values())  # the first task's start (its end − its wall)
+    rest = sorted(e for v in by.values() for _, e in v[1:])
+    med = rest[len(rest) // 2]
+    task = sum(e for _, _, e in done)
+    busy = sum(v[-1][0] - (v[0][0] - v[0][1]) for v in by.values())  # each worker: first start to last end
+    t.update(plan=ev["plan"] - t0 - t["import"], up=start - ev["plan"], to_first=first - t0, tasks=done[-1][0] - start,
+             close=end - done[-1][0], first_extra=sum(v[0][1] - med for v in by.values()), median=med,
+             steady=(busy - task) / len(done), mean=task / len(done),
+             idle_end=sum(done[-1][0] - v[-1][0] for v in by.values()), total=(end - t0) * len(by) / len(done) - task / len(done))
     print(json.dumps(t))
 if __name__ == "__main__":
     main()
@@ -137,7 +144,10 @@ if __name__ == "__main__":
 
 def phases_probe(tmp: Path, a: argparse.Namespace) -> None:
     """Where each engine's wall goes, in-process timestamps (a fresh interpreter per run, engines alternating):
-    import, discovery + hashing, cluster up, tasks, shutdown; the first task of a worker against the median."""
+    import, discovery + hashing, engine up, tasks, shutdown; then the overhead per recording split into the
+    one-off start (to the first task, and the workers' first tasks beyond the median task: imports, first
+    touches of memory), the steady state (each worker's span from its first task's start to its last task's
+    end, minus the tasks: scheduling, the engine's CPU) and the idle workers at the end."""
     import json
 
     for rep in range(a.phases):
@@ -148,9 +158,13 @@ def phases_probe(tmp: Path, a: argparse.Namespace) -> None:
                                 a.stages], capture_output=True, text=True, check=True,
                                env={**os.environ, "PYTHONPATH": str(ROOT)})
             t = json.loads(p.stdout.strip().splitlines()[-1])
+            pc = lambda x: f"{100 * x / t['mean']:.1f} %"  # noqa: E731 — of the mean task
             print(f"phases {engine:<10}: import {t['import']:.2f} s, discovery + hashing {t['plan']:.2f} s, engine up "
-                  f"{t['up']:.2f} s, tasks {t['tasks']:.2f} s, shutdown {t['close']:.2f} s; a worker's first task "
-                  f"{t['first']:.2f} s (median task {t['median']:.3f} s)   load {os.getloadavg()[0]:.1f}", flush=True)
+                  f"{t['up']:.2f} s, tasks {t['tasks']:.2f} s, shutdown {t['close']:.2f} s; first task starts at "
+                  f"{t['to_first']:.2f} s, workers' first tasks +{t['first_extra']:.2f} s over the median "
+                  f"{t['median']:.3f} s; overhead per recording: steady state {t['steady'] * 1e3:.1f} ms "
+                  f"({pc(t['steady'])}), in all {t['total'] * 1e3:.1f} ms ({pc(t['total'])}; idle at the end "
+                  f"{t['idle_end']:.2f} worker-s)   load {os.getloadavg()[0]:.1f}", flush=True)
             shutil.rmtree(out)
 
 

@@ -16,6 +16,7 @@ import pytest
 
 from pipeline.fleet.dataset import read_results
 from pipeline.fleet.discover import discover
+from pipeline.fleet.engine import reprocess_archive
 from pipeline.stages.artefacts import sha256_file
 from reprocess_support import FAST, DaskCluster, cli, kill_group, small_archive
 
@@ -91,6 +92,16 @@ def test_local_cluster_nested_archive_streams_rows_gates_and_resumes(archive, tm
     rows4 = read_results(tmp_path / "out4").to_pylist()
     assert len(rows4) == 5 and {r["robot_id"] for r in rows4} == {"R4-serial-0042"}
     assert {r["robot_id_source"] for r in rows4} == {"override"}
+
+    # nothing left to do: no cluster is started (its thread would be up when the plan is known) ...
+    plans = []
+    seen = lambda n, k: plans.append((n, k, {t.name for t in threading.enumerate()}))  # noqa: E731
+    reprocess_archive(work, out, stages=FAST.split(","), workers=2, on_plan=seen)
+    assert plans[0][:2] == (0, 21) and "robocal-cluster" not in plans[0][2]
+    # ... but one as soon as a recording needs a run, brought up while the rest is hashed
+    shutil.copyfile(recs[0], work / "robot-1" / "new.mcap")
+    reprocess_archive(work, out, stages=FAST.split(","), workers=2, on_plan=seen)
+    assert plans[1][:2] == (1, 21) and "robocal-cluster" in plans[1][2]
 
 
 def test_resume_after_the_client_is_killed(archive, tmp_path):

@@ -75,8 +75,10 @@ def config_of(stages: list[str] | None, robot_id: str | None) -> str:
 
 
 def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot_id=None,
-         resume: bool = True) -> tuple[list[Task], list[dict], list[str]]:
-    """(tasks to run, rows kept from a previous run, paths skipped by discovery)."""
+         resume: bool = True, on_first_task: Callable[[], None] | None = None
+         ) -> tuple[list[Task], list[dict], list[str]]:
+    """(tasks to run, rows kept from a previous run, paths skipped by discovery); `on_first_task` is
+    called once, as soon as the first recording that needs a run is known."""
     from pipeline.stages.artefacts import sha256_file
 
     found, skipped = discover(archive, patterns)
@@ -98,6 +100,8 @@ def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot
             prev["_regated"] = before != (prev["expected"], prev["regressions"], prev["ok"])
             kept.append(prev)
         else:
+            if on_first_task is not None and not tasks:
+                on_first_task()
             tasks.append(Task(f, sha, nbytes, Path(out) / "runs" / f.run_name))
     return tasks, kept, skipped
 
@@ -271,21 +275,24 @@ def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, st
     """The whole run: rows written to `out/results/` as they complete; returns them all."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    early = None
-    if engine == "dask" and not scheduler:
-        start_fork_server(stages)  # its imports overlap the archive's discovery and hashing
-        early = EarlyCluster(workers, allowed_failures, stages)  # and so does the cluster's start
+    early: list[EarlyCluster] = []
+
+    def bring_up() -> None:  # at the first recording to run (none on a fully resumed archive)
+        start_fork_server(stages)  # its imports overlap the rest of the discovery and hashing
+        early.append(EarlyCluster(workers, allowed_failures, stages))  # and so does the cluster's start
+
     try:
         return _run(archive, out, patterns, stages, robot_id, engine, workers, scheduler, allowed_failures, resume,
-                    flush_s, on_plan, on_row, on_start, early)
+                    flush_s, on_plan, on_row, on_start, early,
+                    bring_up if engine == "dask" and not scheduler else None)
     finally:
-        if early is not None:
-            early.close()
+        for e in early:
+            e.close()
 
 
 def _run(archive, out, patterns, stages, robot_id, engine, workers, scheduler, allowed_failures, resume, flush_s,
-         on_plan, on_row, on_start, early) -> Outcome:
-    tasks, kept, skipped = plan(archive, out, patterns, stages, robot_id, resume)
+         on_plan, on_row, on_start, early, bring_up) -> Outcome:
+    tasks, kept, skipped = plan(archive, out, patterns, stages, robot_id, resume, on_first_task=bring_up)
     if on_plan:
         on_plan(len(tasks), len(kept))
     res = Outcome(kept=kept, skipped_paths=skipped)
@@ -295,7 +302,7 @@ def _run(archive, out, patterns, stages, robot_id, engine, workers, scheduler, a
             if row.pop("_regated"):
                 w.add(row)  # a new verdict on an old result: the dataset says so too
         for row in run_tasks(tasks, stages, robot_id, config, engine, workers, scheduler, allowed_failures,
-                             on_start, early):
+                             on_start, early[0] if early else None):
             w.add(row)
             res.rows.append(row)
             if on_row:

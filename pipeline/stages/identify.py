@@ -3,10 +3,14 @@ and k-fold held-out residuals.  Writes fit.json, residuals.parquet, history.json
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from pipeline.accuracy.propagate import fixture_covariance
+from pipeline.identify.complexity import explain, relabel, select
+from pipeline.identify.exports import write_exports
 from pipeline.identify.least_squares import FitOptions, cross_validate, holdout_warning, point_accuracy
 from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.outliers import fit_rejecting
@@ -45,15 +49,11 @@ def run(run_dir: Path, params: dict) -> dict:
     opts = options_of(params)
     selection = None
     if getattr(model, "groups", None) and model.groups():  # keep only groups that improve held-out error
-        from dataclasses import replace
-
-        from pipeline.identify.complexity import select
         selection = select(model, data, k=int(params.get("folds", 5)), seed=int(params.get("seed", 0)), options=opts)
         opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
     rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
     f = rf.fit
     if selection is not None:
-        from pipeline.identify.complexity import relabel
         relabel(f, selection)
     kept_data = take(data, rf.kept)
     folds = int(params.get("folds", 5))
@@ -96,18 +96,15 @@ def run(run_dir: Path, params: dict) -> dict:
     }
     tol = (rec.metadata.get(META_FIXTURE) or {}).get("tolerance_m")
     if tol and "face" in kept_data:  # per-face machining error, shared by a face's contacts (not in σ̂²(JᵀJ)⁻¹)
-        from pipeline.accuracy.propagate import fixture_covariance
         Jf = model.jacobian(f.x, kept_data).reshape(-1, f.x.size)[:, free]
         doc |= {"fixture_tolerance_m": float(tol),
                 "cov_fixture": fixture_covariance(Jf, kept_data["face"], k, float(tol))}
     if selection is not None:
-        from pipeline.identify.complexity import explain
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
     if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
         doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
-    from pipeline.identify.exports import write_exports
     out.mkdir(parents=True, exist_ok=True)
     doc["exports"] = write_exports(model, f.x, out)
     write_json(out / "fit.json", doc)

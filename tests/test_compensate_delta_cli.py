@@ -94,10 +94,15 @@ def test_robocal_compensate_writes_a_program_that_round_trips(arc_run):
     assert all(0 < v < 1e-3 for v in sig)
     doc = json.loads((arc_run / "run" / "compensation" / "compensation.json").read_text())
     assert doc["status_counts"] == {"ok": 3, "unreachable": 1}
+    b95, s1 = doc["predicted_rms_bound95_m"], doc["predicted_sigma_rms_m"]
+    assert s1 < b95 < 3 * s1  # the stated accuracy: the 95 % bound on this calibration's RMS, above the 1σ mean
+    said = " ".join(r.stderr.split())
+    assert f"predicted accuracy (95 %): tool-point RMS ≤ {b95 * 1e3:.4f} mm" in said, said
     r = run_cli("report", arc_run / "run", "--force", "--no-rrd")
     assert r.returncode == 0, r.stderr
     html = (arc_run / "run" / "report.html").read_text()
     assert 'id="compensation"' in html and "unreachable" in html
+    assert f"Predicted accuracy (95 %)</b>: this calibration's RMS 3-D tool-point error over the program ≤ {b95 * 1e3:.4f} mm" in html
 
 
 @pytest.mark.parametrize("text, message", [

@@ -41,9 +41,9 @@ def compensate_cmd(
     counts = ", ".join(f"{v} {k}" for k, v in doc["status_counts"].items())
     sig = doc["predicted_sigma_rms_m"]
     b95 = doc["predicted_rms_bound95_m"]
-    err.print(f"compensated {c.q.shape[0]} targets in {elapsed:.3f} s: {counts}; predicted 1σ tool-point error "
-              f"RMS {sig * 1e3 if sig is not None else float('nan'):.4f} mm (this calibration's RMS ≤ "
-              f"{b95 * 1e3 if b95 is not None else float('nan'):.4f} mm at 95 % confidence); median correction "
+    mm = lambda v: f"{v * 1e3:.4f}" if v is not None else "nan"  # noqa: E731
+    err.print(f"compensated {c.q.shape[0]} targets in {elapsed:.3f} s: {counts}; predicted accuracy (95 %): tool-point "
+              f"RMS ≤ {mm(b95)} mm (1σ RMS {mm(sig)} mm, the mean over calibrations); median correction "
               f"{(doc['correction_median_m'] or float('nan')) * 1e3:.3f} mm", highlight=False)
     bad = [r for r in doc["rows"] if r["status"] != "ok"][:5]
     for r in bad:

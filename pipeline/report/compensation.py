@@ -30,13 +30,13 @@ def section(run_dir: Path) -> str | None:
     rms, corr = doc.get("predicted_sigma_rms_m"), doc.get("correction_median_m")
     rms_s = "—" if rms is None else f"{rms * 1e3:.4f} mm"
     b95 = doc.get("predicted_rms_bound95_m")
-    b95_s = "" if b95 is None else (f" (one calibration's RMS spreads around this prediction: ≤ {b95 * 1e3:.4f} mm "
-                                    "at 95 % confidence)")
+    b95_s = "—" if b95 is None else f"{b95 * 1e3:.4f} mm"
     corr_s = "—" if corr is None else f"{corr * 1e3:.3f} mm"
     head = (f"<p>{doc['n_targets']} targets of <code>{escape(doc['targets'])}</code> compensated into "
-            f"<code>{escape(doc['program'])}</code>: {counts}. Predicted 1σ 3-D tool-point error of the calibrated "
-            f"model at the compensated joints (from the parameter covariance): RMS "
-            f"{rms_s}{b95_s}, max {np.nanmax(sig) * 1e3:.4f} mm; median correction {corr_s}.</p>")
+            f"<code>{escape(doc['program'])}</code>: {counts}. <b>Predicted accuracy (95 %)</b>: this calibration's "
+            f"RMS 3-D tool-point error over the program ≤ {b95_s}. Predicted 1σ error of the calibrated model at the "
+            f"compensated joints (from the parameter covariance; the mean over calibrations, one calibration spreads "
+            f"around it): RMS {rms_s}, max {np.nanmax(sig) * 1e3:.4f} mm; median correction {corr_s}.</p>")
     table = _table(["row", "status", "predicted σ (mm)", "correction (mm)"],
                    [[str(r["row"]), escape(r["status"]), f"{r['predicted_sigma_m'] * 1e3:.4f}",
                      f"{r['correction_m'] * 1e3:.3f}"] for r in rows[:SHOWN_ROWS]], numeric={0, 2, 3})

@@ -92,12 +92,22 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
     # axis) is lifted once the estimate moves off it.  Re-test at each solution until the
     # free set is stable.  Parameters that the re-test fixes go back to their start value,
     # so a fixed parameter always reads as fixed.
+    # A parameter the re-test frees became identifiable only through the estimate's move off
+    # the nominal geometry (a lever of its deviation, often mm): it stays free only if the data
+    # determine it better than its prior does (`weakly_freed`); else a step along it is noise
+    # and nonlinearity (UR10, tool point on the last axis: wrist rotations freed at 4 mm lever
+    # moved by radians and broke the model away from the data).
     for round_ in range(4):
         sol = _solve(model, data, x, ident.free, options, history)
         nfev += int(sol.nfev)
         x = x.copy()
         x[ident.free] = sol.x
         again = analyse(_flat_jac(model, x, data), names, fixed, priority, options.rank_tol)
+        weak = weakly_freed(model, data, x, ident.free, again.free)
+        if weak.any():
+            again = analyse(_flat_jac(model, x, data), names, fixed | weak, priority, options.rank_tol)
+            for i in np.flatnonzero(weak):
+                again.reasons[int(i)] = "determined no better than its prior (freed only off the nominal geometry)"
         if np.array_equal(again.free, ident.free) or round_ == 3:
             break
         ident = again
@@ -113,6 +123,24 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
     return Fit(names=names, units=model.parameter_units(), nominal=x0, x=x, identifiability=ident,
                std=std, cov=cov, residuals_before=r0, residuals_after=r1, sigma=sigma, nfev=nfev,
                elapsed_s=time.perf_counter() - t0, history=history)
+
+
+def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np.ndarray,
+                 after: np.ndarray) -> np.ndarray:
+    """Mask of the parameters free in `after` but not in `before` whose 1σ at x (σ̂²(JᵀJ)⁻¹ over
+    `after`'s free set, σ̂ from the residuals at x) is no smaller than their prior 1σ
+    (`pipeline.accuracy.prior`): the data do not determine them."""
+    new = after & ~before
+    if not new.any():
+        return new
+    from pipeline.accuracy.prior import prior_sigma
+
+    r = model.residuals(x, data).ravel()
+    Jf = _flat_jac(model, x, data)[:, after]
+    sigma = float(np.sqrt(np.sum(r**2) / max(Jf.shape[0] - Jf.shape[1], 1)))
+    std = np.zeros(x.size)
+    std[after] = np.sqrt(np.clip(np.diag(covariance(Jf, sigma)), 0, None))
+    return new & (std >= prior_sigma(model)[0])
 
 
 def _solve(model: MeasurementModel, data: Table, x_start: np.ndarray, free: np.ndarray,

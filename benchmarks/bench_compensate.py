@@ -110,7 +110,10 @@ def delta_seed(s: int) -> tuple[float, dict]:
     return rms(before), judge(f, model.points(f.x, {"joint_positions": c.q[ok]})[1], after) | {"ok": int(ok.sum())}
 
 
-UR10 = Path(__file__).resolve().parents[2] / "shared" / "real-data" / "figaroh_ur10_pose" / "ur10_robot.urdf"
+_REAL = Path(__file__).resolve().parents[2] / "shared" / "real-data"  # ../shared/real-data of the checkout
+if not _REAL.is_dir():  # a checkout elsewhere (a worktree): the workplace's copy, as the tests look for it
+    _REAL = Path("/work/shared/real-data")
+UR10 = _REAL / "figaroh_ur10_pose" / "ur10_robot.urdf"
 
 
 def urdf_seed(s: int, error_m: float = 4e-3, error_rad: float = 8e-3) -> tuple[float, dict]:

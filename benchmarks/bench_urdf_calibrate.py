@@ -19,12 +19,17 @@ from pipeline.measurements.point import PointModel
 from pipeline.models import urdf, urdf_arm
 from pipeline.simulate.urdf_robot import campaign, random_truth
 
-PANDA = Path(__file__).resolve().parents[2] / "shared" / "real-data" / "mukca_panda" / "urdf" / "panda.urdf"
+_REAL = Path(__file__).resolve().parents[2] / "shared" / "real-data"  # ../shared/real-data of the checkout
+if not _REAL.is_dir():  # a checkout elsewhere (a worktree): the workplace's copy
+    _REAL = Path("/work/shared/real-data")
+PANDA = _REAL / "mukca_panda" / "urdf" / "panda.urdf"
 
 
 def robot() -> urdf_arm.UrdfArm:
     if PANDA.is_file():
+        print(f"arm: Panda ({PANDA})")
         return urdf_arm.UrdfArm(urdf.read(PANDA, "panda_link0", "ball_link"))
+    print("arm: the tests' prismatic + 6R arm (the Panda URDF is missing)")
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
     from test_urdf_simulate import PR6  # a prismatic torso + 6R arm: 7 joints
 

@@ -7,10 +7,12 @@ pool and on Dask (LocalCluster), side by side; Dask's overhead per recording.
 Each recording is the bundled arc-welder campaign cut to its first CONTACTS contacts (copied to
 RECORDINGS paths of a nested archive; each copy is a separate run).  Each engine runs as a user runs
 it: `python -m pipeline reprocess ARCHIVE --engine E` in a fresh process, timed end to end.  Overhead
-per recording = (wall × workers − Σ task wall times) / recordings: all a worker slot spends outside a
-task (the interpreter's start and imports, discovery and hashing, the engine's start-up and shutdown,
-scheduling, writing the dataset, idling at the end, and on a busy machine the CPU taken by the
-engine's own threads).  With --repeats N the engines run N times in alternating order (on a shared box
+per recording (the table's column) = (wall × workers − Σ task wall times) / recordings: all a worker
+slot spends outside a task, the one-off start included (the interpreter's start and imports, discovery
+and hashing, the engine's start-up and shutdown, scheduling, writing the dataset, idling at the end, and
+on a busy machine the CPU taken by the engine's own threads).  --phases N (default 1) splits it: the
+one-off start, and the steady state per recording (each worker's span from its first task's start to
+its last task's end, minus its tasks) — the cost that grows with the archive.  With --repeats N the engines run N times in alternating order (on a shared box
 the load then weighs on each alike) and Dask's wall is compared with the process pool's, run by run:
 the end-to-end figure.  --startup N times a LocalCluster's start-up and shutdown alone, workers
 spawned (Dask's default) or forked from robocal's fork server; --probe N, Dask's own per-task cost
@@ -194,7 +196,8 @@ def main() -> None:
     ap.add_argument("--engines", default="serial,processes,dask")
     ap.add_argument("--repeats", type=int, default=1, help="runs of the engines, in alternating order; 0: only probes")
     ap.add_argument("--probe", type=int, default=40, help="sleep tasks (0.5 s) for Dask's own per-task cost; 0: none")
-    ap.add_argument("--phases", type=int, default=0, help="runs per engine of the in-process phase timing; 0: none")
+    ap.add_argument("--phases", type=int, default=1, help="runs per engine of the in-process phase timing "
+                    "(one-off start vs steady state per recording); 0: none")
     ap.add_argument("--startup", type=int, default=0, help="repeats of the LocalCluster start-up + shutdown probe, "
                     "spawned vs fork-server workers; 0: none")
     a = ap.parse_args()
@@ -209,7 +212,7 @@ def main() -> None:
             shutil.copyfile(first, p)
         print(f"{a.recordings} recordings of {a.contacts} contacts ({first.stat().st_size / 1e6:.2f} MB each), "
               f"stages {a.stages}, {a.workers} worker(s), load {os.getloadavg()[0]:.1f}")
-        print(f"{'engine':<10} {'wall s':>8} {'rec/s':>7} {'task s':>7} {'overhead/rec s':>15} {'% of task':>9}",
+        print(f"{'engine':<10} {'wall s':>8} {'rec/s':>7} {'task s':>7} {'overhead/rec s':>15} {'% of task':>9}   (overhead incl. the one-off start)",
               flush=True)
         walls: dict[str, list[float]] = {}
         for rep in range(a.repeats):

@@ -128,7 +128,7 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
 def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np.ndarray,
                  after: np.ndarray) -> np.ndarray:
     """Mask of the parameters free in `after` but not in `before` whose 1σ at x (σ̂²(JᵀJ)⁻¹ over
-    `after`'s free set, σ̂ from the residuals at x) is no smaller than their prior 1σ
+    `after`'s free set, σ̂ the residuals' robust scale at x) is no smaller than their prior 1σ
     (`pipeline.accuracy.prior`): the data do not determine them."""
     new = after & ~before
     if not new.any():
@@ -137,7 +137,9 @@ def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np
 
     r = model.residuals(x, data).ravel()
     Jf = _flat_jac(model, x, data)[:, after]
-    sigma = float(np.sqrt(np.sum(r**2) / max(Jf.shape[0] - Jf.shape[1], 1)))
+    # the noise level by the residuals' median absolute value (Gaussian-consistent), so that gross
+    # errors a robust loss is riding out do not make every newly freed parameter look undetermined
+    sigma = 1.4826 * float(np.median(np.abs(r))) * np.sqrt(r.size / max(r.size - Jf.shape[1], 1))
     std = np.zeros(x.size)
     std[after] = np.sqrt(np.clip(np.diag(covariance(Jf, sigma)), 0, None))
     return new & (std >= prior_sigma(model)[0])

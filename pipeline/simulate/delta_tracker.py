@@ -248,6 +248,7 @@ def write(path, delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noi
     import json
     from pathlib import Path
 
+    from pipeline.recording.output import generated
     from pipeline.recording.writer import write_campaign
 
     varied = bool(effects) or (variations is not None and variations != Variations())
@@ -265,7 +266,7 @@ def write(path, delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noi
         if varied:
             doc["effects"] = [{"effect": e.name, "location": e.location, "values": list(e.values)} for e in effects]
             doc["variations"] = asdict(var)
-        Path(truth_path).write_text(json.dumps(doc, indent=2) + "\n")
+        Path(truth_path).write_text(json.dumps(generated(doc), indent=2) + "\n")
     return sim
 
 

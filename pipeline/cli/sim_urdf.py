@@ -46,6 +46,7 @@ def urdf_cmd(
     from pipeline.models import urdf as urdf_mod
     from pipeline.models.urdf_arm import UrdfArm
     from pipeline.plan.campaign import read_pose
+    from pipeline.recording.joint_state_batch import COMMANDED_POSITIONS
     from pipeline.recording.output import check_output, generated
     from pipeline.simulate import urdf_drive
     from pipeline.simulate.urdf_robot import campaign, random_truth
@@ -82,7 +83,7 @@ def urdf_cmd(
         qr = table["joint_positions"]
         tau = urdf_drive.true_torques(desc, qr if true_joints is None else true_joints(qr), payload)
         table["timestamp_ns"] = T0_NS + np.arange(len(qr), dtype=np.int64) * 1_000_000_000
-        stream = urdf_drive.drive_stream(table["timestamp_ns"], qr, table["commanded_positions"], -tau,
+        stream = urdf_drive.drive_stream(table["timestamp_ns"], qr, table[COMMANDED_POSITIONS], -tau,
                                          np.random.default_rng(seed + 1), effort_noise, dwell_s=1.0)  # no gaps
     camp: dict = {"simulated": True, "robot_id": f"{desc.name}-sim-{seed}"}
     if campaign_file is not None:

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import run_cli
 from r6_robot import BARE_URDF as URDF
-from test_acquire_pty import acquire, finish_sim, start_sim
+from stream_support import record_over_pty
 
 from pipeline.recording.output import written_by_robocal
 
@@ -59,9 +59,7 @@ def test_robocal_replaces_its_own_summary_report_and_truth(tmp_path):
     assert truth.read_bytes() != first and json.loads(truth.read_text())["campaign"]["contacts"] == 12
     for name in ("summary.json", "sim.json"):  # robocal's own JSON (a truth file) where acquire and device-sim write
         shutil.copy(truth, tmp_path / name)
-    proc, devices = start_sim(tmp_path, "arc-welder", "--recording", str(direct), "--speed", "40")
-    s = acquire(tmp_path, devices, tmp_path / "acq.mcap")
-    rep = finish_sim(proc, tmp_path)
+    _, s, rep = record_over_pty(tmp_path, "arc-welder", ("--recording", str(direct), "--speed", "40"))
     assert s["stop_reason"] == "campaign complete" and s["devices"]["bridge"]["samples"] > 0
     assert rep["devices"]["bridge"]["sent"] == rep["devices"]["bridge"]["frames"] > 0
     for name in ("summary.json", "sim.json"):

@@ -40,7 +40,8 @@ def delta_tracker_cmd(
     from pipeline.errors import RobocalError
     from pipeline.models.delta import Delta
     from pipeline.recording.output import check_output
-    from pipeline.simulate.delta_tracker import TRUTH_MODELS, Campaign, Noise, random_truth, write
+    from pipeline.simulate.delta_recording import write
+    from pipeline.simulate.delta_tracker import TRUTH_MODELS, Campaign, Noise, random_truth
 
     if truth is not None:
         check_output(truth, "truth")  # before the simulation: never over a file robocal did not create

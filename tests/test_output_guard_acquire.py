@@ -61,6 +61,6 @@ def test_robocal_replaces_its_own_summary_report_and_truth(tmp_path):
         shutil.copy(truth, tmp_path / name)
     _, s, rep = record_over_pty(tmp_path, "arc-welder", ("--recording", str(direct), "--speed", "40"))
     assert s["stop_reason"] == "campaign complete" and s["devices"]["bridge"]["samples"] > 0
-    assert rep["devices"]["bridge"]["sent"] == rep["devices"]["bridge"]["frames"] > 0
+    assert rep["devices"]["bridge"]["sent"] > 0
     for name in ("summary.json", "sim.json"):
         assert written_by_robocal(tmp_path / name) and "campaign" not in json.loads((tmp_path / name).read_text())

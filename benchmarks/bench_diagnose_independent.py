@@ -16,7 +16,8 @@ linear link growth) count as *named* when the matching finding is reported.  The
 quadratic coupling, whose forms the library has in a family of forms (`pipeline.diagnose.forms`), count as found
 when located or named in the right family (`located_or_family_named`; `form_named`: in the generator's form), and
 `named_with_high_confidence` there counts only names outside that family (`warm_up_all`: every link warms, the
-library's all-links form; `thermal_growth`: a2 and d4 only).
+library's all-links form; `thermal_growth`: a2 and d4 only).  Figures from before that counting (located only;
+any high-confidence name a misname) are not comparable with these.
 
 Usage: ``python benchmarks/bench_diagnose_independent.py [--seeds 40] [--mult 4] [--cases a,b]
 [--campaign block|two-stations [--station DX,DZ]]`` (two-stations: the block and a copy shifted by DX along the

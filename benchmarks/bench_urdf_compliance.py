@@ -1,5 +1,6 @@
 """Gravity compliance of a URDF robot (issue 18, `pipeline/diagnose/urdf_gravity.py`) on campaigns from
-the independent generator of `tests/test_urdf_compliance.py` (own FK of the URDF text, torques as −∂V/∂q).
+the independent generator `tests/independent_drive.py` (own FK of the URDF text, torques as −∂V/∂q), through
+`tests/test_urdf_compliance.py`'s `campaign`.
 
 Per seed: a clean campaign (false findings) and one with joint `--joint` at `--mult` × its minimum
 detectable size (read from the clean diagnosis' `candidates[].min_detectable`); found and named,

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from stream_support import ROBOCAL, simulate, start_sim
 
 from pipeline.recording.reader import read_recording
-from tests.test_acquire_pty import ROBOCAL, simulate, start_sim
 
 
 def _start_acquire(tmp: Path, devices: dict[str, str], out: Path) -> subprocess.Popen:

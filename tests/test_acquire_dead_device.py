@@ -15,7 +15,7 @@ import pytest
 
 from hostile_support import BUNDLED
 from pipeline.recording.reader import read_recording
-from test_acquire_pty import ROBOCAL, start_sim
+from stream_support import ROBOCAL, start_sim
 
 
 def _reader(stream, lines: list[tuple[float, str]]) -> threading.Thread:

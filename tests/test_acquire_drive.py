@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import independent_drive as gen
+from stream_support import ROBOCAL, bits, record_over_pty
 from pipeline.acquire import protocol as P
 from pipeline.acquire.devicesim import Clock, device_streams, play
 from pipeline.diagnose.diagnose import Settings, diagnose
@@ -26,17 +27,12 @@ from pipeline.importers.recording import T0_NS, write_urdf_recording
 from pipeline.ingest.streams import JOINT_STATE, joint_stream
 from pipeline.recording import joint_state_batch as JSB
 from pipeline.recording.reader import read_recording
-from test_acquire_pty import ROBOCAL, acquire, finish_sim, start_sim
 from test_drive_state import DESC, K_NM_PER_A, URDF
 from test_urdf_diagnose import point_campaign
 
 ROOT = Path(__file__).resolve().parents[1]
 C_J2, PAYLOAD_KG = 2e-6, 10.0  # rad/(N·m), kg (not in the URDF)
 N_MEAS, SPACING_NS = 16, 500_000_000  # 0.3 s standstill dwell per measurement, 8 s of campaign
-
-
-def bits(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a, np.float64).view(np.int64)
 
 
 @pytest.fixture(scope="module")
@@ -126,11 +122,8 @@ def test_device_sim_sends_drive_frames_only_for_a_stream_with_drive_state(source
 # ----- through a real pty ------------------------------------------------------------------------------
 def test_drive_state_through_pty_bit_for_bit_and_the_diagnosis_is_the_sources(tmp_path, source):
     """Real time (drive windows are host-time windows: see docs/acquisition.md), a drifting, offset clock."""
-    proc, devices = start_sim(tmp_path, "urdf", "--recording", str(source), "--speed", "1", "--batch", "4",
-                              "--drift-ppm", "100", "--offset-s", "2")
-    out = tmp_path / "acq.mcap"
-    s = acquire(tmp_path, devices, out)
-    rep = finish_sim(proc, tmp_path)
+    out, s, rep = record_over_pty(tmp_path, "urdf", ("--recording", str(source), "--speed", "1", "--batch", "4",
+                                                     "--drift-ppm", "100", "--offset-s", "2"))
     dev = s["devices"]["bridge"]
     assert s["stop_reason"] == "campaign complete" and dev["drive_state"] == list(P.DRIVE_NAMES)
     assert dev["bad_frames"] == dev["missing_frames"] == dev["rejected_frames"] == 0
@@ -156,11 +149,9 @@ def test_drive_state_through_pty_bit_for_bit_and_the_diagnosis_is_the_sources(tm
 def test_damaged_drive_frames_are_counted_and_never_written(tmp_path, source):
     """Flipped and dropped bytes (0.05 %, 0.01 %: a third of the ~830-byte drive frames damaged) and line
     noise: the recording holds exactly the samples of the clean drive frames, bit for bit."""
-    proc, devices = start_sim(tmp_path, "urdf", "--recording", str(source), "--speed", "20", "--batch", "4",
-                              "--corrupt", "0.0005", "--drop", "0.0001", "--noise", "0.02", "--seed", "9")
-    out = tmp_path / "acq.mcap"
-    s = acquire(tmp_path, devices, out, "--max-s", "60")
-    rep = finish_sim(proc, tmp_path)
+    out, s, rep = record_over_pty(tmp_path, "urdf", ("--recording", str(source), "--speed", "20", "--batch", "4",
+                                                     "--corrupt", "0.0005", "--drop", "0.0001", "--noise", "0.02",
+                                                     "--seed", "9"), "--max-s", "60")
     dev, sent = s["devices"]["bridge"], rep["devices"]["bridge"]
     damaged = set(sent["damaged_seqs"])
     c = rep["clock"]
@@ -178,11 +169,9 @@ def test_damaged_drive_frames_are_counted_and_never_written(tmp_path, source):
 def test_drive_state_across_disconnects(tmp_path, source):
     """The bridge unplugged every second for 0.4 s: each gap logged, every drive frame not lost arrives
     whole (its samples' drive arrays bit for bit), none of a lost one."""
-    proc, devices = start_sim(tmp_path, "urdf", "--recording", str(source), "--speed", "2", "--batch", "4",
-                              "--disconnect-every", "1.0", "--disconnect-for", "0.4")
-    out = tmp_path / "acq.mcap"
-    s = acquire(tmp_path, devices, out, "--max-s", "60")
-    rep = finish_sim(proc, tmp_path)
+    out, s, rep = record_over_pty(tmp_path, "urdf", ("--recording", str(source), "--speed", "2", "--batch", "4",
+                                                     "--disconnect-every", "1.0", "--disconnect-for", "0.4"),
+                                  "--max-s", "60")
     dev, sent = s["devices"]["bridge"], rep["devices"]["bridge"]
     assert s["stop_reason"] == "campaign complete" and len(sent["disconnects"]) >= 2
     assert len(dev["gaps"]) == len(sent["disconnects"])

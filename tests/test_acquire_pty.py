@@ -4,66 +4,14 @@ Both commands run as real processes; the devices are real ttys."""
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
-import time
-from pathlib import Path
-
 import numpy as np
 import pytest
+from stream_support import record_over_pty, simulate
 
 from pipeline.acquire import protocol as P
 from pipeline.acquire.devicesim import Clock, device_streams
 from pipeline.calibrate import calibrate
 from pipeline.recording.reader import read_recording
-
-ROBOCAL = str(Path(sys.executable).parent / "robocal")
-
-
-def start_sim(tmp: Path, system: str, *args: str) -> tuple[subprocess.Popen, dict[str, str]]:
-    """Start `robocal device-sim`; returns the process and its ROLE=PATH announcements."""
-    proc = subprocess.Popen([ROBOCAL, "device-sim", system, "--link-dir", str(tmp / "dev"),
-                             "--report", str(tmp / "sim.json"), "--wait", "60", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    devices: dict[str, str] = {}
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        line = proc.stdout.readline()
-        if not line:
-            raise AssertionError(f"device-sim exited: {proc.stderr.read()}")
-        role, _, rest = line.partition("=")
-        devices[role] = rest.split()[0]
-        assert Path(rest.split()[1]).is_char_device()  # a real tty
-        if len(devices) == expected_devices(system, args):
-            return proc, devices
-    raise AssertionError("device-sim did not announce its ports")
-
-
-def expected_devices(system: str, args) -> int:
-    return {"arc-welder": 1, "urdf": 1}.get(system, 2)
-
-
-def acquire(tmp: Path, devices: dict[str, str], out: Path, *extra: str, timeout: float = 120) -> dict:
-    cmd = [ROBOCAL, "acquire", "--out", str(out), "--summary", str(tmp / "summary.json"), *extra]
-    for role, path in devices.items():
-        cmd += ["--device", f"{role}={path}"]
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
-    assert r.returncode == 0, r.stderr
-    return json.loads((tmp / "summary.json").read_text())
-
-
-def finish_sim(proc: subprocess.Popen, tmp: Path) -> dict:
-    proc.wait(timeout=60)
-    assert proc.returncode == 0, proc.stderr.read()
-    return json.loads((tmp / "sim.json").read_text())
-
-
-def simulate(tmp: Path, system: str, args: list[str]) -> Path:
-    out = tmp / f"{system}.direct.mcap"
-    subprocess.run([ROBOCAL, "simulate", system, "--out", str(out), *args], check=True, capture_output=True)
-    return out
-
 
 SIM_ARGS = {"arc-welder": ["--contacts", "12", "--seed", "3"], "scorbot-scanner": ["--seed", "3"],
             "delta-tracker": ["--seed", "3"]}
@@ -72,11 +20,8 @@ SIM_ARGS = {"arc-welder": ["--contacts", "12", "--seed", "3"], "scorbot-scanner"
 @pytest.mark.parametrize("system", sorted(SIM_ARGS))  # the systems with serial device simulators
 def test_campaign_through_pty_calibrates_like_the_direct_recording(tmp_path, system):
     direct = simulate(tmp_path, system, SIM_ARGS[system])
-    proc, devices = start_sim(tmp_path, system, "--recording", str(direct), "--speed", "40", "--batch", "4",
-                              "--drift-ppm", "100", "--offset-s", "2")
-    out = tmp_path / "acq.mcap"
-    s = acquire(tmp_path, devices, out)
-    finish_sim(proc, tmp_path)
+    out, s, _ = record_over_pty(tmp_path, system, ("--recording", str(direct), "--speed", "40", "--batch", "4",
+                                                   "--drift-ppm", "100", "--offset-s", "2"))
     assert s["stop_reason"] == "campaign complete"
     a, b = read_recording(direct), read_recording(out)
     assert b.complete and not b.warnings
@@ -100,11 +45,9 @@ def test_campaign_through_pty_calibrates_like_the_direct_recording(tmp_path, sys
 def test_one_percent_corrupted_bytes(tmp_path):
     """Every clean frame kept, every damaged one counted, none written as data."""
     direct = simulate(tmp_path, "arc-welder", ["--contacts", "10", "--seed", "5"])
-    proc, devices = start_sim(tmp_path, "arc-welder", "--recording", str(direct), "--speed", "40",
-                              "--corrupt", "0.01", "--noise", "0.02", "--drop", "0.0005", "--seed", "9")
-    out = tmp_path / "acq.mcap"
-    s = acquire(tmp_path, devices, out, "--max-s", "60")
-    rep = finish_sim(proc, tmp_path)
+    out, s, rep = record_over_pty(tmp_path, "arc-welder", ("--recording", str(direct), "--speed", "40", "--corrupt",
+                                                           "0.01", "--noise", "0.02", "--drop", "0.0005", "--seed", "9"),
+                                  "--max-s", "60")
     dev, sent = s["devices"]["bridge"], rep["devices"]["bridge"]
     damaged = set(sent["damaged_seqs"])
     assert len(damaged) > 0.2 * sent["frames"]  # the impairment really happened
@@ -141,11 +84,9 @@ def test_one_percent_corrupted_bytes(tmp_path):
 
 def test_disconnects_are_retried_and_logged_as_gaps(tmp_path):
     direct = simulate(tmp_path, "arc-welder", ["--contacts", "10", "--seed", "2"])
-    proc, devices = start_sim(tmp_path, "arc-welder", "--recording", str(direct), "--speed", "25",
-                              "--disconnect-every", "1.0", "--disconnect-for", "0.4")
-    out = tmp_path / "acq.mcap"
-    s = acquire(tmp_path, devices, out, "--max-s", "60")
-    rep = finish_sim(proc, tmp_path)
+    out, s, rep = record_over_pty(tmp_path, "arc-welder", ("--recording", str(direct), "--speed", "25",
+                                                           "--disconnect-every", "1.0", "--disconnect-for", "0.4"),
+                                  "--max-s", "60")
     dev, sent = s["devices"]["bridge"], rep["devices"]["bridge"]
     assert s["stop_reason"] == "campaign complete"
     assert len(sent["disconnects"]) >= 2
@@ -173,11 +114,8 @@ def test_disconnects_are_retried_and_logged_as_gaps(tmp_path):
 def test_device_sim_simulates_the_campaign_itself(tmp_path):
     """Without --recording, device-sim runs `robocal simulate SYSTEM` with the same seed."""
     direct = simulate(tmp_path, "arc-welder", ["--contacts", "10", "--seed", "4"])
-    proc, devices = start_sim(tmp_path, "arc-welder", "--seed", "4", "--sim-args", "--contacts 10",
-                              "--speed", "60", "--batch", "8")
-    out = tmp_path / "acq.mcap"
-    acquire(tmp_path, devices, out)
-    finish_sim(proc, tmp_path)
+    out, _, _ = record_over_pty(tmp_path, "arc-welder", ("--seed", "4", "--sim-args", "--contacts 10", "--speed", "60",
+                                                       "--batch", "8"))
     a, b = read_recording(direct), read_recording(out)
     assert [m["joint_positions"] for m in a.messages["/touch/contact"]] == \
         [m["joint_positions"] for m in b.messages["/touch/contact"]]

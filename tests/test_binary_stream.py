@@ -23,6 +23,7 @@ from hypothesis.extra import numpy as hnp
 from mcap.reader import make_reader
 
 from hostile_support import rebuild
+from stream_support import bits
 from pipeline.ingest.streams import JOINT_STATE, joint_stream
 from pipeline.recording import joint_state_batch as JSB
 from pipeline.recording.reader import read_recording
@@ -33,10 +34,6 @@ ROOT = Path(__file__).resolve().parents[1]
 ARC_JSON = ROOT / "recordings" / "arc-welder-touch.mcap"
 ARC_PB = ROOT / "recordings" / "arc-welder-touch-pb.mcap"
 DELTA_JSON = ROOT / "recordings" / "delta-tracker.mcap"
-
-
-def bits(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a).view(np.int64)
 
 
 @settings(max_examples=40, deadline=None)

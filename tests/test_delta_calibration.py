@@ -17,6 +17,7 @@ from pipeline.models import delta as dm
 from pipeline.models.delta import Delta
 from pipeline.recording.reader import read_recording
 from pipeline.recording.writer import RecordingWriter
+from pipeline.simulate import delta_recording as rec_writer
 from pipeline.simulate import delta_tracker as sim
 from pipeline.systems import delta_tracker as dt
 
@@ -32,7 +33,7 @@ def _record(tmp: Path, name: str, truth_model: str = "simplified", noise_scale: 
     """Simulate to a real MCAP file and read it back like `robocal calibrate` does."""
     truth = sim.random_truth(np.random.default_rng(seed + 1_000_003), truth_model)
     path = tmp / f"{name}.mcap"
-    s = sim.write(path, Delta(), truth, campaign or sim.Campaign(seed=seed), sim.Noise(scale=noise_scale))
+    s = rec_writer.write(path, Delta(), truth, campaign or sim.Campaign(seed=seed), sim.Noise(scale=noise_scale))
     return read_recording(path), truth, s
 
 
@@ -141,7 +142,7 @@ def test_cost_of_a_fit_is_small_and_cross_validation_works(noise_free):
 
 # ----- bad input -----------------------------------------------------------------------
 def _write(path: Path, rows: list[dict]) -> Path:
-    meta = sim.recording_metadata(Delta(), sim.Campaign(), sim.Noise())
+    meta = rec_writer.recording_metadata(Delta(), sim.Campaign(), sim.Noise())
     with RecordingWriter(path) as w:
         for k, v in meta.items():
             w.metadata(k, v)

@@ -21,6 +21,7 @@ import pytest
 from mcap.reader import make_reader
 
 import independent_drive as gen
+from stream_support import bits
 from pipeline.diagnose.diagnose import Settings, diagnose
 from pipeline.diagnose.urdf_robot import adapter, from_recording
 from pipeline.importers.recording import T0_NS, write_urdf_recording
@@ -38,10 +39,6 @@ S = Settings(n_boot=10, sign_flips=0)
 DESC = urdf.parse(URDF, "b", "l6")
 PAYLOAD_KG = 10.0  # at 5 cm along the tip's z: not in the URDF
 C_J2 = 2e-6  # rad/(N·m): ~10× the minimum detectable size of this campaign
-
-
-def bits(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a).view(np.int64)
 
 
 def cli(*args) -> subprocess.CompletedProcess:

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
+from stream_support import record_over_pty
 from pipeline.errors import RobocalError
 from pipeline.models import serial_arm
 from pipeline.models.jig import stepped_block
@@ -135,23 +136,7 @@ def test_not_json_campaign(tmp_path):
 
 
 def test_device_sim_plays_a_planned_campaign_over_a_pty_with_its_misses(planned, tmp_path):
-    import subprocess
-    import sys
-    import time
-
-    robocal = str(Path(sys.executable).parent / "robocal")
-    dev = tmp_path / "dev"
-    p = subprocess.Popen([robocal, "device-sim", "arc-welder", "--campaign", str(planned), "--speed", "100",
-                          "--link-dir", str(dev), "--seed", "3"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        for _ in range(120):
-            if (dev / "bridge").exists():
-                break
-            time.sleep(0.5)
-        r = run_cli("acquire", "--device", f"bridge={dev / 'bridge'}", "--out", tmp_path / "acq.mcap")
-        assert r.returncode == 0, r.stderr
-    finally:
-        p.wait(timeout=120)
+    record_over_pty(tmp_path, "arc-welder", ("--campaign", str(planned), "--speed", "100", "--seed", "3"))
     rec = read_recording(tmp_path / "acq.mcap")
     n_contact = len(rec.messages.get("/touch/contact", []))
     n_miss = len(rec.messages.get("/touch/miss", []))

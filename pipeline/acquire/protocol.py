@@ -32,6 +32,8 @@ from enum import IntEnum
 
 import numpy as np
 
+from pipeline.recording.joint_state_batch import OPTIONAL_SAMPLES
+
 SYNC = b"\xa5\x5a"
 VERSION = 1
 HEADER = struct.Struct("<2sBBIqHH")  # sync, type, version, seq, device_time_ns, length, header crc
@@ -241,7 +243,7 @@ def decode_samples(payload: bytes) -> tuple[np.ndarray, np.ndarray]:
 
 # drive state of SAMPLES_DRIVE: flag bit → JointStream / RecordingWriter.write_batch keyword, in payload order
 DRIVE_FIELDS = ("q_cmd", "effort", "current")  # commanded positions rad / m, efforts N·m / N, motor currents A
-DRIVE_NAMES = ("commanded_positions", "efforts", "motor_currents")  # robocal.JointStateBatch fields 7, 8, 9
+DRIVE_NAMES = OPTIONAL_SAMPLES  # robocal.JointStateBatch fields 7, 8, 9, in DRIVE_FIELDS' order
 _DRIVE_HEAD = struct.Struct("<BHB")  # n_joints, n_samples, flags
 
 

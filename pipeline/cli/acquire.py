@@ -43,8 +43,11 @@ def acquire_cmd(
 ) -> None:
     """Record calibration devices over serial ports until the bridge's campaign is complete or stopped."""
     from pipeline.acquire.run import acquire
+    from pipeline.recording.output import check_output, generated
 
     devs = _parse_devices(device)
+    if summary is not None:
+        check_output(summary, "summary")  # before the acquisition starts: never over a file robocal did not create
     live = err.is_terminal
 
     with err.status("waiting for devices…") as st:
@@ -66,7 +69,7 @@ def acquire_cmd(
         s = acquire(devs, out, max_s=max_s, connect_timeout_s=connect_timeout, fsync=fsync,
                     status=status if live else status_plain, log=log, silence_s=silence_s, give_up_s=give_up_s)
     if summary is not None:
-        summary.write_text(json.dumps(s, indent=2) + "\n")
+        summary.write_text(json.dumps(generated(s), indent=2) + "\n")
     for role, d in s["devices"].items():
         ev = ", ".join(f"{n} {t}" for t, n in d["events"].items()) or "no events"
         clk = d["clock"]
@@ -117,8 +120,11 @@ def device_sim_cmd(
     """Virtual devices: play a campaign of SYSTEM over pseudo-terminals (prints ROLE=PATH lines)."""
     from pipeline.acquire.devicesim import Clock, Impairments, device_streams, play
     from pipeline.recording.reader import read_recording
+    from pipeline.recording.output import check_output, generated
     from pipeline.recording.schemas import META_CAMPAIGN
 
+    if report is not None:
+        check_output(report, "report")  # before anything is simulated or played
     tmp = tempfile.TemporaryDirectory(prefix="robocal-devsim-")
     if campaign and recording is not None:
         raise RobocalError("device-sim: give --campaign or --recording, not both")
@@ -149,7 +155,7 @@ def device_sim_cmd(
     doc = {"wall_start_ns": rep.wall_start_ns, "sim_start_ns": rep.sim_start_ns, "speed": speed,
            "clock": {"t0": clock.t0, "offset_ns": clock.offset_ns, "drift": clock.drift}, "devices": rep.devices}
     if report is not None:
-        report.write_text(json.dumps(doc) + "\n")
+        report.write_text(json.dumps(generated(doc)) + "\n")
     for role, d in rep.devices.items():
         err.print(f"{role}: sent {d['sent']} of {d['frames']} frames, {len(d['damaged_seqs'])} damaged, "
                   f"{len(d['lost_seqs'])} lost in {len(d['disconnects'])} disconnects", highlight=False)

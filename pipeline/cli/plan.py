@@ -28,12 +28,12 @@ def candidate_module(system: str):
 def write_plan(out: Path, doc: dict) -> None:
     """The plan / campaign JSON, robocal's generator its first key (`recording.output`: robocal may
     replace it later; it never replaces a file it did not create)."""
-    from pipeline.recording.output import GENERATOR, check_output
+    from pipeline.recording.output import check_output, generated
     from pipeline.stages.artefacts import write_json
 
     check_output(out, "plan")
     out.parent.mkdir(parents=True, exist_ok=True)
-    write_json(out, {"generator": GENERATOR, **{k: v for k, v in doc.items() if k != "generator"}})
+    write_json(out, generated(doc))
 
 
 @app.command("plan")

@@ -38,8 +38,11 @@ def scorbot_scanner_cmd(
     from pipeline.simulate import scorbot_scanner as sim
     from pipeline.errors import RobocalError
     from pipeline.simulate.effects import parse_effect
+    from pipeline.recording.output import check_output, generated
     from pipeline.systems import scorbot_scanner as sc
 
+    if truth is not None:
+        check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
     try:
         injected = tuple(parse_effect(e) for e in effect)
         sim.check_effects(injected)
@@ -87,7 +90,7 @@ def scorbot_scanner_cmd(
                    sim.stripe_messages(result, pattern))
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)
-        truth.write_text(json.dumps(sim.truth_document(arm_true, s_true, noise, campaign, result, injected), indent=2) + "\n")
+        truth.write_text(json.dumps(generated(sim.truth_document(arm_true, s_true, noise, campaign, result, injected)), indent=2) + "\n")
     err.print(f"wrote {out} ({result.stream_t_ns.size} encoder samples, {len(result.observations)} stripe "
               f"observations, {sum(len(o.corner_idx) for o in result.observations)} corner crossings)")
     if result.misses:

@@ -46,12 +46,16 @@ def urdf_cmd(
     from pipeline.models import urdf as urdf_mod
     from pipeline.models.urdf_arm import UrdfArm
     from pipeline.plan.campaign import read_pose
+    from pipeline.recording.joint_state_batch import COMMANDED_POSITIONS
+    from pipeline.recording.output import check_output, generated
     from pipeline.simulate import urdf_drive
     from pipeline.simulate.urdf_robot import campaign, random_truth
     from pipeline.systems.urdf_robot import model_for
 
     if measure not in ("point", "pose", "plane", "coincidence"):
         raise RobocalError(f"--measure {measure!r}: expected point, pose, plane or coincidence")
+    if truth is not None:
+        check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
     desc = urdf_mod.read(urdf, root, tip)
     arm = UrdfArm(desc)
     model = model_for(arm, measure, {}, [f"socket{i}" for i in range(groups)])
@@ -79,7 +83,7 @@ def urdf_cmd(
         qr = table["joint_positions"]
         tau = urdf_drive.true_torques(desc, qr if true_joints is None else true_joints(qr), payload)
         table["timestamp_ns"] = T0_NS + np.arange(len(qr), dtype=np.int64) * 1_000_000_000
-        stream = urdf_drive.drive_stream(table["timestamp_ns"], qr, table["commanded_positions"], -tau,
+        stream = urdf_drive.drive_stream(table["timestamp_ns"], qr, table[COMMANDED_POSITIONS], -tau,
                                          np.random.default_rng(seed + 1), effort_noise, dwell_s=1.0)  # no gaps
     camp: dict = {"simulated": True, "robot_id": f"{desc.name}-sim-{seed}"}
     if campaign_file is not None:
@@ -93,8 +97,8 @@ def urdf_cmd(
         names = model.parameter_names()
         drive_truth = {"compliance_rad_per_Nm": dict(zip(desc.joint_names, map(float, c))),
                        "payload_kg": payload_kg, "payload_com_m": com.tolist(), "effort_noise_Nm": effort_noise}
-        truth.write_text(json.dumps({"parameters": dict(zip(names, map(float, x[:len(names)]))),
+        truth.write_text(json.dumps(generated({"parameters": dict(zip(names, map(float, x[:len(names)]))),
                                      "planes": tr.planes, "points": tr.points.tolist(),
                                      "noise_mm": noise_mm, "noise_deg": noise_deg,
-                                     **(drive_truth if drive or c.any() or payload else {})}, indent=1) + "\n")
+                                     **(drive_truth if drive or c.any() or payload else {})}), indent=1) + "\n")
     err.print(f"simulated {n} {measure} measurements of {desc.name} ({root} → {tip}) into {out}", highlight=False)

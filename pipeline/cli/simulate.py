@@ -43,9 +43,12 @@ def arc_welder_cmd(
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
     from pipeline.models.jig import stepped_block
+    from pipeline.recording.output import check_output
     from pipeline.simulate.arc_welder import Campaign, Noise, simulate, truth_document
     from pipeline.systems import arc_welder as aw
 
+    if truth is not None:
+        check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
     nominal = aw.nominal_arm()
     true = aw.random_truth(nominal, np.random.default_rng(seed + 1_000_003)) if random_errors else aw.reference_truth()
     campaign, noise = Campaign(contacts=contacts, seed=seed), Noise(scale=noise_scale)
@@ -92,6 +95,7 @@ def _start_ns(text: str) -> int:
 def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc: dict, campaign_meta: dict,
            extra_events: list | tuple = ()) -> None:
     """Write the recording (nominal model, jig, campaign metadata, stream, contacts) and TRUTH.json."""
+    from pipeline.recording.output import generated
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
     from pipeline.recording.writer import write_campaign
     from pipeline.systems import arc_welder as aw
@@ -106,7 +110,7 @@ def _write(out: Path, truth: Path | None, nominal, jig, campaign, sim, truth_doc
                        list(aw.contact_messages(sim)) + list(extra_events))
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)
-        truth.write_text(json.dumps(truth_doc, indent=2, default=float) + "\n")
+        truth.write_text(json.dumps(generated(truth_doc), indent=2, default=float) + "\n")
 
 
 def _run_campaign(out: Path, truth: Path | None, nominal, true, jig, campaign_files: list[Path], noise,

@@ -16,9 +16,10 @@ import numpy as np
 
 from pipeline.errors import RobocalError, where
 from pipeline.ingest.streams import JOINT_STATE, JointStream
+from pipeline.recording.joint_state_batch import COMMANDED_POSITIONS
 
 DEFAULT_WINDOW_S = 0.5
-COLUMNS = {"effort": "joint_efforts", "q_cmd": "commanded_positions", "current": "joint_currents"}  # field → column
+COLUMNS = {"effort": "joint_efforts", "q_cmd": COMMANDED_POSITIONS, "current": "joint_currents"}  # field → column
 TORQUE_CONSTANTS = "torque_constants_Nm_per_A"  # campaign metadata: {joint: N·m at the joint per A of motor current}
 
 

@@ -38,6 +38,8 @@ FILE_NAME = "joint_state_batch.proto"  # as protoc names it with schemas/ as the
 
 _F = D.FieldDescriptorProto
 _NS = _F.TYPE_SFIXED64  # an epoch time: fixed 8 bytes (a varint would take 9)
+# the optional drive state's field names (7, 8, 9), the one spelling every module imports
+COMMANDED_POSITIONS, EFFORTS, MOTOR_CURRENTS = "commanded_positions", "efforts", "motor_currents"
 # (name, number, type, label): the message's fields, in .proto order.  Sample times are offsets from
 # `timestamp_ns` (varints of ~4·10⁶ ns): absolute times cost 1 MB more after zstd on the bundled campaign
 FIELDS: tuple[tuple[str, int, int, int], ...] = (
@@ -47,12 +49,12 @@ FIELDS: tuple[tuple[str, int, int, int], ...] = (
     ("positions", 4, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
     ("device_timestamps_ns", 5, _NS, _F.LABEL_REPEATED),
     ("host_receive_times_ns", 6, _NS, _F.LABEL_REPEATED),
-    ("commanded_positions", 7, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
-    ("efforts", 8, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
-    ("motor_currents", 9, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
+    (COMMANDED_POSITIONS, 7, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
+    (EFFORTS, 8, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
+    (MOTOR_CURRENTS, 9, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
 )
 OPTIONAL_TIMES = ("device_timestamps_ns", "host_receive_times_ns")  # empty or one per sample
-OPTIONAL_SAMPLES = ("commanded_positions", "efforts", "motor_currents")  # drive state: empty or samples × joints
+OPTIONAL_SAMPLES = (COMMANDED_POSITIONS, EFFORTS, MOTOR_CURRENTS)  # drive state: empty or samples × joints
 ADDED_LATER = frozenset({7, 8, 9})  # fields a registered schema of an older robocal may lack
 
 

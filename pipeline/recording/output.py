@@ -4,7 +4,8 @@ robocal never overwrites a file it did not create: an existing non-empty file is
 when robocal's own mark is at its start —
 * a recording: an MCAP whose header names robocal as the writing library (every robocal writer
   sets `library` to "robocal/<version>…");
-* a JSON document (plan / campaign files): its first key is `"generator": "robocal/<version>"`
+* a JSON document (plan / campaign files, acquire --summary, device-sim --report, simulate
+  --truth): its first key is `"generator": "robocal/<version>"`
   (or `"kind": "robocal.…"`, the campaign files written before the generator key);
 * an HTML page (report, fleet page): `<meta name="generator" content="robocal/…">` in its head;
 * a CSV (compensated programs): robocal's program header (`"row","name","status",` … ending in
@@ -58,6 +59,11 @@ def written_by_robocal(path: Path) -> bool:
         return False
     return (_mcap_by_robocal(head) or bool(_JSON_MARK.match(head)) or bool(_HTML_MARK.match(head))
             or _csv_by_robocal(head))
+
+
+def generated(doc: dict) -> dict:
+    """`doc` with robocal's generator as its first key: the mark that lets robocal replace the file later."""
+    return {"generator": GENERATOR, **{k: v for k, v in doc.items() if k != "generator"}}
 
 
 def check_output(path: str | Path, what: str = "recording") -> Path:

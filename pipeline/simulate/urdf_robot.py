@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 from pipeline.measurements.composed import Composed
 from pipeline.models import chain as ch
 from pipeline.plan.urdf_robot import configurations
+from pipeline.recording.joint_state_batch import COMMANDED_POSITIONS
 
 
 @dataclass(frozen=True)
@@ -105,7 +106,7 @@ def campaign(model: Composed, truth_x: np.ndarray, n: int, seed: int, measure: s
         p, *_ = model.tool(truth_x, q)
         ok = np.abs(np.einsum("ni,ni->n", N, p) - d) < 1e-10
         table = {"joint_positions": q[ok], "plane": np.array([truth_planes[i]["name"] for i in k[ok]], object),
-                 "commanded_positions": q_cmd[ok]}
+                 COMMANDED_POSITIONS: q_cmd[ok]}
     elif measure == "coincidence":
         g = np.arange(n) % n_groups
         seeds = configurations(model.kin, n_groups, seed + 7)
@@ -117,12 +118,12 @@ def campaign(model: Composed, truth_x: np.ndarray, n: int, seed: int, measure: s
         p, *_ = model.tool(truth_x, q)
         ok = np.linalg.norm(p - P[g], axis=1) < 1e-10
         table = {"joint_positions": q[ok], "group": np.array([f"socket{i}" for i in g[ok]], object),
-                 "commanded_positions": q_cmd[ok]}
+                 COMMANDED_POSITIONS: q_cmd[ok]}
         truth_points = P
     else:
         p, _, R, _ = model.tool(truth_x, q if true_joints is None else true_joints(q))
         table = {"joint_positions": q, "position": p + rng.normal(0, noise_m, p.shape) if noise_m else p,
-                 "commanded_positions": q.copy()}
+                 COMMANDED_POSITIONS: q.copy()}
         if measure == "pose":
             rot = Rotation.from_matrix(R)
             if noise_rad:

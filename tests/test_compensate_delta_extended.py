@@ -181,3 +181,21 @@ def test_robocal_compensate_extended_run_end_to_end(tmp_path):
     assert doc["status_counts"] == {"ok": 30}
     assert rms(after) <= doc["predicted_rms_bound95_m"], (rms(after), doc["predicted_rms_bound95_m"])
     assert rms(before) > 10 * rms(after), (rms(before), rms(after))  # measured: 5.2 mm → 0.15 mm
+
+
+def test_error_model_comes_from_the_robot_metadata_and_a_bad_one_is_one_line(tmp_path):
+    from pipeline.errors import RobocalError
+    from pipeline.recording.reader import read_recording
+
+    truth = sim.random_truth(np.random.default_rng(2), "full")
+    camp = sim.Campaign(points=12)
+    for variant, n_beta in (("extended", 36), (None, 27)):
+        sim.write(tmp_path / f"{variant}.mcap", Delta(), truth, camp, error_model=variant)
+        model, _ = dt.load(read_recording(tmp_path / f"{variant}.mcap"))
+        assert model.n_beta == n_beta
+    sim.write(tmp_path / "bad.mcap", Delta(), truth, camp, error_model="bogus")
+    with pytest.raises(RobocalError, match="error_model 'bogus' is not one of simplified, extended"):
+        dt.load(read_recording(tmp_path / "bad.mcap"))
+    r = run_cli("simulate", "delta-tracker", "--out", tmp_path / "x.mcap", "--model-variant", "bogus")
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "--model-variant must be" in r.stderr
+    assert not (tmp_path / "x.mcap").exists()

@@ -185,8 +185,8 @@ def delta_extended_speed(n: int, repeats: int) -> None:
     """The Delta calibrated with the extended model (a random `full` truth taken as the calibration):
     n platform-point targets over the campaign box in {T}, damped Newton from the β' closed form."""
     from pipeline.compensate import delta as cd
-    from pipeline.models import delta as dm
     from pipeline.measurements.registration import registration_matrix
+    from pipeline.models import delta as dm
     from pipeline.simulate import delta_tracker as sim
     from pipeline.systems.delta_tracker import TrackerModel
 

@@ -50,7 +50,7 @@ def true_platform(beta36: np.ndarray, theta: np.ndarray) -> np.ndarray:
                 balls.append(_rz(PHI[i]) @ (np.array([B + dbx, dby, dbz]) + s * W * y))
                 lengths.append(L2 + dl2 + s * dd / 2)
 
-        def g(z):
+        def g(z, elbows=elbows, balls=balls, lengths=lengths):
             R = Rotation.from_rotvec(z[3:]).as_matrix()
             return [np.linalg.norm(z[:3] + R @ c - e) - ln for e, c, ln in zip(elbows, balls, lengths)]
 
@@ -83,7 +83,7 @@ def extended_truth():
 
 def test_theta_jacobian_matches_central_differences(extended_truth):
     truth, theta = extended_truth
-    p, J, ok = dn.point_and_jacobian(Delta(), truth.beta, theta[:10])
+    _, J, ok = dn.point_and_jacobian(Delta(), truth.beta, theta[:10])
     assert ok.all()
     h = 1e-6
     fd = np.stack([(true_platform(truth.beta, theta[:10] + h * e) - true_platform(truth.beta, theta[:10] - h * e))
@@ -176,7 +176,7 @@ def test_robocal_compensate_extended_run_end_to_end(tmp_path):
     R = Rotation.from_euler("ZYX", reg[3:]).as_matrix()
     q_nom, _ = dm.inverse(Delta(), np.zeros(27), targets @ R.T + reg[:3])
     before = np.linalg.norm(_to_tracker(reg, true_platform(beta, q_nom)) - targets, axis=1)
-    rms = lambda v: float(np.sqrt(np.mean(v**2)))  # noqa: E731
+    rms = lambda v: float(np.sqrt(np.mean(v**2)))
     doc = json.loads((tmp_path / "run" / "compensation" / "compensation.json").read_text())
     assert doc["status_counts"] == {"ok": 30}
     assert rms(after) <= doc["predicted_rms_bound95_m"], (rms(after), doc["predicted_rms_bound95_m"])

@@ -89,6 +89,9 @@ def test_theta_jacobian_matches_central_differences(extended_truth):
     fd = np.stack([(true_platform(truth.beta, theta[:10] + h * e) - true_platform(truth.beta, theta[:10] - h * e))
                    / (2 * h) for e in np.eye(3)], axis=2)
     assert np.abs(J - fd).max() < 1e-7 * np.abs(fd).max()
+    p, R, _ = dm.full_forward(Delta(), truth.beta, theta[:10])  # = the Δθ_i columns of the β Jacobian
+    Jb, _ = dm.full_jacobian(Delta(), truth.beta, theta[:10], p, R, np.zeros(3))
+    assert np.abs(J - Jb[:, :, list(dn.THETA_COLUMNS)]).max() < 1e-12
 
 
 def test_extended_compensation_round_trips_on_the_full_model(extended_truth):

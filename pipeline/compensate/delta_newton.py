@@ -2,9 +2,9 @@
 rods): θ (N, 3) rad with P(β, θ) = p (N, 3) m in the base frame {A}, by a damped Newton
 (Levenberg–Marquardt) over all targets at once — batched 3×3 solves, no per-target loop.
 
-P(β, θ) is `pipeline.models.delta.full_forward` (Newton on the six rod constraints); dP/dθ_i is
-analytic: θ_i and the actuator offset Δθ_i enter only as their sum, so dP/dθ_i is the
-implicit-function derivative dP/dΔθ_i of `full_jacobian`.  Started from the closed-form β'
+P(β, θ) is `pipeline.models.delta.full_forward` (Newton on the six rod constraints); dP/dθ is
+analytic (`full_theta_jacobian`, implicit function theorem; θ_i and the actuator offset Δθ_i
+enter only as their sum, so it equals the Δθ_i columns of `full_jacobian`).  Started from the closed-form β'
 inverse of the simplified part of β, a reachable target converges in a few steps.
 """
 
@@ -22,8 +22,7 @@ def point_and_jacobian(delta: Delta, beta: np.ndarray, theta: np.ndarray):
     """Platform point P (N, 3) m in {A}, dP/dθ (N, 3, 3) m/rad and ok (N,) (the legs close) of
     the extended model (36 β) at actuator angles θ (N, 3) rad."""
     p, R, ok = dm.full_forward(delta, beta, theta, extended=True)
-    J, _ = dm.full_jacobian(delta, beta, theta, p, R, np.zeros(3), extended=True)
-    return p, J[:, :, list(THETA_COLUMNS)], ok
+    return p, dm.full_theta_jacobian(delta, beta, theta, p, R), ok
 
 
 def solve(delta: Delta, beta: np.ndarray, p: np.ndarray, theta0: np.ndarray, iters: int = 40,

@@ -7,6 +7,8 @@ the calibrated model the paper's Table 2 truth (~24 mm of correction).  `--n` se
 `--accuracy-seeds N [--first-seed S] [--systems arc-welder,delta,urdf]`: N calibrations per system, each
 compensating 1 000 new targets and run on the true robot: true RMS vs the predicted 1σ RMS and the 95 %
 bound on one calibration's RMS (docs/compensate.md, "Predicted accuracy").
+
+`--delta-extended N`: only the Delta calibrated with the extended model, N targets (timing, round trip).
 """
 
 from __future__ import annotations
@@ -182,6 +184,36 @@ def accuracy(seeds: int, first: int = 0, systems: str = "arc-welder,delta,urdf")
               f"bound/true median {np.median(tight):.2f}, range {tight.min():.2f}-{tight.max():.2f}", flush=True)
 
 
+def delta_extended_speed(n: int, repeats: int) -> None:
+    """The Delta calibrated with the extended model (a random `full` truth taken as the calibration):
+    n platform-point targets over the campaign box in {T}, damped Newton from the β' closed form."""
+    from pipeline.compensate import delta as cd
+    from pipeline.measurements.registration import registration_matrix
+    from pipeline.models import delta as dm
+    from pipeline.simulate import delta_tracker as sim
+    from pipeline.systems.delta_tracker import TrackerModel
+
+    truth = sim.random_truth(np.random.default_rng(5), "full")
+    model = TrackerModel(variant="extended")
+    x = model.nominal()
+    x[:36], x[36:42] = truth.beta, truth.registration
+    box = np.random.default_rng(1).uniform([-0.15, -0.15, -0.79], [0.15, 0.15, -0.71], (n, 3))
+    theta, _ = dm.inverse(model.delta, np.zeros(27), box)
+    p, _, _ = dm.full_forward(model.delta, truth.beta, theta, extended=True)
+    R, t = registration_matrix(truth.registration)
+    targets = (p - t) @ R
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        c = cd.compensate(model, model.nominal(), x, targets)
+        times.append(time.perf_counter() - t0)
+    ok = c.status == "ok"
+    pr, _, _ = dm.full_forward(model.delta, truth.beta, c.q[ok], extended=True)
+    counts = {s: int((c.status == s).sum()) for s in sorted(set(c.status))}
+    print(f"delta extended model, {n} platform-point targets: best {min(times):.3f} s wall, median "
+          f"{np.median(times):.3f} s; {counts}; round trip max {np.abs(pr - p[ok]).max():.2e} m")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=3)
@@ -189,10 +221,15 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0, help="first calibration seed of --accuracy-seeds")
     ap.add_argument("--systems", default="arc-welder,delta,urdf", help="systems of --accuracy-seeds")
     ap.add_argument("--n", type=int, default=10_000)
+    ap.add_argument("--delta-extended", type=int, default=0, metavar="N",
+                    help="only time the extended Delta model's compensation of N targets (nothing else runs)")
     ap.add_argument("--no-fixture", action="store_true", help="arc welder: leave the jig's machining tolerance out of Σ")
     a = ap.parse_args()
     global FIXTURE
     FIXTURE = not a.no_fixture
+    if a.delta_extended:
+        delta_extended_speed(a.delta_extended, a.repeats)
+        return
     if a.accuracy_seeds:
         accuracy(a.accuracy_seeds, a.first_seed, a.systems)
         if a.n == 0:

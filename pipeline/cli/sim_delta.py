@@ -33,6 +33,8 @@ def delta_tracker_cmd(
                                 "an injected thermal_drift=GX,GY,GZ is then in m/K of that rise."),
     temperature_sensor: bool = typer.Option(False, "--temperature-sensor", help="Thermal: log a temperature sensor "
                                             "(1 Hz, 0.05 K noise) on /arm/temperature."),
+    model_variant: str = typer.Option(None, "--model-variant", help="Error model the recording's robot metadata asks "
+                                      "identification for (simplified, extended); default: none (simplified)."),
     campaign_file: Path = typer.Option(None, "--campaign", help="Execute this planned pose campaign "
                                        "(robocal plan delta-tracker --out) instead of the grid."),
 ) -> None:
@@ -47,6 +49,8 @@ def delta_tracker_cmd(
         check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
     if truth_model not in TRUTH_MODELS:
         raise RobocalError(f"--truth-model must be one of {', '.join(TRUTH_MODELS)}, not {truth_model!r}")
+    if model_variant not in (None, "simplified", "extended"):
+        raise RobocalError(f"--model-variant must be simplified or extended, not {model_variant!r}")
     if min(grid) < 1:
         raise RobocalError("--grid needs at least 1 point along each axis")
     delta = Delta()
@@ -81,6 +85,6 @@ def delta_tracker_cmd(
     variations = Variations(both_sides=both_sides, passes=passes, warmup_s=warmup,
                             warm_up=(warm.tau_s, warm.rise_k) if warm else (), temperature_sensor=temperature_sensor)
     with err.status("simulating the tracker campaign…"):
-        sim = write(out, delta, true, campaign, noise, truth, injected, variations)
+        sim = write(out, delta, true, campaign, noise, truth, injected, variations, model_variant)
     err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.t_ns.size} tracker points, "
               f"truth model {truth_model}; tracker noise RMS {sim.tracker_noise_rms_m * 1e3:.4f} mm per axis)")

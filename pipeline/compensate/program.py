@@ -127,7 +127,7 @@ def rms_bound95(run: dict, c: serial.Compensated) -> float | None:
 
 
 def compensate_run(run: dict, targets: dict) -> serial.Compensated:
-    """Dispatch on the run's model: serial arm (LM IK) or Delta (closed form)."""
+    """Dispatch on the run's model: serial arm (LM IK) or Delta (closed form; damped Newton for the extended model)."""
     model = run["model"]
     if _chain_kin(model) is not None:  # seed 000's arm, a URDF robot: any measurement model over a Chain
         from pipeline.simulate.arc_welder import IK_SEEDS

@@ -57,10 +57,13 @@ def recording_metadata(delta: Delta, campaign: Campaign, noise: Noise) -> dict[s
 
 
 def write(path, delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noise: Noise = Noise(),
-          truth_path=None, effects: tuple = (), variations: "Variations | None" = None) -> SimResult:
+          truth_path=None, effects: tuple = (), variations: "Variations | None" = None,
+          error_model: str | None = None) -> SimResult:
     """Simulate and write REC.mcap (and TRUTH.json if `truth_path`).  With `effects` or
     `variations`, the campaign with concealed effects (`simulate_effects`); the effects go to
-    TRUTH.json only, the variations (what the integrator programmed) to the campaign metadata."""
+    TRUTH.json only, the variations (what the integrator programmed) to the campaign metadata.
+    `error_model` ("simplified"/"extended"): the error model the robot's metadata asks
+    identification for (`pipeline.systems.delta_tracker.load`); None leaves it out."""
     from pipeline.recording.output import generated
     from pipeline.recording.writer import write_campaign
 
@@ -68,6 +71,9 @@ def write(path, delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noi
     var = variations or Variations()
     sim = simulate_effects(delta, truth, campaign, noise, effects, var) if varied else simulate(delta, truth, campaign, noise)
     meta = recording_metadata(delta, campaign, noise)
+    if error_model is not None:
+        from pipeline.recording.schemas import META_ROBOT
+        meta[META_ROBOT]["error_model"] = error_model
     if varied:
         from pipeline.recording.schemas import META_CAMPAIGN
         meta[META_CAMPAIGN].update({"both_sides": var.both_sides, "passes": var.passes, "warmup_s": var.warmup_s,

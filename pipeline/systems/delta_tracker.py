@@ -163,16 +163,22 @@ def check_table(path, model: TrackerModel, table: dict[str, np.ndarray]) -> None
         raise RobocalError(f"{where(path, MEASUREMENT_CHANNEL)}: {e}") from None
 
 
-def load(rec, variant: str = "simplified") -> tuple[TrackerModel, dict[str, np.ndarray]]:
-    """Measurement model and table of a Delta + laser-tracker recording."""
+def load(rec, variant: str | None = None) -> tuple[TrackerModel, dict[str, np.ndarray]]:
+    """Measurement model and table of a Delta + laser-tracker recording.  The error model is
+    `variant`, else the robot metadata's ``error_model`` (so every stage of a run uses the
+    same one), else the simplified β'."""
     from pipeline.recording.schemas import META_FIXTURE, META_ROBOT
 
     try:
-        delta = Delta.from_dict(rec.meta(META_ROBOT))
+        robot = rec.meta(META_ROBOT)
+        delta = Delta.from_dict(robot)
         fixture = rec.metadata.get(META_FIXTURE, {})
         h = float(fixture.get("reflector_offset_m", H_NOMINAL))
     except (KeyError, ValueError, TypeError) as e:
         raise RobocalError(f"{rec.path}: robot model or fixture metadata is malformed ({e})") from None
+    variant = variant or robot.get("error_model") or "simplified"
+    if variant not in VARIANTS:
+        raise RobocalError(f"{rec.path}: robot model metadata: error_model {variant!r} is not one of {', '.join(VARIANTS)}")
     model = TrackerModel(delta, h, variant)
     table = tracker_points(rec)
     check_table(rec.path, model, table)

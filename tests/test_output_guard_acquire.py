@@ -64,3 +64,21 @@ def test_robocal_replaces_its_own_summary_report_and_truth(tmp_path):
     assert rep["devices"]["bridge"]["sent"] > 0
     for name in ("summary.json", "sim.json"):
         assert written_by_robocal(tmp_path / name) and "campaign" not in json.loads((tmp_path / name).read_text())
+
+
+def test_the_same_file_for_recording_and_truth_is_refused_and_truth_into_a_new_folder_is_written(tmp_path):
+    """`--out X --truth X` would replace the recording with TRUTH.json: one line, nothing written.
+    A --truth path in a folder that does not exist yet is made, as --out's is (the URDF simulator
+    wrote the recording, then failed with a traceback)."""
+    robot = tmp_path / "r6.urdf"
+    robot.write_text(URDF)
+    same = tmp_path / "same.mcap"
+    urdf_args = ("simulate", "urdf", "--urdf", robot, "--root", "b", "--tip", "l6")
+    for args in (("simulate", "delta-tracker"), ("simulate", "scorbot-scanner"), ("simulate", "arc-welder"), urdf_args):
+        r = run_cli(*args, "--out", same, "--truth", same)
+        assert r.returncode == 2 and "given as both --out and --truth" in r.stderr, r.stderr
+        assert "Traceback" not in r.stderr and not same.exists(), args
+    truth = tmp_path / "new" / "deeper" / "TRUTH.json"
+    r = run_cli(*urdf_args, "--out", tmp_path / "u.mcap", "--truth", truth)
+    assert r.returncode == 0, r.stderr
+    assert written_by_robocal(truth) and "parameters" in json.loads(truth.read_text())

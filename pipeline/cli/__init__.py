@@ -63,3 +63,7 @@ def main() -> None:
         err.print(f"[bold red]robocal: error:[/] {e.filename}: cannot write (PermissionError: {e.strerror})",
                   highlight=False, soft_wrap=True)
         sys.exit(2)
+    except OSError as e:  # a file system error on a path the user named: one line, not a traceback
+        err.print(f"[bold red]robocal: error:[/] {e.filename or ''}: {type(e).__name__}: {e.strerror or e}",
+                  highlight=False, soft_wrap=True)
+        sys.exit(2)

@@ -43,11 +43,12 @@ def acquire_cmd(
 ) -> None:
     """Record calibration devices over serial ports until the bridge's campaign is complete or stopped."""
     from pipeline.acquire.run import acquire
-    from pipeline.recording.output import check_output, generated
+    from pipeline.recording.output import check_output, distinct_outputs, generated
 
     devs = _parse_devices(device)
     if summary is not None:
         check_output(summary, "summary")  # before the acquisition starts: never over a file robocal did not create
+        distinct_outputs(out=out, summary=summary)
     live = err.is_terminal
 
     with err.status("waiting for devices…") as st:
@@ -69,6 +70,7 @@ def acquire_cmd(
         s = acquire(devs, out, max_s=max_s, connect_timeout_s=connect_timeout, fsync=fsync,
                     status=status if live else status_plain, log=log, silence_s=silence_s, give_up_s=give_up_s)
     if summary is not None:
+        summary.parent.mkdir(parents=True, exist_ok=True)
         summary.write_text(json.dumps(generated(s), indent=2) + "\n")
     for role, d in s["devices"].items():
         ev = ", ".join(f"{n} {t}" for t, n in d["events"].items()) or "no events"
@@ -155,6 +157,7 @@ def device_sim_cmd(
     doc = {"wall_start_ns": rep.wall_start_ns, "sim_start_ns": rep.sim_start_ns, "speed": speed,
            "clock": {"t0": clock.t0, "offset_ns": clock.offset_ns, "drift": clock.drift}, "devices": rep.devices}
     if report is not None:
+        report.parent.mkdir(parents=True, exist_ok=True)
         report.write_text(json.dumps(generated(doc)) + "\n")
     for role, d in rep.devices.items():
         err.print(f"{role}: sent {d['sent']} of {d['frames']} frames, {len(d['damaged_seqs'])} damaged, "

@@ -41,12 +41,13 @@ def delta_tracker_cmd(
     """Laser-tracker campaign of seed 003's 90° Delta robot."""
     from pipeline.errors import RobocalError
     from pipeline.models.delta import Delta
-    from pipeline.recording.output import check_output
+    from pipeline.recording.output import check_output, distinct_outputs
     from pipeline.simulate.delta_recording import write
     from pipeline.simulate.delta_tracker import TRUTH_MODELS, Campaign, Noise, random_truth
 
     if truth is not None:
         check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
+        distinct_outputs(out=out, truth=truth)
     if truth_model not in TRUTH_MODELS:
         raise RobocalError(f"--truth-model must be one of {', '.join(TRUTH_MODELS)}, not {truth_model!r}")
     if model_variant not in (None, "simplified", "extended"):

@@ -38,11 +38,12 @@ def scorbot_scanner_cmd(
     from pipeline.simulate import scorbot_scanner as sim
     from pipeline.errors import RobocalError
     from pipeline.simulate.effects import parse_effect
-    from pipeline.recording.output import check_output, generated
+    from pipeline.recording.output import check_output, distinct_outputs, generated
     from pipeline.systems import scorbot_scanner as sc
 
     if truth is not None:
         check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
+        distinct_outputs(out=out, truth=truth)
     try:
         injected = tuple(parse_effect(e) for e in effect)
         sim.check_effects(injected)

@@ -47,7 +47,7 @@ def urdf_cmd(
     from pipeline.models.urdf_arm import UrdfArm
     from pipeline.plan.campaign import read_pose
     from pipeline.recording.joint_state_batch import COMMANDED_POSITIONS
-    from pipeline.recording.output import check_output, generated
+    from pipeline.recording.output import check_output, distinct_outputs, generated
     from pipeline.simulate import urdf_drive
     from pipeline.simulate.urdf_robot import campaign, random_truth
     from pipeline.systems.urdf_robot import model_for
@@ -56,6 +56,7 @@ def urdf_cmd(
         raise RobocalError(f"--measure {measure!r}: expected point, pose, plane or coincidence")
     if truth is not None:
         check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
+        distinct_outputs(out=out, truth=truth)
     desc = urdf_mod.read(urdf, root, tip)
     arm = UrdfArm(desc)
     model = model_for(arm, measure, {}, [f"socket{i}" for i in range(groups)])
@@ -94,6 +95,7 @@ def urdf_cmd(
         camp |= {"sigma_m": max(noise_mm * 1e-3, 1e-6), "sigma_rad": max(np.radians(noise_deg), 1e-6)}
     n = write_urdf_recording(out, desc, measure, camp, table, stream=stream)
     if truth is not None:
+        truth.parent.mkdir(parents=True, exist_ok=True)
         names = model.parameter_names()
         drive_truth = {"compliance_rad_per_Nm": dict(zip(desc.joint_names, map(float, c))),
                        "payload_kg": payload_kg, "payload_com_m": com.tolist(), "effort_noise_Nm": effort_noise}

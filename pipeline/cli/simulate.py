@@ -43,12 +43,13 @@ def arc_welder_cmd(
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
     from pipeline.models.jig import stepped_block
-    from pipeline.recording.output import check_output
+    from pipeline.recording.output import check_output, distinct_outputs
     from pipeline.simulate.arc_welder import Campaign, Noise, simulate, truth_document
     from pipeline.systems import arc_welder as aw
 
     if truth is not None:
         check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
+        distinct_outputs(out=out, truth=truth)
     nominal = aw.nominal_arm()
     true = aw.random_truth(nominal, np.random.default_rng(seed + 1_000_003)) if random_errors else aw.reference_truth()
     campaign, noise = Campaign(contacts=contacts, seed=seed), Noise(scale=noise_scale)

@@ -66,6 +66,19 @@ def generated(doc: dict) -> dict:
     return {"generator": GENERATOR, **{k: v for k, v in doc.items() if k != "generator"}}
 
 
+def distinct_outputs(**paths: str | Path | None) -> None:
+    """RobocalError when two of a command's output paths (by option name) are the same file: one
+    would silently replace the other (e.g. `--out x.mcap --truth x.mcap`)."""
+    seen: dict[Path, str] = {}
+    for name, p in paths.items():
+        if p is None:
+            continue
+        key = Path(p).resolve()
+        if key in seen:
+            raise RobocalError(f"{p}: given as both --{seen[key]} and --{name}; they must be different files")
+        seen[key] = name
+
+
 def check_output(path: str | Path, what: str = "recording") -> Path:
     """`path` if robocal may write its `what` there, else RobocalError (see module docstring)."""
     p = Path(path)

@@ -102,12 +102,16 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
         nfev += int(sol.nfev)
         x = x.copy()
         x[ident.free] = sol.x
-        again = analyse(_flat_jac(model, x, data), names, fixed, priority, options.rank_tol)
-        weak = weakly_freed(model, data, x, ident.free, again.free)
-        if weak.any():
-            again = analyse(_flat_jac(model, x, data), names, fixed | weak, priority, options.rank_tol)
-            for i in np.flatnonzero(weak):
-                again.reasons[int(i)] = "determined no better than its prior (freed only off the nominal geometry)"
+        J = _flat_jac(model, x, data)
+        again, weak = analyse(J, names, fixed, priority, options.rank_tol), np.zeros(x.size, bool)
+        for _ in range(x.size):  # fixing a weak one may free its dependent partner: test that too
+            more = weakly_freed(model, data, x, ident.free, again.free) & ~weak
+            if not more.any():
+                break
+            weak |= more
+            again = analyse(J, names, fixed | weak, priority, options.rank_tol)
+        for i in np.flatnonzero(weak):
+            again.reasons[int(i)] = "determined no better than its prior (freed only off the nominal geometry)"
         if np.array_equal(again.free, ident.free) or round_ == 3:
             break
         ident = again
@@ -139,7 +143,8 @@ def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np
     Jf = _flat_jac(model, x, data)[:, after]
     # the noise level by the residuals' median absolute value (Gaussian-consistent), so that gross
     # errors a robust loss is riding out do not make every newly freed parameter look undetermined
-    sigma = 1.4826 * float(np.median(np.abs(r))) * np.sqrt(r.size / max(r.size - Jf.shape[1], 1))
+    scale = float(np.median(np.abs(r))) * 1.4826 or float(np.mean(np.abs(r))) * 1.2533  # MAD; mean |r| if MAD = 0
+    sigma = scale * np.sqrt(r.size / max(r.size - Jf.shape[1], 1))
     std = np.zeros(x.size)
     std[after] = np.sqrt(np.clip(np.diag(covariance(Jf, sigma)), 0, None))
     return new & (std >= prior_sigma(model)[0])

@@ -43,7 +43,7 @@ def compensate_cmd(
     b95 = doc["predicted_rms_bound95_m"]
     mm = lambda v: f"{v * 1e3:.4f}" if v is not None else "nan"  # noqa: E731
     err.print(f"compensated {c.q.shape[0]} targets in {elapsed:.3f} s: {counts}; predicted accuracy (95 %): tool-point "
-              f"RMS ≤ {mm(b95)} mm (1σ RMS {mm(sig)} mm, the mean over calibrations); median correction "
+              f"RMS ≤ {mm(b95)} mm (1σ RMS {mm(sig)} mm, expected over calibrations); median correction "
               f"{(doc['correction_median_m'] or float('nan')) * 1e3:.3f} mm", highlight=False)
     bad = [r for r in doc["rows"] if r["status"] != "ok"][:5]
     for r in bad:

@@ -35,7 +35,7 @@ def section(run_dir: Path) -> str | None:
     head = (f"<p>{doc['n_targets']} targets of <code>{escape(doc['targets'])}</code> compensated into "
             f"<code>{escape(doc['program'])}</code>: {counts}. <b>Predicted accuracy (95 %)</b>: this calibration's "
             f"RMS 3-D tool-point error over the program ≤ {b95_s}. Predicted 1σ error of the calibrated model at the "
-            f"compensated joints (from the parameter covariance; the mean over calibrations, one calibration spreads "
+            f"compensated joints (from the parameter covariance; its RMS expected over calibrations, one calibration spreads "
             f"around it): RMS {rms_s}, max {np.nanmax(sig) * 1e3:.4f} mm; median correction {corr_s}.</p>")
     table = _table(["row", "status", "predicted σ (mm)", "correction (mm)"],
                    [[str(r["row"]), escape(r["status"]), f"{r['predicted_sigma_m'] * 1e3:.4f}",

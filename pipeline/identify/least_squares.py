@@ -141,6 +141,8 @@ def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np
 
     r = model.residuals(x, data).ravel()
     Jf = _flat_jac(model, x, data)[:, after]
+    if r.size <= Jf.shape[1]:  # no residual degrees of freedom: no noise level to judge by
+        return np.zeros_like(new)
     # the noise level by the residuals' median absolute value (Gaussian-consistent), so that gross
     # errors a robust loss is riding out do not make every newly freed parameter look undetermined
     scale = float(np.median(np.abs(r))) * 1.4826 or float(np.mean(np.abs(r))) * 1.2533  # MAD; mean |r| if MAD = 0

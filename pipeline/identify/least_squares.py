@@ -105,7 +105,7 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
         J = _flat_jac(model, x, data)
         again, weak = analyse(J, names, fixed, priority, options.rank_tol), np.zeros(x.size, bool)
         for _ in range(x.size):  # fixing a weak one may free its dependent partner: test that too
-            more = weakly_freed(model, data, x, ident.free, again.free) & ~weak
+            more = weakly_freed(model, data, x, ident.free, again.free, J) & ~weak
             if not more.any():
                 break
             weak |= more
@@ -130,7 +130,7 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
 
 
 def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np.ndarray,
-                 after: np.ndarray) -> np.ndarray:
+                 after: np.ndarray, J: np.ndarray | None = None) -> np.ndarray:
     """Mask of the parameters free in `after` but not in `before` whose 1σ at x (σ̂²(JᵀJ)⁻¹ over
     `after`'s free set, σ̂ the residuals' robust scale at x) is no smaller than their prior 1σ
     (`pipeline.accuracy.prior`): the data do not determine them."""
@@ -140,7 +140,7 @@ def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np
     from pipeline.accuracy.prior import prior_sigma
 
     r = model.residuals(x, data).ravel()
-    Jf = _flat_jac(model, x, data)[:, after]
+    Jf = (_flat_jac(model, x, data) if J is None else J)[:, after]  # J: the flat Jacobian at x, if the caller has it
     if r.size <= Jf.shape[1]:  # no residual degrees of freedom: no noise level to judge by
         return np.zeros_like(new)
     # the noise level by the residuals' median absolute value (Gaussian-consistent), so that gross

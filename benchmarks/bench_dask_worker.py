@@ -40,7 +40,8 @@ sys.path.insert(0, str(ROOT))
 from bench_reprocess import small_recording  # noqa: E402
 
 from pipeline.fleet import engine  # noqa: E402
-from pipeline.fleet.rows import reprocess_one, warm_worker  # noqa: E402
+from pipeline.fleet.fork_server import warm_worker  # noqa: E402
+from pipeline.fleet.rows import reprocess_one  # noqa: E402
 
 STAGES = ["ingest", "validate", "identify"]
 

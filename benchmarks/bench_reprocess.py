@@ -105,7 +105,7 @@ import json, sys, time
 t0 = time.perf_counter()
 from pipeline.fleet import engine
 if sys.argv[1] == "spawn":  # Dask's default: each worker a fresh interpreter that imports distributed and robocal
-    engine.FORK_SERVER, engine.start_fork_server = {}, lambda stages=None: None
+    engine.FORK_SERVER, engine.fork_server.start = {}, lambda stages=None: None
 t1 = time.perf_counter()
 with engine.dask_client(None, int(sys.argv[2]), None, sys.argv[3].split(",")) as client:
     t2 = time.perf_counter()

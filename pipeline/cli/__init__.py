@@ -37,22 +37,40 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
     """Log-centric robot calibration: record, calibrate, inspect."""
 
 
-def load_commands() -> None:
-    """Import every module of this package: each registers its commands on `app`/`simulate_app`."""
+SIMULATORS = ("simulate", "sim_delta", "sim_scanner", "sim_urdf", "fleet")
+# The modules that register each command (and what it calls in-process): a command imports only
+# these, not all the others' dependencies (every command pays its own imports only).
+COMMAND_MODULES: dict[str, tuple[str, ...]] = {
+    "acquire": ("acquire",), "recover": ("acquire",), "device-sim": ("acquire", *SIMULATORS),
+    "calibrate": ("calibrate",), "compensate": ("compensate",), "diagnose": ("diagnose",), "fleet": ("fleet",),
+    "import": ("importer", "ros2"), "plan": ("plan",), "report": ("report",), "reprocess": ("reprocess",),
+    "run": ("run",), "ingest": ("run",), "validate": ("run",), "identify": ("run",), "observe": ("run",),
+    "simulate": SIMULATORS, "view": ("view",),
+}
+
+
+def load_commands(argv: list[str] | None = None) -> None:
+    """Import the modules that register the command `argv` names (its first word), or every module of
+    this package (no command, an option such as --help, an unknown name): each registers its commands
+    on `app`/`simulate_app`."""
     import importlib
     import pkgutil
 
     import pipeline.cli as pkg
 
-    for m in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
-        importlib.import_module(f"pipeline.cli.{m.name}")
+    name = argv[0] if argv else None
+    names = COMMAND_MODULES.get(name) if name else None
+    if names is None:
+        names = tuple(m.name for m in pkgutil.iter_modules(pkg.__path__))
+    for m in sorted(names):
+        importlib.import_module(f"pipeline.cli.{m}")
 
 
 def main() -> None:
     """Console-script entry point."""
     from pipeline.errors import RobocalError
 
-    load_commands()
+    load_commands(sys.argv[1:])
 
     try:
         app()

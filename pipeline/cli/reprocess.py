@@ -56,21 +56,24 @@ def reprocess_cmd(
 ) -> None:
     """Reprocess every recording of ARCHIVE; exit 1 on any regression or failed recording."""
     from pipeline.errors import RobocalError
-    from pipeline.fleet.engine import CORE_STAGES, ENGINES, reprocess_archive
-    from pipeline.stages.reprocess import write_summary
+    from pipeline.fleet import fork_server
+    from pipeline.stages.registry import BY_NAME, CORE_STAGES
 
     if not archive.is_dir():
         raise RobocalError(f"{archive}: not a folder")
-    if engine not in ENGINES:
-        raise RobocalError(f"--engine {engine}: not one of {', '.join(ENGINES)}")
     if scheduler and engine != "dask":
         raise RobocalError("--scheduler needs --engine dask")
     stages = [s.strip() for s in stages_opt.split(",") if s.strip()] or (CORE_STAGES if core else None)
-    from pipeline.stages.registry import BY_NAME
-
     unknown = [s for s in stages or [] if s not in BY_NAME]
     if unknown:
         raise RobocalError(f"--stages: unknown stage(s) {', '.join(unknown)} (stages: {', '.join(BY_NAME)})")
+    if engine == "dask" and not scheduler:  # a local cluster: its workers' fork server imports while this
+        fork_server.start_if_fresh(out, stages)  # process imports the engine and hashes the archive
+    from pipeline.fleet.engine import ENGINES, reprocess_archive
+
+    if engine not in ENGINES:
+        raise RobocalError(f"--engine {engine}: not one of {', '.join(ENGINES)}")
+    from pipeline.stages.reprocess import write_summary
     counts = {"ok": 0, "failed": 0, "regressed": 0, "skipped": 0}
     progress = Progress(TextColumn("[bold]reprocess"), BarColumn(), MofNCompleteColumn(),
                         TextColumn("[green]{task.fields[ok]} ok[/] [red]{task.fields[failed]} failed[/] "

@@ -16,13 +16,13 @@ from pathlib import Path
 
 from pipeline import __version__
 from pipeline.errors import RobocalError
+from pipeline.fleet import fork_server
 from pipeline.fleet.dataset import ResultsWriter, done_keys
 from pipeline.fleet.discover import DEFAULT_PATTERNS, Found, discover
-from pipeline.fleet.rows import code_version, gate, lost_row, reprocess_one, warm_modules, warm_worker
+from pipeline.fleet.fork_server import SINGLE_THREADED, warm_worker
+from pipeline.fleet.rows import code_version, gate, lost_row, reprocess_one
 
 ENGINES = ("dask", "processes", "serial")
-CORE_STAGES = ["ingest", "validate", "identify", "observe"]
-SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 # Dask's diagnostics that cost CPU a reprocess does not use: the workers' statistical profiler (a
 # stack sample every 10 ms) and the GIL monitor; on a busy box they take CPU from the tasks.  Also
 # glibc's default malloc: Dask sets MALLOC_TRIM_THRESHOLD_=65536 in workers, which turns off glibc's
@@ -41,8 +41,8 @@ QUIET_ENV = {"DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
 RELAXED = {"distributed.admin.tick.interval": "1s", "distributed.admin.system-monitor.interval": "1s",
            "distributed.worker.memory.monitor-interval": "1s", "distributed.scheduler.work-stealing": False}
 # LocalCluster's workers are forked from a fork server that has imported distributed and robocal's
-# stages once (started in the background while the archive is hashed), not spawned as fresh
-# interpreters that each import them: up + close 1.2 s instead of 2.4–3.0 s (2 workers, load 5,
+# stages once (`fork_server`, started in the background while the archive is hashed), not spawned as
+# fresh interpreters that each import them: up + close 1.2 s instead of 2.4–3.0 s (2 workers, load 5,
 # `bench_reprocess.py --startup`), and the stages' imports overlap the hashing.
 FORK_SERVER = {"distributed.worker.multiprocessing-method": "forkserver"}
 
@@ -106,39 +106,12 @@ def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot
     return tasks, kept, skipped
 
 
-_fork_server_started = False
-
-
-def start_fork_server(stages: list[str] | None = None) -> None:
-    """Start, in the background, the process LocalCluster's workers are forked from (Python's
-    forkserver), with distributed and the modules of `stages` (default: all) imported and one BLAS
-    thread.  Returns at once; a no-op when it runs already (its imports are those of the first call)."""
-    import multiprocessing
-    from multiprocessing import forkserver
-
-    global _fork_server_started
-    if _fork_server_started:  # (and never from a second thread while the first one hashes: os.environ is shared)
-        return
-    _fork_server_started = True
-    multiprocessing.get_context("forkserver").set_forkserver_preload(["distributed", *warm_modules(stages)])
-    saved = {k: os.environ.get(k) for k in SINGLE_THREADED}
-    os.environ.update(SINGLE_THREADED)  # BLAS reads them when numpy loads: in the server, before the fork
-    try:
-        forkserver.ensure_running()
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
 @contextmanager
 def dask_client(scheduler: str | None, workers: int | None, allowed_failures: int | None,
                 stages: list[str] | None = None) -> Iterator:
     """A `distributed.Client`: to `scheduler` (tcp://HOST:PORT), else to a new LocalCluster of
     `workers` single-threaded worker processes (default: the CPU count) forked from robocal's fork
-    server (`start_fork_server`)."""
+    server (`fork_server.start`)."""
     import dask
     from distributed import Client, LocalCluster
 
@@ -146,7 +119,7 @@ def dask_client(scheduler: str | None, workers: int | None, allowed_failures: in
     if allowed_failures is not None:
         cfg["distributed.scheduler.allowed-failures"] = allowed_failures
     if not scheduler:
-        start_fork_server(stages)
+        fork_server.start(stages)
         cfg |= FORK_SERVER
     with dask.config.set(cfg):
         if scheduler:
@@ -278,16 +251,25 @@ def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, st
     early: list[EarlyCluster] = []
 
     def bring_up() -> None:  # at the first recording to run (none on a fully resumed archive)
-        start_fork_server(stages)  # its imports overlap the rest of the discovery and hashing
+        fork_server.start(stages)  # its imports overlap the rest of the discovery and hashing
         early.append(EarlyCluster(workers, allowed_failures, stages))  # and so does the cluster's start
 
+    failed = True
     try:
-        return _run(archive, out, patterns, stages, robot_id, engine, workers, scheduler, allowed_failures, resume,
-                    flush_s, on_plan, on_row, on_start, early,
-                    bring_up if engine == "dask" and not scheduler else None)
+        res = _run(archive, out, patterns, stages, robot_id, engine, workers, scheduler, allowed_failures, resume,
+                   flush_s, on_plan, on_row, on_start, early, bring_up if engine == "dask" and not scheduler else None)
+        failed = False
+        return res
     finally:
-        for e in early:
-            e.close()
+        try:
+            for e in early:
+                try:
+                    e.close()
+                except Exception:
+                    if not failed:  # else the run's own error is the one to report, not the cluster's close
+                        raise
+        finally:
+            fork_server.stop()  # no worker is forked from it any more
 
 
 def _run(archive, out, patterns, stages, robot_id, engine, workers, scheduler, allowed_failures, resume, flush_s,

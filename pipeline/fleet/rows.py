@@ -123,34 +123,6 @@ def fill_from_run(row: dict, run_dir: Path, recording: Path, robot_id: str | Non
     row["campaign_start_ns"], row["campaign_end_ns"] = _campaign_time(run_dir)
 
 
-def warm_modules(stages: list[str] | None = None) -> list[str]:
-    """The modules a task imports: the row's own, each of `stages`' (default: all) and every system's."""
-    import pkgutil
-
-    import pipeline.systems as systems
-    from pipeline.stages.registry import STAGES
-
-    mods = [s.module for s in STAGES if stages is None or s.name in stages]
-    return ["pipeline.fleet.rows", "pipeline.stages.runner", *mods,
-            *(f"pipeline.systems.{m.name}" for m in pkgutil.iter_modules(systems.__path__))]
-
-
-def warm_worker(stages: list[str] | None = None) -> int:
-    """Import the modules of `stages` (default: every stage) and of every system once, at a worker's
-    start, so that no task pays the interpreter's imports (a spawned Dask worker is a fresh process;
-    one forked from robocal's fork server has them already).  Returns the number of modules imported."""
-    import importlib
-
-    n = 0
-    for name in warm_modules(stages):
-        try:
-            importlib.import_module(name)
-            n += 1
-        except ImportError:  # an optional stage's module may be absent
-            pass
-    return n
-
-
 def reprocess_one(path: str, rel: str, sha: str, nbytes: int, run_dir: str, stages: list[str] | None,
                   robot_id: str | None, config: str) -> dict:
     """The task: run the pipeline on one recording and return its row (never raises for the

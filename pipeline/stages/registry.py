@@ -43,3 +43,4 @@ STAGES: tuple[Stage, ...] = (
 )
 
 BY_NAME: dict[str, Stage] = {s.name: s for s in STAGES}
+CORE_STAGES = ["ingest", "validate", "identify", "observe"]  # a calibration without its report (`--core`)

@@ -1,0 +1,109 @@
+"""The process a LocalCluster's workers are forked from (Python's forkserver), with distributed and
+robocal's stage modules imported once and BLAS on one thread, so that no worker imports them again.
+
+Its imports (≈ 1 s) are the longest part of a local cluster's start, so it is started as early as it
+is known to be needed: by `robocal reprocess` before its own imports when OUT holds no results yet
+(every recording then runs), else at the first recording that needs a run.  It is stopped by a
+signal once the cluster is closed (or at exit): left to notice its parent's exit, it would tear down
+an interpreter full of modules while still holding the caller's stdout and stderr (≈ 0.2–0.3 s in
+which a pipe reader waits)."""
+
+from __future__ import annotations
+
+import atexit
+import os
+import signal
+from pathlib import Path
+
+SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+# What a task imports on its first call beyond the stage and system modules: robocal's lazy imports and
+# pyarrow's (a Parquet read imports pyarrow.dataset; converting Python objects, dateutil).  Left to the
+# first task, they made it ≈ 0.1 s longer than the next ones on every worker.
+TASK_IMPORTS = ("pipeline.stages.reprocess", "pipeline.stages.results", "pipeline.accuracy.prior",
+                "pipeline.models.jig", "pipeline.models.dh_export", "pipeline.importers.bagkind",
+                "pyarrow.dataset", "dateutil.relativedelta")
+_started = False
+_at_exit = False
+
+
+def warm_modules(stages: list[str] | None = None) -> list[str]:
+    """The modules a task imports: the row's own, each of `stages`' (default: all) and every system's."""
+    import pkgutil
+
+    import pipeline.systems as systems
+    from pipeline.stages.registry import STAGES
+
+    mods = [s.module for s in STAGES if stages is None or s.name in stages]
+    return ["pipeline.fleet.rows", "pipeline.stages.runner", *mods, *TASK_IMPORTS,
+            *(f"pipeline.systems.{m.name}" for m in pkgutil.iter_modules(systems.__path__))]
+
+
+def warm_worker(stages: list[str] | None = None) -> int:
+    """Import the modules of `stages` (default: every stage) and of every system once, at a worker's
+    start, so that no task pays the interpreter's imports (a spawned Dask worker is a fresh process;
+    one forked from the fork server has them already).  Returns the number of modules imported."""
+    import importlib
+
+    n = 0
+    for name in warm_modules(stages):
+        try:
+            importlib.import_module(name)
+            n += 1
+        except ImportError:  # an optional stage's module may be absent
+            pass
+    return n
+
+
+def start(stages: list[str] | None = None) -> None:
+    """Start the fork server in the background, preloading distributed and the modules of `stages`
+    (default: all).  Returns at once; a no-op while it runs (its imports are those of the first call)."""
+    import multiprocessing
+    from multiprocessing import forkserver
+
+    global _started, _at_exit
+    if _started:  # (and never from a second thread while the first one hashes: os.environ is shared)
+        return
+    _started = True
+    multiprocessing.get_context("forkserver").set_forkserver_preload(["distributed", *warm_modules(stages)])
+    saved = {k: os.environ.get(k) for k in SINGLE_THREADED}
+    os.environ.update(SINGLE_THREADED)  # BLAS reads them when numpy loads: in the server, before the fork
+    try:
+        forkserver.ensure_running()
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    if not _at_exit:
+        _at_exit = True
+        atexit.register(stop)
+
+
+def start_if_fresh(out: Path, stages: list[str] | None = None) -> bool:
+    """Start the fork server now if `out` holds no results yet (every recording will run); True if so."""
+    results = Path(out) / "results"
+    if results.is_dir() and any(results.glob("part-*.parquet")):
+        return False
+    start(stages)
+    return True
+
+
+def stop() -> None:
+    """Stop the fork server this process started (none: a no-op), once no worker is forked from it any
+    more: SIGTERM (its default action: no interpreter teardown) and reap it."""
+    from multiprocessing import forkserver
+
+    global _started
+    if not _started:
+        return
+    _started = False
+    server = forkserver._forkserver  # the module's singleton (no public handle on it)
+    pid = getattr(server, "_forkserver_pid", None)
+    if pid is None:
+        return
+    try:
+        os.kill(pid, signal.SIGTERM)
+    except ProcessLookupError:
+        pass
+    server._stop()  # closes our end of its liveness pipe and waits for it

@@ -236,3 +236,25 @@ def test_results_writer_puts_a_row_on_disk_within_flush_s_and_parts_are_complete
     assert not list((tmp_path / "results").glob(".*tmp"))
     latest = {r["recording"]: r["status"] for r in read_results(tmp_path).to_pylist()}
     assert latest == {"a.mcap": "pass", "b.mcap": None} and read_results(tmp_path, latest=False).num_rows == 3
+
+
+def test_plan_hashes_only_what_a_previous_row_may_cover(archive, tmp_path):
+    """A recording never run is a task at once (hashed by the task, of the bytes it reads: the row's
+    input_sha256); one with a row in OUT is hashed by the plan: kept when unchanged, re-run when its
+    bytes changed."""
+    from pipeline.fleet.engine import plan
+
+    arch, recs = archive
+    work = tmp_path / "arch"
+    shutil.copytree(arch / "robot-4", work)
+    out = tmp_path / "out"
+    tasks, kept, _ = plan(work, out, stages=FAST.split(","))
+    assert len(tasks) == 5 and not kept and all(t.sha256 is None for t in tasks)
+    res = reprocess_archive(work, out, stages=FAST.split(","), engine="serial")
+    assert all(r["input_sha256"] == sha256_file(work / r["recording"]) for r in res.rows)
+    changed = work / "2026-02" / "campaign.mcap"
+    shutil.copyfile(recs[0], changed)  # robot-1's recording: other bytes at a path already done
+    shutil.copyfile(recs[0], work / "new.mcap")
+    tasks, kept, _ = plan(work, out, stages=FAST.split(","))
+    assert len(kept) == 4 and {t.found.rel: t.sha256 for t in tasks} == {
+        "2026-02/campaign.mcap": sha256_file(changed), "new.mcap": None}

@@ -50,9 +50,21 @@ FORK_SERVER = {"distributed.worker.multiprocessing-method": "forkserver"}
 @dataclass
 class Task:
     found: Found
-    sha256: str
-    nbytes: int
+    sha256: str | None  # None: never run before, the task hashes what it reads
+    nbytes: int | None
     run_dir: Path
+
+    def lost(self, config: str, reason: str) -> dict:
+        """The row of this task when its worker died (after Dask's retries)."""
+        from pipeline.stages.artefacts import sha256_file
+
+        sha, nbytes = self.sha256, self.nbytes
+        if sha is None:
+            try:
+                sha, nbytes = sha256_file(self.found.path), self.found.path.stat().st_size
+            except OSError:
+                sha, nbytes = "", 0
+        return lost_row(str(self.found.path), self.found.rel, sha, nbytes, str(self.run_dir), config, reason)
 
     def args(self, stages: list[str] | None, robot_id: str | None, config: str) -> tuple:
         return (str(self.found.path.resolve()), self.found.rel, self.sha256, self.nbytes, str(self.run_dir),
@@ -78,19 +90,29 @@ def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot
          resume: bool = True, on_first_task: Callable[[], None] | None = None
          ) -> tuple[list[Task], list[dict], list[str]]:
     """(tasks to run, rows kept from a previous run, paths skipped by discovery); `on_first_task` is
-    called once, as soon as the first recording that needs a run is known."""
+    called once, as soon as the first recording that needs a run is known.
+
+    Only a recording with a row in OUT is hashed here (its input hash decides whether the row still
+    stands); one never run is a task at once and hashes the bytes it reads itself, so an archive of
+    thousands is not read through serially before the first task starts."""
     from pipeline.stages.artefacts import sha256_file
 
     found, skipped = discover(archive, patterns)
     done = done_keys(out) if resume else {}
+    done_rels = {key[0] for key in done}
     config, code = config_of(stages, robot_id), code_version()
     tasks, kept = [], []
     for f in found:
+        run_dir = Path(out) / "runs" / f.run_name
+        if f.rel not in done_rels:
+            if on_first_task is not None and not tasks:
+                on_first_task()
+            tasks.append(Task(f, None, None, run_dir))
+            continue
         try:
             sha, nbytes = sha256_file(f.path), f.path.stat().st_size
         except OSError as e:  # unreadable: its row says so, the others run
-            row = lost_row(str(f.path), f.rel, "", 0, str(Path(out) / "runs" / f.run_name), config,
-                           f"{f.path}: cannot be read ({e.strerror})")
+            row = lost_row(str(f.path), f.rel, "", 0, str(run_dir), config, f"{f.path}: cannot be read ({e.strerror})")
             kept.append(row | {"status": "error", "_regated": True})
             continue
         prev = done.get((f.rel, sha, __version__, code, config))
@@ -102,7 +124,7 @@ def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot
         else:
             if on_first_task is not None and not tasks:
                 on_first_task()
-            tasks.append(Task(f, sha, nbytes, Path(out) / "runs" / f.run_name))
+            tasks.append(Task(f, sha, nbytes, run_dir))
     return tasks, kept, skipped
 
 
@@ -203,8 +225,7 @@ def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "d
                 try:
                     yield fut.result()
                 except Exception as e:  # noqa: BLE001 — a dead pool process: the row says so
-                    yield lost_row(str(t.found.path), t.found.rel, t.sha256, t.nbytes, str(t.run_dir), config,
-                                   f"worker process died: {type(e).__name__}: {e}")
+                    yield t.lost(config, f"worker process died: {type(e).__name__}: {e}")
         return
     if engine != "dask":
         raise RobocalError(f"unknown engine {engine!r} (one of {', '.join(ENGINES)})")
@@ -216,7 +237,7 @@ def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "d
         futs, by_key = [], {}
         for i, t in enumerate(tasks):
             fut = client.submit(reprocess_one, *t.args(stages, robot_id, config), pure=False,
-                                key=f"robocal-reprocess-{i}-{t.sha256[:16]}")
+                                key=f"robocal-reprocess-{i}")
             futs.append(fut)
             by_key[fut.key] = t
         for fut in as_completed(futs):
@@ -225,8 +246,7 @@ def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "d
                 row = fut.result()
             except Exception as e:  # noqa: BLE001 — KilledWorker after Dask's retries, or a lost task
                 reason = f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}".rstrip(": ")
-                row = lost_row(str(t.found.path), t.found.rel, t.sha256, t.nbytes, str(t.run_dir), config,
-                               f"worker died: {reason}")
+                row = t.lost(config, f"worker died: {reason}")
             fut.release()
             yield row
 

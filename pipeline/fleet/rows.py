@@ -123,15 +123,25 @@ def fill_from_run(row: dict, run_dir: Path, recording: Path, robot_id: str | Non
     row["campaign_start_ns"], row["campaign_end_ns"] = _campaign_time(run_dir)
 
 
-def reprocess_one(path: str, rel: str, sha: str, nbytes: int, run_dir: str, stages: list[str] | None,
-                  robot_id: str | None, config: str) -> dict:
+def reprocess_one(path: str, rel: str, sha: str | None, nbytes: int | None, run_dir: str,
+                  stages: list[str] | None, robot_id: str | None, config: str) -> dict:
     """The task: run the pipeline on one recording and return its row (never raises for the
-    recording's own faults: a failure is the row's `status` and `error`)."""
+    recording's own faults: a failure is the row's `status` and `error`).  `sha` None: the input hash
+    is computed here, of the file as this task reads it."""
     from pipeline.errors import RobocalError
+    from pipeline.stages.artefacts import sha256_file
     from pipeline.stages.runner import StageFailed, run_pipeline
 
     t0 = time.perf_counter()
     rec, out = Path(path), Path(run_dir)
+    if sha is None:
+        try:
+            sha, nbytes = sha256_file(rec), rec.stat().st_size
+        except OSError as e:  # unreadable: the row says so
+            row = empty_row(rel, str(rec), "", 0, config, run_dir)
+            row.update(status="error", error=f"{rec}: cannot be read ({e.strerror})")
+            row["elapsed_s"] = time.perf_counter() - t0
+            return gate(row, rec)
     row = empty_row(rel, str(rec.resolve()), sha, nbytes, config, run_dir)
     error = None
     try:

@@ -22,6 +22,7 @@ with tasks that only sleep (no CPU contention).
 from __future__ import annotations
 
 import argparse
+import compileall
 import os
 import shutil
 import subprocess
@@ -201,6 +202,7 @@ def main() -> None:
     ap.add_argument("--startup", type=int, default=0, help="repeats of the LocalCluster start-up + shutdown probe, "
                     "spawned vs fork-server workers; 0: none")
     a = ap.parse_args()
+    compileall.compile_dir(ROOT / "pipeline", quiet=2)  # as installed (`make bytecode`): no engine compiles robocal
     with tempfile.TemporaryDirectory(prefix="bench-reprocess-") as tmp:
         tmp = Path(tmp)
         first = tmp / "archive" / "robot-000" / "m00.mcap"

@@ -42,11 +42,16 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
             model = dataclasses.replace(model, variant=variant)
         except ValueError as e:
             raise RobocalError(f"{path}: {e}") from None
+    from dataclasses import replace as dataclasses_replace
+
     from pipeline.accuracy.prior import prior_sigma
     from pipeline.recording.schemas import META_ROBOT
 
     # check the priors (model file, --prior) before the work, so a typo fails at once
-    prior_sigma(model, rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {}, (accuracy or {}).get("prior") or {})
+    sigma0 = prior_sigma(model, rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {},
+                         (accuracy or {}).get("prior") or {})[0]
+    if options.prior_sigma is None:  # the fit judges a parameter freed off the nominal geometry against it
+        options = dataclasses_replace(options, prior_sigma=sigma0)
     if solver == "ga":
         from pipeline.identify.genetic import cross_validate_ga, fit_ga
         if not hasattr(model, "batch_cost_fn"):

@@ -5,8 +5,10 @@ processes)."""
 from __future__ import annotations
 
 import json
+import queue
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -30,9 +32,20 @@ def start_sim(tmp: Path, system: str, *args: str) -> tuple[subprocess.Popen, dic
                              "--report", str(tmp / "sim.json"), "--wait", "60", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     devices: dict[str, str] = {}
+    lines: queue.Queue[str] = queue.Queue()  # read in a thread: a silent device-sim cannot block past the deadline
+
+    def pump() -> None:  # (and it keeps draining stdout afterwards: the pipe never fills)
+        for line in iter(proc.stdout.readline, ""):
+            lines.put(line)
+        lines.put("")
+
+    threading.Thread(target=pump, daemon=True).start()
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
-        line = proc.stdout.readline()
+        try:
+            line = lines.get(timeout=max(deadline - time.monotonic(), 0.01))
+        except queue.Empty:
+            break
         if not line:
             raise AssertionError(f"device-sim exited: {proc.stderr.read()}")
         role, _, rest = line.partition("=")
@@ -40,7 +53,8 @@ def start_sim(tmp: Path, system: str, *args: str) -> tuple[subprocess.Popen, dic
         assert Path(rest.split()[1]).is_char_device()  # a real tty
         if len(devices) == expected_devices(system, args):
             return proc, devices
-    raise AssertionError("device-sim did not announce its ports")
+    proc.kill()
+    raise AssertionError("device-sim did not announce its ports within 60 s")
 
 
 def acquire(tmp: Path, devices: dict[str, str], out: Path, *extra: str, timeout: float = 120) -> dict:

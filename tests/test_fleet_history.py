@@ -201,3 +201,29 @@ def test_simulated_recordings_carry_the_robot_identity_and_campaign_time(tmp_pat
     t0 = int(datetime(2026, 7, 1, 8, tzinfo=timezone.utc).timestamp()) * 1_000_000_000
     ts = [m["timestamp_ns"] for m in r.messages["/touch/contact"]]
     assert t0 < min(ts) < t0 + 3600 * 10**9
+
+
+def test_simulate_fleet_never_replaces_a_file_it_did_not_write(tmp_path):
+    """A foreign fleet.truth.json or campaign.mcap in the archive: one line naming it, exit 2, nothing written;
+    the fleet's own files (a second run) are replaced."""
+    arch = tmp_path / "arch"
+    cmd = [str(BIN / "robocal"), "simulate", "fleet", "--out", str(arch), "--robots", "1", "--months", "2",
+           "--contacts", "10"]
+    arch.mkdir()
+    (arch / "fleet.truth.json").write_text('{"mine": 1}\n')
+    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=300)
+    assert p.returncode == 2 and "fleet.truth.json: exists and was not written by robocal" in p.stderr, p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+    assert (arch / "fleet.truth.json").read_text() == '{"mine": 1}\n' and not list(arch.rglob("*.mcap"))
+    (arch / "fleet.truth.json").unlink()
+    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=300)
+    assert p.returncode == 0, p.stderr
+    first = sorted(arch.rglob("*.mcap"))
+    assert len(first) == 2 and json.loads((arch / "fleet.truth.json").read_text())["generator"].startswith("robocal/")
+    first[1].write_bytes(b"someone else's bytes")
+    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=300)
+    assert p.returncode == 2 and f"{first[1]}: exists and was not written by robocal" in p.stderr, p.stderr
+    assert first[1].read_bytes() == b"someone else's bytes"
+    first[1].unlink()
+    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=300)
+    assert p.returncode == 0, p.stderr  # its own recordings and truth replaced

@@ -83,3 +83,27 @@ def test_weakly_freed_keeps_a_well_determined_parameter_and_drops_a_weak_one():
     weak = weakly_freed(Line(), data, np.array([1e-3, 1e-3]), before, after)
     assert weak.tolist() == [False, True]
     assert not weakly_freed(Line(), data, np.array([1e-3, 1e-3]), after, after).any()  # only newly freed ones
+    # the prior it judges against is the one given: a loose prior on b keeps it free
+    assert not weakly_freed(Line(), data, np.array([1e-3, 1e-3]), before, after, prior=np.array([1e-3, 1e3])).any()
+
+
+def test_the_identify_stage_judges_against_the_recording_s_and_the_command_line_s_priors():
+    """identify's options carry each parameter's prior 1σ: the defaults, the robot model file's
+    prior_sigma, then --prior (the stage's `prior` param) — as the accuracy stage uses them."""
+    from pathlib import Path
+
+    from pipeline.recording.reader import read_recording
+    from pipeline.recording.schemas import META_ROBOT
+    from pipeline.stages.identify import options_of
+    from pipeline.systems.registry import SYSTEMS
+
+    rec = read_recording(Path(__file__).parents[1] / "recordings" / "arc-welder-touch.mcap", topics={"/touch/contact"})
+    model, _ = SYSTEMS["arc-welder"].load(rec)
+    names = model.parameter_names()
+    default = prior_sigma(model)[0]
+    assert np.allclose(options_of({}, model, rec).prior_sigma, default)
+    rec.metadata[META_ROBOT] = {**rec.metadata[META_ROBOT], "prior_sigma": {names[3]: 0.25}}
+    got = options_of({"prior": {names[5]: 0.5}}, model, rec).prior_sigma
+    want = default.copy()
+    want[3], want[5] = 0.25, 0.5
+    assert np.allclose(got, want)

@@ -35,6 +35,21 @@ def validate(tmp_path: Path, meta, js, contacts, raw=None, expect_fail: bool = F
     return out
 
 
+def test_an_outlier_fit_stopped_by_its_evaluation_cap_is_a_warning(tmp_path):
+    """The outlier screen's first robust fit is capped (validate's outlier_fit_max_nfev); a fit that stops at
+    the cap says so (warn), one that converges adds nothing."""
+    rec = write(tmp_path / "c.mcap", *base_campaign())
+    run_stage(tmp_path / "run", "ingest", recording=rec)
+    run_stage(tmp_path / "run", "validate", {"outlier_fit_max_nfev": 2})
+    doc = json.loads((tmp_path / "run" / "validate" / "validate.json").read_text())
+    (w,) = [c for c in doc["checks"] if c["name"] == "outlier_fit"]
+    assert w["status"] == "warn" and "stopped at its 2-evaluation cap" in w["message"] and doc["status"] == "warn"
+    assert w["message"].startswith(str(rec))
+    (tmp_path / "full").mkdir()
+    checks = validate(tmp_path / "full", *base_campaign())
+    assert "outlier_fit" not in checks
+
+
 def status_of(checks: dict, name: str, channel: str) -> dict:
     (c,) = [c for c in checks[name] if c["channel"] == channel]
     return c

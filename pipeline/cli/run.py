@@ -169,6 +169,8 @@ def run_cmd(
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
+    if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
+        params["identify"]["prior"] = params["accuracy"]["prior"]
     try:
         outs = run_pipeline(recording, out, params, force=force, log=_log,
                             stages=[s.strip() for s in only.split(",")] if only else None)

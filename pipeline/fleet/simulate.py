@@ -58,6 +58,11 @@ def true_vector(base: np.ndarray, names: list[str], changes: list[Change], m: in
     return x
 
 
+def campaign_path(archive: Path, spec: FleetSpec, r: int, m: int) -> Path:
+    """ARCHIVE/ROBOT/YYYY-MM/campaign.mcap of robot r (0-based), month m (1-based)."""
+    return Path(archive) / spec.robot_id(r) / spec.month_start(m).strftime("%Y-%m") / "campaign.mcap"
+
+
 def simulate_campaign(archive: Path, spec: FleetSpec, r: int, m: int) -> dict:
     """Write robot r's campaign of month m; its truth entry.  A campaign whose latched joints fall
     outside the joint limits is re-planned with the next seed (as an integrator would re-teach it)."""
@@ -78,7 +83,7 @@ def simulate_campaign(archive: Path, spec: FleetSpec, r: int, m: int) -> dict:
         sim = simulate(nominal, true, jig, campaign, Noise())
         if np.all((sim.contact_q >= nominal.lower) & (sim.contact_q <= nominal.upper)):
             break
-    path = archive / rid / when.strftime("%Y-%m") / "campaign.mcap"
+    path = campaign_path(archive, spec, r, m)
     path.parent.mkdir(parents=True, exist_ok=True)
     meta = {META_ROBOT: nominal.to_dict(), META_FIXTURE: jig.to_dict(),
             META_CAMPAIGN: {"system": aw.SYSTEM, "simulated": True, "robot_id": rid,
@@ -95,6 +100,7 @@ def simulate_fleet(archive: Path, spec: FleetSpec = FleetSpec(), workers: int = 
     """Write every campaign of the fleet (`workers` processes); returns the truth document (also written)."""
     from concurrent.futures import ProcessPoolExecutor
 
+    from pipeline.recording.output import check_output, generated
     from pipeline.systems import arc_welder as aw
 
     archive = Path(archive)
@@ -103,6 +109,9 @@ def simulate_fleet(archive: Path, spec: FleetSpec = FleetSpec(), workers: int = 
         if c.param not in names:
             raise ValueError(f"unknown parameter {c.param!r}")
     jobs = [(archive, spec, r, m) for r in range(spec.robots) for m in range(1, spec.months + 1)]
+    truth_path = check_output(archive / "fleet.truth.json", "truth")  # before anything is written:
+    for job in jobs:  # a file robocal did not write is never replaced
+        check_output(campaign_path(*job))
     if workers > 1:
         with ProcessPoolExecutor(workers) as pool:
             done = list(pool.map(simulate_campaign, *zip(*jobs)))
@@ -112,5 +121,5 @@ def simulate_fleet(archive: Path, spec: FleetSpec = FleetSpec(), workers: int = 
                    "changes": [c.__dict__ for c in spec.changes], "parameter_names": names,
                    "robots": {spec.robot_id(r): [d for d in done if d["robot_id"] == spec.robot_id(r)]
                               for r in range(spec.robots)}}
-    (archive / "fleet.truth.json").write_text(json.dumps(truth, indent=1) + "\n")
+    truth_path.write_text(json.dumps(generated(truth), indent=1) + "\n")
     return truth

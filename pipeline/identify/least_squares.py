@@ -28,6 +28,7 @@ class FitOptions:
     rank_tol: float = RANK_TOL
     x0: np.ndarray | None = None
     before: bool = True  # compute the "before" residuals at the model's uncalibrated parameters
+    prior_sigma: np.ndarray | None = None  # (P,) SI: each parameter's prior 1σ (default: accuracy.prior's defaults)
 
 
 @dataclass
@@ -47,6 +48,7 @@ class Fit:
     nfev: int
     elapsed_s: float
     history: list[float] = field(default_factory=list)  # cost (RMS, m) at each evaluation
+    converged: bool = True  # False: the last solve stopped at FitOptions.max_nfev, not at a tolerance
 
     @property
     def free(self) -> np.ndarray:
@@ -105,7 +107,7 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
         J = _flat_jac(model, x, data)
         again, weak = analyse(J, names, fixed, priority, options.rank_tol), np.zeros(x.size, bool)
         for _ in range(x.size):  # fixing a weak one may free its dependent partner: test that too
-            more = weakly_freed(model, data, x, ident.free, again.free, J) & ~weak
+            more = weakly_freed(model, data, x, ident.free, again.free, J, options.prior_sigma) & ~weak
             if not more.any():
                 break
             weak |= more
@@ -126,18 +128,21 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
     std[free] = np.sqrt(np.clip(np.diag(cov), 0, None))
     return Fit(names=names, units=model.parameter_units(), nominal=x0, x=x, identifiability=ident,
                std=std, cov=cov, residuals_before=r0, residuals_after=r1, sigma=sigma, nfev=nfev,
-               elapsed_s=time.perf_counter() - t0, history=history)
+               elapsed_s=time.perf_counter() - t0, history=history, converged=bool(sol.status != 0))
 
 
 def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np.ndarray,
-                 after: np.ndarray, J: np.ndarray | None = None) -> np.ndarray:
+                 after: np.ndarray, J: np.ndarray | None = None, prior: np.ndarray | None = None) -> np.ndarray:
     """Mask of the parameters free in `after` but not in `before` whose 1σ at x (σ̂²(JᵀJ)⁻¹ over
     `after`'s free set, σ̂ the residuals' robust scale at x) is no smaller than their prior 1σ
-    (`pipeline.accuracy.prior`): the data do not determine them."""
+    (`prior`, (P,) SI; default `pipeline.accuracy.prior`'s): the data do not determine them."""
     new = after & ~before
     if not new.any():
         return new
-    from pipeline.accuracy.prior import prior_sigma
+    if prior is None:
+        from pipeline.accuracy.prior import prior_sigma
+
+        prior = prior_sigma(model)[0]
 
     r = model.residuals(x, data).ravel()
     Jf = (_flat_jac(model, x, data) if J is None else J)[:, after]  # J: the flat Jacobian at x, if the caller has it
@@ -149,7 +154,7 @@ def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np
     sigma = scale * np.sqrt(r.size / max(r.size - Jf.shape[1], 1))
     std = np.zeros(x.size)
     std[after] = np.sqrt(np.clip(np.diag(covariance(Jf, sigma)), 0, None))
-    return new & (std >= prior_sigma(model)[0])
+    return new & (std >= prior)
 
 
 def _solve(model: MeasurementModel, data: Table, x_start: np.ndarray, free: np.ndarray,

@@ -16,7 +16,7 @@ from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.outliers import fit_rejecting
 from pipeline.identify.results import parameter_table
 from pipeline.ingest.tables import model_columns
-from pipeline.recording.schemas import META_FIXTURE
+from pipeline.recording.schemas import META_FIXTURE, META_ROBOT
 from pipeline.stages.artefacts import read_json, write_json, write_table
 from pipeline.stages.ingest import load_system, read_measurements
 
@@ -36,8 +36,17 @@ def group_column(system, table: dict) -> np.ndarray:
     return np.full(n, system.MEASUREMENT_CHANNEL, dtype=object)
 
 
-def options_of(params: dict) -> FitOptions:
-    return FitOptions(loss=str(params.get("loss", "linear")), f_scale=float(params.get("f_scale_m", 1e-4)))
+def options_of(params: dict, model=None, rec=None) -> FitOptions:
+    """Solver settings from the stage's params; with the model and recording, each parameter's prior 1σ
+    (the robot model file's prior_sigma, then `prior` — the CLI's --prior — over the defaults)."""
+    prior = None
+    if model is not None:
+        from pipeline.accuracy.prior import prior_sigma
+
+        file_priors = (rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {}) if rec is not None else {}
+        prior = prior_sigma(model, file_priors, params.get("prior") or {})[0]
+    return FitOptions(loss=str(params.get("loss", "linear")), f_scale=float(params.get("f_scale_m", 1e-4)),
+                      prior_sigma=prior)
 
 
 def run(run_dir: Path, params: dict) -> dict:
@@ -46,7 +55,7 @@ def run(run_dir: Path, params: dict) -> dict:
     system, model, rec = load_system(run_dir)
     table = read_measurements(run_dir)
     data = model_columns(table)
-    opts = options_of(params)
+    opts = options_of(params, model, rec)
     selection = None
     if getattr(model, "groups", None) and model.groups():  # keep only groups that improve held-out error
         selection = select(model, data, k=int(params.get("folds", 5)), seed=int(params.get("seed", 0)), options=opts)

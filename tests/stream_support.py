@@ -41,20 +41,25 @@ def start_sim(tmp: Path, system: str, *args: str) -> tuple[subprocess.Popen, dic
 
     threading.Thread(target=pump, daemon=True).start()
     deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        try:
-            line = lines.get(timeout=max(deadline - time.monotonic(), 0.01))
-        except queue.Empty:
-            break
-        if not line:
-            raise AssertionError(f"device-sim exited: {proc.stderr.read()}")
-        role, _, rest = line.partition("=")
-        devices[role] = rest.split()[0]
-        assert Path(rest.split()[1]).is_char_device()  # a real tty
-        if len(devices) == expected_devices(system, args):
-            return proc, devices
-    proc.kill()
-    raise AssertionError("device-sim did not announce its ports within 60 s")
+    try:
+        while time.monotonic() < deadline:
+            try:
+                line = lines.get(timeout=max(deadline - time.monotonic(), 0.01))
+            except queue.Empty:
+                break
+            if not line:
+                raise AssertionError(f"device-sim exited: {proc.stderr.read()}")
+            role, _, rest = line.partition("=")
+            devices[role] = rest.split()[0]
+            assert Path(rest.split()[1]).is_char_device()  # a real tty
+            if len(devices) == expected_devices(system, args):
+                return proc, devices
+        raise AssertionError("device-sim did not announce its ports within 60 s")
+    except BaseException:  # any failure here: no device-sim left running
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=30)
+        raise
 
 
 def acquire(tmp: Path, devices: dict[str, str], out: Path, *extra: str, timeout: float = 120) -> dict:

@@ -53,6 +53,7 @@ def test_start_if_fresh_start_and_stop(tmp_path):
             assert fork_server.start_if_fresh(tmp_path / "fresh", ["ingest"])
             pid = forkserver._forkserver._forkserver_pid
             assert pid is not None and _alive(pid)
+            assert not fork_server.start(["ingest"])  # running: not this caller's to stop
             t0 = time.perf_counter()
             fork_server.stop()
             assert time.perf_counter() - t0 < 0.5 and not _alive(pid)  # reaped: no zombie either
@@ -83,6 +84,13 @@ def test_an_error_of_the_run_is_not_replaced_by_one_of_the_cluster_s_close(tmp_p
 
     with pytest.raises(ValueError, match="the run's own error"):
         engine.reprocess_archive(arch, tmp_path / "out", stages=FAST.split(","), workers=1, on_plan=on_plan)
+    assert not fork_server._started
+
+    def on_start(client):  # raised inside the cluster's context (run_tasks), where the close happens too
+        raise ValueError("the run's own error, in the cluster")
+
+    with pytest.raises(ValueError, match="in the cluster"):
+        engine.reprocess_archive(arch, tmp_path / "out1", stages=FAST.split(","), workers=1, on_start=on_start)
     assert not fork_server._started
     with pytest.raises(RuntimeError, match="close failed"):  # a run that succeeded reports its close error
         engine.reprocess_archive(arch, tmp_path / "out2", stages=FAST.split(","), workers=1)

@@ -156,6 +156,7 @@ def test_external_scheduler_and_a_worker_killed_mid_task(archive, tmp_path):
         # the task it was executing, and one it may already hold (Dask's queue sends a worker ⌈1.1 × threads⌉)
         assert len(rows) == 10 and 1 <= len(lost) <= 2, [r["status"] for r in rows]
         assert all("KilledWorker" in r["error"] and not r["ok"] for r in lost)
+        assert all(r["input_sha256"] == sha256_file(r["path"]) for r in lost)  # hashed by the client for the row
         assert all(r["ok"] for r in rows if r["status"] != "lost")
         assert all(int(r["worker"].split(":")[1]) != victim for r in rows if r["ok"])
     finally:

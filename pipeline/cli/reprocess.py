@@ -67,10 +67,9 @@ def reprocess_cmd(
     unknown = [s for s in stages or [] if s not in BY_NAME]
     if unknown:
         raise RobocalError(f"--stages: unknown stage(s) {', '.join(unknown)} (stages: {', '.join(BY_NAME)})")
-    if engine == "dask" and not scheduler:  # a local cluster: its workers' fork server imports while this
-        fork_server.start_if_fresh(out, stages)  # process imports the engine and hashes the archive
-    from pipeline.fleet.engine import ENGINES, reprocess_archive
-
+    # a local cluster: its workers' fork server imports while this process imports the engine and plans
+    early_server = engine == "dask" and not scheduler and fork_server.start_if_fresh(out, stages)
+    from pipeline.fleet.engine import ENGINES, reprocess_archive  # (an error before the run: stopped at exit)
     if engine not in ENGINES:
         raise RobocalError(f"--engine {engine}: not one of {', '.join(ENGINES)}")
     from pipeline.stages.reprocess import write_summary
@@ -97,11 +96,15 @@ def reprocess_cmd(
         n = len(client.scheduler_info().get("workers", {}))
         progress.console.print(f"Dask scheduler {client.scheduler.address}: {n} worker(s)", highlight=False)
 
-    with progress:
-        res = reprocess_archive(archive, out, patterns=tuple(pattern) or ("**/*.mcap",), stages=stages,
-                                robot_id=robot_id, engine=engine, workers=workers, scheduler=scheduler,
-                                allowed_failures=allowed_failures, resume=resume, flush_s=flush_s, on_plan=on_plan,
-                                on_row=on_row, on_start=on_start)
+    try:
+        with progress:
+            res = reprocess_archive(archive, out, patterns=tuple(pattern) or ("**/*.mcap",), stages=stages,
+                                    robot_id=robot_id, engine=engine, workers=workers, scheduler=scheduler,
+                                    allowed_failures=allowed_failures, resume=resume, flush_s=flush_s,
+                                    on_plan=on_plan, on_row=on_row, on_start=on_start)
+    finally:
+        if early_server:
+            fork_server.stop()  # the cluster is closed: nothing is forked from it any more
     rows = res.all_rows
     for s in res.skipped_paths:
         err.print(f"[yellow]skipped[/] {s}", highlight=False)

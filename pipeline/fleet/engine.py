@@ -8,6 +8,7 @@ import json
 import logging
 import os
 import threading
+import uuid
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed as pool_completed
 from contextlib import contextmanager
@@ -92,15 +93,16 @@ def plan(archive: Path, out: Path, patterns=DEFAULT_PATTERNS, stages=None, robot
     """(tasks to run, rows kept from a previous run, paths skipped by discovery); `on_first_task` is
     called once, as soon as the first recording that needs a run is known.
 
-    Only a recording with a row in OUT is hashed here (its input hash decides whether the row still
-    stands); one never run is a task at once and hashes the bytes it reads itself, so an archive of
-    thousands is not read through serially before the first task starts."""
+    Only a recording with a row in OUT that this version and these options could keep is hashed here
+    (its input hash decides whether the row still stands); any other is a task at once and its task
+    hashes the file before running it, so an archive of thousands is not read through serially
+    before the first task starts."""
     from pipeline.stages.artefacts import sha256_file
 
     found, skipped = discover(archive, patterns)
     done = done_keys(out) if resume else {}
-    done_rels = {key[0] for key in done}
     config, code = config_of(stages, robot_id), code_version()
+    done_rels = {key[0] for key in done if key[2:] == (__version__, code, config)}
     tasks, kept = [], []
     for f in found:
         run_dir = Path(out) / "runs" / f.run_name
@@ -231,13 +233,15 @@ def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "d
         raise RobocalError(f"unknown engine {engine!r} (one of {', '.join(ENGINES)})")
     from distributed import as_completed
 
+    run_id = uuid.uuid4().hex[:12]  # keys unique per run: runs sharing a scheduler must not share results
+
     with (_started(early) if early is not None else dask_client(scheduler, workers, allowed_failures, stages)) as client:
         if on_start:
             on_start(client)
         futs, by_key = [], {}
         for i, t in enumerate(tasks):
             fut = client.submit(reprocess_one, *t.args(stages, robot_id, config), pure=False,
-                                key=f"robocal-reprocess-{i}")
+                                key=f"robocal-reprocess-{run_id}-{i}")
             futs.append(fut)
             by_key[fut.key] = t
         for fut in as_completed(futs):
@@ -255,8 +259,13 @@ def run_tasks(tasks: list[Task], stages, robot_id, config: str, engine: str = "d
 def _started(early: EarlyCluster) -> Iterator:
     try:
         yield early.client()
-    finally:
-        early.close()
+    except BaseException:
+        try:
+            early.close()
+        except Exception:  # noqa: BLE001 — the run's own error is the one to report, not the close's
+            pass
+        raise
+    early.close()
 
 
 def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, stages: list[str] | None = None,
@@ -269,9 +278,10 @@ def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, st
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     early: list[EarlyCluster] = []
+    owned: list[bool] = []  # this run started the fork server (the CLI may have started it already)
 
     def bring_up() -> None:  # at the first recording to run (none on a fully resumed archive)
-        fork_server.start(stages)  # its imports overlap the rest of the discovery and hashing
+        owned.append(fork_server.start(stages))  # its imports overlap the rest of the discovery and hashing
         early.append(EarlyCluster(workers, allowed_failures, stages))  # and so does the cluster's start
 
     failed = True
@@ -289,7 +299,8 @@ def reprocess_archive(archive: Path, out: Path, *, patterns=DEFAULT_PATTERNS, st
                     if not failed:  # else the run's own error is the one to report, not the cluster's close
                         raise
         finally:
-            fork_server.stop()  # no worker is forked from it any more
+            if any(owned):
+                fork_server.stop()  # no worker is forked from it any more
 
 
 def _run(archive, out, patterns, stages, robot_id, engine, workers, scheduler, allowed_failures, resume, flush_s,

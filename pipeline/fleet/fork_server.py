@@ -13,6 +13,7 @@ from __future__ import annotations
 import atexit
 import os
 import signal
+import threading
 from pathlib import Path
 
 SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -22,8 +23,8 @@ SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM
 TASK_IMPORTS = ("pipeline.stages.reprocess", "pipeline.stages.results", "pipeline.accuracy.prior",
                 "pipeline.models.jig", "pipeline.models.dh_export", "pipeline.importers.bagkind",
                 "pyarrow.dataset", "dateutil.relativedelta")
-_started = False
-_at_exit = False
+_started = False  # this module started the forkserver running now
+_lock = threading.Lock()
 
 
 def warm_modules(stages: list[str] | None = None) -> list[str]:
@@ -54,39 +55,40 @@ def warm_worker(stages: list[str] | None = None) -> int:
     return n
 
 
-def start(stages: list[str] | None = None) -> None:
+def start(stages: list[str] | None = None) -> bool:
     """Start the fork server in the background, preloading distributed and the modules of `stages`
-    (default: all).  Returns at once; a no-op while it runs (its imports are those of the first call)."""
+    (default: all).  Returns at once: True if this call started it (its caller stops it, `stop`);
+    False if it runs already (its imports are those of the first call) or another part of the process
+    started a forkserver of its own (left alone)."""
     import multiprocessing
     from multiprocessing import forkserver
 
-    global _started, _at_exit
-    if _started:  # (and never from a second thread while the first one hashes: os.environ is shared)
-        return
-    _started = True
-    multiprocessing.get_context("forkserver").set_forkserver_preload(["distributed", *warm_modules(stages)])
-    saved = {k: os.environ.get(k) for k in SINGLE_THREADED}
-    os.environ.update(SINGLE_THREADED)  # BLAS reads them when numpy loads: in the server, before the fork
-    try:
-        forkserver.ensure_running()
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-    if not _at_exit:
-        _at_exit = True
-        atexit.register(stop)
+    global _started
+    with _lock:  # (and os.environ is shared: never set from two threads at once)
+        if _started or forkserver._forkserver._forkserver_pid is not None:
+            return False
+        multiprocessing.get_context("forkserver").set_forkserver_preload(["distributed", *warm_modules(stages)])
+        saved = {k: os.environ.get(k) for k in SINGLE_THREADED}
+        os.environ.update(SINGLE_THREADED)  # BLAS reads them when numpy loads: in the server, before the fork
+        try:
+            forkserver.ensure_running()
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
+        _started = True
+        return True
 
 
 def start_if_fresh(out: Path, stages: list[str] | None = None) -> bool:
-    """Start the fork server now if `out` holds no results yet (every recording will run); True if so."""
+    """Start the fork server now if `out` holds no results yet (every recording will run); True if this
+    call started it."""
     results = Path(out) / "results"
     if results.is_dir() and any(results.glob("part-*.parquet")):
         return False
-    start(stages)
-    return True
+    return start(stages)
 
 
 def stop() -> None:
@@ -95,15 +97,21 @@ def stop() -> None:
     from multiprocessing import forkserver
 
     global _started
-    if not _started:
-        return
-    _started = False
-    server = forkserver._forkserver  # the module's singleton (no public handle on it)
-    pid = getattr(server, "_forkserver_pid", None)
-    if pid is None:
-        return
-    try:
-        os.kill(pid, signal.SIGTERM)
-    except ProcessLookupError:
-        pass
-    server._stop()  # closes our end of its liveness pipe and waits for it
+    with _lock:
+        if not _started:
+            return
+        _started = False
+        server = forkserver._forkserver  # the module's singleton (no public handle on it)
+        pid = getattr(server, "_forkserver_pid", None)
+        if pid is None:
+            return
+        try:
+            os.kill(pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+        server._stop()  # closes our end of its liveness pipe and waits for it
+
+
+# At exit, after distributed's own handlers (registered later, when it is imported: atexit runs them
+# last-in first-out) have closed any cluster still open.
+atexit.register(stop)

@@ -124,21 +124,23 @@ def main():
     res = reprocess_archive(sys.argv[2], sys.argv[3], stages=sys.argv[5].split(","), engine=sys.argv[1],
                             workers=int(sys.argv[4]), on_plan=lambda a, b: ev.setdefault("plan", time.perf_counter()),
                             on_start=lambda c: ev.setdefault("start", time.perf_counter()),
-                            on_row=lambda r: done.append((time.perf_counter(), r["worker"], r["elapsed_s"])))
+                            on_row=lambda r: done.append((time.perf_counter(), r["worker"], r["elapsed_s"],
+                                                          time.process_time())))
     end = time.perf_counter()
     start = ev.get("start", ev["plan"])
     by = {}
-    for at, w, e in done:
+    for at, w, e, _ in done:
         by.setdefault(w, []).append((at, e))
     first = min(v[0][0] - v[0][1] for v in by.values())  # the first task's start (its end − its wall)
     rest = sorted(e for v in by.values() for _, e in v[1:])
     med = rest[len(rest) // 2]
-    task = sum(e for _, _, e in done)
+    task = sum(e for _, _, e, _ in done)
     busy = sum(v[-1][0] - (v[0][0] - v[0][1]) for v in by.values())  # each worker: first start to last end
     t.update(plan=ev["plan"] - t0 - t["import"], up=start - ev["plan"], to_first=first - t0, tasks=done[-1][0] - start,
              close=end - done[-1][0], first_extra=sum(v[0][1] - med for v in by.values()), median=med,
              steady=(busy - task) / len(done), mean=task / len(done),
-             idle_end=sum(done[-1][0] - v[-1][0] for v in by.values()), total=(end - t0) * len(by) / len(done) - task / len(done))
+             idle_end=sum(done[-1][0] - v[-1][0] for v in by.values()), total=(end - t0) * len(by) / len(done) - task / len(done),
+             client_cpu=(done[-1][3] - done[0][3]) / (done[-1][0] - done[0][0]))  # this process, all threads, s/s
     print(json.dumps(t))
 if __name__ == "__main__":
     main()
@@ -167,7 +169,8 @@ def phases_probe(tmp: Path, a: argparse.Namespace) -> None:
                   f"{t['to_first']:.2f} s, workers' first tasks +{t['first_extra']:.2f} s over the median "
                   f"{t['median']:.3f} s; overhead per recording: steady state {t['steady'] * 1e3:.1f} ms "
                   f"({pc(t['steady'])}), in all {t['total'] * 1e3:.1f} ms ({pc(t['total'])}; idle at the end "
-                  f"{t['idle_end']:.2f} worker-s)   load {os.getloadavg()[0]:.1f}", flush=True)
+                  f"{t['idle_end']:.2f} worker-s); the client process's CPU between the first and the last row "
+                  f"{t['client_cpu'] * 1e3:.0f} ms/s   load {os.getloadavg()[0]:.1f}", flush=True)
             shutil.rmtree(out)
 
 

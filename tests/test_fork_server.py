@@ -8,7 +8,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 
 from pipeline.fleet import fork_server
 from reprocess_support import ENV, FAST, small_archive
@@ -54,9 +53,8 @@ def test_start_if_fresh_start_and_stop(tmp_path):
             pid = forkserver._forkserver._forkserver_pid
             assert pid is not None and _alive(pid)
             assert not fork_server.start(["ingest"])  # running: not this caller's to stop
-            t0 = time.perf_counter()
             fork_server.stop()
-            assert time.perf_counter() - t0 < 0.5 and not _alive(pid)  # reaped: no zombie either
+            assert not _alive(pid)  # reaped: no zombie either
             assert forkserver._forkserver._forkserver_pid is None
     finally:
         fork_server.stop()

@@ -81,6 +81,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
                            source={"path": str(path), "sha256": sha256_file(path)}, warnings=warnings,
                            k_folds=k_folds)
     doc["solver"] = solver
+    from pipeline.identify.results import with_3d
+
+    doc = with_3d(doc, model, table, f.residuals_before, f.residuals_after, holdout)
     if solver == "lm" and selection is not None:
         from pipeline.identify.complexity import explain
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
@@ -119,6 +122,9 @@ def summary_rows(doc: dict) -> list[tuple[str, str]]:
         ("RMS before", mm(doc["rms_before_m"])),
         ("RMS after", mm(doc["rms_after_m"])),
         (f"held-out RMS ({doc['holdout_folds']}-fold CV)", mm(doc["holdout_rms_m"])),
+        *([("RMS of the 3-D error before / after", f"{mm(doc['rms_3d_before_m'])} / {mm(doc['rms_3d_after_m'])}"),
+           (f"held-out RMS of the 3-D error ({doc['holdout_folds']}-fold, within this recording)",
+            mm(doc["holdout_rms_3d_m"]))] if doc.get("rms_3d_after_m") is not None else []),
         ("max |residual| after", mm(doc["max_abs_after_m"])),
         ("predicted 3-D point accuracy (1σ, RMS)", mm(acc["rms_1sigma_m"])),
         *([("predicted over the workspace (1σ RMS / worst 95 %)",

@@ -59,6 +59,9 @@ def import_csv(
     sigma_m: float = typer.Option(1e-3, "--sigma-m", help="Pose: position uncertainty, m."),
     sigma_rad: float = typer.Option(1e-3, "--sigma-rad", help="Pose: orientation uncertainty, rad."),
     robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
+    instrument: str = typer.Option("", "--instrument", help="Instrument identity (tracker serial, mocap room) stored "
+                                                            "in the campaign: recordings sharing a registration "
+                                                            "must name the same (robocal evaluate)."),
 ) -> None:
     """Map CSV columns to the URDF's joints (by header name) and write a recording `robocal run` calibrates."""
     from pipeline.errors import RobocalError
@@ -84,6 +87,8 @@ def import_csv(
                    planes=planes)
     table, extras = read_table(files, desc, spec)
     campaign = {**extras, "source_files": [str(f) for f in files], "robot_id": robot_id or desc.name}
+    if instrument:
+        campaign["instrument"] = instrument
     if measure == "pose":
         campaign |= {"sigma_m": sigma_m, "sigma_rad": sigma_rad}
     if distance:

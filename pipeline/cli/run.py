@@ -44,6 +44,10 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
             ("held-out RMS", mm(s.get("holdout_rms_m"))),
             ("predicted point accuracy (1σ RMS)", mm(s.get("predicted_point_sigma_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
+    if s.get("rms_3d_after_m") is not None:  # the figure other tools publish: norm of each 3-D error, RMS
+        rows[3:3] = [("RMS of the 3-D error before / after", f"{mm(s.get('rms_3d_before_m'))} / {mm(s['rms_3d_after_m'])}"),
+                     ("held-out RMS of the 3-D error (k-fold, within this recording)", mm(s.get("holdout_rms_3d_m")))]
+        rows[5:8] = [(f"{k} (per axis)", v) for k, v in rows[5:8]]
     diag = doc.get("stages", {}).get("diagnose", {}).get("summary", {})
     if "findings" in diag:  # what the geometric model left out (issue 7)
         found = ", ".join(diag["findings"]) or "none"

@@ -80,3 +80,16 @@ def read_calibrated(run_dir: str | Path) -> Calibrated:
             raise RobocalError(f"{res}: no calibrated model in it ({type(e).__name__}: {e})") from None
     raise RobocalError(f"{run_dir}: no calibrated model (no identify/fit.json of `robocal run`, no results.json + "
                        "model.json of `robocal calibrate`: did the identify stage run?)")
+
+
+def from_urdf(path: str | Path, root: str, tip: str, measure: str) -> Calibrated:
+    """A URDF taken as calibrated (its nominal geometry, identity instrument frame and tool): another
+    tool's calibrated robot, evaluated by the same code as robocal's (`apply.evaluate`)."""
+    from pipeline.models import urdf
+    from pipeline.models.urdf_arm import UrdfArm
+
+    desc = urdf.read(path, root, tip)
+    arm = UrdfArm(desc)
+    return Calibrated(Path(path), arm.parameter_names(), arm.vector(), np.zeros(len(arm.vector()), bool),
+                      {"urdf": desc.urdf, "root": root, "tip": tip}, {"system": "urdf", "measure": measure},
+                      str(path))

@@ -92,6 +92,11 @@ def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
              ("parameters identified", f"{s['n_identifiable']} / {s['n_parameters']}"),
              ("measurements", f"{s['n_measurements']}" + (f" ({s['n_rejected']} rejected)" if s["n_rejected"] else "")),
              ("max |residual| after", _mm(s["max_abs_after_m"]))]
+    if s.get("rms_3d_after_m") is not None:  # URDF points / poses: the norm of the 3-D error, as other tools publish
+        cards[:3] = [(f"{k} (per axis)", v) for k, v in cards[:3]]
+        cards[:0] = [("RMS of the 3-D error before → after",
+                      f"{_mm(s.get('rms_3d_before_m'))} → {_mm(s['rms_3d_after_m'])}"),
+                     ("held-out RMS of the 3-D error (k-fold, within this recording)", _mm(s.get("holdout_rms_3d_m")))]
     if "predicted_point_sigma_rms_m" in s:
         cards.append(("predicted point accuracy (1σ RMS)", _mm(s["predicted_point_sigma_rms_m"])))
     if s.get("sigma_m") is not None:

@@ -14,7 +14,7 @@ from pipeline.identify.exports import write_exports
 from pipeline.identify.least_squares import FitOptions, cross_validate, holdout_warning, point_accuracy
 from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.outliers import fit_rejecting
-from pipeline.identify.results import parameter_table
+from pipeline.identify.results import parameter_table, with_3d
 from pipeline.ingest.tables import model_columns
 from pipeline.recording.schemas import META_FIXTURE, META_ROBOT
 from pipeline.stages.artefacts import read_json, write_json, write_table
@@ -103,6 +103,7 @@ def run(run_dir: Path, params: dict) -> dict:
         "parameters": parameter_table(f),
         "warnings": [w for w in [holdout_warning(int(rf.kept.sum()), folds, k, int(free.sum()))] if w],
     }
+    doc = with_3d(doc, model, take(data, rf.kept), before[rf.kept], after[rf.kept], holdout_kept)
     tol = (rec.metadata.get(META_FIXTURE) or {}).get("tolerance_m")
     if tol and "face" in kept_data:  # per-face machining error, shared by a face's contacts (not in σ̂²(JᵀJ)⁻¹)
         Jf = model.jacobian(f.x, kept_data).reshape(-1, f.x.size)[:, free]
@@ -122,6 +123,7 @@ def run(run_dir: Path, params: dict) -> dict:
     keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
             "loss", "function_evaluations", "predicted_point_sigma_rms_m", "warnings")
+    keys += tuple(k_ for k_ in ("rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
     return {k_: doc[k_] for k_ in keys} | ({"extra": doc["extra"]} if "extra" in doc else {})
 
 

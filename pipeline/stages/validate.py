@@ -120,6 +120,9 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         msgs = decoded[mchan]
         if table is not None and "timestamp_ns" in table:
             t_m, rec_m = table["timestamp_ns"], table["record"]
+            if "kind" in table:  # rows derived from the campaign (known distances) have no time of their own
+                own = np.asarray(table["kind"]) == 0
+                t_m, rec_m = np.asarray(t_m)[own], np.asarray(rec_m)[own]
         else:
             ok = [(i, m["timestamp_ns"]) for i, m in enumerate(msgs) if isinstance(m.get("timestamp_ns"), int)]
             rec_m = np.array([i for i, _ in ok], int)

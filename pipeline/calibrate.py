@@ -17,7 +17,7 @@ from pipeline.systems.registry import detect
 
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
               seed: int = 0, solver: str = "lm", joint_offsets: bool = False, variant: str | None = None,
-              select_groups: bool = True, accuracy: dict | None = None) -> dict:
+              select_groups: bool = True, accuracy: dict | None = None, model_choice: str = "groups") -> dict:
     """Read, identify, cross-validate; write DIR/results.json and DIR/model.json.
 
     `solver`: 'lm' (least squares, default) or 'ga' (seed 001's genetic algorithm, for systems
@@ -25,6 +25,8 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     offsets (systems whose model has a `joint_offsets` field).  `variant`: the model variant
     (systems whose model has a `variant` field, e.g. delta-tracker: simplified, extended)."""
     t0 = time.perf_counter()
+    if model_choice not in ("groups", "shrinkage"):
+        raise RobocalError(f"--model-choice {model_choice!r}: expected groups or shrinkage")
     path, out = Path(path), Path(out)
     rec = read_recording(path)
     system = detect(rec)
@@ -58,6 +60,11 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
             raise RobocalError(f"{path}: system {system.SYSTEM} has no genetic-algorithm solver (use --solver lm)")
         f = fit_ga(model, table)
         holdout = cross_validate_ga(model, table, k=k_folds, seed=seed)
+    elif solver == "lm" and model_choice == "shrinkage" and getattr(model, "groups", None) and model.groups():
+        from pipeline.identify.shrinkage import shrunk_fit
+
+        selection = None
+        f, shrunk, holdout = shrunk_fit(model, table, options, k=k_folds, seed=seed)
     elif solver == "lm":
         selection = None
         if select_groups and getattr(model, "groups", None) and model.groups():
@@ -89,6 +96,14 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
+    if solver == "lm" and model_choice == "shrinkage" and selection is None and "shrunk" in locals():
+        doc["model_selection"] = {"method": "shrinkage toward nominal (MAP), scale by GCV", "mu_m": shrunk.mu_m,
+                                  "gcv_m2": {f"{k:.6g}": v for k, v in shrunk.gcv.items()},
+                                  "effective_parameters": shrunk.dof, "implausible": shrunk.implausible}
+        for p in shrunk.implausible:
+            warnings.append(f"{p['name']}: estimated {p['z']:+.1f} prior σ from nominal ({p['estimate']:.6g} against "
+                            f"{p['nominal']:.6g}, prior σ {p['prior_sigma']:.3g}): physically implausible")
+        doc["warnings"] = warnings
     from pipeline.accuracy.stage import guarded_document
 
     acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {})
@@ -100,6 +115,12 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     doc["accuracy"] = acc
     doc["status"] = acc["status"]
     doc["status_reason"], doc["status_advice"] = acc["reason"], acc["advice"]
+    implausible = (doc.get("model_selection") or {}).get("implausible") or []
+    if implausible and doc["status"] == "pass":  # never a silent pass over a parameter beyond its prior
+        doc["status"] = "warn"
+        doc["status_reason"] = (f"{len(implausible)} parameter(s) estimated beyond 3 prior σ from nominal: "
+                                + ", ".join(p["name"] for p in implausible))
+        doc["status_advice"] = "check the robot description and the data; or widen the prior (--prior) if intended"
     if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures
         doc.update(model.extra_metrics(f.nominal, f.x, table))
     out.mkdir(parents=True, exist_ok=True)

@@ -26,6 +26,9 @@ def calibrate_cmd(
                                 help="Model variant of the system (delta-tracker: simplified, extended)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
+    model_choice: str = typer.Option("groups", "--model-choice",
+                                     help="URDF robots: groups (keep groups that lower k-fold held-out error) or "
+                                          "shrinkage (every parameter, pulled toward nominal by its prior; scale by GCV)."),
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows
@@ -33,7 +36,7 @@ def calibrate_cmd(
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,
-                        joint_offsets=joint_offsets, variant=variant,
+                        joint_offsets=joint_offsets, variant=variant, model_choice=model_choice,
                         accuracy=accuracy_params(prior, tolerance, previous, targets))
     for w in doc["warnings"]:
         err.print(f"[yellow]warning:[/] {w}", highlight=False)

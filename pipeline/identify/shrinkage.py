@@ -1,0 +1,149 @@
+"""Shrinkage toward the nominal robot instead of choosing which groups to fix (MAP, scale by GCV).
+
+Every grouped parameter is estimated, each pulled toward its nominal value by its prior 1σ
+(`pipeline.accuracy.prior`): the solver minimises
+
+    Σ r(x)²  +  μ² Σ_i ((x_i − x_nominal,i) / σ_prior,i)²
+
+over all parameters, the registration group (instrument frame, tool, targets, sockets, planes)
+unpenalised.  μ (m) is the measurement noise divided by the prior's scale; it is chosen from the
+data by generalised cross-validation, GCV(μ) = m·RSS / (m − dof)², dof = tr of the linearised hat
+matrix, over a grid of μ, each solve warm-started from the previous one (a few cheap fits instead of
+one per fold and candidate).  A parameter whose estimate is further from nominal than `PLAUSIBLE`
+prior σ is named in `implausible`: the caller warns of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+GRID = (0.03, 0.1, 0.3, 1.0, 3.0)  # μ as multiples of the registration-only RMS residual (per axis)
+PLAUSIBLE = 3.0  # prior σ beyond which an estimate is named implausible
+
+
+@dataclass(frozen=True)
+class Shrunk:
+    x: np.ndarray  # (P,) SI
+    mu_m: float  # chosen μ (m)
+    gcv: dict[float, float]  # μ → GCV score (m²)
+    dof: float  # effective number of parameters at μ
+    implausible: list[dict]  # [{name, estimate, nominal, prior_sigma, z}, …]
+    fits: int  # solves done
+
+
+def _penalty(model, prior_sigma: np.ndarray, fixed: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(free mask, weight 1/σ per parameter; 0 for the registration group)."""
+    names = model.parameter_names()
+    groups = model.groups() if hasattr(model, "groups") else {}
+    reg = set(groups.get("registration", []))
+    never = {n for g, v in groups.items() if g.startswith("_") for n in v} | set(fixed)
+    free = np.array([n not in never for n in names])
+    w = np.array([0.0 if (n in reg) else 1.0 / max(float(s), 1e-12) for n, s in zip(names, prior_sigma)])
+    return free, np.where(free, w, 0.0)
+
+
+def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[str, ...] = (),
+           scale_m: float | None = None, grid=GRID, progress=None) -> Shrunk:
+    """MAP estimate with μ chosen by GCV (module docstring).  `x0`: start (e.g. the registration-only
+    fit); `scale_m`: the registration-only RMS residual per axis (default: at x0)."""
+    nominal = np.asarray(model.nominal(), float)
+    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed)
+    idx = np.flatnonzero(free)
+    r0 = np.asarray(model.residuals(x0, data), float).ravel()
+    m = r0.size
+    scale = float(scale_m if scale_m is not None else np.sqrt(np.mean(r0**2)))
+    x = np.asarray(x0, float).copy()
+    scores: dict[float, float] = {}
+    best = None
+    for i, g in enumerate(sorted(grid, reverse=True)):  # strong shrinkage first: each solve starts near the last
+        mu = g * scale
+        lam = mu * w[idx]
+
+        def full(z):
+            xx = x.copy()
+            xx[idx] = z
+            return xx
+
+        def fun(z):
+            return np.r_[np.asarray(model.residuals(full(z), data), float).ravel(), lam * (z - nominal[idx])]
+
+        def jac(z):
+            J = np.asarray(model.jacobian(full(z), data), float).reshape(m, -1)[:, idx]
+            return np.vstack([J, np.diag(lam)])
+
+        sol = least_squares(fun, x[idx], jac=jac, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10, gtol=1e-10)
+        x = full(sol.x)
+        r = np.asarray(model.residuals(x, data), float).ravel()
+        J = np.asarray(model.jacobian(x, data), float).reshape(m, -1)[:, idx]
+        A = J.T @ J + np.diag(lam**2)
+        dof = float(np.trace(np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ (J.T @ J)))  # unpenalised may be rank-deficient
+        rss = float(r @ r)
+        scores[mu] = m * rss / max(m - dof, 1e-9) ** 2
+        if progress is not None:
+            progress(f"shrinkage μ = {mu * 1e3:.4g} mm ({i + 1}/{len(grid)}): GCV RMS "
+                     f"{np.sqrt(scores[mu]) * 1e3:.4g} mm, {dof:.1f} effective parameters")
+        if best is None or scores[mu] < best[1]:
+            best = (mu, scores[mu], x.copy(), dof)
+    mu, _, xb, dof = best
+    names = model.parameter_names()
+    implausible = []
+    for i in idx:
+        if w[i] > 0 and abs(xb[i] - nominal[i]) * w[i] > PLAUSIBLE:
+            implausible.append({"name": names[i], "estimate": float(xb[i]), "nominal": float(nominal[i]),
+                                "prior_sigma": float(1 / w[i]), "z": float((xb[i] - nominal[i]) * w[i])})
+    return Shrunk(xb, mu, scores, dof, implausible, len(grid))
+
+
+def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
+    """(`Fit` of the MAP estimate, `Shrunk`, k-fold held-out residuals (n, residual_dim)).
+
+    Start: the registration-only fit.  The fit's covariance is the posterior σ̂²(JᵀJ + Λ²)⁻¹ over the
+    estimated parameters (registration ones the data cannot separate are held by the rank test);
+    each fold re-solves at the chosen μ, warm-started from the whole-data estimate."""
+    import time
+    from dataclasses import replace
+
+    from pipeline.identify.complexity import fixed_for
+    from pipeline.identify.identifiability import analyse
+    from pipeline.identify.least_squares import Fit, fit, kfold_indices
+    from pipeline.identify.model import n_rows, take
+
+    t0 = time.perf_counter()
+    prior = options.prior_sigma
+    if prior is None:
+        from pipeline.accuracy.prior import prior_sigma
+
+        prior = prior_sigma(model)[0]
+    reg_fixed = tuple(set(options.fixed) | set(fixed_for(model, ["registration"])))
+    f0 = fit(model, data, replace(options, fixed=reg_fixed))
+    groups = [g for g in model.groups() if not g.startswith("_")]
+    fixed = tuple(set(options.fixed) | set(fixed_for(model, groups)))
+    # registration parameters the data cannot tell apart stay at their registration-only values
+    names = model.parameter_names()
+    held = tuple(n for i, n in enumerate(names) if not f0.free[i] and n in set(model.groups().get("registration", [])))
+    s = shrink(model, data, prior, f0.x, fixed=fixed + held, progress=progress)
+    n, kd = n_rows(data), model.residual_dim
+    holdout = np.full((n, kd), np.nan)
+    for test in kfold_indices(n, k, seed):
+        train = np.setdiff1d(np.arange(n), test)
+        sf = shrink(model, take(data, train), prior, s.x, fixed=fixed + held, grid=(s.mu_m,), scale_m=1.0)
+        holdout[test] = np.asarray(model.residuals(sf.x, take(data, test)), float).reshape(len(test), kd)
+    free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held)
+    J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
+    ident = analyse(np.vstack([J, np.diag(s.mu_m * w)]), names, ~free_mask, getattr(model, "priority", lambda: None)())
+    r1 = np.asarray(model.residuals(s.x, data), float).reshape(n, kd)
+    m, fr = r1.size, ident.free
+    sigma = float(np.sqrt(np.sum(r1**2) / max(m - s.dof, 1)))
+    A = J[:, fr].T @ J[:, fr] + np.diag((s.mu_m * w[fr]) ** 2)
+    cov = sigma**2 * np.linalg.pinv(A, rcond=1e-12, hermitian=True)
+    std = np.zeros(s.x.size)
+    std[fr] = np.sqrt(np.clip(np.diag(cov), 0, None))
+    for i in np.flatnonzero(free_mask & ~fr):
+        ident.reasons[int(i)] = "not separable from the rest even with its prior"
+    out = Fit(names=names, units=model.parameter_units(), nominal=f0.nominal, x=s.x, identifiability=ident, std=std,
+              cov=cov, residuals_before=f0.residuals_before, residuals_after=r1, sigma=sigma,
+              nfev=f0.nfev, elapsed_s=time.perf_counter() - t0)
+    return out, s, holdout

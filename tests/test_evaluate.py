@@ -40,11 +40,11 @@ def _truth_urdf() -> str:
     return t.replace('<origin xyz="0 0 0.1" rpy="-1.5708 0 0"/>', '<origin xyz="0.002 0 0.1" rpy="-1.5728 0 0.002"/>')
 
 
-def _measure(q: np.ndarray, frame: np.ndarray, rng) -> np.ndarray:
+def _measure(q: np.ndarray, frame: np.ndarray, rng, truth: str | None = None) -> np.ndarray:
     """Tool points of the true robot in an instrument frame (4×4 instrument → base), by yourdfpy."""
     import io
 
-    u = yourdfpy.URDF.load(io.BytesIO(_truth_urdf().encode()), load_meshes=False, build_scene_graph=True,
+    u = yourdfpy.URDF.load(io.BytesIO((truth or _truth_urdf()).encode()), load_meshes=False, build_scene_graph=True,
                            build_collision_scene_graph=False, load_collision_meshes=False)
     base_in_instr = np.linalg.inv(frame)
     out = []
@@ -62,10 +62,11 @@ def _frame(yaw: float, t) -> np.ndarray:
     return T
 
 
-def _recording(tmp: Path, name: str, n: int, seed: int, frame: np.ndarray, *extra: str) -> Path:
+def _recording(tmp: Path, name: str, n: int, seed: int, frame: np.ndarray, *extra: str, truth: str | None = None
+               ) -> Path:
     rng = np.random.default_rng(seed)
     q = rng.uniform(-1.2, 1.2, (n, 6))
-    p = _measure(q, frame, rng)
+    p = _measure(q, frame, rng, truth)
     csv = tmp / f"{name}.csv"
     csv.write_text("x,y,z," + ",".join(JOINTS) + "\n" + "\n".join(",".join(f"{v:.9f}" for v in np.r_[pi, qi])
                                                                   for pi, qi in zip(p, q)) + "\n")
@@ -128,6 +129,26 @@ def test_moved_instrument_is_error_unless_the_registration_is_refitted(calibrate
     assert refit["registration"] == "refitted (shared)"
     # the re-estimated frame is the true one (instrument → base; base.yaw = -0.31 rad)
     assert abs(refit["registration_values"]["base.yaw"] + 0.31) < 1e-4
+
+
+def test_shrinkage_carries_over_and_names_an_implausible_parameter(tmp_path):
+    """--model-choice shrinkage: every parameter pulled toward nominal by its prior; a link 15 mm longer
+    than its URDF says (7.5 prior σ) is still fitted, named in a warning, and the status is not pass."""
+    truth = _truth_urdf().replace('<origin xyz="0.403 0.002 -0.001"/>', '<origin xyz="0.415 0.002 -0.001"/>')
+    f0 = _frame(0.3, [1.0, -0.5, 0.2])
+    train = _recording(tmp_path, "train", 60, 11, f0, truth=truth)
+    test = _recording(tmp_path, "test", 30, 12, f0, truth=truth)
+    proc = run_cli("calibrate", train, "--model-choice", "shrinkage", "--out", tmp_path / "cal")
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads((tmp_path / "cal" / "results.json").read_text())
+    sel = doc["model_selection"]
+    assert [p["name"] for p in sel["implausible"]] == ["j3.x"], sel["implausible"]
+    assert any(w.startswith("j3.x:") and "implausible" in w for w in doc["warnings"]), doc["warnings"]
+    assert doc["status"] != "pass" and "j3.x" in doc["status_reason"]
+    proc = run_cli("evaluate", tmp_path / "cal", test, "--out", tmp_path / "ev")
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"][0]["rms_3d_m"]
+    assert got < 3 * NOISE * np.sqrt(3), got
 
 
 def test_bad_input_is_one_line(calibrated, tmp_path):

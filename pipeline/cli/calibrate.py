@@ -14,7 +14,8 @@ from pipeline.cli.run import PREVIOUS, PRIOR, STRICT, TARGETS, TOLERANCE, accura
 
 @app.command("calibrate")
 def calibrate_cmd(
-    recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
+    recordings: list[Path] = typer.Argument(..., help="Recording(s) (MCAP) of a calibration campaign; several "
+                                                      "recordings of one robot are calibrated together (sessions)."),
     out: Path = typer.Option(..., "--out", help="Output folder for results.json and model.json."),
     loss: str = typer.Option("linear", "--loss", help="Loss: linear, huber or soft_l1."),
     folds: int = typer.Option(5, "--folds", min=2, help="Folds of the held-out cross-validation."),
@@ -26,6 +27,8 @@ def calibrate_cmd(
                                 help="Model variant of the system (delta-tracker: simplified, extended)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
+    registration: str = typer.Option("shared", "--registration", help="Several recordings: shared (one instrument "
+                                                                      "frame) or per-recording."),
     model_choice: str = typer.Option("groups", "--model-choice",
                                      help="URDF robots: groups (keep groups that lower k-fold held-out error) or "
                                           "shrinkage (every parameter, pulled toward nominal by its prior; scale by GCV)."),
@@ -33,6 +36,9 @@ def calibrate_cmd(
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows
     from pipeline.identify.least_squares import FitOptions
+    from pipeline.importers.merge import merged_input
+
+    recording = merged_input(recordings, out, registration, run_folder=False)
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,

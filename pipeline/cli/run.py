@@ -142,7 +142,10 @@ STRICT = typer.Option(False, "--strict", help="Exit 1 unless the status is pass 
 
 @app.command("run")
 def run_cmd(
-    recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign, or a ROS 2 bag."),
+    recordings: list[Path] = typer.Argument(..., help="Recording (MCAP) of a calibration campaign, or a ROS 2 bag; "
+                                             "several recordings of one robot are calibrated together (sessions)."),
+    registration: str = typer.Option("shared", "--registration", help="Several recordings: shared (one instrument "
+                                                                      "frame) or per-recording."),
     out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
     loss: Optional[str] = LOSS, f_scale: Optional[float] = F_SCALE, reject: Optional[float] = REJECT,
     folds: Optional[int] = FOLDS,
@@ -167,6 +170,9 @@ def run_cmd(
     from pipeline.stages.runner import run_pipeline
 
     t0 = time.perf_counter()
+    from pipeline.importers.merge import merged_input
+
+    recording = merged_input(recordings, out, registration)
     recording = ros2_cli.run_input(recording, out, urdf, root, tip, joint_topic=joint_topic,
                                    measure_topic=measure_topic, measure=measure, window_s=window_s,
                                    max_speed=max_speed, time=time_source, sigma_m=sigma_m, sigma_rad=sigma_rad)

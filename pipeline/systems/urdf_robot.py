@@ -133,6 +133,17 @@ def load(rec):
     if measure == "coincidence":
         table["group"] = table.pop("group")
     model = model_for(arm, measure, campaign, labels)
+    sessions = campaign.get("sessions") or []
+    if sessions:  # several recordings calibrated together (pipeline.importers.merge)
+        counts = [int(s.get("rows", 0)) for s in sessions]
+        if sum(counts) != n:
+            raise RobocalError(f"{rec.path}: metadata robocal.campaign: sessions hold {sum(counts)} rows, "
+                               f"{topic} has {n}")
+        table["session"] = np.repeat(np.arange(len(counts)), counts).astype(np.int64)
+        if campaign.get("registration") == "per-recording" and len(counts) > 1 and measure != "coincidence":
+            from pipeline.measurements.sessions import SessionFrames
+
+            model = SessionFrames(model, len(counts))
     if measure == "coincidence" and campaign.get("distances"):
         table = _with_distances(rec, table, campaign["distances"], labels, arm.n_joints)
     return model, table

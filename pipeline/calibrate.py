@@ -97,13 +97,13 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
     if solver == "lm" and model_choice == "shrinkage" and selection is None and "shrunk" in locals():
-        doc["model_selection"] = {"method": "shrinkage toward nominal (MAP), scale by GCV", "mu_m": shrunk.mu_m,
-                                  "gcv_m2": {f"{k:.6g}": v for k, v in shrunk.gcv.items()},
-                                  "effective_parameters": shrunk.dof, "implausible": shrunk.implausible}
-        for p in shrunk.implausible:
-            warnings.append(f"{p['name']}: estimated {p['z']:+.1f} prior σ from nominal ({p['estimate']:.6g} against "
-                            f"{p['nominal']:.6g}, prior σ {p['prior_sigma']:.3g}): physically implausible")
+        from pipeline.identify.shrinkage import implausible_warnings, shrinkage_document
+
+        doc["model_selection"] = shrinkage_document(shrunk)
+        warnings += implausible_warnings(shrunk)
         doc["warnings"] = warnings
+        if shrunk.per_group:
+            doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
     from pipeline.accuracy.stage import guarded_document
 
     acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {})
@@ -144,7 +144,8 @@ def summary_rows(doc: dict) -> list[tuple[str, str]]:
         ("RMS after", mm(doc["rms_after_m"])),
         (f"held-out RMS ({doc['holdout_folds']}-fold CV)", mm(doc["holdout_rms_m"])),
         *([("RMS of the 3-D error before / after", f"{mm(doc['rms_3d_before_m'])} / {mm(doc['rms_3d_after_m'])}"),
-           (f"held-out RMS of the 3-D error ({doc['holdout_folds']}-fold, within this recording)",
+           ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(doc.get("holdout_kind", "")).startswith(
+               "whole") else f"{doc['holdout_folds']}-fold, within this recording") + ")",
             mm(doc["holdout_rms_3d_m"]))] if doc.get("rms_3d_after_m") is not None else []),
         ("max |residual| after", mm(doc["max_abs_after_m"])),
         ("predicted 3-D point accuracy (1σ, RMS)", mm(acc["rms_1sigma_m"])),

@@ -46,7 +46,8 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
     if s.get("rms_3d_after_m") is not None:  # the figure other tools publish: norm of each 3-D error, RMS
         rows[3:3] = [("RMS of the 3-D error before / after", f"{mm(s.get('rms_3d_before_m'))} / {mm(s['rms_3d_after_m'])}"),
-                     ("held-out RMS of the 3-D error (k-fold, within this recording)", mm(s.get("holdout_rms_3d_m")))]
+                     ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(s.get("holdout_kind", "")
+                      ).startswith("whole") else "k-fold, within this recording") + ")", mm(s.get("holdout_rms_3d_m")))]
         rows[5:8] = [(f"{k} (per axis)", v) for k, v in rows[5:8]]
     diag = doc.get("stages", {}).get("diagnose", {}).get("summary", {})
     if "findings" in diag:  # what the geometric model left out (issue 7)
@@ -146,6 +147,9 @@ def run_cmd(
                                              "several recordings of one robot are calibrated together (sessions)."),
     registration: str = typer.Option("shared", "--registration", help="Several recordings: shared (one instrument "
                                                                       "frame) or per-recording."),
+    model_choice: str = typer.Option("groups", "--model-choice", help="URDF robots: groups (keep groups that lower "
+                                     "k-fold held-out error) or shrinkage (every parameter pulled toward nominal by "
+                                     "its prior; scale by leaving out whole sessions/placements, else GCV)."),
     out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
     loss: Optional[str] = LOSS, f_scale: Optional[float] = F_SCALE, reject: Optional[float] = REJECT,
     folds: Optional[int] = FOLDS,
@@ -179,6 +183,12 @@ def run_cmd(
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
+    if model_choice != "groups":
+        from pipeline.errors import RobocalError
+
+        if model_choice != "shrinkage":
+            raise RobocalError(f"--model-choice {model_choice!r}: expected groups or shrinkage")
+        params["identify"]["model_choice"] = model_choice
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
     try:

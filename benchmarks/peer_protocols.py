@@ -8,7 +8,9 @@
   calibrated URDF evaluated by the same code.
 
 Models compared: registration only (nominal robot), robocal's default group selection (`groups`, k-fold
-over rows), every group free (`all`), shrinkage toward nominal with the scale by GCV (`shrinkage`).  Time:
+over rows), every group free (`all`), shrinkage toward nominal (`shrinkage`: scale by leaving out whole
+sockets where the recording has several, else GCV); `+tool`: the tool point estimated too (MUKCa frees its
+ball joint).  Time:
 CPU seconds of the model choice and of one plain fit of the chosen model.
 
     python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca [--mukca-train front_center]
@@ -68,12 +70,16 @@ def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
     """{choice: (Calibrated, choice CPU s, one plain fit CPU s, note)} fitted on `train_path` only."""
     from pipeline.accuracy.prior import prior_sigma
 
+    import dataclasses
+
     rec = read_recording(train_path)
-    model, data = detect(rec).load(rec)
-    prior = prior_sigma(model)[0]
-    groups = [g for g in model.groups() if not g.startswith("_")]
+    base_model, data = detect(rec).load(rec)
     out = {}
     for c in choices:
+        # "+tool": the tool point (Panda: the ball centre) estimated too, as MUKCa does (its config frees ball_joint)
+        model = dataclasses.replace(base_model, fit_tool=True) if c.endswith("+tool") else base_model
+        prior = prior_sigma(model)[0]
+        groups = [g for g in model.groups() if not g.startswith("_")]
         t0 = time.process_time()
         note = ""
         if c == "registration only":
@@ -81,9 +87,9 @@ def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
         elif c == "groups":
             sel = select(model, data, k=folds, options=FitOptions(prior_sigma=prior))
             fixed, note = sel.fixed, "+".join(sel.kept[1:]) or "—"
-        elif c == "all":
+        elif c.startswith("all"):
             fixed = fixed_for(model, groups)
-        if c == "shrinkage":
+        if c.startswith("shrinkage"):
             f, s, _ = shrunk_fit(model, data, FitOptions(prior_sigma=prior), k=2)
             x, t_choice = f.x, time.process_time() - t0
             note = f"μ {s.mu_m * 1e3:.3g} mm, {s.dof:.1f} eff. parameters, {len(s.implausible)} beyond 3σ"

@@ -88,3 +88,26 @@ def test_shrinkage_leaves_out_whole_sockets_and_carries_over(tmp_path):
     nominal = evaluate(from_urdf(REAL / "mukca_panda" / "urdf" / "panda.urdf", "panda_link0", "ball_link",
                                  "coincidence"), [read_recording(other)])[0]
     assert got["rms_3d_m"] < 0.2 * nominal["rms_3d_m"], (got["rms_3d_m"], nominal["rms_3d_m"])
+
+
+def test_headerless_coincidence_import_validates_without_a_time_warning(tmp_path):
+    """The known-distance rows have no time of their own: no time-order warning over them."""
+    from r6_robot import BARE_URDF
+
+    urdf = tmp_path / "r6.urdf"
+    urdf.write_text(BARE_URDF)
+    rng = np.random.default_rng(5)
+    files = []
+    for k in (0, 1):
+        f = tmp_path / f"hole_{k}.csv"
+        f.write_text("\n".join(",".join(f"{v:.6f}" for v in rng.uniform(-1, 1, 6)) for _ in range(8)) + "\n")
+        files.append(f)
+    rec = tmp_path / "c.mcap"
+    proc = run_cli("import", "csv", *files, "--urdf", urdf, "--root", "b", "--tip", "l6", "--measure", "coincidence",
+                   "--columns", "j1,j2,j3,j4,j5,j6", "--distance", "hole_0:hole_1:0.05", "--out", rec)
+    assert proc.returncode == 0, proc.stderr
+    proc = run_cli("run", rec, "--stages", "ingest,validate", "--out", tmp_path / "run")
+    assert proc.returncode == 0, proc.stderr
+    checks = {c["name"]: c for c in json.loads((tmp_path / "run" / "validate" / "validate.json").read_text())["checks"]}
+    assert checks["time_order"]["status"] == "pass", checks["time_order"]
+    assert "earlier than the previous" not in proc.stderr

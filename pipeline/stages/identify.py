@@ -76,7 +76,7 @@ def run(run_dir: Path, params: dict) -> dict:
         kept_data = data
     else:
         if grouped:  # keep only groups that improve held-out error
-            selection = select(model, data, k=folds, seed=int(params.get("seed", 0)), options=opts)
+            selection = select(model, data, k=folds, seed=int(params.get("seed", 0)), options=opts, progress=_progress)
             opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
         rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
         f = rf.fit

@@ -106,7 +106,9 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
         candidates.remove(g)
     # a small campaign may support a few parameters of a group but not the whole group
     n_res = len(next(iter(data.values()))) * model.residual_dim
-    singles = [n for g in candidates for n in model.groups()[g]] if n_res <= SINGLE_MAX_RESIDUALS else []
+    # (not with whole groups left out: a few groups cannot judge single parameters, and each costs a fit per group)
+    singles = ([n for g in candidates for n in model.groups()[g]] if n_res <= SINGLE_MAX_RESIDUALS and whole is None
+               else [])
     for _ in range(SINGLE_MAX_ROUNDS if singles else 0):
         n = grow(_screen(model, data, kept, singles, options))
         if n is None:

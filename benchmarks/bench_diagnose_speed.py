@@ -26,7 +26,7 @@ from pathlib import Path
 
 from pipeline.diagnose.diagnose import diagnose
 from pipeline.diagnose.stage import diagnose_recording, settings_of
-from pipeline.diagnose.table import from_recording
+from pipeline.diagnose.adapters.touch_table import from_recording
 from pipeline.ingest.context import last_motion_sign
 from pipeline.ingest.streams import JOINT_STATE, joint_stream
 from pipeline.recording.reader import read_recording

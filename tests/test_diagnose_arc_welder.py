@@ -11,9 +11,9 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.diagnose import effects as fx
+from pipeline.diagnose.library import term as fx
 from pipeline.diagnose.diagnose import Settings, diagnose
-from pipeline.diagnose.select import forward_select
+from pipeline.diagnose.inference.stepwise import forward_select
 from pipeline.models.jig import stepped_block
 from pipeline.simulate import effects as se
 from pipeline.simulate.arc_welder import Campaign, Noise

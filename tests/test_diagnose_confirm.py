@@ -1,4 +1,4 @@
-"""Honest intervals of the diagnosis's refit (`pipeline.diagnose.confirm`): CR2 cluster-robust
+"""Honest intervals of the diagnosis's refit (`pipeline.diagnose.inference.confirm`): CR2 cluster-robust
 standard errors with Bell–McCaffrey degrees of freedom, the shared-error sandwich's dof, and the
 t-based 95 % interval a finding reports."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from pipeline.diagnose import confirm
+from pipeline.diagnose.inference import confirm
 
 
 def test_cr2_dof_of_a_balanced_mean_is_clusters_minus_one_and_widens_the_interval():

@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pytest
 
-from pipeline.diagnose import delta as dd
+from pipeline.diagnose.adapters import delta as dd
 from pipeline.diagnose.diagnose import diagnose
 from pipeline.models.delta import Delta
 from pipeline.simulate import delta_tracker as sd

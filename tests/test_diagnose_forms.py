@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose import confirm, forms
-from pipeline.diagnose.effects import Effect
+from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import forms
+from pipeline.diagnose.library.term import Effect
 from pipeline.identify.least_squares import kfold_indices
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pipeline.diagnose.diagnose import Settings, diagnose
-from pipeline.diagnose.effects import pick, signature, touch_library
+from pipeline.diagnose.library.term import pick, signature, touch_library
 from pipeline.models import serial_arm
 from pipeline.models.jig import stepped_block
 from pipeline.simulate import effects as se

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from pipeline.blas import one_thread
-from pipeline.diagnose import lack_of_fit
-from pipeline.diagnose import scanner as ds
+from pipeline.diagnose.verdict import lack_of_fit
+from pipeline.diagnose.adapters import scanner as ds
 from pipeline.diagnose.diagnose import Settings, diagnose
 from pipeline.models import camera as cam
 from pipeline.simulate import scorbot_scanner as ss

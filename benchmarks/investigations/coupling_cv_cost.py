@@ -19,9 +19,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 import independent_touch as it  # noqa: E402
 
-from pipeline.diagnose import confirm  # noqa: E402
-from pipeline.diagnose.effects import pick  # noqa: E402
-from pipeline.diagnose.touch import touch_adapter  # noqa: E402
+from pipeline.diagnose.inference import confirm  # noqa: E402
+from pipeline.diagnose.library.term import pick  # noqa: E402
+from pipeline.diagnose.adapters.touch import touch_adapter  # noqa: E402
 from pipeline.identify.least_squares import fit, kfold_indices  # noqa: E402
 from pipeline.systems import arc_welder as aw  # noqa: E402
 

@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 import bench_diagnose_scanner as bs
-from pipeline.diagnose import scanner as ds
+from pipeline.diagnose.adapters import scanner as ds
 from pipeline.diagnose.diagnose import Settings, diagnose
 from pipeline.simulate import scorbot_scanner as ss
 from pipeline.simulate.effects import parse_effect

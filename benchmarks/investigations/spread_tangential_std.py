@@ -10,8 +10,8 @@ import sys
 import numpy as np
 from scipy import stats
 
-from pipeline.diagnose import confirm
-from pipeline.diagnose.select import noise_components
+from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference.clustered import noise_components
 
 
 def working_cov(r, cl, src, Z, with_re, corner_id=None):

@@ -7,8 +7,8 @@ import sys, json
 import numpy as np
 import bench_diagnose_scanner as b
 from spread_cases import tangential_cases
-from pipeline.diagnose import confirm
-from pipeline.diagnose import scanner as ds
+from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.adapters import scanner as ds
 from pipeline.diagnose.diagnose import Settings, diagnose
 from pipeline.simulate import scorbot_scanner as ss
 from pipeline.simulate.effects import parse_effect

@@ -22,14 +22,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.blas import one_thread
-from pipeline.diagnose import confirm, document, forms, grading, judge, outliers, refit
-from pipeline.diagnose.adapter import Adapter, _extremeness, physical_lack_of_fit, physical_reference  # noqa: F401
-from pipeline.diagnose.effects import Effect, tip_speed_vector
-from pipeline.diagnose.grading import MIN_BOOTSTRAP  # noqa: F401  (re-exported)
-from pipeline.diagnose.select import (Whitener, cluster_whitener, conditional_steps, forward_select, gate,
-                                      look_alikes, measurement_whitener, noise_components, orthonormal,
-                                      project_out, sigma_given, sign_flip_elimination)
-from pipeline.diagnose.touch import touch_adapter  # noqa: F401  (re-exported)
+from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.document import assemble
+from pipeline.diagnose.inference import forms
+from pipeline.diagnose.verdict import grading
+from pipeline.diagnose.verdict import arbiter
+from pipeline.diagnose.verdict import outliers
+from pipeline.diagnose.inference import refit
+from pipeline.diagnose.adapters.adapter import Adapter
+from pipeline.diagnose.library.term import Effect, tip_speed_vector
+from pipeline.diagnose.verdict.grading import MIN_BOOTSTRAP  # noqa: F401  (re-exported)
+from pipeline.diagnose.inference.clustered import Whitener, cluster_whitener, measurement_whitener, noise_components, sign_flip_elimination
+from pipeline.diagnose.inference.stepwise import conditional_steps, forward_select, look_alikes
+from pipeline.diagnose.inference.gate import gate, sigma_given
+from pipeline.diagnose.inference.projection import orthonormal, project_out
+from pipeline.diagnose.adapters.touch import touch_adapter  # noqa: F401  (re-exported)
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
 
 
@@ -55,7 +62,7 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
              geometry_fit: Fit | None = None, adapter: Adapter | None = None) -> dict:
     """Diagnose a campaign (module docstring).  `model` is a measurement model; `table` a
     diagnosis table.  Without `adapter`, `model` is an arc-welder TouchModel and the table a
-    touch diagnosis table (`pipeline.diagnose.table`).  Vector residuals (residual_dim k > 1)
+    touch diagnosis table (`pipeline.diagnose.adapters.touch_table`).  Vector residuals (residual_dim k > 1)
     are flattened measurement-major; cross-validation and bootstrap keep a measurement's k
     rows together.  Runs with one BLAS thread (`pipeline.blas`: small matrices)."""
     with one_thread():
@@ -207,15 +214,15 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         if i in form_cv:
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
 
-    # 5b. the held-out arbiter (judge.arbiter) and the influence of single records (judge.carried)
-    fin = judge.Final(findings, accepted, contributions, col_of, A, r_final, after_cv)
+    # 5b. the held-out arbiter (arbiter.arbiter) and the influence of single records (arbiter.carried)
+    fin = arbiter.Final(findings, accepted, contributions, col_of, A, r_final, after_cv)
     # (pose-clustered campaigns: the unweighted CV ignores the shared pose errors, so there the findings
     # rest on the pose sign-flip check instead and a finding without CV improvement is graded `low`)
-    fin, rejected, worse, all_cv = (judge.arbiter(fin, folds, Jf, r, before_cv) if W is None
+    fin, rejected, worse, all_cv = (arbiter.arbiter(fin, folds, Jf, r, before_cv) if W is None
                                     else (fin, [], False, confirm.rms(after_cv)))
     findings, accepted, contributions, col_of, A, r_final, after_cv = (
         fin.findings, fin.accepted, fin.contributions, fin.col_of, fin.A, fin.r_final, fin.after_cv)
-    carried = judge.carried(fin, k, s.alpha) if influence and W is None else {}
+    carried = arbiter.carried(fin, k, s.alpha) if influence and W is None else {}
 
     # 6. lack of fit, the confidence of each name, back to the floor (grading)
     variables, lof, where = grading.locate(ad, z[:ng], r_final, A, W, nk, s.alpha, s.seed, src, nm, cl, M)
@@ -225,10 +232,10 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     floor, st_name, st_reason = grading.floor_and_status(ad, z[:ng], r_final, A, after_cv, folds, findings, where,
                                                          worse, misfit, s.alpha)
     # 7. visual proof (added-variable plots, the re-simulated campaign: pure arrays) and the document
-    resim = document.add_plots(ad, findings, effects, contributions, where, variables, r, r_final, A, Jf, n, k)
-    return document.assemble(
+    resim = assemble.add_plots(ad, findings, effects, contributions, where, variables, r, r_final, A, Jf, n, k)
+    return assemble.assemble(
         system=model.system, n=n, k=k, sigma=sigma, sigma_after=sigma_after, s=s,
-        clustered=None if W is None else document.clustered_summary(W, nm, s, ad, lib, dropped),
+        clustered=None if W is None else assemble.clustered_summary(W, nm, s, ad, lib, dropped),
         status=(st_name, st_reason), floor=floor, findings=findings, rejected=rejected,
         carried=carried if influence else None, gates=gates, where=where, lof=lof, before_cv=before_cv,
         after_cv=after_cv, all_cv=all_cv, names=names, z=z, free=free, resim=resim)

@@ -2,7 +2,7 @@
 
 Same controller as `pipeline.simulate.arc_welder` (nominal IK to an approach pose, search
 along the nominal face normal, contact decided by the true robot), but the true robot also
-has the effects of `pipeline.diagnose.effects` (compliance under gravity and payload,
+has the effects of `pipeline.diagnose.library.term` (compliance under gravity and payload,
 backlash, harmonics, scale, wrist coupling, thermal drift, trigger pretravel and latency, face
 offsets, and the out-of-library `bump`), and the campaign can vary what exposes them
 (payloads, search speeds, face order, a warm-up logged or not by a temperature sensor —
@@ -19,8 +19,8 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from pipeline.diagnose import effects as fx
-from pipeline.diagnose.table import add_context, last_motion_sign
+from pipeline.diagnose.library import term as fx
+from pipeline.diagnose.adapters.touch_table import add_context, last_motion_sign
 from pipeline.identify.identifiability import analyse
 from pipeline.models import ik, serial_arm
 from pipeline.models.jig import Jig

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.stats
 
-from pipeline.diagnose.select import orthonormal, project_out, wild_cluster_p
+from pipeline.diagnose.inference.projection import orthonormal, project_out
+from pipeline.diagnose.inference.sign_flips import wild_cluster_p
 from pipeline.models import serial_arm
 
 

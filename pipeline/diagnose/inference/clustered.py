@@ -11,7 +11,7 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from pipeline.diagnose.projection import orthonormal, project_out
+from pipeline.diagnose.inference.projection import orthonormal, project_out
 
 
 # ----- pose-clustered inference -------------------------------------------------------------
@@ -347,7 +347,7 @@ def sign_flip_elimination(W: Whitener, r: np.ndarray, Jw: np.ndarray, S: list[np
     (`sign_flips.cluster_sign_flip_p`, whitened problem): while Holm's step-down over a family of m
     does not reject every block given the others, drop the least significant.  Returns (kept,
     {kept block: Holm-adjusted p}, dropped blocks)."""
-    from pipeline.diagnose.sign_flips import cluster_sign_flip_p
+    from pipeline.diagnose.inference.sign_flips import cluster_sign_flip_p
 
     rw = W(r)
     Sw = {i: W(S[i]) for i in accepted}

@@ -1,6 +1,6 @@
 """More of the arc-welder effect library (issue 18): couplings, link growth, face shape, wire.
 
-Same `Effect` contract and sign conventions as `pipeline.diagnose.effects` (a ``joint`` effect
+Same `Effect` contract and sign conventions as `pipeline.diagnose.library.term` (a ``joint`` effect
 is δq added to the encoder reading to get the true joint angle; a ``tip`` effect displaces the
 true tip by D·θ in {W}):
 
@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.effects import Effect, Table, temperature_columns
+from pipeline.diagnose.library.term import Effect, Table, temperature_columns
 from pipeline.models import serial_arm
 
 NEIGHBOURS = ((0, 1), (1, 0), (1, 2), (2, 1), (2, 3), (3, 2))

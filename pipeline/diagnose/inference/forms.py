@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose import confirm
-from pipeline.diagnose.effects import Effect
+from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.library.term import Effect
 
 
 def alternatives(lib: list[Effect], i: int, pool: list[int]) -> list[int]:

@@ -5,9 +5,9 @@
   adapter's physical cluster-error model) → `unexplained_where` entries with advice;
 - `grade`: a finding is `low` when it is re-selected in few bootstrap resamples, has no
   held-out improvement, leaves structure along its own variable, is misspecified there
-  (`judge.misspecification`), or is a likely proxy of located structure or of a narrow bump
-  along its own variable; `medium` with a twin the campaign cannot tell from it (`judge.twins`);
-- `floor_and_status`: back to the declared noise floor (`verdict.floor_check`), the status, and
+  (`arbiter.misspecification`), or is a likely proxy of located structure or of a narrow bump
+  along its own variable; `medium` with a twin the campaign cannot tell from it (`arbiter.twins`);
+- `floor_and_status`: back to the declared noise floor (`checks.floor_check`), the status, and
   `high` findings of a partial diagnosis downgraded to `medium`.
 """
 
@@ -17,8 +17,11 @@ import dataclasses
 
 import numpy as np
 
-from pipeline.diagnose import confirm, judge, lack_of_fit, verdict
-from pipeline.diagnose.adapter import _extremeness, physical_lack_of_fit
+from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.verdict import arbiter
+from pipeline.diagnose.verdict import lack_of_fit
+from pipeline.diagnose.verdict import checks
+from pipeline.diagnose.verdict.physical_lack_of_fit import _extremeness, physical_lack_of_fit
 
 MIN_BOOTSTRAP = 0.5  # a confident finding is re-selected in at least this share of resamples
 
@@ -38,7 +41,7 @@ def locate(ad, xg: np.ndarray, r_final: np.ndarray, A: np.ndarray, W, nk: int, a
                                    original=(r_final, A, variables), cluster=cl, seed=seed)
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
               "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m,
-              "advice": verdict.advice_for(t.variable)}
+              "advice": checks.advice_for(t.variable)}
              for t in sorted(lof, key=_extremeness)
              if t.significant]
     return variables, lof, where
@@ -60,8 +63,8 @@ def grade(findings: list[dict], effects: list, contributions: list, col_of_list:
             fd["note"] = (f"structure remains in {e.variable} that {e.name} does not explain; "
                           "the effect may be something outside the library")
     # misspecification along each finding's own variable, and names the campaign cannot make unique
-    misfit = judge.misspecification(findings, effects, r_final, A, variables, alpha) if W is None else []
-    judge.twins(findings, gates)
+    misfit = arbiter.misspecification(findings, effects, r_final, A, variables, alpha) if W is None else []
+    arbiter.twins(findings, gates)
     # a likely proxy: a finding that is no longer significant once the located unexplained structure, or
     # a narrow bump along the finding's own variable (a localised error there), is in the design, while
     # that structure stays significant beside the finding (a real effect explains the bump away instead)
@@ -102,10 +105,10 @@ def floor_and_status(ad, xg: np.ndarray, r_final: np.ndarray, A: np.ndarray, aft
         # decided on the residuals (χ², exact null); the held-out residuals against what the floor gives
         # out of sample are reported beside it (their test, at α/2 beside the χ² at α/2, found 10 % more of
         # the nonlinear warm-ups on 16 seeds but read one clean campaign of 40 above the floor)
-        floor = verdict.floor_check(r_final, nk - A.shape[1], vf, alpha)
-        floor.update(verdict.holdout_floor_check(A, after_cv, folds, vf, alpha))
+        floor = checks.floor_check(r_final, nk - A.shape[1], vf, alpha)
+        floor.update(checks.holdout_floor_check(A, after_cv, folds, vf, alpha))
         floor["holdout_rms_over_floor"] = confirm.rms(after_cv) / floor["holdout_rms_expected_at_floor_m"]
-    st_name, st_reason = verdict.status(len(findings), bool(where), floor, worse, misfit)
+    st_name, st_reason = checks.status(len(findings), bool(where), floor, worse, misfit)
     if st_name == "partially_explained":
         for fd in findings:
             if fd["confidence"] == "high":

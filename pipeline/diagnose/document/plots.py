@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.select import orthonormal, project_out
+from pipeline.diagnose.inference.projection import orthonormal, project_out
 
 COMPONENTS = {1: ("",), 3: ("x", "y", "z")}
 

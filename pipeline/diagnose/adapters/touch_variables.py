@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.lack_of_fit import Variable, smooth_variable
+from pipeline.diagnose.verdict.lack_of_fit import Variable, smooth_variable
 from pipeline.models import serial_arm
 
 PAIRS = ((0, 1), (1, 0), (1, 2), (2, 1), (2, 3), (3, 2), (3, 4), (4, 3), (4, 5), (5, 4), (3, 5), (5, 3))

@@ -3,8 +3,8 @@
 - `arbiter`: findings whose modelling does not lower the grouped cross-validated RMS are
   rejected; when the model with the rest is worse out of sample than geometry alone, every
   finding is rejected and the final model is the geometry;
-- `carried`: findings that rest on one or two records (`verdict.carried_by`);
-- `misspecification`: findings whose own variable still shows structure (`verdict.misspecified`)
+- `carried`: findings that rest on one or two records (`checks.carried_by`);
+- `misspecification`: findings whose own variable still shows structure (`checks.misspecified`)
   are `low` confidence; `twins`: findings the gate found indistinguishable from another
   library candidate are `medium` and list it.
 """
@@ -15,7 +15,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pipeline.diagnose import confirm, verdict
+from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.verdict import checks
 
 
 @dataclass(frozen=True)
@@ -39,7 +40,7 @@ def arbiter(fin: Final, folds, Jf: np.ndarray, r: np.ndarray,
     fds = fin.findings
     rej = [j for j, fd in enumerate(fds) if fd["evidence"]["cv_rms_after_m"] >= fd["evidence"]["cv_rms_before_m"]]
     drop = np.array([c for j in rej for c in fin.col_of[fin.accepted[j]]], int)
-    A_k, r_k = verdict.linearised_subset(fin.A, fin.r_final, drop, [fin.contributions[j] for j in rej])
+    A_k, r_k = checks.linearised_subset(fin.A, fin.r_final, drop, [fin.contributions[j] for j in rej])
     cv_k = confirm.holdout(A_k, r_k, folds) if rej else fin.after_cv
     worse = bool(fds) and len(rej) < len(fds) and confirm.rms(cv_k) > confirm.rms(before_cv)
     if worse:
@@ -67,7 +68,7 @@ def carried(fin: Final, k: int, alpha: float) -> dict[str, list[int]]:
     nk = fin.r_final.size
     for fd, i, c in zip(fin.findings, fin.accepted, fin.contributions):
         rest = np.setdiff1d(np.arange(fin.A.shape[1]), fin.col_of[i])
-        rows = verdict.carried_by(fin.r_final - c.reshape(nk), fin.A[:, rest], fin.A[:, fin.col_of[i]], alpha)
+        rows = checks.carried_by(fin.r_final - c.reshape(nk), fin.A[:, rest], fin.A[:, fin.col_of[i]], alpha)
         if rows is not None:
             out[f"{fd['effect']}@{fd['location']}"] = sorted({int(q) // k for q in rows})
     return out
@@ -78,7 +79,7 @@ def misspecification(findings: list, effects: list, r_final: np.ndarray, A: np.n
     """Mark findings whose own variable still shows structure `low`; returns those variables."""
     misfit = []
     for fd, e in zip(findings, effects):
-        bad = verdict.misspecified(r_final, A, verdict.related(e.variable, str(e.location), variables), alpha)
+        bad = checks.misspecified(r_final, A, checks.related(e.variable, str(e.location), variables), alpha)
         if bad is not None:
             fd["evidence"]["p_value_own_variable_structure"] = bad[0]
             misfit.append(bad[1])

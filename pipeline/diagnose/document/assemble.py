@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose import confirm, visual
-from pipeline.diagnose.select import orthonormal
+from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.document import plots
+from pipeline.diagnose.inference.projection import orthonormal
 
 
 def not_identifiable(gates: list) -> list[dict]:
@@ -33,11 +34,11 @@ def add_plots(ad, findings: list[dict], effects: list, contributions: list, wher
     """Added-variable plots per finding, a plot per located variable; returns the re-simulation."""
     Qg = orthonormal(Jf)
     for fd, e, c in zip(findings, effects, contributions):
-        fd["plots"] = visual.added_variable(e, ad.located(e), r.reshape(n, k), r_final.reshape(n, k), c, Qg)
+        fd["plots"] = plots.added_variable(e, ad.located(e), r.reshape(n, k), r_final.reshape(n, k), c, Qg)
     for w in where:
         v = next(vv for vv in variables if vv.name == w["variable"])
-        w["plots"] = visual.unexplained(v, r.reshape(n, k), r_final.reshape(n, k), A, k)
-    return visual.resimulation(ad.time_s, r.reshape(n, k), r_final.reshape(n, k), contributions)
+        w["plots"] = plots.unexplained(v, r.reshape(n, k), r_final.reshape(n, k), A, k)
+    return plots.resimulation(ad.time_s, r.reshape(n, k), r_final.reshape(n, k), contributions)
 
 
 def clustered_summary(W, nm, s, ad, lib: list, dropped: list[int]) -> dict:

@@ -34,11 +34,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose import lack_of_fit
-from pipeline.diagnose.effects import Effect
+from pipeline.diagnose.verdict import lack_of_fit
+from pipeline.diagnose.library.term import Effect
 from pipeline.models import camera as cam
 from pipeline.models import serial_arm
-from pipeline.diagnose.scanner_noise import (  # noqa: F401  (re-exported)
+from pipeline.diagnose.adapters.scanner_noise import (  # noqa: F401  (re-exported)
     _skew, encoder_basis, joint_motion, pose_basis, repeatability_basis, repeatability_model, stripe_directions)
 
 PLAUSIBLE = {
@@ -304,7 +304,7 @@ def variables(model, x: np.ndarray, table) -> list[lack_of_fit.Variable]:
 
 def adapter(model, table, lib: list[Effect] | None = None):
     """`diagnose.Adapter` of a scanner diagnosis table (`add_context`)."""
-    from pipeline.diagnose.diagnose import Adapter
+    from pipeline.diagnose.adapters.adapter import Adapter
 
     lib = library(model, table) if lib is None else lib
     return Adapter(library=lib,
@@ -351,6 +351,6 @@ def from_recording(rec, stream=None):
 
 def effect_by_name(model, table, name: str, location: str | None) -> Effect:
     """The library entry `name@location` (location may be omitted when unique)."""
-    from pipeline.diagnose.effects import pick
+    from pipeline.diagnose.library.term import pick
 
     return pick(library(model, table), name, location)

@@ -16,8 +16,9 @@ import numpy as np
 import scipy.linalg
 from scipy import stats
 
-from pipeline.diagnose.effects import Effect, signature
-from pipeline.diagnose.select import forward_select, orthonormal, project_out
+from pipeline.diagnose.library.term import Effect, signature
+from pipeline.diagnose.inference.stepwise import forward_select
+from pipeline.diagnose.inference.projection import orthonormal, project_out
 from pipeline.models import serial_arm
 
 
@@ -27,7 +28,7 @@ class AugmentedModel:
 
     `signatures(x, data, effects)` → list of (n, residual_dim, k_e) m/unit per effect at
     geometric parameters x; without it, `base` is a serial-arm touch model (`.arm`) and the
-    arc-welder signatures of `pipeline.diagnose.effects` are used.  With `scaled`, the effect
+    arc-welder signatures of `pipeline.diagnose.library.term` are used.  With `scaled`, the effect
     parameters are in units of each effect's plausible size (`physical` converts back): a lens
     term in 1/m⁴ moves a point by ~1e-9 m per unit, a column the rank test would otherwise take
     for a zero one (≤ 1e-12 of the largest) and hold at 0.  With `exact(x, θ, data, effects,

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.projection import orthonormal, project_out
+from pipeline.diagnose.inference.projection import orthonormal, project_out
 
 
 def wild_cluster_p(res: np.ndarray, QA: np.ndarray, bases: list[np.ndarray], cluster: np.ndarray,

@@ -1,11 +1,11 @@
 """Records, not physics: the influence screen around a diagnosis (issue 18, `verdict`).
 
 Before the diagnosis: a record whose derived approach speed is beyond any touch search
-(`verdict.implausible_speed`) or, when the recording has each contact's search command, off the
-commanded search speed (`verdict.speed_mismatch`), or whose residual is far off the geometric fit (externally
-studentized, Bonferroni at the family α: `verdict.studentized_outliers`), is set aside and
+(`checks.implausible_speed`) or, when the recording has each contact's search command, off the
+commanded search speed (`checks.speed_mismatch`), or whose residual is far off the geometric fit (externally
+studentized, Bonferroni at the family α: `checks.studentized_outliers`), is set aside and
 named.  After it: a finding that is no longer significant with one or two records left out
-(`verdict.carried_by`, computed inside the diagnosis) is reported as an outlier of those records
+(`checks.carried_by`, computed inside the diagnosis) is reported as an outlier of those records
 and the diagnosis is run again without them (once; a finding still carried by a few records
 after that is rejected).  Every record set aside is listed in `outlier_records` with the reason.
 """
@@ -16,7 +16,7 @@ from typing import Callable
 
 import numpy as np
 
-from pipeline.diagnose import verdict
+from pipeline.diagnose.verdict import checks
 from pipeline.identify.least_squares import Fit, FitOptions, fit
 from pipeline.identify.model import take
 
@@ -39,25 +39,25 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
     out, bad = [], []
     if speed is not None:
         sp = speed(f.x, table)
-        for i in verdict.implausible_speed(sp):
+        for i in checks.implausible_speed(sp):
             bad.append(int(i))
             out.append(_entry(table, i, r, f"derived approach speed {sp[i]:.3g} m/s is beyond any touch search "
-                                           f"(> {verdict.MAX_SEARCH_SPEED_M_S} m/s): a fault of this record"))
+                                           f"(> {checks.MAX_SEARCH_SPEED_M_S} m/s): a fault of this record"))
         if "search_speed_m_s" in table:  # the recorded search command: the derived speed must match it
             cmd = np.asarray(table["search_speed_m_s"], float)
-            for i in verdict.speed_mismatch(sp, cmd):
+            for i in checks.speed_mismatch(sp, cmd):
                 if int(i) not in bad:
                     bad.append(int(i))
                     out.append(_entry(table, i, r, f"derived approach speed {sp[i]:.3g} m/s is not the commanded "
-                                                   f"search speed {cmd[i]:.3g} m/s (beyond ×{verdict.SPEED_FACTOR:g}): "
+                                                   f"search speed {cmd[i]:.3g} m/s (beyond ×{checks.SPEED_FACTOR:g}): "
                                                    f"a fault of this record's encoder stream or latch"))
     Jf = model.jacobian(f.x, table)[:, :, f.free].reshape(n, -1)
-    flagged = verdict.studentized_outliers(Jf, r, alpha)
+    flagged = checks.studentized_outliers(Jf, r, alpha)
     if flagged and hasattr(model, "points") and "face" in table:  # a local structure is not an outlier
-        t_all = verdict.studentized(Jf, r)
+        t_all = checks.studentized(Jf, r)
         tip = model.points(f.x, table)[0]
         flagged = [(i, t) for i, t in flagged
-                   if not verdict.has_like_neighbours(i, tip, np.asarray(table["face"]).astype(str), t_all)]
+                   if not checks.has_like_neighbours(i, tip, np.asarray(table["face"]).astype(str), t_all)]
     for i, t in flagged:
         if i not in bad:
             bad.append(i)

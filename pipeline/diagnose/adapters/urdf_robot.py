@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose import lack_of_fit
-from pipeline.diagnose.effects import Effect
-from pipeline.diagnose.urdf_gravity import gravity_torques, inertials
+from pipeline.diagnose.verdict import lack_of_fit
+from pipeline.diagnose.library.term import Effect
+from pipeline.diagnose.library.urdf_gravity import gravity_torques, inertials
 
 PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3, "joint_compliance": 1e-4,
              "joint_compliance_per_ampere": 1e-2}  # rad/A: 1e-4 rad/(N·m) × a torque constant up to 100 N·m/A
@@ -154,7 +154,7 @@ def adapter(model, table, held: tuple[str, ...] | None = None):
     """`diagnose.Adapter`; the geometric baseline holds what the held-out model selection did not
     keep (`pipeline.identify.complexity`; run here unless `held` is given), so the diagnosis starts
     from the calibration robocal reports, not from a model the data do not support."""
-    from pipeline.diagnose.diagnose import Adapter
+    from pipeline.diagnose.adapters.adapter import Adapter
     from pipeline.identify.complexity import select
 
     if held is None:

@@ -1,62 +1,17 @@
-"""What is system-specific in a diagnosis (`Adapter`), and the lack-of-fit test under an adapter's
-physical cluster-error model (`physical_lack_of_fit`, the scanner's pose errors)."""
+"""Lack of fit under an adapter's physical cluster-error model (the scanner's pose errors):
+the parametric-bootstrap reference (`physical_reference`) and the stepwise test of every
+lack-of-fit variable against it (`physical_lack_of_fit`).  Residuals in m, flattened
+measurement-major (n·residual_dim rows)."""
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 import scipy.stats
 
-from pipeline.diagnose import lack_of_fit
-from pipeline.diagnose.effects import Effect
-from pipeline.diagnose.select import PhysicalModel, Whitener, physical_components, physical_whitener
-
-
-@dataclass(frozen=True)
-class Adapter:
-    """What is system-specific in a diagnosis (everything else is shared).
-
-    - `library`: the candidate effects;
-    - `signatures(x, data, effects)`: list of (n, residual_dim, k_e) residual change per unit
-      parameter of each effect at geometric parameters x (m/unit);
-    - `variables(x)`: lack-of-fit `Variable`s whose rows are the flattened residual rows
-      (measurement-major, n·residual_dim);
-    - `time_s` (n,): time since start (s), for cross-validation blocks;
-    - `located(effect)`: (label, values (n,)) — the variable an effect acts through, for the
-      added-variable plots (None: the measurement index);
-    - `cluster` (n,): the cluster (pose) of each measurement when several measurements share
-      one pose's error (None: every measurement is its own cluster), and `cluster_basis(x)`
-      (n, residual_dim, p): how a pose's error reaches each residual (None: a shift per
-      residual axis) — the tests are then made under the random-effects model of
-      `select.cluster_whitener` (pose-clustered inference, docs/diagnose.md);
-    - `cluster_model(x)`: (B (n, residual_dim, p), column groups) — a physical model of the cluster
-      error (B_g e_g, e_g ~ N(0, diag θ), θ shared within each group, estimated from the data):
-      the lack-of-fit test then whitens by it and takes its p-values from a parametric bootstrap
-      under it (`physical_reference`) instead of the sign flips;
-    - `shared_error`: (Z (n·residual_dim, g) group membership, τ² m²) — an error shared by the
-      rows of a group with a variance known a priori (a jig face's machining error within the
-      jig's tolerance); the refit's parameter std then use `confirm.shared_error_covariance`.
-    """
-
-    library: list[Effect]
-    signatures: Callable[[np.ndarray, object, tuple], list[np.ndarray]]
-    variables: Callable[[np.ndarray], list]
-    time_s: np.ndarray
-    located: Callable[[Effect], tuple[str, np.ndarray] | None] = lambda e: None
-    cluster: np.ndarray | None = None
-    cluster_basis: Callable[[np.ndarray], np.ndarray] | None = None
-    noise_shape: Callable[[np.ndarray], np.ndarray] | None = None
-    cluster_model: Callable[[np.ndarray], tuple[np.ndarray, list[np.ndarray]]] | None = None
-    shared_error: tuple[np.ndarray, float] | None = None
-    held: tuple[str, ...] = ()  # weak-gauge parameters the geometric baseline holds at the model's nominal
-    # refit(effects): the joint refit's exact model of those effects when some are not additive
-    # enough (`confirm.AugmentedModel.exact`), or None (the additive model)
-    refit: Callable[[tuple], Callable | None] | None = None
-    # floor_variance(x) (n·residual_dim,) m²: the noise floor the campaign supports (`verdict.floor_check`)
-    floor_variance: Callable[[np.ndarray], np.ndarray] | None = None
+from pipeline.diagnose.inference.clustered import PhysicalModel, Whitener, physical_components, physical_whitener
+from pipeline.diagnose.verdict import lack_of_fit
 
 
 N_DRAWS = 2999  # parametric bootstrap draws of the lack-of-fit reference
@@ -87,7 +42,7 @@ def _extremeness(t) -> tuple[float, float]:
     return t.p_value, float(scipy.stats.f.sf(t.statistic, *t.dof)) if t.dof[0] else 1.0
 
 
-def physical_lack_of_fit(ad: Adapter, x: np.ndarray, r: np.ndarray, A: np.ndarray, variables: list, src: list, nm,
+def physical_lack_of_fit(ad, x: np.ndarray, r: np.ndarray, A: np.ndarray, variables: list, src: list, nm,
                          cl: np.ndarray, M, W: Whitener, alpha: float, seed: int) -> list:
     """Lack of fit under the adapter's physical cluster-error model (`physical_reference`), stepwise:
     test every variable (scan statistic, parametric bootstrap, Holm); when several are significant

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose import lack_of_fit, lof_variables
-from pipeline.diagnose.adapter import Adapter
-from pipeline.diagnose.effects import Effect, signature, tip_speed_vector, touch_library
-from pipeline.diagnose.verdict import touch_floor_variance
+from pipeline.diagnose.verdict import lack_of_fit
+from pipeline.diagnose.adapters import touch_variables
+from pipeline.diagnose.adapters.adapter import Adapter
+from pipeline.diagnose.library.term import Effect, signature, tip_speed_vector, touch_library
+from pipeline.diagnose.verdict.checks import touch_floor_variance
 from pipeline.models import serial_arm
 
 
@@ -27,7 +28,7 @@ def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Eff
         speed = None
         if "approach_joint_velocity" in table:
             speed = np.linalg.norm(tip_speed_vector(x, table), axis=1)
-        return lack_of_fit.touch_variables(x, table, jn, speed) + lof_variables.touch_extra(x, table, jn)
+        return lack_of_fit.touch_variables(x, table, jn, speed) + touch_variables.touch_extra(x, table, jn)
 
     def located(e: Effect):
         if e.name == "backlash" and e.location in jn:

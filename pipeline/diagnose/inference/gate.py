@@ -11,8 +11,8 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from pipeline.diagnose.effects import Effect
-from pipeline.diagnose.projection import orthonormal, project_out
+from pipeline.diagnose.library.term import Effect
+from pipeline.diagnose.inference.projection import orthonormal, project_out
 
 
 POWER_Z = scipy.stats.norm.ppf(0.8)  # 80 % power

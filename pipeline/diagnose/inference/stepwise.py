@@ -12,8 +12,8 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from pipeline.diagnose.gate import RANK_REL
-from pipeline.diagnose.projection import orthonormal, project_out
+from pipeline.diagnose.inference.gate import RANK_REL
+from pipeline.diagnose.inference.projection import orthonormal, project_out
 
 
 @dataclass

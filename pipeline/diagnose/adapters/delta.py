@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose import lack_of_fit
-from pipeline.diagnose.effects import Effect
+from pipeline.diagnose.verdict import lack_of_fit
+from pipeline.diagnose.library.term import Effect
 from pipeline.models import delta as dm
 
 ACTUATORS = ("A1", "A2", "A3")
@@ -118,7 +118,7 @@ def _drift_temperature(c):
 def _thermal(table, t) -> Effect:
     """thermal_drift against time, or against the recorded temperature rise when there is one."""
     if "temperature_rise_K" in table:
-        from pipeline.diagnose.effects import PLAUSIBLE_THERMAL_M_PER_K
+        from pipeline.diagnose.library.term import PLAUSIBLE_THERMAL_M_PER_K
 
         sensor = str(np.asarray(table["temperature_sensor"])[0])
         dT = np.asarray(table["temperature_rise_K"], float)
@@ -200,7 +200,7 @@ def variables(model, x: np.ndarray, table) -> list[lack_of_fit.Variable]:
 
 def adapter(model, table, lib: list[Effect] | None = None):
     """`diagnose.Adapter` of a Delta + tracker diagnosis table (`add_context`)."""
-    from pipeline.diagnose.diagnose import Adapter
+    from pipeline.diagnose.adapters.adapter import Adapter
 
     lib = library(model, table) if lib is None else lib
     return Adapter(library=lib,
@@ -224,7 +224,7 @@ def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray) -> dict
 def from_recording(rec, stream=None):
     """(TrackerModel, diagnosis table, info) of a delta-tracker recording; `stream` (a
     `JointStream` already decoded, e.g. by the ingest stage) saves decoding it again."""
-    from pipeline.diagnose.table import add_temperature
+    from pipeline.diagnose.adapters.touch_table import add_temperature
     from pipeline.ingest.streams import joint_stream
     from pipeline.ingest.temperature import temperature_stream
     from pipeline.systems import delta_tracker as dt

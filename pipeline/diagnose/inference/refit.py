@@ -15,8 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.diagnose import confirm
-from pipeline.diagnose.select import measurement_covariance, orthonormal, project_out
+from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference.clustered import measurement_covariance
+from pipeline.diagnose.inference.projection import orthonormal, project_out
 from pipeline.identify.least_squares import Fit, FitOptions, fit
 
 

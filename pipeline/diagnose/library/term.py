@@ -351,7 +351,7 @@ def touch_library(arm: SerialArm, table: Table, jig_tolerance_m: float = 2e-5) -
     for f in sorted(set(np.asarray(table["face"]).astype(str))):
         lib.append(Effect("face_offset", f, (f"offset_{f}",), ("m",), P["face_offset"], "coordinate", _face(f), 90,
                           "face", ADVICE["face_offset"], tolerance=jig_tolerance_m))
-    from pipeline.diagnose.effects_more import more_effects  # couplings, link growth, face shape, wire
+    from pipeline.diagnose.library.touch_more import more_effects  # couplings, link growth, face shape, wire
 
     return lib + more_effects(arm, table)
 

@@ -2,7 +2,7 @@
 leaves, on its noise-free campaign (seed 0, the benchmark's targets), in units of the noise σ at 4× the
 effect's MDS (12σ ⊥ the geometry in all): the norm of the signature ⊥ (geometry + the form's columns).
 
-Forms: growth of every link, of the long links alone (J2's a and J4's d here: `effects_more.link_groups`),
+Forms: growth of every link, of the long links alone (J2's a and J4's d here: `pipeline.diagnose.library.thermal.link_groups`),
 and one growth per link (a, d of J2, J3, J4, J5: four columns — beyond the campaign's detectable size at the
 plausible growth, so not in the library); time forms linear and 1 − e^(−t/τ), τ on the library's grid.
 Computed with the generator's own kinematics (finite differences of its link lengths), not the library's.

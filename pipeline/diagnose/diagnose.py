@@ -30,7 +30,8 @@ from pipeline.diagnose.verdict import arbiter
 from pipeline.diagnose.verdict import outliers
 from pipeline.diagnose.inference import refit
 from pipeline.diagnose.adapters.adapter import Adapter
-from pipeline.diagnose.library.term import Effect, tip_speed_vector
+from pipeline.diagnose.library.term import Effect
+from pipeline.diagnose.library.touch_probe import tip_speed_vector
 from pipeline.diagnose.verdict.grading import MIN_BOOTSTRAP  # noqa: F401  (re-exported)
 from pipeline.diagnose.inference.clustered import Whitener, cluster_whitener, measurement_whitener, noise_components, sign_flip_elimination
 from pipeline.diagnose.inference.stepwise import conditional_steps, forward_select, look_alikes

@@ -118,7 +118,7 @@ def _drift_temperature(c):
 def _thermal(table, t) -> Effect:
     """thermal_drift against time, or against the recorded temperature rise when there is one."""
     if "temperature_rise_K" in table:
-        from pipeline.diagnose.library.term import PLAUSIBLE_THERMAL_M_PER_K
+        from pipeline.diagnose.library.thermal import PLAUSIBLE_THERMAL_M_PER_K
 
         sensor = str(np.asarray(table["temperature_sensor"])[0])
         dT = np.asarray(table["temperature_rise_K"], float)

@@ -7,14 +7,16 @@ import numpy as np
 from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.diagnose.adapters import touch_variables
 from pipeline.diagnose.adapters.adapter import Adapter
-from pipeline.diagnose.library.term import Effect, signature, tip_speed_vector, touch_library
+from pipeline.diagnose.library.term import Effect, signature
+from pipeline.diagnose.library.touch import touch_library
+from pipeline.diagnose.library.touch_probe import tip_speed_vector
 from pipeline.diagnose.verdict.checks import touch_floor_variance
 from pipeline.models import serial_arm
 
 
 def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None,
                   repeatability_3sigma_m: float | None = None) -> Adapter:
-    """The arc-welder touch campaign's adapter (`effects.touch_library`, joint/time/speed lack of fit);
+    """The arc-welder touch campaign's adapter (`library.touch.touch_library`, joint/time/speed lack of fit);
     with the robot's declared repeatability, the noise floor (`verdict.touch_floor_variance`)."""
     arm = model.arm
     lib = library if library is not None else touch_library(arm, table, jig_tolerance_m)

@@ -10,9 +10,9 @@
    bootstrap selection frequency;
 6. lack-of-fit of the final residuals against smooth functions of each joint angle, time,
    approach speed (and, for touch campaigns, `lof_variables`) → `unexplained` and where;
-7. the verdict (issue 18, `judge` / `verdict`): the held-out arbiter, findings carried by one or
-   two records (`outliers` runs the diagnosis again without them), misspecification along each
-   finding's own variable, twins, back to the declared noise floor → `status`.
+7. the verdict (`verdict.arbiter`, `verdict.checks`): the held-out arbiter, findings carried by one or
+   two records (`verdict.outliers` runs the diagnosis again without them), misspecification along
+   each finding's own variable, twins, back to the declared noise floor → `status`.
 """
 
 from __future__ import annotations
@@ -22,22 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.blas import one_thread
-from pipeline.diagnose.inference import confirm
-from pipeline.diagnose.document import assemble
-from pipeline.diagnose.inference import forms
-from pipeline.diagnose.verdict import grading
-from pipeline.diagnose.verdict import arbiter
-from pipeline.diagnose.verdict import outliers
-from pipeline.diagnose.inference import refit
 from pipeline.diagnose.adapters.adapter import Adapter
+from pipeline.diagnose.adapters.touch import touch_adapter
+from pipeline.diagnose.document.assemble import add_plots, assemble, clustered_summary
+from pipeline.diagnose.inference import confirm, forms, refit, screen
+from pipeline.diagnose.inference.stepwise import look_alikes
 from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.touch_probe import tip_speed_vector
-from pipeline.diagnose.verdict.grading import MIN_BOOTSTRAP  # noqa: F401  (re-exported)
-from pipeline.diagnose.inference.clustered import Whitener, cluster_whitener, measurement_whitener, noise_components, sign_flip_elimination
-from pipeline.diagnose.inference.stepwise import conditional_steps, forward_select, look_alikes
-from pipeline.diagnose.inference.gate import gate, sigma_given
-from pipeline.diagnose.inference.projection import orthonormal, project_out
-from pipeline.diagnose.adapters.touch import touch_adapter  # noqa: F401  (re-exported)
+from pipeline.diagnose.verdict import arbiter, grading, outliers
 from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
 
 
@@ -86,157 +78,78 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
               influence: bool = False) -> dict:
     s = settings
     ad = adapter or touch_adapter(model, table, jig_tolerance_m, library, s.repeatability_3sigma_m)
+    # 1. the geometry, 2. every candidate's signature at its solution and the noise the tests assume
+    f = _geometry(model, table, ad, x0, geometry_fit)
+    p = screen.problem(model, table, f, ad)
+    nz = screen.noise_model(ad, f.x, p)
+    # 3. gate and selection (iterated with the noise model), each finding's form by held-out error
+    sel = screen.select(p, nz, s)
+    groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), p.k)
+    folds = kfold_indices(p.n * p.k, s.folds, s.seed, groups)
+    form_cv = _choose_forms(p, nz, sel, folds)
+    # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
+    alikes = (look_alikes(sel.r_w, sel.Sp, p.dof, [sel.testable.index(i) for i in sel.accepted], sel.tols)
+              if sel.accepted else {})
+    # 4. joint refit, 5. evidence per finding (ablation CV, ΔBIC, bootstrap)
+    before_cv = confirm.holdout(p.Jf, p.r, folds)
+    rf = refit.joint_refit(model, table, f, ad, adapter, p.lib, sel.accepted, p.Jf, p.r, p.dof, nz.cl, nz.nm, nz.src)
+    after_cv = confirm.holdout(rf.A, rf.r_final, folds)
+    boot = (confirm.bootstrap_frequency(sel.Jf_w, sel.r_w, sel.Sp, sel.tols, groups, s.alpha, s.n_boot, s.seed)
+            if sel.accepted and s.n_boot else np.zeros(len(sel.testable)))
+    ng = len(f.names)
+    findings, contributions, col_of = refit.finding_records(
+        rf, table, ad, p.lib, sel.accepted, sel.steps, ng, p.k, folds, after_cv, sel.gates, sel.testable, alikes,
+        sel.robust_p, boot)
+    for fd, i in zip(findings, sel.accepted):
+        if i in form_cv:
+            fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
+    # 6. the held-out arbiter and the records that carry a finding (`verdict.arbiter`); pose-clustered
+    # campaigns: the unweighted CV ignores the shared pose errors, so there the findings rest on the
+    # pose sign-flip check instead and a finding without CV improvement is graded `low`
+    fin = arbiter.Final(findings, sel.accepted, contributions, col_of, rf.A, rf.r_final, after_cv)
+    W = nz.W
+    fin, rejected, worse, all_cv = (arbiter.arbiter(fin, folds, p.Jf, p.r, before_cv) if W is None
+                                    else (fin, [], False, confirm.rms(after_cv)))
+    carried = arbiter.carried(fin, p.k, s.alpha) if influence and W is None else {}
+    # lack of fit, the confidence of each name, back to the floor (`verdict.grading`)
+    nk = p.n * p.k
+    variables, lof, where = grading.locate(ad, rf.z[:ng], fin.r_final, fin.A, W, nk, s.alpha, s.seed, nz.src, nz.nm,
+                                           nz.cl, nz.M)
+    effects = [p.lib[i] for i in fin.accepted]
+    misfit = grading.grade(fin.findings, effects, fin.contributions, [fin.col_of[i] for i in fin.accepted], fin.A,
+                           fin.r_final, variables, where, sel.gates, W, s.alpha)
+    floor, st_name, st_reason = grading.floor_and_status(ad, rf.z[:ng], fin.r_final, fin.A, fin.after_cv, folds,
+                                                         fin.findings, where, worse, misfit, s.alpha)
+    # 7. visual proof (added-variable plots, the re-simulated campaign: pure arrays) and the document
+    resim = add_plots(ad, fin.findings, effects, fin.contributions, where, variables, p.r, fin.r_final, fin.A, p.Jf,
+                      p.n, p.k)
+    return assemble(
+        system=model.system, n=p.n, k=p.k, sigma=p.sigma, sigma_after=rf.sigma_after, s=s,
+        clustered=None if W is None else clustered_summary(W, nz.nm, s, ad, p.lib, sel.dropped),
+        status=(st_name, st_reason), floor=floor, findings=fin.findings, rejected=rejected,
+        carried=carried if influence else None, gates=sel.gates, where=where, lof=lof, before_cv=before_cv,
+        after_cv=fin.after_cv, all_cv=all_cv, names=f.names, z=rf.z, free=f.free, resim=resim)
+
+
+def _geometry(model, table, ad: Adapter, x0: np.ndarray | None, geometry_fit: Fit | None) -> Fit:
+    """Step 1: the geometric fit, unless given.  The weak gauges the adapter holds stay at the model's
+    nominal (`Adapter.held`): freed because a term lowers the cost, they would absorb that term
+    before it is tested."""
     if geometry_fit is None and ad.held:
-        # the baseline every campaign gets (the clean one): a weak gauge freed because an effect
-        # lowers the cost would absorb that effect before it is tested
         names0 = list(model.parameter_names())
         idx = [names0.index(h) for h in ad.held]
         x0 = np.array(model.initial_guess(table) if x0 is None else x0, float)
         x0[idx] = model.nominal()[idx]
         geometry_fit = fit(model, table, FitOptions(x0=x0, fixed=tuple(ad.held)))
-    f = geometry_fit or fit(model, table, FitOptions(x0=x0))
-    n, k = f.residuals_after.shape
-    nk = n * k
-    x = f.x
-    free = f.free
-    names = f.names
-    free_names = [nm for nm, b in zip(names, free) if b]
-    Jf = model.jacobian(x, table)[:, :, free].reshape(nk, -1)
-    r = f.residuals_after.reshape(nk)
-    dof = nk - int(free.sum())
-    sigma = f.sigma
-    lib = ad.library
-    S3 = ad.signatures(x, table, tuple(lib))
-    S = [sg.reshape(nk, -1) for sg in S3]
+    return geometry_fit or fit(model, table, FitOptions(x0=x0))
 
-    # pose-clustered inference: the random-effects model of the cluster errors, estimated from the
-    # geometric residuals and re-estimated once effects are accepted (iterated feasible GLS).  The
-    # within-cluster noise (its variance components, and the σ of the minimum detectable sizes)
-    # comes from the residuals of the maximal model — geometry + every library candidate — so
-    # that an effect cannot inflate the noise it is tested against and hide in it
-    Zc, cl = None, None
-    if ad.cluster is not None:
-        Zb = (ad.cluster_basis(x) if ad.cluster_basis is not None
-              else np.broadcast_to(np.eye(k), (n, k, k)))
-        Zc = np.asarray(Zb, float).reshape(nk, -1)
-        cl = np.repeat(np.asarray(ad.cluster), k)
-    M, eff_rows, nm, W, sigma_noise, src = None, None, None, None, None, None  # M: per-measurement noise shape (k×k)
-    if Zc is not None:
-        if ad.noise_shape is not None:
-            r_max = project_out(r[:, None], orthonormal(np.hstack([Jf] + S)))[:, 0]
-            src = ad.noise_shape(x)
-            src = list(src) if isinstance(src, (list, tuple)) else [src]
-            nm = noise_components(r_max, Zc, cl, src)
-            M, eff_rows = measurement_whitener(src, nm.variances), nm.effective_rows
-            W_max = cluster_whitener(r_max, Zc, cl, int(free.sum()) + sum(sg.shape[1] for sg in S), pre=M,
-                                     effective_rows=eff_rows)
-            sigma_noise = None if W_max is None else W_max.sigma_within
 
-        W = cluster_whitener(r, Zc, cl, int(free.sum()), pre=M, effective_rows=eff_rows)
-    if W is not None:  # residual degrees of freedom: only the dimensions that carry noise
-        dof = W.n_effective - int(free.sum())
-
-    gate_cache: dict = {}  # the gate's σ-free part (unwhitened problem: the same in every screen)
-
-    def screen(W: Whitener | None, prior: list[int] | None = None):
-        """2. gate and 3. selection, on the whitened problem when W is given; the gate's σ is the
-        residual σ after the `prior` accepted effects (the geometry-only σ when there are none)."""
-        if W is None:
-            Jw, rw, Sw, sw = Jf, r, S, sigma
-        else:
-            Jw = W(Jf)
-            rw = project_out(W(r)[:, None], orthonormal(Jw))[:, 0]
-            Sw = [W(sg) for sg in S]
-            # the noise, not the geometry-only residual (which holds any effect): from the maximal model
-            sw = sigma_noise or W.sigma_within
-        if prior and (W is None or sigma_noise is None):
-            sw = sigma_given(rw, Jw, [Sw[i] for i in prior], dof)
-        gs = gate(lib, Sw, Jw, free_names, sw, s.alpha, gate_cache if W is None else None)
-        tst = [i for i, g in enumerate(gs) if g.identifiable]
-        sp = [gs[i].projected for i in tst]
-        tl = [lib[i].tolerance for i in tst]
-        return gs, tst, sp, tl, forward_select(rw, sp, dof, s.alpha, tl, s.max_terms), Jw, rw
-
-    # iterate: the gate's σ (and, with clusters, the whitener: feasible GLS) re-estimated from the
-    # residuals after the accepted effects, until the accepted set no longer changes
-    gates, testable, Sp, tols, steps, Jf_w, r_w = screen(W)
-    accepted = [testable[st.index] for st in steps]
-    for _ in range(3):
-        if not accepted:
-            break
-        if W is not None:
-            Dacc = np.hstack([Jf] + [S[i] for i in accepted])
-            coef, *_ = np.linalg.lstsq(Dacc, r, rcond=None)
-            W2 = cluster_whitener(r - Dacc @ coef, Zc, cl, Dacc.shape[1], pre=M, effective_rows=eff_rows)
-            W = W2 if W2 is not None else W
-        gates, testable, Sp, tols, steps, Jf_w, r_w = screen(W, accepted)
-        new = [testable[st.index] for st in steps]
-        done = sorted(new) == sorted(accepted)
-        accepted = new
-        if done:
-            break
-
-    # 3b. with clusters, the F tests rest on the whitener's model of the error within a pose; a
-    # finding must also pass the cluster-robust sign-flip test (Holm), or it is dropped
-    robust_p, dropped = {}, []
-    if W is not None and accepted and s.sign_flips:
-        accepted, robust_p, dropped = sign_flip_elimination(W, r, Jf_w, S, accepted, cl, len(testable), s.alpha,
-                                                             s.sign_flips, s.seed)
-        if dropped:
-            steps = conditional_steps(r_w, Sp, dof, [testable.index(i) for i in accepted], tols, len(testable))
-            accepted = [testable[st.index] for st in steps]
-
-    groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), k)
-    folds = kfold_indices(nk, s.folds, s.seed, groups)
-    # 3c. each finding's functional form among its family's forms: the held-out error decides (`forms`)
-    form_cv: dict = {}
-    if W is None and accepted:
-        chosen, form_cv = forms.choose(lib, accepted, testable, S, Jf, r, folds)
-        if chosen != accepted:
-            steps = conditional_steps(r_w, Sp, dof, [testable.index(i) for i in chosen], tols, len(testable))
-            accepted = [testable[st.index] for st in steps]
-
-    # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
-    alikes = look_alikes(r_w, Sp, dof, [testable.index(i) for i in accepted], tols) if accepted else {}
-
-    # 4. joint refit
-    before_cv = confirm.holdout(Jf, r, folds)
-    rf = refit.joint_refit(model, table, f, ad, adapter, lib, accepted, Jf, r, dof, cl, nm, src)
-    z, A, r_final, sigma_after = rf.z, rf.A, rf.r_final, rf.sigma_after
-    after_cv = confirm.holdout(A, r_final, folds)
-
-    # 5. evidence per finding: ablation CV, ΔBIC, bootstrap
-    boot = (confirm.bootstrap_frequency(Jf_w, r_w, Sp, tols, groups, s.alpha, s.n_boot, s.seed)
-            if accepted and s.n_boot else np.zeros(len(testable)))
-    ng = len(names)
-    findings, contributions, col_of = refit.finding_records(rf, table, ad, lib, accepted, steps, ng, k, folds,
-                                                            after_cv, gates, testable, alikes, robust_p, boot)
-    for fd, i in zip(findings, accepted):
-        if i in form_cv:
-            fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
-
-    # 5b. the held-out arbiter (arbiter.arbiter) and the influence of single records (arbiter.carried)
-    fin = arbiter.Final(findings, accepted, contributions, col_of, A, r_final, after_cv)
-    # (pose-clustered campaigns: the unweighted CV ignores the shared pose errors, so there the findings
-    # rest on the pose sign-flip check instead and a finding without CV improvement is graded `low`)
-    fin, rejected, worse, all_cv = (arbiter.arbiter(fin, folds, Jf, r, before_cv) if W is None
-                                    else (fin, [], False, confirm.rms(after_cv)))
-    findings, accepted, contributions, col_of, A, r_final, after_cv = (
-        fin.findings, fin.accepted, fin.contributions, fin.col_of, fin.A, fin.r_final, fin.after_cv)
-    carried = arbiter.carried(fin, k, s.alpha) if influence and W is None else {}
-
-    # 6. lack of fit, the confidence of each name, back to the floor (grading)
-    variables, lof, where = grading.locate(ad, z[:ng], r_final, A, W, nk, s.alpha, s.seed, src, nm, cl, M)
-    effects = [lib[i] for i in accepted]
-    misfit = grading.grade(findings, effects, contributions, [col_of[i] for i in accepted], A, r_final, variables,
-                           where, gates, W, s.alpha)
-    floor, st_name, st_reason = grading.floor_and_status(ad, z[:ng], r_final, A, after_cv, folds, findings, where,
-                                                         worse, misfit, s.alpha)
-    # 7. visual proof (added-variable plots, the re-simulated campaign: pure arrays) and the document
-    resim = assemble.add_plots(ad, findings, effects, contributions, where, variables, r, r_final, A, Jf, n, k)
-    return assemble.assemble(
-        system=model.system, n=n, k=k, sigma=sigma, sigma_after=sigma_after, s=s,
-        clustered=None if W is None else assemble.clustered_summary(W, nm, s, ad, lib, dropped),
-        status=(st_name, st_reason), floor=floor, findings=findings, rejected=rejected,
-        carried=carried if influence else None, gates=gates, where=where, lof=lof, before_cv=before_cv,
-        after_cv=after_cv, all_cv=all_cv, names=names, z=z, free=free, resim=resim)
+def _choose_forms(p: screen.Problem, nz: screen.Noise, sel: screen.Selection, folds: list) -> dict:
+    """Each finding's functional form among its family's forms: the held-out error decides
+    (`inference.forms`; independent errors only).  Returns {library index: forms tried}."""
+    if nz.W is not None or not sel.accepted:
+        return {}
+    chosen, form_cv = forms.choose(p.lib, sel.accepted, sel.testable, p.S, p.Jf, p.r, folds)
+    if chosen != sel.accepted:
+        sel.restrict(p, chosen)
+    return form_cv

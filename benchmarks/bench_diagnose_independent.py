@@ -39,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import independent_touch as it  # noqa: E402
 
-from pipeline.diagnose.diagnose import Settings, diagnose  # noqa: E402
+from pipeline.diagnose import Settings, diagnose  # noqa: E402
 from pipeline.diagnose.library.term import pick  # noqa: E402
 from pipeline.diagnose.inference.gate import CONFOUND, _explained  # noqa: E402
 from pipeline.diagnose.inference.projection import orthonormal, project_out  # noqa: E402

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pipeline.diagnose.library.gravity import gravity_torque
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.diagnose.inference.stepwise import forward_select
 from pipeline.models.jig import stepped_block
 from pipeline.simulate import effects as se

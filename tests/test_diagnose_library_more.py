@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.diagnose.library.term import pick, signature
 from pipeline.diagnose.library.touch import touch_library
 from pipeline.models import serial_arm

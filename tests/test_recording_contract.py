@@ -10,7 +10,7 @@ import pytest
 
 import independent_recording as ir
 import independent_touch as it
-from pipeline.diagnose.diagnose import Settings
+from pipeline.diagnose import Settings
 from pipeline.diagnose.stage import diagnose_recording
 from pipeline.diagnose.adapters.touch_table import from_recording
 from pipeline.models.jig import stepped_block

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.diagnose.stage import diagnose_recording
 from pipeline.errors import RobocalError
 from pipeline.ingest.temperature import TEMPERATURE, rise_at, temperature_stream

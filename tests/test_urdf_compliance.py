@@ -12,7 +12,7 @@ import pytest
 from r6_robot import URDF
 from test_urdf_diagnose import point_campaign
 
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.diagnose.library.urdf_gravity import gravity_torques
 from pipeline.diagnose.adapters.urdf_robot import adapter
 from pipeline.models import urdf, urdf_arm

@@ -21,7 +21,7 @@ SIMULATED = r'''
 import sys, json
 sys.path.insert(0, "{src}/tests")
 import independent_touch as it
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.systems import arc_welder as aw
 nom, tru = it.default_arms()
 tg = it.plan(nom, it.stepped_block(), m=120, seed=1)

@@ -22,7 +22,7 @@ import numpy as np
 
 import bench_diagnose_scanner as bs
 from pipeline.diagnose.adapters import scanner as ds
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.simulate import scorbot_scanner as ss
 from pipeline.simulate.effects import parse_effect
 from pipeline.systems import scorbot_scanner as sc

@@ -11,7 +11,7 @@ import bench_diagnose_scanner as b
 from spread_cases import tangential_cases
 from pipeline.diagnose.inference import confirm
 from pipeline.diagnose.adapters import scanner as ds
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.simulate import scorbot_scanner as ss
 from pipeline.simulate.effects import parse_effect
 from pipeline.systems import scorbot_scanner as sc

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.diagnose.diagnose import Settings
+from pipeline.diagnose.method import Settings
 
 NAME = "diagnose"
 SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner", "urdf")
@@ -35,7 +35,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
     """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker, SCORBOT scanner);
     `stream`: its encoder stream when already decoded (the ingest stage's `encoder.parquet`)."""
     from pipeline.diagnose.adapters import touch_table as dtable
-    from pipeline.diagnose.diagnose import diagnose
+    from pipeline.diagnose.method import diagnose
     from pipeline.identify.model import take
     from pipeline.systems.registry import detect
 

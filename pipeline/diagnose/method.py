@@ -9,7 +9,7 @@
 5. confirm: grouped cross-validation on time blocks (same folds before/after), ΔBIC,
    bootstrap selection frequency;
 6. lack-of-fit of the final residuals against smooth functions of each joint angle, time,
-   approach speed (and, for touch campaigns, `lof_variables`) → `unexplained` and where;
+   approach speed (and, for touch campaigns, `adapters.touch_variables`) → `unexplained` and where;
 7. the verdict (`verdict.arbiter`, `verdict.checks`): the held-out arbiter, findings carried by one or
    two records (`verdict.outliers` runs the diagnosis again without them), misspecification along
    each finding's own variable, twins, back to the declared noise floor → `status`.

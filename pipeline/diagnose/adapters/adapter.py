@@ -27,7 +27,7 @@ class Adapter:
       one pose's error (None: every measurement is its own cluster), and `cluster_basis(x)`
       (n, residual_dim, p): how a pose's error reaches each residual (None: a shift per
       residual axis) — the tests are then made under the random-effects model of
-      `select.cluster_whitener` (pose-clustered inference, docs/diagnose.md);
+      `inference.clustered.cluster_whitener` (pose-clustered inference, docs/diagnose.md);
     - `cluster_model(x)`: (B (n, residual_dim, p), column groups) — a physical model of the cluster
       error (B_g e_g, e_g ~ N(0, diag θ), θ shared within each group, estimated from the data):
       the lack-of-fit test then whitens by it and takes its p-values from a parametric bootstrap
@@ -51,5 +51,5 @@ class Adapter:
     # refit(effects): the joint refit's exact model of those effects when some are not additive
     # enough (`confirm.AugmentedModel.exact`), or None (the additive model)
     refit: Callable[[tuple], Callable | None] | None = None
-    # floor_variance(x) (n·residual_dim,) m²: the noise floor the campaign supports (`verdict.floor_check`)
+    # floor_variance(x) (n·residual_dim,) m²: the noise floor the campaign supports (`verdict.checks.floor_check`)
     floor_variance: Callable[[np.ndarray], np.ndarray] | None = None

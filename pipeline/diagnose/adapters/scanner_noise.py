@@ -76,7 +76,7 @@ def repeatability_model(model, x: np.ndarray, table) -> tuple[np.ndarray, list[n
     one variance for all joints, shaped by the arm's Jacobian (anisotropic, pose-dependent): the
     encoders misreading the joints (`encoder_basis`: the pure rigid motion) and the arm standing δq
     off at the capture (the flange displaced by its twist J_f δq: the slide mechanism).  The data
-    decide the six variances (`select.physical_components`)."""
+    decide the six variances (`clustered.physical_components`)."""
     B = repeatability_basis(model, x, table)
     q = np.asarray(table["joint_positions"], float)
     X = np.asarray(table["corner"], float)

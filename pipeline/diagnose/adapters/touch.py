@@ -17,7 +17,7 @@ from pipeline.models import serial_arm
 def touch_adapter(model, table, jig_tolerance_m: float = 2e-5, library: list[Effect] | None = None,
                   repeatability_3sigma_m: float | None = None) -> Adapter:
     """The arc-welder touch campaign's adapter (`library.touch.touch_library`, joint/time/speed lack of fit);
-    with the robot's declared repeatability, the noise floor (`verdict.touch_floor_variance`)."""
+    with the robot's declared repeatability, the noise floor (`verdict.checks.touch_floor_variance`)."""
     arm = model.arm
     lib = library if library is not None else touch_library(arm, table, jig_tolerance_m)
     jn = [j.name for j in arm.joints]

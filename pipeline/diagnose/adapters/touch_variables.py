@@ -1,4 +1,4 @@
-"""Lack of fit where the physics lives (issue 18): more variables for the touch campaign.
+"""Lack of fit where the physics lives: more variables for the touch campaign.
 
 Besides each joint angle, time, temperature and approach speed (`lack_of_fit.touch_variables`):
 

@@ -286,7 +286,7 @@ def rms(v: np.ndarray) -> float:
 def bootstrap_frequency(J: np.ndarray, r: np.ndarray, S: list[np.ndarray], tolerances: list[float],
                         groups: np.ndarray, alpha: float, n_boot: int = 40, seed: int = 0) -> np.ndarray:
     """How often each candidate is selected when the campaign's groups are resampled (n_cand,):
-    per resample the same stepwise selection as the diagnosis (`select.forward_select`: greedy
+    per resample the same stepwise selection as the diagnosis (`stepwise.forward_select`: greedy
     pass, backward elimination, pair additions) on the resampled, re-projected problem."""
     rng = np.random.default_rng(seed)
     uniq = np.unique(groups)

@@ -1,4 +1,4 @@
-"""Held-out choice of an effect's functional form (issue 18).
+"""Held-out choice of an effect's functional form (a family of forms of one term, chosen by grouped cross-validated RMS, m).
 
 Some library effects come in several forms of the same physics at the same place: a joint
 coupling Ji->Jj linear in q_i or quadratic about the campaign's mean angle; the growth of the

@@ -1,5 +1,16 @@
-"""The gate: which candidate effects this campaign can see (absorbed fraction, minimum detectable
-size, confounding; `select` module docstring)."""
+"""The gate: which candidate terms this campaign can see.
+
+Linear algebra at the geometric solution (Frisch–Waugh–Lovell): with Q an orthonormal basis
+of the free geometric Jacobian columns, a candidate's *projected signature* S⊥ = (I − QQᵀ)S
+is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at the optimum.
+
+- `gate`: absorbed fraction 1 − ‖S⊥‖²/‖S‖², minimum detectable size along the candidate's
+  weakest direction, (z₁₋α/(2m) + z₀.₈)·σ/s_min(S⊥) (+ its immaterial tolerance), and
+  confounding with other candidates; a candidate whose detectable size is beyond what is
+  physically plausible is `not_identifiable`.
+- `sigma_given`: the residual σ after the effects accepted so far — the gate's σ once something
+  is accepted (the geometry-only σ carries the unmodelled effects and inflates every MDS).
+"""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Sign-flip checks for pose-clustered campaigns: the restricted wild cluster bootstrap of a
 block's grouped F (`wild_cluster_p`) and of each finding given the others (`cluster_sign_flip_p`),
-the reference that assumes nothing about the error within a cluster (`select` module docstring)."""
+the reference that assumes nothing about the error within a cluster (`stepwise` module docstring)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,32 @@
-"""Stepwise selection by grouped F tests under Holm (`select` module docstring) and look-alikes
-(the cluster sign-flip checks are `sign_flips`)."""
+"""Stepwise selection of candidate terms by grouped F tests under Holm, and look-alikes (the
+cluster sign-flip checks are `sign_flips`).
+
+Linear algebra at the geometric solution (Frisch–Waugh–Lovell): with Q an orthonormal basis
+of the free geometric Jacobian columns, a candidate's *projected signature* S⊥ = (I − QQᵀ)S
+is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at the optimum.
+
+- `forward_select`: stepwise selection by grouped F tests under Holm's step-down thresholds
+  α/(m − j), m the number of testable candidates:
+  1. greedy forward pass: add the block with the smallest p given the geometry and the blocks
+     already accepted while it passes α/(m − j) (j accepted so far; exact ties — blocks
+     interchangeable given the accepted set — to the block that alone explains most).  Nothing accepted → stop:
+     the refinement never runs on data where the greedy pass finds nothing, so it cannot raise the
+     family error of a clean campaign;
+  2. backward elimination: test every accepted block given all the others (last-in grouped F);
+     while Holm's step-down over these p-values does not reject them all, drop the least
+     significant block;
+  3. forward additions again (single blocks, same thresholds), then a pair addition: the pair of
+     blocks whose joint grouped F given the accepted set is smallest, added when it passes
+     α/(m − j) divided by the number of pairs tried (Bonferroni over the search);
+  4. repeat 2–3 until the set no longer changes; the blocks reported are those of the final
+     backward step, each with its F given the others and Holm-adjusted p.
+  A pair whose sum a third candidate imitates (c ≈ a + b after projection) is the case this is
+  for: the greedy pass takes c and, given c, neither a nor b alone is significant; the pair {a, b}
+  is, and then c is no longer significant given {a, b}.  Conversely, when c alone is the truth and
+  lies in span(a, b), {a, b} adds only noise directions and parsimony keeps c.  Everything after
+  the set-up is algebra on the K×K Gram matrix of the unit-scaled candidate columns (K = Σk_c):
+  fits of any set and the tests of every block or pair against it, no refits.
+"""
 
 from __future__ import annotations
 

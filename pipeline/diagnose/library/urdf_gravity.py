@@ -1,4 +1,4 @@
-"""Gravity compliance of any URDF robot with inertials (issue 18).
+"""Gravity compliance of any URDF robot with inertials (torques in N·m, frames of the URDF).
 
 A joint of finite stiffness k_j deflects under the gravity torque of everything it carries:
 the true angle is the reading plus δq_j = c_j·τ_j(q), c_j = 1/k_j (rad/(N·m)), with

@@ -1,4 +1,4 @@
-"""Applying the verdict to a diagnosis' findings (issue 18; the tests are in `verdict`).
+"""Applying the verdict to a diagnosis' findings (the tests themselves are in `checks`).
 
 - `arbiter`: findings whose modelling does not lower the grouped cross-validated RMS are
   rejected; when the model with the rest is worse out of sample than geometry alone, every

@@ -1,4 +1,4 @@
-"""The diagnosis' verdict: what may be reported as found (issue 18).
+"""The diagnosis' verdict: what may be reported as found and with what confidence.
 
 Pure functions of (residuals, designs, tables):
 

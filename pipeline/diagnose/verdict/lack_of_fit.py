@@ -186,7 +186,7 @@ def sign_flips(res: np.ndarray, QA: np.ndarray, cluster: np.ndarray, n_boot: int
 
 def scan_cluster_p(sc: Scan, T: float, R: np.ndarray, dof: int) -> float:
     """p-value of the scan statistic T (the largest single-bump F over the scan) by the restricted
-    wild cluster bootstrap (`sign_flips` R, as `select.wild_cluster_p`): per replicate the max over the
+    wild cluster bootstrap (`sign_flips` R, as `sign_flips.wild_cluster_p`): per replicate the max over the
     whole scan, so the multiplicity of the scan is in the reference distribution.  (The
     unrestricted pool — r̂ less its best bump — is no use here: a bump on one cluster is invariant
     to that cluster's sign, so the replicates would never reach T and clean data would be rejected.)"""
@@ -198,15 +198,15 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
          whiten=None, original: tuple | None = None, cluster: np.ndarray | None = None,
          seed: int = 0, scan: bool = True, draws: np.ndarray | None = None) -> list[LackOfFit]:
     """Grouped F test of each variable's smooth basis against design A, Holm across variables.
-    With clustered errors, r, A and the variables' columns come whitened (`select.Whitener`),
+    With clustered errors, r, A and the variables' columns come whitened (`clustered.Whitener`),
     `whiten` is that W (for `locate`) and `original` = (r, A, variables) unwhitened: `peak_m`
     is then the smooth fitted to the original residuals (m, not whitened units).  With
     `cluster` (the cluster of each row) the p-values come from the wild cluster bootstrap
     instead of the F distribution, which would hold only if the whitening's between-cluster
     covariance (estimated from a few clusters) were exact: with `scan` (default) of the scan
     statistic (`scan_basis`, `scan_cluster_p`; `statistic` is then the best element's F and
-    `region` its centre ± width), else of the smooth basis's F (`select.wild_cluster_p`).  `draws` (N, B):
-    residuals drawn from a parametric null model (whitened like r, e.g. `select.PhysicalModel.draw`)
+    `region` its centre ± width), else of the smooth basis's F (`sign_flips.wild_cluster_p`).  `draws` (N, B):
+    residuals drawn from a parametric null model (whitened like r, e.g. `clustered.PhysicalModel.draw`)
     replace the sign flips as the scan statistic's reference (a parametric bootstrap)."""
     QA = orthonormal(A)
     if original is not None:
@@ -305,7 +305,7 @@ def grouped_p(y: np.ndarray, D: np.ndarray, S: np.ndarray, n_eff: int) -> float:
 
 def partial_p(r_wo: np.ndarray, A_rest: np.ndarray, S: np.ndarray, B: np.ndarray, whiten=None) -> tuple[float, float]:
     """(p of columns S given design [A_rest, B], p of B given [A_rest, S]) for residual r_wo (the
-    residual without S's fitted contribution), grouped F; with `whiten` (a `select.Whitener`) on the
+    residual without S's fitted contribution), grouped F; with `whiten` (a `clustered.Whitener`) on the
     whitened problem and its effective rows.  S is a likely proxy for B when the first is large
     (S adds nothing beyond B) and the second small (B adds something beyond S)."""
     if whiten is not None:

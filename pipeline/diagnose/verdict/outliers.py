@@ -1,4 +1,4 @@
-"""Records, not physics: the influence screen around a diagnosis (issue 18, `verdict`).
+"""Records, not physics: the influence screen around a diagnosis (`checks`).
 
 Before the diagnosis: a record whose derived approach speed is beyond any touch search
 (`checks.implausible_speed`) or, when the recording has each contact's search command, off the

@@ -21,8 +21,8 @@ def physical_reference(model_of_x: tuple, r: np.ndarray, A: np.ndarray, src: lis
                        M, W: Whitener, seed: int) -> tuple[Whitener, np.ndarray]:
     """(whitener, whitened null draws (nk, N_DRAWS)) of the adapter's physical cluster-error model
     (`model_of_x` = `Adapter.cluster_model(x)`: (B, column groups)) for residual r of design A: the error's variances θ by REML on the
-    measurement-whitened problem (`select.physical_components`, within σ_w from W), each cluster
-    whitened by its own covariance (`select.physical_whitener`), and residuals drawn from the
+    measurement-whitened problem (`clustered.physical_components`, within σ_w from W), each cluster
+    whitened by its own covariance (`clustered.physical_whitener`), and residuals drawn from the
     fitted model (measurement noise `nm` + B_g e_g) through the same whitener."""
     Bm, groups = model_of_x
     Bm = np.asarray(Bm, float).reshape(r.size, -1)

@@ -16,7 +16,8 @@ absorb it).  One module per family:
 - `jig`: the touched faces' offset, tilt and flatness;
 - `wire`: the welding wire's stick-out;
 - `urdf_gravity`: gravity torques of a URDF robot's inertials;
-- `touch`: the arc-welder touch campaign's catalogue of all of the above.
+- `lens`: the scanner camera's lens terms beyond one radial term (with their Jacobian) and the stripe geometry;
+- `touch`: the arc-welder touch campaign's catalogue of the joint, thermal, touch-probe, jig and wire terms.
 
 Importing a module here imports nothing of the diagnosis machinery (`inference`, `verdict`,
 `adapters`): identification can use the terms directly.

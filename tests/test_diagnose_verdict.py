@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.verdict import arbiter
 from pipeline.diagnose.verdict import checks
 from pipeline.identify.least_squares import kfold_indices
@@ -95,14 +95,14 @@ def test_arbiter_reports_nothing_when_the_model_is_worse_out_of_sample():
     r_final = r - A @ coef
     contrib = -(S @ coef[4:])[:, None]
     folds = kfold_indices(n, 5, 0, np.arange(n) // 5)
-    before, after = confirm.holdout(Jf, r, folds), confirm.holdout(A, r_final, folds)
-    assert confirm.rms(after) > confirm.rms(before)
+    before, after = resampling.holdout(Jf, r, folds), resampling.holdout(A, r_final, folds)
+    assert resampling.rms(after) > resampling.rms(before)
     fd = {"effect": "noise", "location": "x", "confidence": "high",
           "evidence": {"cv_rms_before_m": 0.0, "cv_rms_after_m": -1.0}}  # its own ablation looks fine ...
     fin = arbiter.Final([fd], [0], [contrib], {0: list(range(4, 34))}, A, r_final, after)
     out, rejected, worse, all_cv = arbiter.arbiter(fin, folds, Jf, r, before)
     assert worse and not out.findings and rejected[0]["confidence"] == "rejected"  # ... the whole model is not
-    assert confirm.rms(out.after_cv) == confirm.rms(before) and all_cv > confirm.rms(before)
+    assert resampling.rms(out.after_cv) == resampling.rms(before) and all_cv > resampling.rms(before)
 
 
 def test_status_names_what_is_left():
@@ -134,9 +134,9 @@ def test_holdout_floor_check_is_calibrated_on_noise_at_the_floor():
     for _ in range(300):
         e = rng.normal(0, np.sqrt(v))
         r = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
-        p.append(checks.holdout_floor_check(A, confirm.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"])
+        p.append(checks.holdout_floor_check(A, resampling.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"])
     p = np.array(p)
     assert 0.02 <= np.mean(p < 0.05) <= 0.09 and 0.4 <= np.mean(p < 0.5) <= 0.6
     e = rng.normal(0, 1.4 * np.sqrt(v))  # 1.4× the floor
     r = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
-    assert checks.holdout_floor_check(A, confirm.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"] < 0.05
+    assert checks.holdout_floor_check(A, resampling.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"] < 0.05

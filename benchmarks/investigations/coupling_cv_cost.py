@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 import independent_touch as it  # noqa: E402
 
-from pipeline.diagnose.inference import confirm  # noqa: E402
+from pipeline.diagnose.inference import resampling  # noqa: E402
 from pipeline.diagnose.library.term import pick  # noqa: E402
 from pipeline.diagnose.adapters.touch import touch_adapter  # noqa: E402
 from pipeline.identify.least_squares import fit, kfold_indices  # noqa: E402
@@ -43,12 +43,12 @@ def main() -> None:
             Jf = model.jacobian(f.x, table)[:, :, f.free].reshape(-1, int(f.free.sum()))
             r = f.residuals_after.reshape(-1)
             ad = touch_adapter(model, table, 2e-5, None, 1e-4)
-            folds = kfold_indices(r.size, 5, 0, confirm.time_blocks(ad.time_s, 5))
-            base = confirm.rms(confirm.holdout(Jf, r, folds))
+            folds = kfold_indices(r.size, 5, 0, resampling.time_blocks(ad.time_s, 5))
+            base = resampling.rms(resampling.holdout(Jf, r, folds))
             ratios = []
             for name, loc in COLUMNS:
                 (S,) = ad.signatures(f.x, table, (pick(ad.library, name, loc),))
-                ratios.append(confirm.rms(confirm.holdout(np.hstack([Jf, S.reshape(r.size, -1)]), r, folds)) / base)
+                ratios.append(resampling.rms(resampling.holdout(np.hstack([Jf, S.reshape(r.size, -1)]), r, folds)) / base)
             print(f"{label:14s} {seed:5d}  " + "  ".join(f"{x:20.3f}" for x in ratios))
 
 

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import bench_diagnose_scanner as b
 from spread_cases import tangential_cases
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import augmented
 from pipeline.diagnose.adapters import scanner as ds
 from pipeline.diagnose import Settings, diagnose
 from pipeline.simulate import scorbot_scanner as ss
@@ -19,7 +19,7 @@ from pipeline.systems import scorbot_scanner as sc
 NOISE = {"full": ss.Noise(), "img": ss.Noise(repeatability_3sigma_m=0, print_sigma_m=0),
          "rep": ss.Noise(image_px=0, print_sigma_m=0), "print": ss.Noise(image_px=0, repeatability_3sigma_m=0)}
 
-_crs = confirm.cluster_robust_std
+_crs = augmented.cluster_robust_std
 LAST: dict = {}
 
 
@@ -28,7 +28,7 @@ def _keep(A, r, cl, working=None):
     return _crs(A, r, cl, working)
 
 
-confirm.cluster_robust_std = _keep
+augmented.cluster_robust_std = _keep
 start, n, mode, mult, out = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3], float(sys.argv[4]), sys.argv[5]
 os.makedirs(out, exist_ok=True)
 for seed, sp, val in tangential_cases(start, n, mult):

@@ -10,7 +10,7 @@ import sys
 import numpy as np
 from scipy import stats
 
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import augmented
 from pipeline.diagnose.inference.clustered import noise_components
 
 
@@ -114,7 +114,7 @@ def main():
         d = np.load(fn)
         A, r, cl = d["A"], d["r"], d["cl"]
         src = [d["src_px"], d["src_print"]]
-        s_cr2, dof_cr2 = confirm.cluster_robust_std(A, r, cl)
+        s_cr2, dof_cr2 = augmented.cluster_robust_std(A, r, cl)
         unit = d["std"] / s_cr2[-2:]  # physical per fitted unit
         err = d["est"] - d["truth"]
         cn = np.linalg.norm(A, axis=0)

@@ -5,7 +5,7 @@ import sys, json
 import numpy as np
 import bench_diagnose_scanner as b
 from spread_cases import tangential_cases
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import augmented
 from pipeline.diagnose.adapters import scanner as ds
 from pipeline.diagnose import Settings, diagnose
 from pipeline.simulate import scorbot_scanner as ss
@@ -13,13 +13,13 @@ from pipeline.simulate.effects import parse_effect
 from pipeline.systems import scorbot_scanner as sc
 
 NOISE = {"full": ss.Noise(), "img": ss.Noise(repeatability_3sigma_m=0, print_sigma_m=0)}
-_crs = confirm.cluster_robust_std
+_crs = augmented.cluster_robust_std
 LAST = {}
 def _wrap(A, r, cl, working=None):
     s, d = _crs(A, r, cl, working)
     LAST.update(A=A, r=r, cl=cl, s=s, d=d)
     return s, d
-confirm.cluster_robust_std = _wrap
+augmented.cluster_robust_std = _wrap
 
 start, n, modes, mult = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3].split(","), float(sys.argv[4])
 for seed, sp, val in tangential_cases(start, n, mult):

@@ -7,7 +7,7 @@ import sys, json
 import numpy as np
 import bench_diagnose_scanner as b
 from spread_cases import tangential_cases
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import augmented
 from pipeline.diagnose.adapters import scanner as ds
 from pipeline.diagnose import Settings, diagnose
 from pipeline.simulate import scorbot_scanner as ss
@@ -17,7 +17,7 @@ from pipeline.systems import scorbot_scanner as sc
 NOISE = {"full": ss.Noise(), "img": ss.Noise(repeatability_3sigma_m=0, print_sigma_m=0),
          "rep": ss.Noise(image_px=0, print_sigma_m=0), "print": ss.Noise(image_px=0, repeatability_3sigma_m=0),
          "noimg": ss.Noise(image_px=0), "zero": ss.Noise(scale=0.0)}
-_crs = confirm.cluster_robust_std
+_crs = augmented.cluster_robust_std
 LAST: dict = {}
 
 
@@ -32,7 +32,7 @@ def _wrap(A, r, cl, working=None):
     return s, d
 
 
-confirm.cluster_robust_std = _wrap  # diagnose.py calls it as confirm.cluster_robust_std
+augmented.cluster_robust_std = _wrap  # diagnose.py calls it as augmented.cluster_robust_std
 
 def run(specs, seed, noise):
     c = ss.Campaign(poses=20, corners=8, seed=seed, capture_speed_rad_s=0.1, spread=True)

@@ -6,7 +6,7 @@
    minimum detectable size vs plausible size, confounding → `not_identifiable` with advice;
 3. forward selection by grouped F with Holm's correction (family α);
 4. joint nonlinear refit of geometry + accepted effects (parameters with 1σ);
-5. confirm: grouped cross-validation on time blocks (same folds before/after), ΔBIC,
+5. evidence: grouped cross-validation on time blocks (same folds before/after), ΔBIC,
    bootstrap selection frequency;
 6. lack-of-fit of the final residuals against smooth functions of each joint angle, time,
    approach speed (and, for touch campaigns, `adapters.touch_variables`) → `unexplained` and where;
@@ -25,7 +25,7 @@ from pipeline.blas import one_thread
 from pipeline.diagnose.adapters.adapter import Adapter
 from pipeline.diagnose.adapters.touch import touch_adapter
 from pipeline.diagnose.document.assemble import add_plots, assemble, clustered_summary
-from pipeline.diagnose.inference import confirm, forms, refit, screen
+from pipeline.diagnose.inference import forms, refit, resampling, screen
 from pipeline.diagnose.inference.stepwise import look_alikes
 from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.touch_probe import tip_speed_vector
@@ -84,17 +84,17 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     nz = screen.noise_model(ad, f.x, p)
     # 3. gate and selection (iterated with the noise model), each finding's form by held-out error
     sel = screen.select(p, nz, s)
-    groups = np.repeat(confirm.time_blocks(ad.time_s, s.block), p.k)
+    groups = np.repeat(resampling.time_blocks(ad.time_s, s.block), p.k)
     folds = kfold_indices(p.n * p.k, s.folds, s.seed, groups)
     form_cv = _choose_forms(p, nz, sel, folds)
     # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
     alikes = (look_alikes(sel.r_w, sel.Sp, p.dof, [sel.testable.index(i) for i in sel.accepted], sel.tols)
               if sel.accepted else {})
     # 4. joint refit, 5. evidence per finding (ablation CV, ΔBIC, bootstrap)
-    before_cv = confirm.holdout(p.Jf, p.r, folds)
+    before_cv = resampling.holdout(p.Jf, p.r, folds)
     rf = refit.joint_refit(model, table, f, ad, adapter, p.lib, sel.accepted, p.Jf, p.r, p.dof, nz.cl, nz.nm, nz.src)
-    after_cv = confirm.holdout(rf.A, rf.r_final, folds)
-    boot = (confirm.bootstrap_frequency(sel.Jf_w, sel.r_w, sel.Sp, sel.tols, groups, s.alpha, s.n_boot, s.seed)
+    after_cv = resampling.holdout(rf.A, rf.r_final, folds)
+    boot = (resampling.bootstrap_frequency(sel.Jf_w, sel.r_w, sel.Sp, sel.tols, groups, s.alpha, s.n_boot, s.seed)
             if sel.accepted and s.n_boot else np.zeros(len(sel.testable)))
     ng = len(f.names)
     findings, contributions, col_of = refit.finding_records(
@@ -109,7 +109,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     fin = arbiter.Final(findings, sel.accepted, contributions, col_of, rf.A, rf.r_final, after_cv)
     W = nz.W
     fin, rejected, worse, all_cv = (arbiter.arbiter(fin, folds, p.Jf, p.r, before_cv) if W is None
-                                    else (fin, [], False, confirm.rms(after_cv)))
+                                    else (fin, [], False, resampling.rms(after_cv)))
     carried = arbiter.carried(fin, p.k, s.alpha) if influence and W is None else {}
     # lack of fit, the confidence of each name, back to the floor (`verdict.grading`)
     nk = p.n * p.k

@@ -34,7 +34,7 @@ class Adapter:
       under it (`physical_reference`) instead of the sign flips;
     - `shared_error`: (Z (n·residual_dim, g) group membership, τ² m²) — an error shared by the
       rows of a group with a variance known a priori (a jig face's machining error within the
-      jig's tolerance); the refit's parameter std then use `confirm.shared_error_covariance`.
+      jig's tolerance); the refit's parameter std then use `augmented.shared_error_covariance`.
     """
 
     library: list[Effect]
@@ -49,7 +49,7 @@ class Adapter:
     shared_error: tuple[np.ndarray, float] | None = None
     held: tuple[str, ...] = ()  # weak-gauge parameters the geometric baseline holds at the model's nominal
     # refit(effects): the joint refit's exact model of those effects when some are not additive
-    # enough (`confirm.AugmentedModel.exact`), or None (the additive model)
+    # enough (`augmented.AugmentedModel.exact`), or None (the additive model)
     refit: Callable[[tuple], Callable | None] | None = None
     # floor_variance(x) (n·residual_dim,) m²: the noise floor the campaign supports (`verdict.checks.floor_check`)
     floor_variance: Callable[[np.ndarray], np.ndarray] | None = None

@@ -232,7 +232,7 @@ def refit_terms(model, x: np.ndarray, theta: np.ndarray, data, effects, jac: boo
 
 
 def exact_refit(model, effects):
-    """The joint refit's model of `effects` (`confirm.AugmentedModel.exact`): `refit_terms` when a
+    """The joint refit's model of `effects` (`augmented.AugmentedModel.exact`): `refit_terms` when a
     lens effect is among them, else None (the additive model is exact to first order there)."""
     if not any(e.name in LENS for e in effects):
         return None

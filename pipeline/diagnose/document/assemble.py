@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.document import plots
 from pipeline.diagnose.inference.projection import orthonormal
 
@@ -80,8 +80,8 @@ def assemble(*, system: str, n: int, k: int, sigma: float, sigma_after: float, s
         "unexplained_where": where,
         "lack_of_fit": [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic, "dof": list(t.dof)}
                         for t in lof],
-        "holdout_rms_before_m": confirm.rms(before_cv),
-        "holdout_rms_after_m": confirm.rms(after_cv),
+        "holdout_rms_before_m": resampling.rms(before_cv),
+        "holdout_rms_after_m": resampling.rms(after_cv),
         "holdout_rms_with_all_selected_m": all_cv,
         "cross_validation": {"folds": s.folds, "groups": f"time blocks of {s.block} consecutive measurements",
                              "seed": s.seed, "linearised_at": "the full-data solution"},

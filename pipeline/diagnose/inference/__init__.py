@@ -8,6 +8,7 @@ data ask for, all linear algebra at the geometric solution.
   physical cluster-error model); `sign_flips`: the cluster sign-flip checks;
 - `screen`: the gate and the selection iterated with the noise model (feasible GLS);
 - `forms`: the held-out choice among one term's functional forms;
-- `confirm`: the augmented measurement model, grouped cross-validation, bootstrap, CR2 intervals;
+- `augmented`: the measurement model augmented with the accepted terms, its parameters' covariance (shared
+  errors, CR2) and intervals; `resampling`: grouped cross-validation on time blocks and the bootstrap;
 - `refit`: the joint refit of geometry + accepted terms and each finding's evidence.
 """

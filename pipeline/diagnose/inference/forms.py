@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.library.term import Effect
 
 
@@ -36,7 +36,7 @@ def _within_one_se(e2_a: np.ndarray, e2_b: np.ndarray) -> bool:
 
 
 def _cv(Jf: np.ndarray, S: list[np.ndarray], idx: list[int], r: np.ndarray, folds: list) -> np.ndarray:
-    return confirm.holdout(np.hstack([Jf] + [S[i] for i in idx]), r, folds)
+    return resampling.holdout(np.hstack([Jf] + [S[i] for i in idx]), r, folds)
 
 
 def choose(lib: list[Effect], accepted: list[int], testable: list[int], S: list[np.ndarray], Jf: np.ndarray,

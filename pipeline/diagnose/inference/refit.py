@@ -1,7 +1,7 @@
 """Steps 4–5 of the diagnosis: the joint refit of geometry + accepted effects (parameters with
 honest 1σ) and the evidence of each finding (ablation cross-validation, ΔBIC, bootstrap).
 
-- `joint_refit`: nonlinear least squares of the augmented model (`confirm.AugmentedModel`); with
+- `joint_refit`: nonlinear least squares of the augmented model (`augmented.AugmentedModel`); with
   pose clusters, cluster-robust (CR2) standard errors; with errors shared within groups (a jig
   face), the sandwich covariance; t degrees of freedom per parameter;
 - `finding_records`: one finding dict per accepted effect (parameters with `ci95`, the selection's
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import augmented, resampling
 from pipeline.diagnose.inference.clustered import measurement_covariance
 from pipeline.diagnose.inference.projection import orthonormal, project_out
 from pipeline.identify.least_squares import Fit, FitOptions, fit
@@ -49,7 +49,7 @@ def joint_refit(model, table, f: Fit, ad, adapter, lib: list, accepted: list[int
     if not accepted:
         return Refit(x, r, Jf, f.std, np.full(x.size, float(max(dof, 1))), f.sigma, free)
     acc_eff = tuple(lib[i] for i in accepted)
-    aug = confirm.AugmentedModel(model, acc_eff, None if adapter is None else ad.signatures, scaled=True,
+    aug = augmented.AugmentedModel(model, acc_eff, None if adapter is None else ad.signatures, scaled=True,
                                  exact=None if ad.refit is None else ad.refit(acc_eff))
     z0 = np.concatenate([x, np.zeros(sum(lib[i].k for i in accepted))])
     # the weak gauges the baseline held stay held: an exact lens term (`Adapter.refit`) lifts their
@@ -65,9 +65,9 @@ def joint_refit(model, table, f: Fit, ad, adapter, lib: list, accepted: list[int
         std = np.zeros_like(fa.std)
         # under the noise model of the selection (each measurement's noise shape) when there is one
         work = None if nm is None else measurement_covariance(src, nm.variances)
-        std[free_a], par_dof[free_a] = confirm.cluster_robust_std(A, r_final, cl, work)
+        std[free_a], par_dof[free_a] = augmented.cluster_robust_std(A, r_final, cl, work)
     if ad.shared_error is not None:  # errors shared within groups: sandwich covariance (honest std)
-        cov, _, nu = confirm.shared_error_covariance(A, r_final, *ad.shared_error)
+        cov, _, nu = augmented.shared_error_covariance(A, r_final, *ad.shared_error)
         std = np.zeros_like(z)
         std[free_a] = np.sqrt(np.clip(np.diag(cov), 0, None))
         par_dof[free_a] = nu
@@ -113,19 +113,19 @@ def finding_records(rf: Refit, table, ad, lib: list, accepted: list[int], steps:
         r_wo_p = project_out(r_wo[:, None], Q)[:, 0]
         rss_wo = float(r_wo_p @ r_wo_p)
         delta_bic = nk * np.log(max(rss_wo, 1e-300) / max(rss_full, 1e-300)) - e.k * np.log(nk)
-        cv_wo = confirm.holdout(A_wo, r_wo, folds)
+        cv_wo = resampling.holdout(A_wo, r_wo, folds)
         findings.append({
             "effect": e.name, "location": str(e.location), **({"form": e.data["form"]} if "form" in e.data else {}),
             **({"source": e.data["source"]} if "source" in e.data else {}),
             "parameters": [{"name": p, "value": float(th[m]), "std": float(std[pos + m]), "unit": e.units[m],
                             "dof": _dof(par_dof[pos + m]),
-                            "ci95": confirm.t_interval(float(th[m]), float(std[pos + m]), par_dof[pos + m])}
+                            "ci95": augmented.t_interval(float(th[m]), float(std[pos + m]), par_dof[pos + m])}
                            for m, p in enumerate(e.parameters)],
             "evidence": {"statistic": st.statistic, "statistic_kind": "grouped F", "dof": list(st.dof),
                          "p_value": st.p_holm, "p_value_raw": st.p_value,
                          **({"p_value_sign_flips": robust_p[i]} if i in robust_p else {}),
                          "delta_bic": float(delta_bic),
-                         "cv_rms_before_m": confirm.rms(cv_wo), "cv_rms_after_m": confirm.rms(after_cv),
+                         "cv_rms_before_m": resampling.rms(cv_wo), "cv_rms_after_m": resampling.rms(after_cv),
                          "bootstrap_frequency": _family_frequency(lib, i, testable, boot)},
             "absorbed_fraction": gates[i].absorbed_fraction,
             "look_alikes": [{"effect": lib[testable[c]].name, "location": str(lib[testable[c]].location),

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.verdict import checks
 
 
@@ -36,13 +36,13 @@ class Final:
 def arbiter(fin: Final, folds, Jf: np.ndarray, r: np.ndarray,
             before_cv: np.ndarray) -> tuple[Final, list, bool, float]:
     """(final model kept, rejected findings, worse than geometry?, CV RMS with every selected finding)."""
-    all_cv = confirm.rms(fin.after_cv)
+    all_cv = resampling.rms(fin.after_cv)
     fds = fin.findings
     rej = [j for j, fd in enumerate(fds) if fd["evidence"]["cv_rms_after_m"] >= fd["evidence"]["cv_rms_before_m"]]
     drop = np.array([c for j in rej for c in fin.col_of[fin.accepted[j]]], int)
     A_k, r_k = checks.linearised_subset(fin.A, fin.r_final, drop, [fin.contributions[j] for j in rej])
-    cv_k = confirm.holdout(A_k, r_k, folds) if rej else fin.after_cv
-    worse = bool(fds) and len(rej) < len(fds) and confirm.rms(cv_k) > confirm.rms(before_cv)
+    cv_k = resampling.holdout(A_k, r_k, folds) if rej else fin.after_cv
+    worse = bool(fds) and len(rej) < len(fds) and resampling.rms(cv_k) > resampling.rms(before_cv)
     if worse:
         rej = list(range(len(fds)))
     if not rej:

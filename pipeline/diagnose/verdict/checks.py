@@ -52,7 +52,7 @@ def floor_check(r: np.ndarray, dof: int, var_floor: np.ndarray, alpha: float) ->
 
 def holdout_floor_check(A: np.ndarray, e_cv: np.ndarray, folds: list[np.ndarray], var_floor: np.ndarray,
                         alpha: float) -> dict:
-    """The held-out residuals e_cv (`confirm.holdout` of design A) against the floor: with the rows'
+    """The held-out residuals e_cv (`resampling.holdout` of design A) against the floor: with the rows'
     errors ε ~ N(0, diag v) and the model right, e_cv = (I − P)ε (P: each fold predicted from the
     others' fit, which reproduces any A·β exactly), so ‖e_cv‖² is a quadratic form in ε whose mean
     tr(QV) and variance 2 tr((QV)²) (Q = (I − P)ᵀ(I − P)) give a scaled χ² (Satterthwaite)."""

@@ -17,7 +17,7 @@ import dataclasses
 
 import numpy as np
 
-from pipeline.diagnose.inference import confirm
+from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.verdict import arbiter
 from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.diagnose.verdict import checks
@@ -107,7 +107,7 @@ def floor_and_status(ad, xg: np.ndarray, r_final: np.ndarray, A: np.ndarray, aft
         # the nonlinear warm-ups on 16 seeds but read one clean campaign of 40 above the floor)
         floor = checks.floor_check(r_final, nk - A.shape[1], vf, alpha)
         floor.update(checks.holdout_floor_check(A, after_cv, folds, vf, alpha))
-        floor["holdout_rms_over_floor"] = confirm.rms(after_cv) / floor["holdout_rms_expected_at_floor_m"]
+        floor["holdout_rms_over_floor"] = resampling.rms(after_cv) / floor["holdout_rms_expected_at_floor_m"]
     st_name, st_reason = checks.status(len(findings), bool(where), floor, worse, misfit)
     if st_name == "partially_explained":
         for fd in findings:

@@ -1,10 +1,11 @@
-"""Confirming accepted effects: joint nonlinear refit, grouped cross-validation, bootstrap.
+"""The measurement model augmented with the accepted terms, and the honest covariance of its parameters.
 
 `AugmentedModel` is the measurement model with the accepted effects appended (their
 parameters after the geometric ones; residual = geometric residual + Σ S_e(x)·θ_e, the
 effects being small).  It is a `MeasurementModel`, so the ordinary `identify.fit` refits
-geometry and effects together.  Cross-validation and bootstrap use the model linearised at
-the full-data solution, which is exact to first order and costs a few small least squares.
+geometry and effects together.  `shared_error_covariance` (errors shared within groups, e.g. a jig
+face's machining error) and `cluster_robust_std` (CR2, pose clusters) give the parameters' standard
+deviations, `t_interval` their intervals.
 """
 
 from __future__ import annotations
@@ -16,9 +17,8 @@ import numpy as np
 import scipy.linalg
 from scipy import stats
 
-from pipeline.diagnose.library.term import Effect, signature
-from pipeline.diagnose.inference.stepwise import forward_select
 from pipeline.diagnose.inference.projection import orthonormal, project_out
+from pipeline.diagnose.library.term import Effect, signature
 from pipeline.models import serial_arm
 
 
@@ -256,49 +256,3 @@ def t_interval(value: float, std: float, dof: float, level: float = 0.95) -> lis
     """Two-sided `level` interval value ± t_{(1+level)/2, dof}·std (the normal quantile at dof = ∞)."""
     q = float(stats.t.ppf(0.5 + level / 2, dof)) if np.isfinite(dof) else float(stats.norm.ppf(0.5 + level / 2))
     return [float(value - q * std), float(value + q * std)]
-
-
-def time_blocks(t: np.ndarray, size: int = 5) -> np.ndarray:
-    """Group label of each measurement: consecutive blocks of `size` in time order."""
-    order = np.argsort(np.asarray(t), kind="stable")
-    g = np.empty(order.size, int)
-    g[order] = np.arange(order.size) // size
-    return g
-
-
-def holdout(A: np.ndarray, r: np.ndarray, folds: list[np.ndarray]) -> np.ndarray:
-    """Held-out residuals (n,) of the linearised model r + A·δ: each fold predicted from the others."""
-    out = np.full(r.size, np.nan)
-    norms = np.linalg.norm(A, axis=0)
-    norms[norms == 0] = 1
-    As = A / norms
-    for test in folds:
-        train = np.setdiff1d(np.arange(r.size), test)
-        d, *_ = np.linalg.lstsq(As[train], -r[train], rcond=1e-10)
-        out[test] = r[test] + As[test] @ d
-    return out
-
-
-def rms(v: np.ndarray) -> float:
-    return float(np.sqrt(np.nanmean(np.asarray(v) ** 2)))
-
-
-def bootstrap_frequency(J: np.ndarray, r: np.ndarray, S: list[np.ndarray], tolerances: list[float],
-                        groups: np.ndarray, alpha: float, n_boot: int = 40, seed: int = 0) -> np.ndarray:
-    """How often each candidate is selected when the campaign's groups are resampled (n_cand,):
-    per resample the same stepwise selection as the diagnosis (`stepwise.forward_select`: greedy
-    pass, backward elimination, pair additions) on the resampled, re-projected problem."""
-    rng = np.random.default_rng(seed)
-    uniq = np.unique(groups)
-    members = [np.flatnonzero(groups == u) for u in uniq]
-    count = np.zeros(len(S))
-    p_geo = orthonormal(J).shape[1]
-    for _ in range(n_boot):
-        pick = rng.integers(0, uniq.size, uniq.size)
-        idx = np.concatenate([members[i] for i in pick])
-        Q = orthonormal(J[idx])
-        rb = project_out(r[idx][:, None], Q)[:, 0]
-        Sb = [project_out(s[idx], Q) for s in S]
-        for st in forward_select(rb, Sb, idx.size - p_geo, alpha, tolerances):
-            count[st.index] += 1
-    return count / max(n_boot, 1)

@@ -1,4 +1,4 @@
-"""Detection benchmark of the SCORBOT laser-stripe scanner diagnosis (issue 7).
+"""Detection benchmark of the SCORBOT laser-stripe scanner diagnosis.
 
 Campaign: 20 poses x 5 corners, the arm sweeping through each pose at up to 0.1 rad/s per
 joint during the capture (exposes a camera time offset), image noise 0.2 px, repeatability

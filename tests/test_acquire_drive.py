@@ -1,4 +1,4 @@
-"""Drive state over the serial protocol (issue 18): SAMPLES_DRIVE frames, device-sim → pty → acquire.
+"""Drive state over the serial protocol: SAMPLES_DRIVE frames, device-sim → pty → acquire.
 
 The source recording comes from the independent generator `independent_drive` (joint j2 compliant under
 a payload the URDF lacks; commanded positions, efforts and motor currents at standstill around each

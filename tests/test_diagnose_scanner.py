@@ -1,4 +1,4 @@
-"""Diagnosis of SCORBOT laser-stripe scanner campaigns with concealed effects (issue 7).
+"""Diagnosis of SCORBOT laser-stripe scanner campaigns with concealed effects.
 
 Campaigns are simulated in memory and diagnosed from what a recording holds (the diagnosis
 table's joint velocities are rebuilt from the encoder stream); one test goes through the MCAP

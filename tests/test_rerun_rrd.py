@@ -146,7 +146,7 @@ def test_blueprint_lays_out_the_views(report_run):  # noqa: F811
         if "TimePanelBlueprint:timeline" in b.schema.names:
             assert b.column("TimePanelBlueprint:timeline").to_pylist()[-1] in ("time", ["time"])
     assert {"3D", "TimeSeries"} <= kinds, kinds
-    # before and after in separate views (their scales differ by orders: issue 16), and the accuracy verdict
+    # before and after in separate views (their scales differ by orders of magnitude), and the accuracy verdict
     assert {"/world", "/encoder", "/residuals/before_mm", "/residuals/after_mm", "/solver", "/accuracy"} <= origins, origins
 
 

@@ -45,7 +45,7 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
             ("predicted point accuracy (1σ RMS)", mm(s.get("predicted_point_sigma_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
     diag = doc.get("stages", {}).get("diagnose", {}).get("summary", {})
-    if "findings" in diag:  # what the geometric model left out (issue 7)
+    if "findings" in diag:  # what the geometric model left out (the diagnosis)
         found = ", ".join(diag["findings"]) or "none"
         rows.append(("diagnosis: effects found", found))
         if diag.get("unexplained"):

@@ -33,7 +33,7 @@ class RunArtefacts:
     validate: dict | None = None  # validate/validate.json
     observe: dict | None = None  # observe/observe.json
     diagnosis: dict | None = None  # diagnose/diagnosis.json (or DIR/diagnosis.json)
-    accuracy: dict | None = None  # accuracy/accuracy.json (issue 16: the map and the verdict)
+    accuracy: dict | None = None  # accuracy/accuracy.json (the accuracy map and the verdict)
     stages: dict[str, dict] = field(default_factory=dict)  # <stage>/stage.json
 
     @property

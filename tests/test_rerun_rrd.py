@@ -151,7 +151,7 @@ def test_blueprint_lays_out_the_views(report_run):  # noqa: F811
 
 
 def test_artefacts_shaped_as_the_documented_contract(report_run, tmp_path):  # noqa: F811
-    """The report also reads artefacts written exactly as docs/pipeline-artefacts.md describes them
+    """The report also reads artefacts written exactly as docs/reference/artefacts.md describes them
     (q_<joint> columns, history as a list, sha256 at the top of recording.json)."""
     from pipeline.report.artefacts import load_run
     from pipeline.report.html import diagnosis_section

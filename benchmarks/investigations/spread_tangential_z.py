@@ -1,4 +1,4 @@
-"""Per-run p1, p2 estimate, std, dof of the tangential refit on spread campaigns (docs/diagnose.md, "Confidence intervals").
+"""Per-run p1, p2 estimate, std, dof of the tangential refit on spread campaigns (docs/guide/diagnose.md, "Confidence intervals").
 usage: PYTHONPATH=.:benchmarks python benchmarks/investigations/spread_tangential_z.py FIRST_SEED_OFFSET N MODES MULT > out.jsonl
 MODES: comma list of full, img, rep, print, noimg, zero (which simulator noise sources are on).
 Each record also has cr2_over_iid: the refit's CR2 std of p1, p2 over the i.i.d. (σ-based) std of the same design."""

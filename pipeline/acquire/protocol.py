@@ -1,7 +1,7 @@
 """robocal serial wire protocol v1: framing, payload codecs and a resynchronising decoder.
 
 Pure functions and a pure incremental decoder (bytes in, frames and error reports out);
-no ports here.  The byte layout is documented in `docs/acquisition.md`.
+no ports here.  The byte layout is documented in `docs/guide/acquire.md`.
 
 Frame (all integers little-endian)::
 

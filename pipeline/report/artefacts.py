@@ -1,4 +1,4 @@
-"""Reading a run directory: the artefacts of the stages before the report (docs/pipeline-artefacts.md).
+"""Reading a run directory: the artefacts of the stages before the report (docs/reference/artefacts.md).
 
 `load_run` is the only function here that touches files; it returns a `RunArtefacts` of plain
 numpy arrays and dicts that the pure figure functions take.  Optional artefacts (observe,

@@ -1,5 +1,5 @@
 """Diagnosis: find the physics the geometric model left out, name it, model it, show the held-out
-fit improve (docs/diagnose.md).
+fit improve (docs/guide/diagnose.md).
 
 The method (`method.diagnose`, a pure function of a measurement model and a diagnosis table):
 fit the geometry; build every candidate term's signature at the solution; gate the candidates the

@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.inference import resampling
-from pipeline.diagnose.inference import forms
+from pipeline.diagnose.inference import forms, resampling
 from pipeline.diagnose.library.term import Effect
 from pipeline.identify.least_squares import kfold_indices
 

@@ -7,8 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pipeline.diagnose.inference import resampling
-from pipeline.diagnose.verdict import arbiter
-from pipeline.diagnose.verdict import checks
+from pipeline.diagnose.verdict import arbiter, checks
 from pipeline.identify.least_squares import kfold_indices
 
 

@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.diagnose.library.term import Effect
+from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.models import delta as dm
 
 ACTUATORS = ("A1", "A2", "A3")

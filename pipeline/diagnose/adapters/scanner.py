@@ -34,13 +34,24 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.verdict import lack_of_fit
-from pipeline.diagnose.library.lens import lens_excess, lens_excess_jacobian, stripe_normals
+from pipeline.diagnose.adapters.scanner_noise import (  # noqa: F401  (re-exported)
+    _skew,
+    encoder_basis,
+    joint_motion,
+    pose_basis,
+    repeatability_basis,
+    repeatability_model,
+    stripe_directions,
+)
+from pipeline.diagnose.library.lens import (
+    lens_excess,
+    lens_excess_jacobian,
+    stripe_normals,
+)
 from pipeline.diagnose.library.term import Effect
+from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.models import camera as cam
 from pipeline.models import serial_arm
-from pipeline.diagnose.adapters.scanner_noise import (  # noqa: F401  (re-exported)
-    _skew, encoder_basis, joint_motion, pose_basis, repeatability_basis, repeatability_model, stripe_directions)
 
 PLAUSIBLE = {
     "radial_k2": 2e8,  # 1/m⁴ (normalised k2·f⁴ ≈ 0.55 for f = 7.25 mm)

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.diagnose.adapters import touch_variables
 from pipeline.diagnose.adapters.adapter import Adapter
 from pipeline.diagnose.library.term import Effect, signature
 from pipeline.diagnose.library.touch import touch_library
 from pipeline.diagnose.library.touch_probe import tip_speed_vector
+from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.diagnose.verdict.checks import touch_floor_variance
 from pipeline.models import serial_arm
 

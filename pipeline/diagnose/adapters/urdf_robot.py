@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.urdf_gravity import gravity_torques, inertials
+from pipeline.diagnose.verdict import lack_of_fit
 
 PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3, "joint_compliance": 1e-4,
              "joint_compliance_per_ampere": 1e-2}  # rad/A: 1e-4 rad/(N·m) × a torque constant up to 100 N·m/A

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.document import plots
+from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.inference.projection import orthonormal
 
 

@@ -22,9 +22,8 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.inference.projection import orthonormal, project_out
-
+from pipeline.diagnose.library.term import Effect
 
 POWER_Z = scipy.stats.norm.ppf(0.8)  # 80 % power
 RANK_REL = 1e-6  # a projected column this small relative to its original is gone

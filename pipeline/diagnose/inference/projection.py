@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 import scipy.linalg
 import scipy.optimize
 import scipy.special
 import scipy.stats
-
 
 
 def orthonormal(A: np.ndarray, rel_tol: float = 1e-9) -> np.ndarray:

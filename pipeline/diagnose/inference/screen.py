@@ -20,8 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.diagnose.inference.clustered import (Whitener, cluster_whitener, measurement_whitener,
-                                                    noise_components, sign_flip_elimination)
+from pipeline.diagnose.inference.clustered import (
+    Whitener,
+    cluster_whitener,
+    measurement_whitener,
+    noise_components,
+    sign_flip_elimination,
+)
 from pipeline.diagnose.inference.gate import gate, sigma_given
 from pipeline.diagnose.inference.projection import orthonormal, project_out
 from pipeline.diagnose.inference.stepwise import conditional_steps, forward_select

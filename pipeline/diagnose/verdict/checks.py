@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.stats
 
-from pipeline.diagnose.verdict.lack_of_fit import grouped_p
 from pipeline.diagnose.inference.projection import orthonormal, project_out
+from pipeline.diagnose.verdict.lack_of_fit import grouped_p
 from pipeline.ingest.context import ENCODER_COUNT_RAD
 
 # a touch search runs at mm/s to a few cm/s; a derived approach speed above this is not a search

@@ -18,10 +18,11 @@ import dataclasses
 import numpy as np
 
 from pipeline.diagnose.inference import resampling
-from pipeline.diagnose.verdict import arbiter
-from pipeline.diagnose.verdict import lack_of_fit
-from pipeline.diagnose.verdict import checks
-from pipeline.diagnose.verdict.physical_lack_of_fit import _extremeness, physical_lack_of_fit
+from pipeline.diagnose.verdict import arbiter, checks, lack_of_fit
+from pipeline.diagnose.verdict.physical_lack_of_fit import (
+    _extremeness,
+    physical_lack_of_fit,
+)
 
 MIN_BOOTSTRAP = 0.5  # a confident finding is re-selected in at least this share of resamples
 

@@ -10,9 +10,13 @@ import dataclasses
 import numpy as np
 import scipy.stats
 
-from pipeline.diagnose.inference.clustered import PhysicalModel, Whitener, physical_components, physical_whitener
+from pipeline.diagnose.inference.clustered import (
+    PhysicalModel,
+    Whitener,
+    physical_components,
+    physical_whitener,
+)
 from pipeline.diagnose.verdict import lack_of_fit
-
 
 N_DRAWS = 2999  # parametric bootstrap draws of the lack-of-fit reference
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, err
+from pipeline.cli import PLAN, app, err
 
 
 def candidate_module(system: str):
@@ -36,7 +36,7 @@ def write_plan(out: Path, doc: dict) -> None:
     write_json(out, generated(doc))
 
 
-@app.command("plan")
+@app.command("plan", rich_help_panel=PLAN)
 def plan_cmd(
     system: str = typer.Argument(..., help="System, e.g. arc-welder."),
     candidates: int = typer.Option(1000, "--candidates", min=2, help="Number of candidate poses N."),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 from typing import Optional
 
@@ -124,27 +125,40 @@ F_SCALE = typer.Option(None, "--f-scale", help="identify: robust-loss scale, m (
 REJECT = typer.Option(None, "--reject", help="identify: reject measurements beyond this many robust σ (MAD); 0 = off (default 5).")
 FOLDS = typer.Option(None, "--folds", min=2, help="identify: folds of the held-out cross-validation (default 5).")
 FORCE = typer.Option(False, "--force", help="Run even if cached.")
-PRIOR = typer.Option(None, "--prior", help="Prior 1σ of parameters held at nominal: NAME=SIGMA, NAME a parameter, "
+ACCURACY = "Accuracy (predicted over the workspace)"
+PRIOR = typer.Option(None, "--prior", rich_help_panel=ACCURACY, help="Prior 1σ of parameters held at nominal: NAME=SIGMA, NAME a parameter, "
                      "pattern (J*.beta) or kind (length, angle, frame_translation, frame_rotation, pixel); "
                      "SIGMA SI or with a unit (0.5mm, 0.2deg). Repeatable.")
-TOLERANCE = typer.Option(None, "--tolerance", help="Required accuracy (e.g. 0.1mm): fail if the 95 % bound exceeds it "
+TOLERANCE = typer.Option(None, "--tolerance", rich_help_panel=ACCURACY, help="Required accuracy (e.g. 0.1mm): fail if the 95 % bound exceeds it "
                          "anywhere on the accuracy map.")
-PREVIOUS = typer.Option(None, "--previous", help="A previous run folder of the same robot: report parameters that "
+PREVIOUS = typer.Option(None, "--previous", rich_help_panel=ACCURACY, help="A previous run folder of the same robot: report parameters that "
                         "moved by more than 3σ.")
-TARGETS = typer.Option(None, "--targets", help="CSV of x,y,z (m) where the accuracy map is evaluated "
+TARGETS = typer.Option(None, "--targets", rich_help_panel=ACCURACY, help="CSV of x,y,z (m) where the accuracy map is evaluated "
                        "(default: a grid over the jig volume / workspace).")
 STRICT = typer.Option(False, "--strict", help="Exit 1 unless the status is pass (or warn): insufficient data or "
                       "tolerance not met.")
+
+
+def in_panel(option: typer.models.OptionInfo, panel: str) -> typer.models.OptionInfo:
+    """A copy of `option` shown under help panel `panel` (the original keeps its own)."""
+    shown = copy.copy(option)
+    shown.rich_help_panel = panel
+    return shown
+
+
+IDENTIFY, VALIDATE = "Identify", "Validate"
 
 
 @app.command("run", rich_help_panel=CALIBRATE)
 def run_cmd(
     recording: Path = typer.Argument(..., metavar="REC", help="Recording (MCAP) of a calibration campaign, or a ROS 2 bag."),
     out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
-    loss: Optional[str] = LOSS, f_scale: Optional[float] = F_SCALE, reject: Optional[float] = REJECT,
-    folds: Optional[int] = FOLDS,
-    flag: Optional[float] = typer.Option(None, "--flag-outliers", help="validate: flag residuals beyond this many robust σ (default 6)."),
-    gap_factor: Optional[float] = typer.Option(None, "--gap-factor", help="validate: a gap is this many sample periods (default 5)."),
+    loss: Optional[str] = in_panel(LOSS, IDENTIFY), f_scale: Optional[float] = in_panel(F_SCALE, IDENTIFY),
+    reject: Optional[float] = in_panel(REJECT, IDENTIFY), folds: Optional[int] = in_panel(FOLDS, IDENTIFY),
+    flag: Optional[float] = typer.Option(None, "--flag-outliers", rich_help_panel=VALIDATE,
+                                         help="validate: flag residuals beyond this many robust σ (default 6)."),
+    gap_factor: Optional[float] = typer.Option(None, "--gap-factor", rich_help_panel=VALIDATE,
+                                               help="validate: a gap is this many sample periods (default 5)."),
     force: bool = FORCE,
     only: Optional[str] = typer.Option(None, "--stages", help="Comma-separated stages to run (default: all available)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,

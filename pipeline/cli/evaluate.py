@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.table import Table
 
-from pipeline.cli import app, console, err
+from pipeline.cli import CALIBRATE, app, console, err
 
 MARKER = ".robocal-evaluation"
 
@@ -56,7 +56,7 @@ def _table(results: list[dict], title: str) -> Table:
     return t
 
 
-@app.command("evaluate")
+@app.command("evaluate", rich_help_panel=CALIBRATE)
 def evaluate_cmd(
     run_dir: Path = typer.Argument(..., help="Run folder of `robocal run` (or output folder of `robocal calibrate`)."),
     recordings: list[Path] = typer.Argument(..., help="Recording(s) (MCAP) of the same robot to evaluate it on."),

@@ -97,11 +97,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
     if solver == "lm" and model_choice == "shrinkage" and selection is None and "shrunk" in locals():
-        from pipeline.identify.shrinkage import implausible_warnings, shrinkage_document
+        from pipeline.identify.shrinkage import shrinkage_document
 
         doc["model_selection"] = shrinkage_document(shrunk)
-        warnings += implausible_warnings(shrunk)
-        doc["warnings"] = warnings
         if shrunk.per_group:
             doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
     from pipeline.accuracy.stage import guarded_document
@@ -115,7 +113,12 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     doc["accuracy"] = acc
     doc["status"] = acc["status"]
     doc["status_reason"], doc["status_advice"] = acc["reason"], acc["advice"]
-    implausible = (doc.get("model_selection") or {}).get("implausible") or []
+    from pipeline.identify.plausibility import implausible as find_implausible, warnings_of
+
+    implausible = []
+    if solver == "lm" and getattr(model, "groups", None) and model.groups():  # URDF robots
+        implausible = doc["implausible"] = find_implausible(model, f.x, f.free, options.prior_sigma)
+        doc["warnings"] += warnings_of(implausible)
     if implausible and doc["status"] == "pass":  # never a silent pass over a parameter beyond its prior
         doc["status"] = "warn"
         doc["status_reason"] = (f"{len(implausible)} parameter(s) estimated beyond 3 prior σ from nominal: "

@@ -70,6 +70,8 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
                 progress(f"model choice: {' + '.join(groups)}, {len(np.unique(whole))} groups left out in turn")
             r = held_out(model, data, whole, lambda d, _: fit(model, d, replace(opts, before=False)).x, None)
         else:
+            if progress is not None:
+                progress(f"model choice: {' + '.join(groups)}, {k}-fold")
             r = cross_validate(model, data, k=k, seed=seed, options=opts, groups=groups_of_rows)
         return np.nansum(r**2, axis=1)  # squared held-out error per row
 

@@ -20,8 +20,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
+from pipeline.identify.plausibility import PLAUSIBLE
+
 GRID = (0.03, 0.1, 0.3, 1.0, 3.0)  # μ as multiples of the registration-only RMS residual (per axis)
-PLAUSIBLE = 3.0  # prior σ beyond which an estimate is named implausible
 
 
 @dataclass(frozen=True)
@@ -234,8 +235,3 @@ def shrinkage_document(s: Shrunk) -> dict:
         doc["holdout_per_group_m"] = {key(m): v for m, v in s.per_group.items()}
     return doc
 
-
-def implausible_warnings(s: Shrunk) -> list[str]:
-    """One warning per parameter estimated beyond `PLAUSIBLE` prior σ from nominal."""
-    return [f"{p['name']}: estimated {p['z']:+.1f} prior σ from nominal ({p['estimate']:.6g} against {p['nominal']:.6g}, "
-            f"prior σ {p['prior_sigma']:.3g}): physically implausible" for p in s.implausible]

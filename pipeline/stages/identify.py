@@ -15,7 +15,8 @@ from pipeline.identify.least_squares import FitOptions, cross_validate, holdout_
 from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.outliers import fit_rejecting
 from pipeline.identify.results import parameter_table, with_3d
-from pipeline.identify.shrinkage import implausible_warnings, shrinkage_document
+from pipeline.identify.plausibility import implausible, warnings_of
+from pipeline.identify.shrinkage import shrinkage_document
 from pipeline.ingest.tables import model_columns
 from pipeline.recording.schemas import META_FIXTURE, META_ROBOT
 from pipeline.stages.artefacts import read_json, write_json, write_table
@@ -132,7 +133,6 @@ def run(run_dir: Path, params: dict) -> dict:
                                   "explanation": explain(selection)}
     if shrunk is not None:
         doc["model_selection"] = shrinkage_document(shrunk)
-        doc["warnings"] += implausible_warnings(shrunk)
         if shrunk.per_group:
             doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
     if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
@@ -145,8 +145,11 @@ def run(run_dir: Path, params: dict) -> dict:
     keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
             "loss", "function_evaluations", "predicted_point_sigma_rms_m", "warnings")
-    if shrunk is not None and shrunk.implausible:  # never a silent pass over a parameter beyond its prior
-        doc["status"] = "warn"
+    if opts.prior_sigma is not None and grouped:  # robot parameters beyond their prior: named, never a silent pass
+        doc["implausible"] = implausible(model, f.x, f.free, opts.prior_sigma)
+        if doc["implausible"]:
+            doc["warnings"] += warnings_of(doc["implausible"])
+            doc["status"] = "warn"
     keys += tuple(k_ for k_ in ("status", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
     return {k_: doc[k_] for k_ in keys} | ({"extra": doc["extra"]} if "extra" in doc else {})
 

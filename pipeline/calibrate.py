@@ -17,18 +17,20 @@ from pipeline.systems.registry import detect
 
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
               seed: int = 0, solver: str = "lm", joint_offsets: bool = False, variant: str | None = None,
-              select_groups: bool = True, accuracy: dict | None = None) -> dict:
+              select_groups: bool = True, accuracy: dict | None = None, physics: str | None = None,
+              payload: list[str] | None = None) -> dict:
     """Read, identify, cross-validate; write DIR/results.json and DIR/model.json.
 
     `solver`: 'lm' (least squares, default) or 'ga' (seed 001's genetic algorithm, for systems
     whose model offers `batch_cost_fn`).  `joint_offsets`: also identify the arm's joint
     offsets (systems whose model has a `joint_offsets` field).  `variant`: the model variant
-    (systems whose model has a `variant` field, e.g. delta-tracker: simplified, extended)."""
+    (systems whose model has a `variant` field, e.g. delta-tracker: simplified, extended).  `physics`,
+    `payload`: gravity terms of a URDF robot (`pipeline.physics.compliance`)."""
     t0 = time.perf_counter()
     path, out = Path(path), Path(out)
     rec = read_recording(path)
     system = detect(rec)
-    model, table = system.load(rec)
+    model, table = load_with_physics(system, rec, physics, payload)
     if joint_offsets:
         if not hasattr(model, "joint_offsets"):
             raise RobocalError(f"{path}: system {system.SYSTEM} does not support --joint-offsets")
@@ -107,6 +109,21 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
 
     (out / "results.json").write_text(dumps(doc))  # numpy-aware (the accuracy map), NaN → null
     return doc
+
+
+def load_with_physics(system, rec, physics: str | None, payload: list[str] | None):
+    """`system.load(rec)`, with the gravity terms asked for where the system models them."""
+    import inspect
+
+    from pipeline.physics.compliance import parse_payload, parse_spec
+
+    mode, _ = parse_spec(physics)
+    loads = payload or []
+    if "physics" in inspect.signature(system.load).parameters:
+        return system.load(rec, physics=physics, payload=parse_payload(loads))
+    if mode == "fixed" or loads:
+        raise RobocalError(f"{rec.path}: system {system.SYSTEM} has no gravity terms (--physics, --payload)")
+    return system.load(rec)
 
 
 def summary_rows(doc: dict) -> list[tuple[str, str]]:

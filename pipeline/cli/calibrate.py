@@ -26,6 +26,10 @@ def calibrate_cmd(
                                 help="Model variant of the system (delta-tracker: simplified, extended)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
+    physics: str = typer.Option("auto", "--physics", help="Gravity terms of a URDF robot (point data): auto (kept "
+                                "when held-out error improves), none, or joint-compliance,lateral-compliance."),
+    payload: Optional[list[str]] = typer.Option(None, "--payload", help="A mass carried besides the URDF's links: "
+                                                "KG@LINK or KG@LINK:X,Y,Z (m, link frame); repeatable."),
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows
@@ -33,7 +37,7 @@ def calibrate_cmd(
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,
-                        joint_offsets=joint_offsets, variant=variant,
+                        joint_offsets=joint_offsets, variant=variant, physics=physics, payload=payload,
                         accuracy=accuracy_params(prior, tolerance, previous, targets))
     for w in doc["warnings"]:
         err.print(f"[yellow]warning:[/] {w}", highlight=False)

@@ -123,6 +123,10 @@ F_SCALE = typer.Option(None, "--f-scale", help="identify: robust-loss scale, m (
 REJECT = typer.Option(None, "--reject", help="identify: reject measurements beyond this many robust σ (MAD); 0 = off (default 5).")
 FOLDS = typer.Option(None, "--folds", min=2, help="identify: folds of the held-out cross-validation (default 5).")
 FORCE = typer.Option(False, "--force", help="Run even if cached.")
+PHYSICS = typer.Option(None, "--physics", help="Gravity terms of a URDF robot (point data): auto (default: kept when "
+                       "held-out error improves), none, or joint-compliance,lateral-compliance.")
+PAYLOAD = typer.Option(None, "--payload", help="A mass carried besides the URDF's links: KG@LINK or KG@LINK:X,Y,Z "
+                       "(m, link frame); repeatable.")
 PRIOR = typer.Option(None, "--prior", help="Prior 1σ of parameters held at nominal: NAME=SIGMA, NAME a parameter, "
                      "pattern (J*.beta) or kind (length, angle, frame_translation, frame_rotation, pixel); "
                      "SIGMA SI or with a unit (0.5mm, 0.2deg). Repeatable.")
@@ -154,6 +158,7 @@ def run_cmd(
     joint_topic: str = ros2_cli.JOINT_TOPIC, measure_topic: Optional[str] = ros2_cli.MEASURE_TOPIC,
     measure: Optional[str] = ros2_cli.MEASURE, window_s: float = ros2_cli.WINDOW, max_speed: float = ros2_cli.SPEED,
     time_source: str = ros2_cli.TIME, sigma_m: float = ros2_cli.SIGMA_M, sigma_rad: float = ros2_cli.SIGMA_RAD,
+    physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached.  A ROS 2 bag is
@@ -171,6 +176,8 @@ def run_cmd(
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
+    if physics is not None or payload:  # the model's gravity terms, chosen at ingest for every stage
+        params.setdefault("ingest", {}).update({"physics": physics, "payload": list(payload or [])})
     try:
         outs = run_pipeline(recording, out, params, force=force, log=_log,
                             stages=[s.strip() for s in only.split(",")] if only else None)

@@ -89,11 +89,11 @@ def test_stiffness_recovered_and_held_out_at_the_noise_floor(humanoid, tmp_path)
     p = {r["name"]: r for r in phys["parameters"]}
     for joint, c in truth["compliance"].items():
         r = p[f"{joint}.compliance"]
-        assert r["identified"] and abs(r["value"] - c) <= 2 * r["std"] + 1e-12, (joint, r, c)
+        assert r["identifiable"] and abs(r["estimate"] - c) <= 2 * r["std"] + 1e-12, (joint, r, c)
     for joint, c in truth["lateral"].items():
         for a in (1, 2):
             r = p[f"{joint}.lateral{a}"]
-            assert abs(r["value"] - c) <= 2 * r["std"] + 1e-12, (joint, a, r, c)
+            assert abs(r["estimate"] - c) <= 2 * r["std"] + 1e-12, (joint, a, r, c)
     side = (tmp_path / "phys" / "model.physics.yaml").read_text()
     assert "torso_j1" in side and "stiffness_Nm_per_rad" in side
     model = json.loads((tmp_path / "phys" / "model.json").read_text())

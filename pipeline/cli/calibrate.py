@@ -8,11 +8,12 @@ from typing import Optional
 import typer
 from rich.table import Table
 
-from pipeline.cli import app, console, err
-from pipeline.cli.run import PREVIOUS, PRIOR, STRICT, TARGETS, TOLERANCE, accuracy_params, strict_exit
+from pipeline.cli import CALIBRATE, app, console, err
+from pipeline.cli.run import (PAYLOAD, PHYSICS, PREVIOUS, PRIOR, STRICT, TARGETS, TOLERANCE, accuracy_params,
+                              strict_exit)
 
 
-@app.command("calibrate")
+@app.command("calibrate", rich_help_panel=CALIBRATE)
 def calibrate_cmd(
     recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
     out: Path = typer.Option(..., "--out", help="Output folder for results.json and model.json."),
@@ -26,10 +27,7 @@ def calibrate_cmd(
                                 help="Model variant of the system (delta-tracker: simplified, extended)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
-    physics: str = typer.Option("auto", "--physics", help="Gravity terms of a URDF robot (point data): auto (kept "
-                                "when held-out error improves), none, or joint-compliance,lateral-compliance."),
-    payload: Optional[list[str]] = typer.Option(None, "--payload", help="A mass carried besides the URDF's links: "
-                                                "KG@LINK or KG@LINK:X,Y,Z (m, link frame); repeatable."),
+    physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows

@@ -71,15 +71,19 @@ class Load:
 
 
 def gravity_load(urdf: str, joint_names: list[str], q: np.ndarray, coupled: dict | None = None,
-                 payload: list[tuple[float, str, np.ndarray]] | None = None) -> Load:
+                 payload: list[tuple[float, str, np.ndarray]] | None = None, gravity: np.ndarray | None = None) -> Load:
     """The gravity load on each joint in `joint_names` at configurations `q` (n, J) rad or m.
 
     `coupled`: {joint: {joint_k: factor_k}} for joints of the URDF driven by others (not in `q`);
-    `payload`: [(mass kg, link, centre of mass (3,) m in the link's frame)] hung on links."""
+    `payload`: [(mass kg, link, centre of mass (3,) m in the link's frame)] hung on links; `gravity`:
+    (3,) m/s² in the root link's frame (default 9.80665 along −z)."""
     import pinocchio as pin
 
     base = _model(urdf)
-    model = base.copy() if payload else base
+    custom = gravity is not None and not np.allclose(gravity, [0.0, 0.0, -G_M_S2], rtol=0, atol=0)
+    model = base.copy() if payload or custom else base
+    if custom:
+        model.gravity.linear = np.asarray(gravity, float)
     for mass, link, com in payload or []:
         if not model.existFrame(link):
             raise RobocalError(f"payload: link {link!r} is not in the URDF")

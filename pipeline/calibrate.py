@@ -120,7 +120,7 @@ def load_with_physics(system, rec, physics: str | None, payload: list[str] | Non
     mode, _ = parse_spec(physics)
     loads = payload or []
     if "physics" in inspect.signature(system.load).parameters:
-        return system.load(rec, physics=physics, payload=parse_payload(loads))
+        return system.load(rec, physics=physics or "auto", payload=parse_payload(loads))
     if mode == "fixed" or loads:
         raise RobocalError(f"{rec.path}: system {system.SYSTEM} has no gravity terms (--physics, --payload)")
     return system.load(rec)

@@ -199,7 +199,7 @@ def run_cmd(
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
-    if physics is not None or payload:  # the model's gravity terms, chosen at ingest for every stage
+    if physics is not None or payload:  # the model's gravity terms (default auto), chosen at ingest for every stage
         params.setdefault("ingest", {}).update({"physics": physics, "payload": list(payload or [])})
     try:
         outs = run_pipeline(recording, out, params, force=force, log=_log,

@@ -85,7 +85,7 @@ def run(run_dir: Path, params: dict) -> dict:
         try:
             from pipeline.calibrate import load_with_physics
 
-            _, table = load_with_physics(system, rec, params.get("physics"), params.get("payload"))
+            _, table = load_with_physics(system, rec, params.get("physics") or "auto", params.get("payload"))
             meas = measurement_table(dict(table), stream, window_s=float(params.get("context_window_s", 0.02)),
                                      temperature=temperature_stream(rec), path=path,
                                      channel=mchan)
@@ -217,5 +217,5 @@ def load_system(run_dir: Path, with_stream: bool = False):
     from pipeline.calibrate import load_with_physics
 
     phys = info.get("physics") or {}
-    model, _ = load_with_physics(system, rec, phys.get("physics"), phys.get("payload"))
+    model, _ = load_with_physics(system, rec, phys.get("physics") or "auto", phys.get("payload"))
     return system, model, rec

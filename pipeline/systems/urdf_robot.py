@@ -113,7 +113,7 @@ def physics_model(rec, table: dict, physics: str | None = None, payload: tuple =
     from pipeline.measurements.tree_point import TreePointModel
     from pipeline.physics import compliance
 
-    mode, families = compliance.parse_spec(physics)
+    mode, families = compliance.parse_spec(physics or "none")
     tree = is_tree(rec)
     meta = rec.meta(META_URDF)
     if mode == "auto":
@@ -166,7 +166,8 @@ def _column(rec, topic, msgs, key, shape, dtype=float):
 
 def load(rec, physics: str | None = None, payload: tuple = ()):
     """Measurement model and measurement table of a URDF recording.  `physics` and `payload`: the
-    gravity terms offered to identification (`physics_model`; point measurements)."""
+    gravity terms offered to identification (`physics_model`; point measurements); None keeps the
+    rigid model (the command line and the run's stages ask for ``auto`` by default)."""
     measure = campaign_measure(rec)
     campaign = rec.meta(META_CAMPAIGN)
     if is_tree(rec) and measure != "point":

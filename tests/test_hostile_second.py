@@ -1,0 +1,136 @@
+"""Hostile input, second pass: CSV tables, URDFs, campaign and target files, run folders, ROS 2 bags,
+recordings whose measurement topic is missing or whose times run backwards.  Each test failed (a
+traceback, a hang, silent acceptance or deleted user files) on the code before its fix."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from hostile_support import BUNDLED, rebuild
+from pipeline.errors import RobocalError
+from test_hostile_input import one_line_error
+from test_urdf_import import ARM, GOOD, import_point, write_csv, write_urdf
+
+DELTA, ARC = BUNDLED["delta-tracker"], BUNDLED["arc-welder-touch"]
+
+
+def csv_error(tmp_path: Path, text: str | bytes, *needles: str, urdf: Path | None = None) -> str:
+    """The one-line error `robocal import csv` gives for this table (in process: what the CLI prints)."""
+    from pipeline.importers.csv_table import CsvSpec, read_table
+    from pipeline.models import urdf as urdf_mod
+
+    p = tmp_path / "data.csv"
+    p.write_bytes(text if isinstance(text, bytes) else text.encode())
+    desc = urdf_mod.read(urdf or write_urdf(tmp_path), "base", "tip")
+    with pytest.raises(RobocalError) as e:
+        read_table([p], desc, CsvSpec(measure="point"))
+    msg = str(e.value)
+    assert "\n" not in msg and str(p) in msg
+    for n in needles:
+        assert n in msg, (n, msg)
+    return msg
+
+
+# ----- CSV tables ----------------------------------------------------------------------------
+@pytest.mark.parametrize("text,needles", [
+    ("x,y,z,j2,j1,j1\n0.1,0.2,0.3,0.1,0.2,0.2\n", ["'j1'", "twice"]),
+    (b"x,y,z,j2,j1\n0.1,0.2,0.3,0.1,0.2\n0.2,0.1,0.3,0.3,0.4\xe9\n", ["line 3", "0xe9", "UTF-8"]),
+    (b"x,y,z,j2,j1,note\n0.1,0.2,0.3,0.1,0.2,caf\xe9\n", ["line 2", "UTF-8"]),
+    (b"x,y,z,j2,j1\xe9\n0.1,0.2,0.3,0.1,0.2\n", ["line 1", "UTF-8"]),
+    (GOOD + "0.2,1e308,0.3,0.3,0.4\n", ["row 4", "'y'", "1e+308"]),
+    (GOOD + "0.2,-1e7,0.3,0.3,0.4\n", ["row 4", "'y'"]),
+    (GOOD + "0.2,0_5,0.3,0.3,0.4\n", ["row 4", "'y'", "'0_5'", "not a number"]),
+    (GOOD + "0.2,0.1,0.3,0_1,0.4\n", ["row 4", "'j2'", "not a number"]),
+    (GOOD + "0.2,0.1,0.3,0.1,0.4,7\n", ["line 4", "6 fields"]),
+])
+def test_bad_csv_is_one_line_naming_file_and_row(tmp_path, text, needles):
+    csv_error(tmp_path, text, *needles)
+
+
+def test_bad_csv_through_the_command_line(tmp_path):
+    csv = write_csv(tmp_path, "x,y,z,j2,j1,j1\n0.1,0.2,0.3,0.1,0.2,0.2\n")
+    one_line_error(import_point(tmp_path, write_urdf(tmp_path), csv), str(csv), "'j1'", "twice")
+    assert not (tmp_path / "out.mcap").exists()
+
+
+def test_a_wide_csv_is_read_in_bounded_memory(tmp_path):
+    """100 000 columns (16 MB): only the columns used are kept (pyarrow needed 1.84 GB)."""
+    n = 100_000
+    p = tmp_path / "wide.csv"
+    with open(p, "w") as f:
+        f.write(",".join(["x", "y", "z", "j1", "j2"] + [f"c{i}" for i in range(n - 5)]) + "\n")
+        for r in range(40):
+            f.write(",".join([f"0.{r % 9 + 1}", "0.2", "0.3", "0.1", "0.2"] + ["1.5"] * (n - 5)) + "\n")
+    code = ("from pipeline.importers.csv_table import CsvSpec, read_table; from pipeline.models import urdf;"
+            f"t, _ = read_table([{str(p)!r}], urdf.read({str(write_urdf(tmp_path))!r}, 'base', 'tip'), "
+            "CsvSpec(measure='point')); print(t['position'].shape, "
+            "[ln.split()[1] for ln in open('/proc/self/status') if ln.startswith('VmHWM')][0])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    shape, rss_kb = out.stdout.rsplit(" ", 1)
+    assert shape == "(40, 3)" and int(rss_kb) < 500_000, out.stdout
+
+
+def test_a_good_csv_reads_the_same_numbers_as_numpy(tmp_path):
+    """The strict reader still reads every decimal spelling a spreadsheet writes, to the bit."""
+    from pipeline.importers.csv_table import CsvSpec, read_table
+    from pipeline.models import urdf as urdf_mod
+
+    vals = np.array([[0.1, -2e-3, 3.0, 0.25, -1.5], [1e-7, 0.3333333333333333, -0.0, 2.5e0, 0.1]])
+    text = "x,y,z,j2,j1\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in vals) + "\n" + " .5 ,+1,-.25E+1,1,2\n"
+    p = write_csv(tmp_path, "\ufeff" + text)
+    t, _ = read_table([p], urdf_mod.read(write_urdf(tmp_path), "base", "tip"), CsvSpec(measure="point"))
+    ref = np.loadtxt(p, delimiter=",", skiprows=1, encoding="utf-8-sig")
+    assert np.array_equal(t["position"], ref[:, :3]) and np.array_equal(t["joint_positions"], ref[:, [4, 3]])
+
+
+def test_bad_targets_csv_for_compensate(tmp_path):
+    from pipeline.compensate.program import read_targets
+
+    for text, needles in [("x,y,z,x\n1,2,3,4\n", ["'x'", "twice"]), (b"x,y,z\n1,2,3\xe9\n", ["line 2", "UTF-8"]),
+                          ("x,y,z\n1,2,1e308\n", ["row 1", "'z'"]), ("x,y,z\n1,2_0,3\n", ["row 1", "not a number"])]:
+        p = tmp_path / "targets.csv"
+        p.write_bytes(text if isinstance(text, bytes) else text.encode())
+        with pytest.raises(RobocalError) as e:
+            read_targets(p, ["j1"])
+        assert "\n" not in str(e.value) and str(p) in str(e.value)
+        assert all(n in str(e.value) for n in needles), (needles, str(e.value))
+
+
+def test_a_run_folder_whose_fit_is_not_json(tmp_path):
+    run = tmp_path / "run"
+    (run / "identify").mkdir(parents=True)
+    fit = run / "identify" / "fit.json"
+    targets = write_csv(tmp_path, "x,y,z\n0.1,0.2,0.3\n")
+    for body in ("{", '{"names": 3}', "[1]"):
+        fit.write_text(body)
+        before = fit.read_bytes()
+        proc = run_cli("compensate", run, "--targets", targets, "--out", tmp_path / "prog.csv")
+        one_line_error(proc, str(fit), "not robocal's fit")
+        assert fit.read_bytes() == before and not (tmp_path / "prog.csv").exists()
+
+
+# ----- URDFs ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("edit,needles", [
+    (lambda t: t.replace('<joint name="j2"', '<joint name="j1"'), ["joint 'j1'", "defined twice"]),
+    (lambda t: t.replace('<link name="l2"/>', '<link name="l2"/><link name="l1"/>'), ["link 'l1'", "defined twice"]),
+    (lambda t: t.replace('xyz="0.4 0 0"', 'xyz="1e308 0 0"'), ["joint 'j2'", "origin", "1e308"]),
+    (lambda t: t.replace('rpy="1.5707963 0 0"', 'rpy="1.5707963 -1e308 0"'), ["joint 'j2'", "rpy"]),
+    (lambda t: t.replace('<origin xyz="0 0 0.3"', '<origin xyz="0 0 1e7"'), ["joint 'j1'", "origin"]),
+])
+def test_bad_urdf_second_pass_is_one_line(tmp_path, edit, needles):
+    p = tmp_path / "bad.urdf"
+    p.write_text(edit(ARM.format(j2type="revolute", tip_parent="l2")))
+    from pipeline.models import urdf as urdf_mod
+
+    with pytest.raises(RobocalError) as e:
+        urdf_mod.read(p, "base", "tip")
+    assert "\n" not in str(e.value) and str(p) in str(e.value)
+    assert all(n in str(e.value) for n in needles), (needles, str(e.value))

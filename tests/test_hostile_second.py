@@ -4,7 +4,6 @@ traceback, a hang, silent acceptance or deleted user files) on the code before i
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 from pathlib import Path
@@ -13,7 +12,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from hostile_support import BUNDLED, rebuild
+from hostile_support import BUNDLED
 from pipeline.errors import RobocalError
 from test_hostile_input import one_line_error
 from test_urdf_import import ARM, GOOD, import_point, write_csv, write_urdf

@@ -4,6 +4,7 @@ traceback, a hang, silent acceptance or deleted user files) on the code before i
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -133,3 +134,64 @@ def test_bad_urdf_second_pass_is_one_line(tmp_path, edit, needles):
         urdf_mod.read(p, "base", "tip")
     assert "\n" not in str(e.value) and str(p) in str(e.value)
     assert all(n in str(e.value) for n in needles), (needles, str(e.value))
+
+
+# ----- campaign files, counts, figures ---------------------------------------------------------
+@pytest.fixture(scope="module")
+def touch_plan(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("plan") / "plan.json"
+    proc = run_cli("plan", "arc-welder", "--candidates", "80", "--select", "30", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def test_a_campaign_nested_100000_deep_is_one_line(tmp_path):
+    deep = tmp_path / "deep.json"
+    deep.write_text('{"a":' * 100_000 + "1" + "}" * 100_000)
+    one_line_error(run_cli("simulate", "arc-welder", "--campaign", deep, "--out", tmp_path / "sim.mcap"),
+                   str(deep), "nested")
+    assert not (tmp_path / "sim.mcap").exists()
+    from pipeline.plan.campaign import load_document
+
+    for depth in (900, 5000):  # under and over the recursion limit: the schema check recurses too
+        deep.write_text('{"measurements":' * depth + "1" + "}" * depth)
+        with pytest.raises(RobocalError) as e:
+            load_document(deep)
+        assert str(deep) in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("field,value", [("rate_hz", 1e308), ("dwell_s", 1e300), ("search_speed_m_s", 1e-300)])
+def test_a_campaign_whose_controller_would_run_forever(tmp_path, touch_plan, field, value):
+    from pipeline.plan import campaign
+
+    doc = json.loads(touch_plan.read_text())
+    doc["controller"][field] = value
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(RobocalError) as e:
+        campaign.read(bad, "arc-welder")
+    assert str(bad) in str(e.value) and "controller" in str(e.value) and "\n" not in str(e.value)
+    assert campaign.read(touch_plan, "arc-welder").campaign.rate_hz == 250.0
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["simulate", "arc-welder", "--contacts", str(2 ** 70)], ["--contacts", str(2 ** 70)]),
+    (["simulate", "arc-welder", "--dwell-s", "1e308"], ["--dwell-s"]),
+    (["simulate", "delta-tracker", "--points", str(2 ** 70)], ["--points"]),
+    (["plan", "arc-welder", "--candidates", str(2 ** 70)], ["--candidates"]),
+])
+def test_absurd_counts_are_one_line(tmp_path, args, needles):
+    one_line_error(run_cli(*args, "--out", tmp_path / "out"), *needles)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("sigma", [[1e-3, 1e-3 + 2e-19, 1e-3], [1e-3] * 3, [-1e300, 1e300], [np.nan, 1e-3]])
+def test_report_histograms_of_a_few_equal_values(sigma):
+    """A 3-row table's predicted accuracies can be equal to the last bit: one bin, not 'Too many bins'."""
+    from pipeline.report.accuracy import histograms
+    from pipeline.report.plots import point_sigma
+
+    v = np.array(sigma)
+    with np.errstate(all="ignore"):
+        assert point_sigma(np.arange(v.size), v).lstrip().startswith("<")
+        assert "<svg" in histograms(v, v, 1e-4)

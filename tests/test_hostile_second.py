@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from hostile_support import BUNDLED
+from hostile_support import BUNDLED, rebuild
 from pipeline.errors import RobocalError
 from test_hostile_input import one_line_error
 from test_urdf_import import ARM, GOOD, import_point, write_csv, write_urdf
@@ -195,3 +195,38 @@ def test_report_histograms_of_a_few_equal_values(sigma):
     with np.errstate(all="ignore"):
         assert point_sigma(np.arange(v.size), v).lstrip().startswith("<")
         assert "<svg" in histograms(v, v, 1e-4)
+
+
+# ----- recordings: the measurement topic missing, times running backwards -----------------------
+@pytest.mark.parametrize("topic", ["/../../x", "/" + "t" * 300, "/mesure/point\u00e9\u2603", "/tracker/po\x00int",
+                                   "/touch/contact", "/tracker/point\n/fake"])
+def test_a_renamed_measurement_topic_is_one_line(tmp_path, topic):
+    from test_hostile_input import error_in_process
+
+    bad = rebuild(DELTA, tmp_path / "renamed.mcap",
+                  channel=lambda t: {"topic": topic} if t == "/tracker/point" else {})
+    needles = ["/touch/contact", "registered schema"] if topic == "/touch/contact" else ["/tracker/point",
+                                                                                          "missing or empty"]
+    error_in_process(bad, tmp_path / "o", str(bad), *needles)
+
+
+def test_campaign_system_naming_another_system_is_one_line(tmp_path):
+    from pipeline.recording.schemas import META_CAMPAIGN
+    from test_hostile_input import error_in_process
+
+    bad = rebuild(DELTA, tmp_path / "other-system.mcap",
+                  meta=lambda md: list({**md, META_CAMPAIGN: {**md[META_CAMPAIGN], "system": "arc-welder"}}.items()))
+    error_in_process(bad, tmp_path / "o", str(bad), "missing or empty")
+
+
+@pytest.mark.parametrize("case,fn,needles", [
+    ("negative", lambda m: {**m, "timestamp_ns": -5}, ["record 3", "negative"]),
+    ("backwards", lambda m: {**m, "timestamp_ns": m["timestamp_ns"] - 10 ** 12}, ["record 3", "backwards"]),
+])
+def test_a_contact_time_that_is_negative_or_runs_backwards(tmp_path, case, fn, needles):
+    """Named at ingest, before diagnose fitted a drift against it (SVD did not converge)."""
+    from hostile_support import edit_json
+    from test_hostile_input import error_in_process
+
+    bad = rebuild(ARC, tmp_path / f"{case}.mcap", msg=edit_json("/touch/contact", 3, fn))
+    error_in_process(bad, tmp_path / "o", str(bad), "/touch/contact", *needles)

@@ -96,16 +96,28 @@ class Recording:
 
     def require(self, topic: str) -> list[dict]:
         if not self.messages.raw.get(topic):
-            have = ", ".join(sorted(self.messages)) or "none"
-            raise RobocalError(f"{where(self.path, topic)}: channel missing or empty (channels present: {have})")
+            raise RobocalError(self.missing(topic))
         if self.registration.get(topic):
             raise RobocalError(f"{where(self.path, topic)}: {self.registration[topic]}")
         return self.messages[topic]
+
+    def missing(self, topic: str) -> str:
+        """'file: channel T: channel missing or empty (channels present: …)', one line whatever the
+        topics hold (control characters escaped, each topic cut at 80 characters, at most 12 listed)."""
+        names = sorted(self.messages.raw)
+        have = ", ".join(_printable(t) for t in names[:12]) + (f", … ({len(names) - 12} more)" if len(names) > 12 else "")
+        return f"{where(self.path, topic)}: channel missing or empty (channels present: {have or 'none'})"
 
     def meta(self, name: str) -> dict:
         if name not in self.metadata:
             raise RobocalError(f"{self.path}: metadata record {name!r} missing (not a robocal recording?)")
         return self.metadata[name]
+
+
+def _printable(topic: str) -> str:
+    """A topic as it can be printed on one line: control and non-printable characters escaped, ≤ 80 characters."""
+    out = topic if topic.isprintable() else repr(topic)[1:-1]
+    return out if len(out) <= 80 else out[:79] + "…"
 
 
 def read_recording(path: str | Path, topics: set[str] | None = None, skip: frozenset[str] = frozenset(),

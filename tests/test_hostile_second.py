@@ -230,3 +230,70 @@ def test_a_contact_time_that_is_negative_or_runs_backwards(tmp_path, case, fn, n
 
     bad = rebuild(ARC, tmp_path / f"{case}.mcap", msg=edit_json("/touch/contact", 3, fn))
     error_in_process(bad, tmp_path / "o", str(bad), "/touch/contact", *needles)
+
+
+# ----- run folders: never delete what robocal did not write -------------------------------------
+def _tree(d: Path) -> dict[str, bytes]:
+    return {p.relative_to(d).as_posix(): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+def test_a_users_folder_that_looks_like_an_old_run_is_not_emptied(tmp_path):
+    """ingest/stage.json and results.json beside the user's own files: not an old run folder."""
+    from pipeline.stages.runner import run_pipeline
+
+    out = tmp_path / "mine"
+    (out / "ingest").mkdir(parents=True)
+    (out / "ingest" / "stage.json").write_text('{"stage": "ingest", "outputs": {}}')
+    (out / "ingest" / "thesis.tex").write_text("three years")
+    (out / "results.json").write_text("{}")
+    before = _tree(out)
+    one_line_error(run_cli("run", DELTA, "--out", out, "--stages", "ingest,validate"), "not written by robocal")
+    with pytest.raises(RobocalError):
+        run_pipeline(DELTA, out, stages=["ingest"], force=True)
+    assert _tree(out) == before  # nothing deleted, nothing written
+
+
+def test_force_never_deletes_a_users_file_inside_robocals_stage_folder(tmp_path):
+    from pipeline.stages.runner import run_pipeline
+
+    out = tmp_path / "run"
+    run_pipeline(DELTA, out, stages=["ingest", "validate"])
+    (out / "ingest" / "my-notes.txt").write_text("keep")
+    (out / "validate" / "sub").mkdir()
+    (out / "validate" / "sub" / "plot.png").write_bytes(b"\x89PNG mine")
+    with pytest.raises(RobocalError) as e:
+        run_pipeline(DELTA, out, stages=["ingest", "validate"], force=True)
+    assert "my-notes.txt" in str(e.value) and "not written by robocal" in str(e.value)
+    assert (out / "ingest" / "my-notes.txt").read_text() == "keep"
+    (out / "ingest" / "my-notes.txt").unlink()
+    with pytest.raises(RobocalError) as e:
+        run_pipeline(DELTA, out, stages=["ingest", "validate"], force=True)
+    assert "plot.png" in str(e.value)
+    assert (out / "validate" / "sub" / "plot.png").read_bytes() == b"\x89PNG mine"
+    (out / "validate" / "sub" / "plot.png").unlink()
+    (out / "validate" / "sub").rmdir()
+    # robocal's own files are still replaced: forced, a stopped stage, and a run folder from before manifests
+    run_pipeline(DELTA, out, stages=["ingest", "validate"], force=True)
+    for m in out.rglob(".robocal-*"):
+        m.unlink()
+    run_pipeline(DELTA, out, stages=["ingest", "validate"], force=True)
+    assert sorted(p.name for p in (out / "ingest").iterdir()) == sorted(
+        [".robocal-stage", "encoder.parquet", "measurements.parquet", "messages.parquet", "recording.json",
+         "stage.json", "tracker_point.parquet"])
+
+
+def test_a_stage_that_stopped_records_what_it_wrote(tmp_path):
+    from pipeline.stages.runner import run_pipeline
+
+    bad = rebuild(DELTA, tmp_path / "neg.mcap",
+                  msg=lambda t, i, d: d.replace(b'"timestamp_ns":', b'"timestamp_ns":-', 1) if (
+                      t == "/tracker/point" and i == 2) else d)
+    out = tmp_path / "run"
+    with pytest.raises(RobocalError):
+        run_pipeline(bad, out, stages=["ingest", "validate"])
+    written = json.loads((out / "validate" / ".robocal-stage").read_text())["files"]
+    (out / "validate" / "mine.txt").write_text("keep")
+    with pytest.raises(RobocalError) as e:
+        run_pipeline(bad, out, stages=["ingest", "validate"], force=True)
+    assert "mine.txt" in str(e.value) and (out / "validate" / "mine.txt").read_text() == "keep"
+    assert set(written) <= {p.name for p in (out / "validate").iterdir()}

@@ -105,7 +105,7 @@ def run_input(recording: Path, out: Path, urdf: Path | None, root: str | None, t
     it stay cached).  Bag options without a bag, or a bag without the robot, are one-line errors."""
     from pipeline.errors import RobocalError
     from pipeline.importers.bagkind import ros2_kind
-    from pipeline.stages.runfolder import claim, fresh_stage_dir, locked
+    from pipeline.stages.runfolder import claim, fresh_stage_dir, locked, record_manifest
 
     given = [f"--{k}" for k, v in (("urdf", urdf), ("root", root), ("tip", tip)) if v is not None]
     if ros2_kind(recording) is None:
@@ -120,5 +120,8 @@ def run_input(recording: Path, out: Path, urdf: Path | None, root: str | None, t
         claim(out)
         d = fresh_stage_dir(out, "import")
         rec = d / "recording.mcap"
-        import_bag(recording, urdf, root, tip, rec, **bag)
+        try:
+            import_bag(recording, urdf, root, tip, rec, **bag)
+        finally:
+            record_manifest(d)
     return rec

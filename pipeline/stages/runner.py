@@ -26,7 +26,7 @@ from pipeline import __version__
 from pipeline.errors import RobocalError
 from pipeline.stages.artefacts import dumps, read_json, sha256_file, write_json
 from pipeline.stages.registry import BY_NAME, STAGES, Stage
-from pipeline.stages.runfolder import STAGE_MARKER, claim, fresh_stage_dir, locked
+from pipeline.stages.runfolder import STAGE_MARKER, claim, fresh_stage_dir, locked, record_manifest
 
 STAGE_FILE = "stage.json"
 
@@ -183,6 +183,7 @@ def _run_stage(run_dir: Path, name: str, params: dict | None, recording: Path | 
         except BaseException as e:  # the run's results must not look like a pass after a crash
             why = str(e) if isinstance(e, RobocalError) else f"{type(e).__name__}: {e}"
             try:
+                record_manifest(run_dir / name)
                 write_results(run_dir, error=f"stage {name} stopped: {why}")
             except OSError:
                 pass
@@ -193,6 +194,7 @@ def _run_stage(run_dir: Path, name: str, params: dict | None, recording: Path | 
                "inputs": inputs, "elapsed_s": elapsed, "robocal_version": __version__,
                "summary": summary, "outputs": _outputs(run_dir, name, summary)}
         (run_dir / name / STAGE_FILE).write_text(dumps(doc))
+        record_manifest(run_dir / name)
         out = Outcome(name, False, elapsed, key, summary)
     if log:
         log(f"{name}: " + ("cached" if out.cached else f"ran in {out.elapsed_s:.2f} s") + f" (key {key[:12]})")

@@ -297,3 +297,67 @@ def test_a_stage_that_stopped_records_what_it_wrote(tmp_path):
         run_pipeline(bad, out, stages=["ingest", "validate"], force=True)
     assert "mine.txt" in str(e.value) and (out / "validate" / "mine.txt").read_text() == "keep"
     assert set(written) <= {p.name for p in (out / "validate").iterdir()}
+
+
+# ----- ROS 2 bags cut short ----------------------------------------------------------------------
+@pytest.fixture
+def r6(tmp_path):
+    from pipeline.models import urdf
+    from test_urdf_simulate import R6T
+
+    p = tmp_path / "r6.urdf"
+    p.write_text(R6T)
+    return p, urdf.parse(R6T, "b", "tcp")
+
+
+def _cut_bag(tmp_path: Path, desc, frac: float, keep_metadata: bool = True, n: int = 40) -> tuple[Path, dict]:
+    """A bag written by rosbags' own writer, its MCAP storage file then cut to `frac` of its bytes."""
+    from pipeline.simulate.ros2_bag import simulate_bag
+
+    bag = tmp_path / "bag"
+    truth = simulate_bag(bag, desc, n=n, seed=4)
+    f = truth["storage"]
+    f.write_bytes(f.read_bytes()[: int(f.stat().st_size * frac)])
+    if not keep_metadata:  # the recorder was killed before it wrote metadata.yaml
+        (bag / "metadata.yaml").unlink()
+    return bag, truth
+
+
+def test_a_truncated_bag_is_salvaged_with_a_warning_naming_what_was_lost(tmp_path, r6):
+    from pipeline.importers.ros2 import read_bag
+    from pipeline.recording.reader import read_recording
+    from pipeline.simulate.ros2_bag import simulate_bag
+
+    upath, desc = r6
+    whole, _ = read_bag(simulate_bag(tmp_path / "whole", desc, n=40, seed=4)["storage"].parent, desc)
+    bag, _ = _cut_bag(tmp_path, desc, 0.6)
+    out = tmp_path / "rec.mcap"
+    proc = run_cli("import", "ros2", bag, "--urdf", upath, "--root", "b", "--tip", "tcp", "--out", out)
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    assert "damaged ROS 2 bag" in proc.stderr and "topic /tracker/point:" in proc.stderr and " of 40 messages lost" in proc.stderr
+    got = np.asarray(read_recording(out).metadata["robocal.campaign"]["ros2"]["measurement_records"])
+    table, extras = read_bag(bag, desc)
+    assert 0 < len(got) < 40 and np.array_equal(table["position"], whole["position"][: len(table["position"])])
+    assert any("messages lost" in w for w in extras["import_warnings"])
+
+
+def test_a_bag_whose_recorder_was_killed_is_salvaged(tmp_path, r6):
+    """No metadata.yaml and no MCAP footer: read what is there, say the loss is unknown."""
+    from pipeline.importers.bagkind import ros2_kind
+    from pipeline.importers.ros2 import read_bag
+
+    _, desc = r6
+    bag, _ = _cut_bag(tmp_path, desc, 0.8, keep_metadata=False)
+    assert ros2_kind(bag) == "folder"
+    table, extras = read_bag(bag, desc)
+    assert 0 < len(table["position"]) < 40
+    assert any("lost is unknown" in w for w in extras["import_warnings"])
+    assert any("before the MCAP footer" in w for w in extras["import_warnings"])
+
+
+def test_a_bag_with_nothing_readable_is_one_line(tmp_path, r6):
+    upath, desc = r6
+    bag, _ = _cut_bag(tmp_path, desc, 0.1)
+    proc = run_cli("import", "ros2", bag, "--urdf", upath, "--root", "b", "--tip", "tcp", "--out", tmp_path / "r.mcap")
+    one_line_error(proc, str(bag), "no message could be salvaged")
+    assert not (tmp_path / "r.mcap").exists()

@@ -121,17 +121,18 @@ def _printable(topic: str) -> str:
 
 
 def read_recording(path: str | Path, topics: set[str] | None = None, skip: frozenset[str] = frozenset(),
-                   limits: ReadLimits | None = None) -> Recording:
+                   limits: ReadLimits | None = None, foreign: bool = False) -> Recording:
     """Read every complete record (messages of `topics`, or all, less those of `skip`) and the metadata.
 
     A damaged chunk (bad framing, CRC, compression, or over `limits`) is skipped with a warning and
     reading carries on at the next intact chunk; the messages read are compared with the summary's
     counts per channel.  Inside `cached_reads()` a second read of the same unchanged file is served
-    from memory (a run reads its recording once)."""
+    from memory (a run reads its recording once).  `foreign`: any MCAP file (a ROS 2 bag's storage
+    file being salvaged), not only robocal's recordings."""
     path = Path(path)
     from pipeline.importers.bagkind import not_a_recording_hint
 
-    if (hint := not_a_recording_hint(path)) is not None:
+    if not foreign and (hint := not_a_recording_hint(path)) is not None:
         raise RobocalError(hint)
     if not path.is_file():
         raise RobocalError(f"{path}: no such file")

@@ -18,6 +18,7 @@ import numpy as np
 
 from pipeline.errors import RobocalError
 
+MAX_DEPTH = 64  # element nesting of a URDF (robot/joint/origin is 3; vendor extensions add a few)
 BOUND = 1e6  # |origin xyz (m) / rpy (rad) / axis|: anything larger is damage, not geometry
 MOVABLE = ("revolute", "continuous", "prismatic")
 KNOWN_TYPES = MOVABLE + ("fixed",)
@@ -79,6 +80,14 @@ def _xml_checks(text: str, source: str) -> None:
         raise _fail(source, f"not valid URDF XML ({e})") from None
     if root.tag != "robot":
         raise _fail(source, f"root element is <{root.tag}>, expected <robot>")
+    if not root.get("name"):
+        raise _fail(source, "<robot> has no name attribute")
+    stack = [(root, 0)]
+    while stack:  # a URDF is a few elements deep; thousands is damage (and lxml would print a warning)
+        el, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise _fail(source, f"<{el.tag}> is nested more than {MAX_DEPTH} elements deep: not a URDF")
+        stack += [(c, depth + 1) for c in el]
     links: set = set()
     for ln in root.findall("link"):
         if ln.get("name") in links:

@@ -90,7 +90,7 @@ def read_stage(run_dir: Path, name: str) -> dict | None:
         return None
     try:
         return read_json(p)
-    except ValueError:
+    except (ValueError, RecursionError):
         return None
 
 

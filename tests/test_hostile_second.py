@@ -339,6 +339,10 @@ def test_a_truncated_bag_is_salvaged_with_a_warning_naming_what_was_lost(tmp_pat
     table, extras = read_bag(bag, desc)
     assert 0 < len(got) < 40 and np.array_equal(table["position"], whole["position"][: len(table["position"])])
     assert any("messages lost" in w for w in extras["import_warnings"])
+    from pipeline.stages.runner import run_pipeline
+
+    ingest = run_pipeline(out, tmp_path / "run", stages=["ingest"])[0]
+    assert ingest.summary["status"] == "warn" and any("messages lost" in w for w in ingest.summary["warnings"])
 
 
 def test_a_bag_whose_recorder_was_killed_is_salvaged(tmp_path, r6):

@@ -294,6 +294,7 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     side: list[tuple[int, bytes]] = []
     joints = desc.joint_names
     warnings: list[str] = []
+    data_lost: list[str] = []  # the bag's damage: ingest's status is then warn, never pass
     try:
         reader = _open(path)
         try:
@@ -311,6 +312,7 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         side = sal.messages.get(mt, [])
         js, jlog, Q, jreport, effort = read_joint_states(path, jt, iter(sal.messages.get(jt, [])), joints)
         warnings += sal.warnings
+        data_lost = sal.warnings
     if not side:
         raise RobocalError(f"{at(path, mt)}: no messages")
     tj, jsrc = _times(js, jlog, spec.time == "header")
@@ -347,6 +349,8 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         extras["n_targets"] = 1
     if warnings:
         extras["import_warnings"] = warnings
+    if data_lost:
+        extras["data_lost"] = data_lost
     if effort is not None:  # the joint states with their efforts, as the recording's encoder stream
         table["stream"] = {"t_ns": tj, "q": Q, "effort": effort}
     return table, extras

@@ -306,7 +306,7 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     except _Damaged as e:  # a bag cut short: calibrate from what can be read, saying what was lost
         from pipeline.importers.ros2_salvage import salvage
 
-        sal = salvage(path, e.why)
+        sal = salvage(path, e.why, str(e))
         topics = sal.topics
         jt, mt, measure = choose_topics(path, topics, spec)
         side = sal.messages.get(mt, [])

@@ -48,9 +48,10 @@ def _expected_counts(path: Path) -> dict[str, int] | None:
         return None
 
 
-def salvage(path: Path, why: str, wanted: set[str] | None = None) -> Salvaged:
+def salvage(path: Path, why: str, message: str, wanted: set[str] | None = None) -> Salvaged:
     """The readable messages (of `wanted` topics, or all) of the damaged MCAP bag `path`; `why` is
-    rosbags' complaint, kept in the warning.  Raises RobocalError when nothing can be read."""
+    rosbags' complaint, kept in the warning.  Raises RobocalError when nothing can be read, and
+    `message` (rosbags' refusal, as it was) when the bag is not damaged (an unsupported profile…)."""
     from pipeline.recording.reader import read_recording
 
     files = storage_files(path)
@@ -59,19 +60,24 @@ def salvage(path: Path, why: str, wanted: set[str] | None = None) -> Salvaged:
     topics: dict[str, str] = {}
     messages: dict[str, list[tuple[int, bytes]]] = {}
     notes: list[str] = []
+    damaged = Path(path).is_dir() and not (Path(path) / "metadata.yaml").is_file()
     for f in files:
         try:
             rec = read_recording(f, topics=wanted, foreign=True)
         except RobocalError as e:
             notes.append(f"{e}")
+            damaged = True
             continue
         for t, (schema, _enc) in rec.schemas.items():
             topics.setdefault(t, schema or "(unknown type)")
         for t, bodies in rec.messages.raw.items():
-            messages.setdefault(t, []).extend(zip(rec.log_times[t], map(bytes, bodies)))
+            messages.setdefault(t, []).extend(zip(rec.log_times.get(t, []), map(bytes, bodies)))
         notes += [w for w in rec.warnings]
+        damaged = damaged or bool(rec.warnings) or not rec.complete
         if not rec.complete:
             notes.append(f"{f}: ends before the MCAP footer (cut short or the recorder was killed)")
+    if not damaged:
+        raise RobocalError(message)
     if not any(messages.values()):
         raise RobocalError(f"{path}: cannot read as a ROS 2 bag ({why}); no message could be salvaged")
     for t in messages:

@@ -65,7 +65,8 @@ def read_columns(path: Path, keep: Iterable[str] | None = None,
                 raise RobocalError(f"{path}: column {h!r} appears twice in the header (columns {seen[h] + 1} "
                                    f"and {k + 1})")
             seen[h] = k
-        wanted = [(k, h) for k, h in enumerate(header) if keep is None or h in set(keep)]
+        kept = None if keep is None else set(keep)
+        wanted = [(k, h) for k, h in enumerate(header) if kept is None or h in kept]
         out: dict[str, list[str]] = {h: [] for _, h in wanted}
         n = 0
         for row in rows:

@@ -29,7 +29,7 @@ def humanoid(tmp_path_factory):
 
 
 def _model(rec, physics):
-    from pipeline.calibrate import load_with_physics
+    from pipeline.systems.registry import load_with_physics
     from pipeline.recording.reader import read_recording
     from pipeline.systems.registry import detect
 

@@ -12,25 +12,27 @@ from pipeline.identify.least_squares import FitOptions, cross_validate, fit, hol
 from pipeline.identify.results import results_document
 from pipeline.recording.reader import read_recording
 from pipeline.stages.artefacts import sha256_file
-from pipeline.systems.registry import detect
+from pipeline.systems.registry import detect, load_with_physics
 
 
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
               seed: int = 0, solver: str = "lm", joint_offsets: bool = False, variant: str | None = None,
-              select_groups: bool = True, accuracy: dict | None = None, model_choice: str = "groups") -> dict:
+              select_groups: bool = True, accuracy: dict | None = None, physics: str | None = None,
+              payload: list[str] | None = None, model_choice: str = "groups") -> dict:
     """Read, identify, cross-validate; write DIR/results.json and DIR/model.json.
 
     `solver`: 'lm' (least squares, default) or 'ga' (seed 001's genetic algorithm, for systems
     whose model offers `batch_cost_fn`).  `joint_offsets`: also identify the arm's joint
     offsets (systems whose model has a `joint_offsets` field).  `variant`: the model variant
-    (systems whose model has a `variant` field, e.g. delta-tracker: simplified, extended)."""
+    (systems whose model has a `variant` field, e.g. delta-tracker: simplified, extended).  `physics`,
+    `payload`: gravity terms of a URDF robot (`pipeline.physics.compliance`)."""
     t0 = time.perf_counter()
     if model_choice not in ("groups", "shrinkage"):
         raise RobocalError(f"--model-choice {model_choice!r}: expected groups or shrinkage")
     path, out = Path(path), Path(out)
     rec = read_recording(path)
     system = detect(rec)
-    model, table = system.load(rec)
+    model, table = load_with_physics(system, rec, physics, payload)
     if joint_offsets:
         if not hasattr(model, "joint_offsets"):
             raise RobocalError(f"{path}: system {system.SYSTEM} does not support --joint-offsets")

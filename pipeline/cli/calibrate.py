@@ -9,7 +9,8 @@ import typer
 from rich.table import Table
 
 from pipeline.cli import CALIBRATE, app, console, err
-from pipeline.cli.run import PREVIOUS, PRIOR, STRICT, TARGETS, TOLERANCE, accuracy_params, strict_exit
+from pipeline.cli.run import (PAYLOAD, PHYSICS, PREVIOUS, PRIOR, STRICT, TARGETS, TOLERANCE, accuracy_params,
+                              strict_exit)
 
 
 @app.command("calibrate", rich_help_panel=CALIBRATE)
@@ -30,8 +31,10 @@ def calibrate_cmd(
     registration: str = typer.Option("shared", "--registration", help="Several recordings: shared (one instrument "
                                                                       "frame) or per-recording."),
     model_choice: str = typer.Option("groups", "--model-choice",
-                                     help="URDF robots: groups (keep groups that lower k-fold held-out error) or "
-                                          "shrinkage (every parameter, pulled toward nominal by its prior; scale by GCV)."),
+                                     help="URDF robots: groups (keep groups that lower held-out error) or shrinkage "
+                                          "(every parameter pulled toward nominal by its prior; scale by leaving out "
+                                          "whole sessions/placements, else GCV)."),
+    physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows
@@ -42,7 +45,8 @@ def calibrate_cmd(
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,
-                        joint_offsets=joint_offsets, variant=variant, model_choice=model_choice,
+                        joint_offsets=joint_offsets, variant=variant, physics=physics, payload=payload,
+                        model_choice=model_choice,
                         accuracy=accuracy_params(prior, tolerance, previous, targets))
     for w in doc["warnings"]:
         err.print(f"[yellow]warning:[/] {w}", highlight=False)

@@ -130,6 +130,11 @@ F_SCALE = typer.Option(None, "--f-scale", help="identify: robust-loss scale, m (
 REJECT = typer.Option(None, "--reject", help="identify: reject measurements beyond this many robust σ (MAD); 0 = off (default 5).")
 FOLDS = typer.Option(None, "--folds", min=2, help="identify: folds of the held-out cross-validation (default 5).")
 FORCE = typer.Option(False, "--force", help="Run even if cached.")
+MODEL = "Model (physics terms)"
+PHYSICS = typer.Option(None, "--physics", rich_help_panel=MODEL, help="Gravity terms of a URDF robot (point data): "
+                       "auto (default: kept when held-out error improves), none, or joint-compliance,lateral-compliance.")
+PAYLOAD = typer.Option(None, "--payload", rich_help_panel=MODEL, help="A mass carried besides the URDF's links: "
+                       "KG@LINK or KG@LINK:X,Y,Z (m, link frame); repeatable.")
 ACCURACY = "Accuracy (predicted over the workspace)"
 PRIOR = typer.Option(None, "--prior", rich_help_panel=ACCURACY, help="Prior 1σ of parameters held at nominal: NAME=SIGMA, NAME a parameter, "
                      "pattern (J*.beta) or kind (length, angle, frame_translation, frame_rotation, pixel); "
@@ -185,6 +190,7 @@ def run_cmd(
     joint_topic: str = BAG["joint_topic"], measure_topic: Optional[str] = BAG["measure_topic"],
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
+    physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached.  A ROS 2 bag is
@@ -215,6 +221,8 @@ def run_cmd(
         params["identify"]["model_choice"] = model_choice
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
+    if physics is not None or payload:  # the model's gravity terms (default auto), chosen at ingest for every stage
+        params.setdefault("ingest", {}).update({"physics": physics, "payload": list(payload or [])})
     try:
         outs = run_pipeline(recording, out, params, force=force, log=_log,
                             stages=[s.strip() for s in only.split(",")] if only else None)

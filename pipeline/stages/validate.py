@@ -120,18 +120,9 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         msgs = decoded[mchan]
         if table is not None and "timestamp_ns" in table:
             t_m, rec_m = table["timestamp_ns"], table["record"]
-            if "kind" in table:  # rows derived from the campaign (known distances) have no time of their own
-                own = np.asarray(table["kind"]) == 0
-                t_m, rec_m = np.asarray(t_m)[own], np.asarray(rec_m)[own]
-                ses = np.asarray(table["session"])[own] if "session" in table else None
-            else:
-                ses = np.asarray(table["session"]) if "session" in table else None
-            if ses is not None:  # several recordings: times are in order within each, not across them
-                t_m = np.asarray(t_m, np.int64).copy()
-                for s in range(1, int(ses.max()) + 1 if ses.size else 0):
-                    m, before = ses == s, ses < s
-                    if m.any() and before.any():
-                        t_m[m] += max(0, int(t_m[before].max()) - int(t_m[m].min()) + 1)
+            from pipeline.ingest.tables import times_in_order
+
+            t_m, rec_m = times_in_order(table, rec_m)  # measured rows; in order within each merged recording
         else:
             ok = [(i, m["timestamp_ns"]) for i, m in enumerate(msgs) if isinstance(m.get("timestamp_ns"), int)]
             rec_m = np.array([i for i, _ in ok], int)

@@ -1,6 +1,6 @@
 """One robot, several sessions, each measured in its own instrument frame (per-recording registration).
 
-Wraps any measurement model whose instrument frame is ``base.x … base.yaw``: session 0 keeps
+Wraps any measurement model whose instrument frame is ``base.x … base.yaw``: the first session keeps
 ``base.*``, session s ≥ 1 gets ``base.<k>@<s>`` (appended after the model's own parameters, in the
 registration group).  Rows carry their session in the data column ``session``; each session's rows
 are evaluated with its frame (a loop over sessions, vectorised inside).  Everything else (the robot,

@@ -43,12 +43,16 @@ def check_compatible(cal: Calibrated, rec) -> None:
     if camp.get("system") != "urdf" or not isinstance(meta, dict) or "urdf" not in meta:
         raise RobocalError(f"{rec.path}: not a URDF-robot recording (system {camp.get('system')!r}); "
                            f"{cal.run_dir} calibrated a URDF robot")
-    for k in ("root", "tip"):
+    for k in ("root", "tip", "tips"):
         if meta.get(k) != cal.urdf.get(k):
             raise RobocalError(f"{rec.path}: chain {k} {meta.get(k)!r}, but {cal.run_dir} calibrated the chain "
-                               f"{cal.urdf.get('root')!r} → {cal.urdf.get('tip')!r}")
-    mine = urdf.parse(meta["urdf"], meta["root"], meta["tip"], source=f"{rec.path}: metadata robocal.urdf")
-    theirs = urdf.parse(cal.urdf["urdf"], cal.urdf["root"], cal.urdf["tip"], source=f"{cal.run_dir}")
+                               f"{cal.urdf.get('root')!r} → {cal.urdf.get('tips') or cal.urdf.get('tip')!r}")
+    if (camp.get("coupled") or {}) != (cal.campaign.get("coupled") or {}):
+        raise RobocalError(f"{rec.path}: coupled joints {camp.get('coupled') or {}}, but {cal.run_dir} was calibrated "
+                           f"with {cal.campaign.get('coupled') or {}}")
+    mine = urdf.parse(meta["urdf"], meta["root"], meta["tip"], source=f"{rec.path}: metadata robocal.urdf",
+                      allow_mimic=True)
+    theirs = urdf.parse(cal.urdf["urdf"], cal.urdf["root"], cal.urdf["tip"], source=f"{cal.run_dir}", allow_mimic=True)
     if mine.name != theirs.name or mine.joint_names != theirs.joint_names:
         raise RobocalError(f"{rec.path}: robot {mine.name!r} with joints {mine.joint_names}, but {cal.run_dir} "
                            f"calibrated robot {theirs.name!r} with joints {theirs.joint_names}")
@@ -123,10 +127,15 @@ def evaluate(cal: Calibrated, recs: list, refit: str = "none", registration: str
     items = []
     for rec in recs:
         model_rec, table = urdf_robot.load(rec)
-        model = replace(model_rec, kin=arm)
+        tree = urdf_robot.model_like(rec, cal.names) if measure == "point" else None
+        if tree is not None:  # several tips, coupled joints or physics terms: the calibration's own structure
+            model = replace(tree, kin=replace(tree.kin, descs=tuple(replace(d, urdf=cal.urdf["urdf"]) for d in
+                                                                    tree.kin.descs)))
+        else:
+            model = replace(model_rec, kin=arm)
         x, own = transfer(cal, model, rec.path)
         items.append([rec, model, table, x, own])
-    reg = [n for n in arm.parameter_names() if n.startswith("base.")] if refit == "registration" else []
+    reg = [n for n in items[0][1].parameter_names() if n.startswith("base.")] if refit == "registration" else []
     if measure == "coincidence":
         reg = []  # ball-centre spreads and socket distances do not depend on the instrument frame
     if reg and registration == "shared" and len(items) > 1:

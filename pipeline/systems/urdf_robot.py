@@ -131,6 +131,24 @@ def physics_model(rec, table: dict, physics: str | None = None, payload: tuple =
     return TreePointModel(tree_of(rec, lateral), compliant=compliant, payload=payload, forced=mode == "fixed")
 
 
+def model_like(rec, names: list[str], payload: tuple = ()):
+    """The `TreePointModel` of a point recording with the physics terms a calibration has (`names`: its
+    parameter names — ``J.compliance``, ``J.lateral1``), whatever this recording's loads: a calibrated
+    model is applied as it was fitted.  None when `names` hold no physics term and `rec` is no tree."""
+    from pipeline.measurements.tree_point import TreePointModel
+
+    compliant = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".compliance"))
+    lateral = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".lateral1"))
+    if not (compliant or lateral or is_tree(rec)):
+        return None
+    tree = tree_of(rec, lateral)
+    known = {j.name for j in tree.all_joints}
+    if not set(compliant + lateral) <= known:
+        raise RobocalError(f"{rec.path}: the calibration's physics terms name joints {sorted(set(compliant + lateral) - known)} "
+                           "that are not in this recording's chains")
+    return TreePointModel(tree, compliant=compliant, payload=payload)
+
+
 def model_for(arm: UrdfArm, measure: str, campaign: dict, labels: list[str] | None = None):
     """The measurement model of `measure` over `arm` (campaign settings applied)."""
     if measure == "point":

@@ -88,7 +88,10 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
                                   "explanation": explain(selection)}
     from pipeline.accuracy.stage import guarded_document
 
-    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {})
+    from pipeline.identify.least_squares import kfold_indices
+
+    folds = kfold_indices(len(holdout), k_folds, seed)
+    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {}, (holdout, folds))
     if (accuracy or {}).get("previous"):
         from pipeline.accuracy.previous import compare, read_parameters
 
@@ -112,7 +115,6 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
 def summary_rows(doc: dict) -> list[tuple[str, str]]:
     """Display rows (mm for lengths) of a results document."""
     mm = lambda v: f"{v * 1e3:.4f} mm"  # noqa: E731
-    acc = doc["predicted_point_accuracy"]
     return [
         ("system", doc["system"]),
         ("measurements", str(doc["n_measurements"])),
@@ -120,7 +122,6 @@ def summary_rows(doc: dict) -> list[tuple[str, str]]:
         ("RMS after", mm(doc["rms_after_m"])),
         (f"held-out RMS ({doc['holdout_folds']}-fold CV)", mm(doc["holdout_rms_m"])),
         ("max |residual| after", mm(doc["max_abs_after_m"])),
-        ("predicted 3-D point accuracy (1σ, RMS)", mm(acc["rms_1sigma_m"])),
         *([("predicted over the workspace (1σ RMS / worst 95 %)",
             f"{mm(doc['accuracy']['map_rms_1sigma_m'])} / {mm(doc['accuracy']['map_max_bound95_m'])}")]
           if "map_rms_1sigma_m" in doc.get("accuracy", {}) else []),

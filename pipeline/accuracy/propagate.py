@@ -90,6 +90,11 @@ def uncalibrated(Jp: np.ndarray, prior_sigma: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("nip,p->n", Jp**2, prior_sigma**2))
 
 
+def uncalibrated_cov(Jp: np.ndarray, prior_sigma: np.ndarray) -> np.ndarray:
+    """3×3 covariance (n,3,3) m² of the uncalibrated model's point: every parameter at its prior."""
+    return np.einsum("nip,p,njp->nij", Jp, prior_sigma**2, Jp)
+
+
 def norm_quantile(cov: np.ndarray, q: float) -> np.ndarray:
     """q-quantile of |e| for e ~ N(0, Σ) per point, (n,) m: |e|² = Σ λ_i χ²₁ approximated by
     c·χ²_ν with matching mean and variance (Satterthwaite): c = Σλ²/Σλ, ν = (Σλ)²/Σλ²."""

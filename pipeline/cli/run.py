@@ -42,7 +42,6 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
             ("measurements used / recorded", f"{s.get('n_used', '—')} / {s.get('n_measurements', '—')}"),
             ("RMS before", mm(s.get("rms_before_m"))), ("RMS after", mm(s.get("rms_after_m"))),
             ("held-out RMS", mm(s.get("holdout_rms_m"))),
-            ("predicted point accuracy (1σ RMS)", mm(s.get("predicted_point_sigma_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
     diag = doc.get("stages", {}).get("diagnose", {}).get("summary", {})
     if "findings" in diag:  # what the geometric model left out (issue 7)

@@ -15,20 +15,25 @@ import time
 import numpy as np
 
 from pipeline.accuracy import assess, prior, workspace
-from pipeline.identify.least_squares import fit
+from pipeline.identify.least_squares import cross_validate, fit, kfold_indices
 from pipeline.identify.model import take, uncalibrated
 from pipeline.models.jig import stepped_block
 
 FIXTURE = stepped_block().to_dict()
 
 
-def _evaluate(model, table, x_true, poor: bool = False) -> dict:
+def _evaluate(model, table, x_true, poor: bool = False, folds: int = 5) -> dict:
+    """One calibration as `robocal calibrate` does it: fit, 5-fold held-out residuals, the verdict."""
     f = fit(model, table)
     sigma, _, _ = prior.prior_sigma(model)
     fixture = FIXTURE if model.system == "arc-welder" else None
     mt, _ = workspace.map_table(model, f.x, table, fixture=fixture)
+    n = len(table["joint_positions"])
+    ho = None
+    if folds and n >= 2 * folds:
+        ho = (cross_validate(model, table, k=folds), kfold_indices(n, folds))
     doc = assess.evaluate(model, f.x, f.free, f.cov, table, sigma, mt, uncalibrated(model, table),
-                          direction_advice=assess.touch_advice(fixture) if fixture else None)
+                          direction_advice=assess.touch_advice(fixture) if fixture else None, holdout=ho)
     pt, _ = model.points(x_true, mt)
     pe, _ = model.points(f.x, mt)
     true = np.linalg.norm(pe - pt, axis=1)
@@ -79,7 +84,13 @@ def report(label: str, runs: list[dict], poor: bool) -> None:
     true = np.concatenate([r["true"] for r in runs])
     per = np.array([np.sqrt(np.mean(r["true"] ** 2)) / np.sqrt(np.mean(r["pred"] ** 2)) for r in runs])
     cover = np.array([np.sqrt(np.mean(r["true"] ** 2)) <= np.sqrt(np.mean(r["b95"] ** 2)) for r in runs])
+    points = np.array([np.mean(r["true"] <= r["b95"]) for r in runs])  # map points within the 95 % bound
     insuff = sum(r["status"] == "insufficient" for r in runs)
+    statuses = ", ".join(f"{k} {v}" for k, v in sorted({r["status"]: sum(q["status"] == r["status"] for q in runs)
+                                                        for r in runs}.items()))
+    print(f"{label:34s} per-run true/stated 1σ {per.min():.2f}–{per.max():.2f} (target within 0.8–1.25: "
+          f"{np.sum((per >= 0.8) & (per <= 1.25))}/{len(runs)}); 95 % bound covers map points: median "
+          f"{np.median(points) * 100:.0f} %, worst {points.min() * 100:.0f} % (target ≥ 93 % every run); {statuses}")
     pooled = np.sqrt(np.mean(per**2))  # each run's mean-square ratio weighs the same, whatever its scale
     ok = np.array([r["status"] == "pass" for r in runs])
     passed = f"; pass runs only {np.sqrt(np.mean(per[ok] ** 2)):.3f} (n={ok.sum()})" if 0 < ok.sum() < len(runs) else ""

@@ -52,6 +52,12 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
                          (accuracy or {}).get("prior") or {})[0]
     if options.prior_sigma is None:  # the fit judges a parameter freed off the nominal geometry against it
         options = dataclasses_replace(options, prior_sigma=sigma0)
+    from pipeline.recording.schemas import META_CAMPAIGN
+    from pipeline.validate.plausibility import screen
+
+    gross = screen(model, table, rec.metadata.get(META_CAMPAIGN, {}), options)  # before any open-ended solve
+    if gross["status"] == "fail":
+        raise RobocalError(f"{path}: {gross['message']}")
     if solver == "ga":
         from pipeline.identify.genetic import cross_validate_ga, fit_ga
         if not hasattr(model, "batch_cost_fn"):

@@ -157,18 +157,30 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
 
 def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data: dict, prior_sigma: np.ndarray,
              map_data: dict, x_uncal: np.ndarray, tolerance_m: float | None = None, direction_advice=None,
-             holdout: tuple[np.ndarray, list[np.ndarray]] | None = None) -> dict:
+             holdout: tuple[np.ndarray, list[np.ndarray]] | None = None, robot_meta: dict | None = None) -> dict:
     """`assess` for a `MeasurementModel` at estimate x (data: the measurements the fit used).
     `holdout`: (held-out residuals (n, k) m of the run's cross-validation over `data`, the
-    measurement indices of each fold), tested against σ̂ and the design (`holdout.consistency`)."""
+    measurement indices of each fold), tested against σ̂ and the design (`holdout.consistency`).
+    `robot_meta`: the recording's robot model (its ``repeatability_3sigma_m``, `noise.repeatability`)."""
     J = model.jacobian(x, data)
     free = np.asarray(free, bool)
+    Jf = J.reshape(-1, J.shape[-1])[:, free]
+    cov_free = np.asarray(cov_free, float).reshape(int(free.sum()), int(free.sum()))
+    from pipeline.accuracy import noise
+    from pipeline.accuracy.holdout import basis, consistency
+
+    e = model.residuals(x, data)
+    groups = noise.configuration_groups(data)
+    shared = None
+    if groups is not None:
+        cols, wts = noise.pose_columns(model.parameter_names(), model.parameter_units())
+        shared = noise.estimate(basis(Jf), e, groups, model.residual_dim, J.reshape(-1, J.shape[-1])[:, cols], wts,
+                                noise.repeatability(robot_meta or {}, getattr(model, "system", "")))
+    if shared is not None and shared["tau_m"] > 0:  # an error shared by a configuration's measurements
+        cov_free = noise.sandwich(Jf, shared["sigma_w_m"], shared["tau_m"], shared["B"])
     ho = None
     if holdout is not None:
-        from pipeline.accuracy.holdout import consistency
-
-        ho = consistency(J.reshape(-1, J.shape[-1])[:, free], model.residuals(x, data), holdout[0], holdout[1],
-                         model.residual_dim)
+        ho = consistency(Jf, e, holdout[0], holdout[1], model.residual_dim, groups=groups, shared=shared)
     _, Jp_meas = model.points(x, data)
     pts, Jp_map = model.points(x, map_data)
     _, Jp_uncal = model.points(x_uncal, map_data)
@@ -179,11 +191,19 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
         spread = spread_table(model, data)
         Jp_full = None if spread is None else model.points(x, spread)[1]
     inp = Inputs(names=model.parameter_names(), free=np.asarray(free, bool),
-                 cov_free=np.asarray(cov_free, float).reshape(int(np.sum(free)), int(np.sum(free))),
+                 cov_free=cov_free,
                  prior_sigma=np.asarray(prior_sigma, float), Jm=J.reshape(-1, J.shape[-1]), Jp_meas=Jp_meas,
                  points_map=pts, Jp_map=Jp_map, Jp_map_uncal=Jp_uncal, residual_dim=model.residual_dim, holdout=ho,
                  Jp_full=Jp_full)
-    return assess(inp, tolerance_m, direction_advice)
+    doc = assess(inp, tolerance_m, direction_advice)
+    if shared is not None:
+        doc["shared_error"] = {"sigma_w_m": shared["sigma_w_m"], "tau_m": shared["tau_m"],
+                               "tau_source": shared["tau_source"],
+                               "configurations": int(np.unique(groups).size),
+                               "note": "measurements at one configuration share an error (the robot's repeatability "
+                                       "at that pose): Ω = σ_w² I + τ² B; the fitted parameters' covariance is the "
+                                       "sandwich J⁺ΩJ⁺ᵀ" + ("" if shared["tau_m"] > 0 else " (τ = 0: not used)")}
+    return doc
 
 
 def touch_advice(fixture: dict | None):

@@ -64,7 +64,8 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None
         tol = rec.metadata.get(META_CAMPAIGN, {}).get("tolerance_m")
     advise = assess.touch_advice(fixture) if fixture and "faces" in fixture else None
     doc = assess.evaluate(model, x, free, cov, data, sigma, map_data, uncalibrated(model, data),
-                          None if tol is None else float(tol), advise, holdout)
+                          None if tol is None else float(tol), advise, holdout,
+                          robot_meta=rec.metadata.get(META_ROBOT, {}))
     doc["map"]["description"] = what
     doc["priors"] = [{"name": n, "kind": k, "sigma": float(s), "source": src, "fixed": not bool(f)}
                      for n, k, s, src, f in zip(model.parameter_names(), kinds, sigma, source, free)]

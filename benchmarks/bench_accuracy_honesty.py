@@ -38,7 +38,7 @@ def _evaluate(model, table, x_true, poor: bool = False, folds: int = 5) -> dict:
     pe, _ = model.points(f.x, mt)
     true = np.linalg.norm(pe - pt, axis=1)
     return {"true": true, "pred": doc["map"]["sigma_m"], "b95": doc["map"]["bound95_m"], "status": doc["status"],
-            "reason": doc["reason"]}
+            "reason": doc["reason"], "advice": doc["advice"], "doc": doc}
 
 
 def arc_welder(seed: int, case: str = "normal") -> dict:

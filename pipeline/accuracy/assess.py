@@ -118,8 +118,9 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
         meas_scale = f
         reasons.append(f"held-out error contradicts the stated accuracy: held-out RMS {ho['holdout_rms_m'] * 1e3:.3g} mm "
                        f"where σ̂ and the design predict {ho['predicted_holdout_rms_m'] * 1e3:.3g} mm (ratio of mean "
-                       f"squares {ho['ratio']:.2f}, p = {ho['p_value']:.2g}): the model misses an effect (or the "
-                       f"measurements hold outliers or a wrong unit); stated accuracy inflated ×{f:.2f}")
+                       f"squares {ho['ratio']:.2f}, p = {ho['p_value']:.2g}): the errors are not independent with one σ "
+                       f"(noise that differs between measurements, errors shared between them) or the model misses an "
+                       f"effect; stated accuracy inflated ×{f:.2f}")
         advice.append("see the diagnosis for the missing effect; the held-out error, not the fit's σ, is the accuracy")
         if status == "pass":
             status = "warn"

@@ -61,13 +61,11 @@ def _variants(table: dict) -> list[tuple[str, dict]]:
         q = np.asarray(table["joint_positions"], float)
         out.append(("joint angles are in degrees but were read as radians", {**table, "joint_positions": np.radians(q)}))
         out.append(("joint angles are in radians but were read as degrees", {**table, "joint_positions": np.degrees(q)}))
-    for c in lengths:
-        v = np.asarray(table[c], float)
+    for c in lengths:  # any two columns swapped (or one sign flipped) is a mirror image: one refit tells them all,
+        v = np.asarray(table[c], float)  # since the registration's rotation turns one mirror into another
         if v.ndim == 2 and v.shape[1] == 3:
-            for i, j in ((0, 1), (0, 2), (1, 2)):
-                w = v.copy()
-                w[:, [i, j]] = w[:, [j, i]]
-                out.append((f"the {'xyz'[i]} and {'xyz'[j]} columns of {c} are swapped", {**table, c: w}))
+            out.append((f"the {c} columns are mirrored: two of x, y, z swapped (or one sign flipped)",
+                        {**table, c: v[:, [1, 0, 2]]}))
     return out
 
 

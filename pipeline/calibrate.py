@@ -6,6 +6,8 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
+
 
 from pipeline.errors import RobocalError
 from pipeline.identify.least_squares import FitOptions, cross_validate, fit, holdout_warning, point_accuracy
@@ -55,6 +57,7 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     from pipeline.recording.schemas import META_CAMPAIGN
     from pipeline.validate.plausibility import screen
 
+    _joint_limits(path, rec, system, table)  # the check `robocal run`'s validate applies: the same verdict
     gross = screen(model, table, rec.metadata.get(META_CAMPAIGN, {}), options)  # before any open-ended solve
     if gross["status"] == "fail":
         raise RobocalError(f"{path}: {gross['message']}")
@@ -116,6 +119,25 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
 
     (out / "results.json").write_text(dumps(doc))  # numpy-aware (the accuracy map), NaN → null
     return doc
+
+
+def _joint_limits(path: Path, rec, system, table: dict) -> None:
+    """Refuse measurements outside the robot model's joint limits, as `robocal run` (validate) does."""
+    from pipeline.stages.validate import _limits
+    from pipeline.validate.checks import FAIL, check_joint_limits
+
+    lim = _limits(rec, system)
+    if lim is None or "joint_positions" not in table:
+        return
+    lo, hi, names = lim
+    q = np.asarray(table["joint_positions"], float)
+    if q.ndim != 2 or q.shape[1] != len(lo):
+        return
+    rec_ids = np.asarray(table.get("record", np.arange(len(q))))
+    c = check_joint_limits(system.MEASUREMENT_CHANNEL if hasattr(system, "MEASUREMENT_CHANNEL") else "measurements",
+                           q, rec_ids, lo, hi, names)
+    if c.status == FAIL:
+        raise RobocalError(f"{path}: joint_limits: {c.message}")
 
 
 def summary_rows(doc: dict) -> list[tuple[str, str]]:

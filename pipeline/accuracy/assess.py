@@ -85,6 +85,9 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
         meas = P.predict(inp.Jp_meas, free, cov_scaled, inp.prior_sigma, A)
         amap = P.predict(inp.Jp_map, free, cov_scaled, inp.prior_sigma, A)
         sig, b95 = amap.sigma, amap.bound95
+    cov_used = np.asarray(inp.cov_free, float) * (inflate_fit if math.isfinite(inflate_fit) else 1.0)
+    field = P.field_scale(inp.Jp_map, free, cov_used, inp.prior_sigma, A, b95)
+    b95 = b95 * field  # a (95 %, 95 %) bound: ≥ 95 % of the map within it in 95 % of calibrations
     w, V = P.measured_directions(inp.Jm, inp.Jp_meas, inp.residual_dim)
     unmeasured = [V[:, i] for i in range(3) if w[i] < UNMEASURED_EIG]
     for v in unmeasured:
@@ -141,6 +144,7 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
         "reason": "; ".join(reasons),
         "advice": "; ".join(advice),
         "residuals_per_parameter": m / max(p, 1),
+        "bound95_field_factor": field,
         "information": info.to_dict() | {"fit_covariance_factor": inflate_fit if math.isfinite(inflate_fit) else None,
                                          "map_over_uncalibrated": taught},
         "holdout_check": ho,

@@ -1,4 +1,4 @@
-"""Report sections of issue 16: the accuracy verdict and map, 3-D measurement coverage,
+"""Report sections of the accuracy assessment: the accuracy verdict and map, 3-D measurement coverage,
 residual histograms against the noise floor, per-joint residuals before and after, the
 scanner's image-plane residual field and the Delta's per-axis residuals.  Pure: artefacts in,
 HTML (inline SVG) out."""
@@ -110,7 +110,7 @@ def image_field(pixel: np.ndarray, after: np.ndarray, size: tuple[int, int] = (6
 
 
 def accuracy_section(art: RunArtefacts) -> str:
-    """The verdict, the accuracy map and the residual views of issue 16 (empty if nothing to show)."""
+    """The verdict, the accuracy map and the residual views (empty if nothing to show)."""
     acc = art.accuracy
     html = ""
     if isinstance(acc, dict):
@@ -126,6 +126,17 @@ def accuracy_section(art: RunArtefacts) -> str:
                 ("worst 1σ", _mm(acc.get("map_max_1sigma_m"))), ("worst 95 % bound", _mm(acc.get("map_max_bound95_m"))),
                 ("uncalibrated 1σ (priors, RMS)", _mm(acc.get("map_uncalibrated_rms_1sigma_m"))),
                 ("residuals per identified parameter", f"{acc.get('residuals_per_parameter', 0):.3g}")]
+        info = acc.get("information") or {}
+        if info:
+            rows.append(("distinct measurements / residual degrees of freedom",
+                         f"{info.get('n_distinct')} of {info.get('n_measurements')} / {info.get('dof')}"))
+        ho = acc.get("holdout_check") or {}
+        if ho:
+            rows.append(("held-out RMS / predicted by σ̂ and the design",
+                         f"{_mm(ho.get('holdout_rms_m'))} / {_mm(ho.get('predicted_holdout_rms_m'))} "
+                         f"(p = {float(ho.get('p_value', 1)):.2g}"
+                         + (f"; stated accuracy inflated ×{float(ho['inflation']):.2f})" if not ho.get("consistent", True)
+                            else ")")))
         tol = acc.get("tolerance")
         if tol:
             rows.append(("tolerance", f"{_mm(tol['tolerance_m'])}: {tol['status']} ({tol['points_within']} of "

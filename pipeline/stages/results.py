@@ -42,7 +42,7 @@ def gather(run_dir: Path) -> dict:
             status = st
     acc = docs.get("accuracy", {}).get("summary", {})
     if status == "tolerance_fail" or acc.get("status") == "tolerance_fail" and status != "fail":
-        status = "fail"  # the calibration does not meet the user's tolerance (issue 16)
+        status = "fail"  # the calibration does not meet the user's tolerance
     summary["status"] = status
     if "predicted_point_sigma_rms_m" in summary:  # kept for the expected files; never displayed
         summary["superseded"] = {"predicted_point_sigma_rms_m": "fit covariance at the measurements only; the stated "

@@ -1,1 +1,1 @@
-"""Honest accuracy: priors, propagation to a workspace map, the verdict, the held-out check."""
+"""Honest accuracy: priors, propagation to a workspace map, the verdict (pass / warn / insufficient / fail), the held-out check."""

@@ -71,7 +71,7 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None
                      for n, k, s, src, f in zip(model.parameter_names(), kinds, sigma, source, free)]
     doc["note"] = ("Predicted 3-D error (1σ RMS, and the 95 % bound of |error|) of the calibrated point over the map: "
                    "the fitted parameters' covariance plus the prior of every parameter held at nominal, less what "
-                   "the fit absorbs of it (docs/accuracy.md).")
+                   "the fit absorbs of it (docs/guide/accuracy.md).")
     return doc
 
 
@@ -91,7 +91,7 @@ def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict):
     """(held-out residuals of the used rows, folds) of the identify stage's cross-validation (the
     same seeded split, `kfold_indices`), or None when it has none."""
     from pipeline.identify.least_squares import kfold_indices
-    from pipeline.stages.runner import read_stage
+    from pipeline.stages.artefacts import read_stage
 
     k = int(fit.get("residual_dim", 1))
     cols = [f"holdout_{j}" for j in range(k)]

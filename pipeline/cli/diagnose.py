@@ -6,10 +6,10 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, console, err
+from pipeline.cli import CALIBRATE, app, console, err
 
 
-@app.command("diagnose")
+@app.command("diagnose", rich_help_panel=CALIBRATE)
 def diagnose_cmd(
     recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
     out: Path = typer.Option(..., "--out", help="Output folder for diagnosis.json."),

@@ -1,4 +1,4 @@
-"""Report sections of the accuracy assessment: the accuracy verdict and map, 3-D measurement coverage,
+"""Report sections on honest accuracy: the accuracy verdict and map, 3-D measurement coverage,
 residual histograms against the noise floor, per-joint residuals before and after, the
 scanner's image-plane residual field and the Delta's per-axis residuals.  Pure: artefacts in,
 HTML (inline SVG) out."""

@@ -29,3 +29,23 @@ def test_the_planner_warns_before_a_campaign_it_predicts_will_land_poorly():
     assert w and "contacts 14 below 50%" in w and "14.1 of 15" in w
     w = landing_warning(np.full(15, 0.8))  # none hopeless, but 3 of 15 expected to miss
     assert w and "12.0 of 15 contacts expected" in w
+
+
+def test_compensate_reaches_every_target_made_from_joints_inside_the_limits():
+    """Targets the calibrated robot reaches at joints inside every limit: none is called unreachable or
+    out of limits (the controller's few seeds miss some; the spread starts find them)."""
+    from pipeline.compensate import serial as S
+    from pipeline.models import serial_arm
+    from pipeline.simulate.arc_welder import IK_SEEDS
+    from pipeline.systems import arc_welder as aw
+
+    nominal = aw.nominal_arm()
+    kin = S.SerialArmKinematics.of(nominal)
+    truth = aw.random_truth(nominal, np.random.default_rng(0)).vector()
+    q = np.random.default_rng(10).uniform(0.95 * nominal.lower, 0.95 * nominal.upper, (400, 6))
+    R, p = serial_arm.forward(truth, q)
+    c = S.compensate(kin, nominal.vector(), truth, p, R, IK_SEEDS)
+    assert not np.isin(c.status, ("unreachable", "out_of_limits")).any()
+    reached = c.status != "singular"
+    Rc, pc = serial_arm.forward(truth, c.q[reached])
+    assert np.abs(pc - p[reached]).max() < 1e-9 and np.all((c.q >= kin.lower) & (c.q <= kin.upper))

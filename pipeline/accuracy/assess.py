@@ -87,7 +87,7 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
         sig, b95 = amap.sigma, amap.bound95
     cov_used = np.asarray(inp.cov_free, float) * (inflate_fit if math.isfinite(inflate_fit) else 1.0)
     field = P.field_scale(inp.Jp_map, free, cov_used, inp.prior_sigma, A, b95)
-    b95 = b95 * field  # a (95 %, 95 %) bound: ≥ 95 % of the map within it in 95 % of calibrations
+    b95 = b95 * field  # ≥ 95 % of the map within it in 99 % of calibrations
     w, V = P.measured_directions(inp.Jm, inp.Jp_meas, inp.residual_dim)
     unmeasured = [V[:, i] for i in range(3) if w[i] < UNMEASURED_EIG]
     for v in unmeasured:

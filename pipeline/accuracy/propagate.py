@@ -80,7 +80,7 @@ def predict(Jp: np.ndarray, free: np.ndarray, cov_free: np.ndarray, prior_sigma:
 
 
 def field_scale(Jp: np.ndarray, free: np.ndarray, cov_free: np.ndarray, prior_sigma: np.ndarray, A: np.ndarray,
-                bound: np.ndarray, q_points: float = 0.95, q_runs: float = 0.95, n_samples: int = 2000,
+                bound: np.ndarray, q_points: float = 0.95, q_runs: float = 0.99, n_samples: int = 2000,
                 max_points: int = 300, seed: int = 0) -> float:
     """Factor ≥ 1 on the per-point bounds so that, in a fraction `q_runs` of calibrations, at least
     `q_points` of the map's points lie within them.  One calibration's errors at all points come from

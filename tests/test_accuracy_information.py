@@ -106,3 +106,20 @@ def test_sixteen_contacts_advice_counts_the_full_model():
     assert "16 residuals for 16 identified parameters" in r["reason"]
     assert "identifies 27 of 42 parameters and needs about 81 distinct residuals" in r["advice"]
     assert "record at least 65 more" in r["advice"]
+
+
+def test_urdf_robot_stated_accuracy_matches_the_truth_over_seeds():
+    """The benchmark's URDF case on a bounded number of seeds: the true 3-D error at 100 new
+    configurations against the stated 1σ (pooled over seeds) and the 95 % bound's coverage of the points
+    (`benchmarks/bench_accuracy_honesty.py --systems urdf --seeds 20` for the full figure)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_accuracy_honesty import urdf_robot
+
+    runs = [urdf_robot(s) for s in range(4)]
+    per = [np.sqrt(np.mean(r["true"] ** 2)) / np.sqrt(np.mean(r["pred"] ** 2)) for r in runs]
+    assert 0.75 < np.sqrt(np.mean(np.square(per))) < 1.3, per
+    assert min(np.mean(r["true"] <= r["b95"]) for r in runs) >= 0.9
+    assert all(r["status"] == "pass" for r in runs)

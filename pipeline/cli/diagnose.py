@@ -24,7 +24,7 @@ def diagnose_cmd(
     """Locate residual structure, name the effect from the library, model it, show the held-out fit improve."""
     from rich.table import Table
 
-    from pipeline.diagnose.diagnose import Settings
+    from pipeline.diagnose import Settings
     from pipeline.diagnose.stage import SUPPORTED, diagnose_recording
     from pipeline.errors import RobocalError
     from pipeline.recording.reader import read_recording

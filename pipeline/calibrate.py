@@ -6,6 +6,8 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
+
 
 from pipeline.errors import RobocalError
 from pipeline.identify.least_squares import FitOptions, cross_validate, fit, holdout_warning, point_accuracy
@@ -56,6 +58,13 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
                          (accuracy or {}).get("prior") or {})[0]
     if options.prior_sigma is None:  # the fit judges a parameter freed off the nominal geometry against it
         options = dataclasses_replace(options, prior_sigma=sigma0)
+    from pipeline.recording.schemas import META_CAMPAIGN
+    from pipeline.validate.plausibility import screen
+
+    _joint_limits(path, rec, system, table)  # the check `robocal run`'s validate applies: the same verdict
+    gross = screen(model, table, rec.metadata.get(META_CAMPAIGN, {}), options)  # before any open-ended solve
+    if gross["status"] == "fail":
+        raise RobocalError(f"{path}: {gross['message']}")
     if solver == "ga":
         from pipeline.identify.genetic import cross_validate_ga, fit_ga
         if not hasattr(model, "batch_cost_fn"):
@@ -106,7 +115,10 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
             doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
     from pipeline.accuracy.stage import guarded_document
 
-    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {})
+    from pipeline.identify.least_squares import kfold_indices
+
+    folds = kfold_indices(len(holdout), k_folds, seed)
+    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {}, (holdout, folds))
     if (accuracy or {}).get("previous"):
         from pipeline.accuracy.previous import compare, read_parameters
 
@@ -138,22 +150,40 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     return doc
 
 
+def _joint_limits(path: Path, rec, system, table: dict) -> None:
+    """Refuse measurements outside the robot model's joint limits, as `robocal run` (validate) does."""
+    from pipeline.stages.validate import _limits
+    from pipeline.validate.checks import FAIL, check_joint_limits
+
+    lim = _limits(rec, system)
+    if lim is None or "joint_positions" not in table:
+        return
+    lo, hi, names = lim
+    q = np.asarray(table["joint_positions"], float)
+    if q.ndim != 2 or q.shape[1] != len(lo):
+        return
+    rec_ids = np.asarray(table.get("record", np.arange(len(q))))
+    c = check_joint_limits(system.MEASUREMENT_CHANNEL if hasattr(system, "MEASUREMENT_CHANNEL") else "measurements",
+                           q, rec_ids, lo, hi, names)
+    if c.status == FAIL:
+        raise RobocalError(f"{path}: joint_limits: {c.message}")
+
+
 def summary_rows(doc: dict) -> list[tuple[str, str]]:
     """Display rows (mm for lengths) of a results document."""
     mm = lambda v: f"{v * 1e3:.4f} mm"  # noqa: E731
-    acc = doc["predicted_point_accuracy"]
+    axis = " (per axis)" if doc.get("rms_3d_after_m") is not None else ""
     return [
         ("system", doc["system"]),
         ("measurements", str(doc["n_measurements"])),
-        ("RMS before", mm(doc["rms_before_m"])),
-        ("RMS after", mm(doc["rms_after_m"])),
-        (f"held-out RMS ({doc['holdout_folds']}-fold CV)", mm(doc["holdout_rms_m"])),
+        ("RMS before" + axis, mm(doc["rms_before_m"])),
+        ("RMS after" + axis, mm(doc["rms_after_m"])),
+        (f"held-out RMS ({doc['holdout_folds']}-fold CV){axis}", mm(doc["holdout_rms_m"])),
         *([("RMS of the 3-D error before / after", f"{mm(doc['rms_3d_before_m'])} / {mm(doc['rms_3d_after_m'])}"),
            ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(doc.get("holdout_kind", "")).startswith(
                "whole") else f"{doc['holdout_folds']}-fold, within this recording") + ")",
             mm(doc["holdout_rms_3d_m"]))] if doc.get("rms_3d_after_m") is not None else []),
         ("max |residual| after", mm(doc["max_abs_after_m"])),
-        ("predicted 3-D point accuracy (1σ, RMS)", mm(acc["rms_1sigma_m"])),
         *([("predicted over the workspace (1σ RMS / worst 95 %)",
             f"{mm(doc['accuracy']['map_rms_1sigma_m'])} / {mm(doc['accuracy']['map_max_bound95_m'])}")]
           if "map_rms_1sigma_m" in doc.get("accuracy", {}) else []),

@@ -44,7 +44,6 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
             ("measurements used / recorded", f"{s.get('n_used', '—')} / {s.get('n_measurements', '—')}"),
             ("RMS before", mm(s.get("rms_before_m"))), ("RMS after", mm(s.get("rms_after_m"))),
             ("held-out RMS", mm(s.get("holdout_rms_m"))),
-            ("predicted point accuracy (1σ RMS)", mm(s.get("predicted_point_sigma_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
     if s.get("rms_3d_after_m") is not None:  # the figure other tools publish: norm of each 3-D error, RMS
         rows[3:3] = [("RMS of the 3-D error before / after", f"{mm(s.get('rms_3d_before_m'))} / {mm(s['rms_3d_after_m'])}"),

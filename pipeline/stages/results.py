@@ -45,6 +45,9 @@ def gather(run_dir: Path) -> dict:
     if status == "tolerance_fail" or acc.get("status") == "tolerance_fail" and status != "fail":
         status = "fail"  # the calibration does not meet the user's tolerance (--tolerance)
     summary["status"] = status
+    if "predicted_point_sigma_rms_m" in summary:  # kept for the expected files; never displayed
+        summary["superseded"] = {"predicted_point_sigma_rms_m": "fit covariance at the measurements only; the stated "
+                                                                "accuracy is predicted_map_rms_1sigma_m"}
     if acc:  # the accuracy verdict: never a confident answer from thin data
         for k in ("reason", "advice"):
             if acc.get(k):

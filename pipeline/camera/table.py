@@ -34,14 +34,17 @@ def camera_table(rec, topic: str, msgs: list[dict], arm, campaign: dict) -> dict
         try:
             q = np.asarray(m["joint_positions"], float)
             ids = np.asarray(m["corners"], np.int64).reshape(-1)
-            px = np.asarray(m["pixels"], float).reshape(-1, 2)
+            px = np.asarray(m["pixels"], float)
+            if px.ndim != 1 or px.size != 2 * ids.size:
+                raise ValueError(f"pixels holds {px.size} numbers for {ids.size} corners (u, v each)")
+            px = px.reshape(-1, 2)
         except (KeyError, TypeError, ValueError) as e:
             raise RobocalError(f"{where(rec.path, topic, i)}: {e.__class__.__name__}: {e}") from None
         if q.shape != (arm.n_joints,):
             raise RobocalError(f"{where(rec.path, topic, i)}: joint_positions has {q.size} values, "
                                f"the chain {arm.n_joints}")
-        if len(ids) != len(px) or not np.all(np.isfinite(px)) or not np.all(np.isfinite(q)):
-            raise RobocalError(f"{where(rec.path, topic, i)}: corners and pixels differ in length or hold NaN")
+        if not np.all(np.isfinite(px)) or not np.all(np.isfinite(q)):
+            raise RobocalError(f"{where(rec.path, topic, i)}: pixels or joint_positions hold NaN or inf")
         if ids.size and (ids.min() < 0 or ids.max() >= len(pts)):
             raise RobocalError(f"{where(rec.path, topic, i)}: corner id {int(ids.max())} is not on the target "
                                f"{target.spec} ({len(pts)} corners)")

@@ -133,7 +133,7 @@ def write_camera_recording(out: Path, desc: RobotDescription, target: Target, de
         for i, d in enumerate(used):
             t = T0_NS + i * 1_000_000_000
             w.write("/measure/camera", {"timestamp_ns": t, "joint_positions": np.asarray(d.q, float).tolist(),
-                                        "image": d.name, "corners": d.ids.tolist(), "pixels": d.pixels.tolist(),
+                                        "image": d.name, "corners": d.ids.tolist(), "pixels": d.pixels.ravel().tolist(),
                                         "width": d.size[0], "height": d.size[1]})
             if keep_images and folder is not None:
                 p = folder / d.name

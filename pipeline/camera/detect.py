@@ -54,6 +54,14 @@ def image_files(folder: Path) -> list[Path]:
     return sorted(p for p in Path(folder).iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
 
 
+def subpix_window(px: np.ndarray, target: Target) -> int:
+    """cornerSubPix's half window (px): 11, or less where the board's corners are closer than
+    2.5 half windows (a window spanning a whole square would pull a corner onto its neighbour)."""
+    g = px.reshape(target.rows, target.cols, 2)
+    d = min(np.linalg.norm(np.diff(g, axis=0), axis=2).min(), np.linalg.norm(np.diff(g, axis=1), axis=2).min())
+    return int(np.clip(d / 2.5, 2, 11))
+
+
 def _chessboard(img: np.ndarray, target: Target, max_edge_px: float) -> tuple:
     import cv2
 
@@ -62,7 +70,7 @@ def _chessboard(img: np.ndarray, target: Target, max_edge_px: float) -> tuple:
     if not ok:
         return "not found", f"no {target.cols}x{target.rows}-corner chessboard found", None, None, np.nan
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
-    c = cv2.cornerSubPix(img, c, (11, 11), (-1, -1), crit)
+    c = cv2.cornerSubPix(img, c, (subpix_window(c.reshape(-1, 2), target),) * 2, (-1, -1), crit)
     sharp = float(cv2.estimateChessboardSharpness(img, target.pattern_size, c)[0][0])
     ids = np.arange(target.n_corners)
     if sharp > max_edge_px:

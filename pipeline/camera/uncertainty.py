@@ -56,22 +56,48 @@ class Whitened:
         return self.W(J.reshape(-1, J.shape[-1])).reshape(J.shape) / self.W.sigma_within
 
 
-def clustered_fit(model, data: Table, options: FitOptions = FitOptions(before=False)) -> tuple[Fit, object]:
-    """An ordinary fit, then the image random-effects model estimated at it and a GLS refit.
-    Returns the GLS fit (x, std, cov from the whitened problem: σ in px of the detector noise
-    scale) and the whitener (None: the ordinary fit, its σ̂²(JᵀJ)⁻¹ — too few corners per image)."""
+def refit(model, data: Table, x0: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """A warm-started least-squares solve of the free parameters from x0 (no rank analysis:
+    the free set is the full fit's); the resampled fits of `image_jackknife`."""
+    from scipy.optimize import least_squares
+
+    def expand(z):
+        x = x0.copy()
+        x[free] = z
+        return x
+
+    sol = least_squares(lambda z: model.residuals(expand(z), data).ravel(), x0[free],
+                        jac=lambda z: model.jacobian(expand(z), data).reshape(-1, x0.size)[:, free],
+                        method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10)
+    return expand(sol.x)
+
+
+def image_jackknife(model, data: Table, x: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Delete-one-image jackknife of a fit at x over its free parameters: (σ (P,), estimates
+    (G,P)).  σ² = (G−1)/G Σ_g (x₍₋g₎ − x̄)²: honest for correlated corners within an image
+    and for any per-image error the model does not describe; G refits from x."""
+    from pipeline.identify.model import take
+
+    img = np.asarray(data["image"])
+    est = np.array([refit(model, take(data, img != g), x, free) for g in np.unique(img)])
+    G = len(est)
+    return np.sqrt((G - 1) / G * np.sum((est - est.mean(0)) ** 2, axis=0)), est
+
+
+def clustered_fit(model, data: Table, options: FitOptions = FitOptions(before=False)) -> tuple[Fit, object, Fit]:
+    """An ordinary fit, then the image random-effects model estimated at it and a GLS refit (warm
+    started, same free set).  Returns the GLS fit (x; std and cov from the whitened problem), the
+    whitener (None: too few corners per image — the GLS fit is then the ordinary one) and the
+    ordinary fit."""
     f0 = fit(model, data, options)
     W = image_whitener(model, f0.x, data, int(f0.free.sum()))
     if W is None:
-        return f0, None
+        return f0, None, f0
     wm = Whitened(model, W)
-    fixed = tuple(n for n, fr in zip(f0.names, f0.free) if not fr)
-    f1 = fit(wm, data, replace(options, x0=f0.x, fixed=fixed, before=False))
-    Jf = wm.jacobian(f1.x, data).reshape(-1, f1.x.size)[:, f1.free]
+    x = refit(wm, data, f0.x, f0.free)
+    Jf = wm.jacobian(x, data).reshape(-1, x.size)[:, f0.free]
     cov = covariance(Jf, 1.0)  # whitened rows have unit variance
-    std = np.zeros_like(f1.x)
-    std[f1.free] = np.sqrt(np.clip(np.diag(cov), 0, None))
-    f1.cov, f1.std = cov, std
-    f1.residuals_after = model.residuals(f1.x, data)
-    f1.sigma = W.sigma_within
-    return f1, W
+    std = np.zeros_like(x)
+    std[f0.free] = np.sqrt(np.clip(np.diag(cov), 0, None))
+    f1 = replace(f0, x=x, cov=cov, std=std, residuals_after=model.residuals(x, data), sigma=W.sigma_within)
+    return f1, W, f0

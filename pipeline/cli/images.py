@@ -9,6 +9,8 @@ import typer
 from pipeline.cli import err
 from pipeline.cli.importer import import_app
 
+BAD = ("unreadable", "wrong size", "no state")  # bad input: an error unless --skip-bad
+
 
 @import_app.command("images")
 def import_images(
@@ -31,6 +33,8 @@ def import_images(
     max_edge_px: float = typer.Option(5.0, "--max-edge-px", help="A chessboard with edges wider than this (px) is blurred."),
     keep_images: bool = typer.Option(False, "--keep-images", help="Store each used image in the recording (attachment)."),
     workers: int = typer.Option(0, "--workers", min=0, help="Detection processes (0: the CPU count)."),
+    skip_bad: bool = typer.Option(False, "--skip-bad", help="Leave out unreadable images, images of another size "
+                                  "and images without a row in the CSV (listed) instead of failing."),
 ) -> None:
     """Detect the target in every image, pair each with the robot's state, write a recording `robocal run` calibrates."""
     from pipeline.camera.detect import detect_folder, image_files
@@ -73,6 +77,12 @@ def import_images(
             err.print(f"[yellow]{d.name}:[/] {d.status}: {d.reason}" + ("" if d.used else " — not used"),
                       highlight=False, soft_wrap=True)
     used = [d for d in dets if d.used]
+    bad = [d for d in dets if d.status in BAD]
+    if bad and not skip_bad:
+        names = ", ".join(d.name for d in bad[:5]) + (" …" if len(bad) > 5 else "")
+        ok = ", ".join(d.name for d in used[:8]) + (" …" if len(used) > 8 else "")
+        raise RobocalError(f"{folder / bad[0].name}: {bad[0].status}: {bad[0].reason} ({len(bad)} bad image(s): {names}); "
+                           f"usable: {len(used)} of {len(dets)} images ({ok or 'none'}); --skip-bad leaves the bad ones out")
     if len(used) < 3:
         listed = "; ".join(f"{d.name}: {d.status}" for d in dets[:6]) + (" …" if len(dets) > 6 else "")
         raise RobocalError(f"{folder}: the target {tgt.spec} was usable in {len(used)} of {len(dets)} images "

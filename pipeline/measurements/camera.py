@@ -118,6 +118,21 @@ class CameraModel(Composed):
         """Rows that must stay together in a held-out split: one image's corners."""
         return np.asarray(data["image"])
 
+    def extra_metrics(self, x0: np.ndarray, x: np.ndarray, data: Table) -> dict:
+        """Reprojection RMS (px) and each fitted parameter's σ by the delete-one-image jackknife
+        (`pipeline.camera.uncertainty`): the corners of an image share its robot pose error, so
+        the independent-corner σ̂²(JᵀJ)⁻¹ of the fit understates σ several fold; this one does not.
+        Fitted parameters: those that moved from the start x0 (held ones stay exactly there)."""
+        from pipeline.camera.uncertainty import image_jackknife
+
+        free = np.asarray(x, float) != np.asarray(x0, float)
+        r = self.residuals(x, data)
+        out = {"reprojection_rms_px": float(np.sqrt(np.mean(r**2))), "images": int(len(np.unique(data["image"])))}
+        if out["images"] >= 4 and free.any():
+            sig, _ = image_jackknife(self, data, np.asarray(x, float), free)
+            out["jackknife_sigma"] = {n: float(s) for n, s, f in zip(self.parameter_names(), sig, free) if f}
+        return out
+
     def initial_guess(self, data: Table) -> np.ndarray:
         """OpenCV's two-step answer as the start: calibrateCamera on the detections, then
         calibrateHandEye (Park) against the nominal chain's flange poses (`pipeline.camera.start`)."""

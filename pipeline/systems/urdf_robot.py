@@ -2,9 +2,10 @@
 
 A recording of this system carries the URDF and the chain choice in the metadata record
 ``robocal.urdf`` ({urdf, root, tip, source}), the campaign (``robocal.campaign``: system
-"urdf", ``measure`` point|pose|plane|coincidence, ``joint_names``, and per type ``planes``,
-``distances``, ``sigma_m``/``sigma_rad``, ``n_targets``) and one message per measurement on
-``/measure/<type>`` (`schemas/measure_*.schema.json`).  An encoder stream is optional.
+"urdf", ``measure`` point|pose|plane|coincidence|camera, ``joint_names``, and per type ``planes``,
+``distances``, ``sigma_m``/``sigma_rad``, ``n_targets``; camera: `pipeline.camera.table`) and one
+message per measurement (camera: per image) on ``/measure/<type>`` (`schemas/measure_*.schema.json`).
+An encoder stream is optional.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Detection benchmark of the Delta + laser-tracker diagnosis (issue 7).
+"""Detection benchmark of the Delta + laser-tracker diagnosis.
 
 Campaign: seed 003's 27-point grid approached from both sides of every actuator, two passes
 (108 measurements), tracker noise 0.02 mm.  Truth: a random well-built Delta per seed
@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from pipeline.diagnose import delta as dd
-from pipeline.diagnose.diagnose import diagnose
+from pipeline.diagnose.adapters import delta as dd
+from pipeline.diagnose import diagnose
 from pipeline.models.delta import Delta
 from pipeline.simulate import delta_tracker as sd
 from pipeline.simulate.effects import parse_effect

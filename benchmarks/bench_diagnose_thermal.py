@@ -1,4 +1,4 @@
-"""Thermal drift with and without a recorded temperature channel (issue 7), arc welder.
+"""Thermal drift with and without a recorded temperature channel, arc welder.
 
 Campaign: 100 contacts, payload 0/6 kg, search speeds 5/10/20 mm/s, 10 s dwells (≈ 50 min),
 warm-up ΔT(t) = 8 K·(1 − exp(−t/900 s)); the injected thermal_drift moves the true tip by g·ΔT.
@@ -23,7 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.models.jig import stepped_block
 from pipeline.simulate import effects as se
 from pipeline.simulate.arc_welder import Campaign, Noise

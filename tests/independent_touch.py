@@ -1,4 +1,4 @@
-"""An independent generator of touch campaigns for testing the diagnosis (issue 18).
+"""An independent generator of touch campaigns for testing the diagnosis on data it did not make.
 
 It shares NO code with the diagnosis's effect signatures nor with `pipeline.simulate`: its own
 forward kinematics (a product of 4×4 homogeneous matrices), its own inverse kinematics (damped
@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pipeline.diagnose.table import add_context
+from pipeline.diagnose.adapters.touch_table import add_context
 from pipeline.models.jig import Face, Jig, stepped_block
 from pipeline.systems import arc_welder as aw
 

@@ -1,4 +1,4 @@
-"""Diagnosis of Delta + laser-tracker campaigns with concealed effects (issue 7).
+"""Diagnosis of Delta + laser-tracker campaigns with concealed effects.
 
 Campaigns are simulated in memory (`simulate_effects`) and diagnosed from what a recording
 holds (the diagnosis table is rebuilt from the encoder stream); one test goes through the
@@ -13,8 +13,8 @@ import sys
 import numpy as np
 import pytest
 
-from pipeline.diagnose import delta as dd
-from pipeline.diagnose.diagnose import diagnose
+from pipeline.diagnose.adapters import delta as dd
+from pipeline.diagnose import diagnose
 from pipeline.models.delta import Delta
 from pipeline.simulate import delta_tracker as sd
 from pipeline.simulate.effects import parse_effect

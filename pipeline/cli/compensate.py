@@ -6,10 +6,10 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, err
+from pipeline.cli import PLAN, app, err
 
 
-@app.command("compensate")
+@app.command("compensate", rich_help_panel=PLAN)
 def compensate_cmd(
     run_dir: Path = typer.Argument(..., help="Run directory of a calibration (robocal run REC --out RUN_DIR)."),
     targets: Path = typer.Option(..., "--targets", help="Targets CSV: x,y,z (m, work frame) [, qw,qx,qy,qz] "
@@ -17,7 +17,7 @@ def compensate_cmd(
     out: Path = typer.Option(..., "--out", help="Program CSV to write: calibrated joints, corrected targets for a "
                              "nominal controller, status and predicted σ per row."),
 ) -> None:
-    """Inverse kinematics of the calibrated model for a program of Cartesian targets (see docs/compensate.md)."""
+    """Inverse kinematics of the calibrated model for a program of Cartesian targets (see docs/guide/compensate.md)."""
     import time
 
     from pipeline.compensate import program as pg

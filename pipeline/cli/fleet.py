@@ -8,10 +8,10 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli import app, err, simulate_app
+from pipeline.cli import FLEET, app, err, simulate_app
 
 
-@app.command("fleet")
+@app.command("fleet", rich_help_panel=FLEET)
 def fleet_cmd(
     summary: Path = typer.Argument(..., help="Reprocess results: the --out folder of `robocal reprocess`, its "
                                    "results/ dataset, or one Parquet file."),

@@ -155,7 +155,7 @@ def joint_state_messages(t_ns: np.ndarray, q: np.ndarray, names: list[str] | tup
 def write_campaign(path: str | Path, metadata: dict[str, dict], stream: tuple[np.ndarray, np.ndarray, list[str]],
                    events: list[tuple[str, dict]], batch: int = 250, stream_encoding: str = JSB.ENCODING) -> None:
     """Write a whole campaign: metadata, the batched encoder stream (positions at 1 nrad
-    resolution, as before issue 17, so both encodings carry the same numbers) and the
+    resolution, as the archived JSON stream did, so both encodings carry the same numbers) and the
     measurement events, all messages in log-time order."""
     t_ns, q, names = stream
     q = np.round(q, 9)

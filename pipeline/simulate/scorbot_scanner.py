@@ -85,7 +85,7 @@ class Campaign:
     dwell_s: float = 1.0
     max_tilt_rad: float = np.radians(20)
     start_ns: int = EPOCH_NS
-    capture_speed_rad_s: float = 0.0  # > 0: the arm sweeps through each pose while the image is captured (issue 7)
+    capture_speed_rad_s: float = 0.0  # > 0: the arm sweeps through each pose while the image is captured
     spread: bool = False  # stripe rows over 10-90 % of the image and crossings spread along it (not the centre ones)
 
 
@@ -111,8 +111,8 @@ class SimResult:
     misses: tuple[int, ...] = ()  # planned poses (`simulate(..., planned=)`) that found no usable stripe
 
 
-# ----- concealed effects (issue 7) ------------------------------------------------------------
-EFFECTS = {  # name: (values, location kind) — conventions of `pipeline.diagnose.scanner`
+# ----- concealed effects ---------------------------------------------------------------------
+EFFECTS = {  # name: (values, location kind) — conventions of `pipeline.diagnose.adapters.scanner`
     "tangential_distortion": (2, "camera"), "radial_k2": (1, "camera"), "time_offset": (1, "camera"),
     "stripe_peak_bias": (1, "camera"), "joint_offset": (1, "joint"), "joint_scale": (1, "joint"),
     "bump": (1, "joint:centre"),  # out-of-library: a Gaussian bump (rad) in one joint's transmission, J<i>:centre
@@ -180,7 +180,7 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
              planned: list[tuple[np.ndarray, np.ndarray, float]] | None = None) -> SimResult:
     """Run the campaign (module docstring).  Raises RuntimeError if the truth cannot see
     enough corners from reachable poses.  `effects` (`pipeline.simulate.effects.Injected`,
-    names of `EFFECTS`) are injected into the TRUE camera/arm (`pipeline.diagnose.scanner`).
+    names of `EFFECTS`) are injected into the TRUE camera/arm (`pipeline.diagnose.adapters.scanner`).
     `plan_cache` (a dict the caller keeps): the planned poses (the operator's IK, most of the
     time; the effects do not change them) memoised by the random generator's state before each
     plan — bit-identical results, several times faster when one campaign is re-simulated.

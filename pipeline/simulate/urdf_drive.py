@@ -1,4 +1,4 @@
-"""Drive state of a simulated URDF robot (issue 18): joint compliance, an unmodelled payload, and the
+"""Drive state of a simulated URDF robot: joint compliance, an unmodelled payload, and the
 stream a controller logs while the robot stands at each measurement.
 
 The *true* robot: joint j of compliance c_j (rad/(N·m)) deflects under the gravity torque τ_j of the
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.urdf_gravity import gravity_torques
+from pipeline.diagnose.library.urdf_gravity import gravity_torques
 
 
 def parse_compliance(text: str, joints: list[str]) -> np.ndarray:

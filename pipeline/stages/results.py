@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from pipeline import __version__
+from pipeline.stages.artefacts import read_stage
 from pipeline.stages.registry import STAGES
 
 HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
@@ -22,7 +23,6 @@ def _consistent(run_dir: Path, docs: dict[str, dict], doc: dict) -> bool:
 
 
 def gather(run_dir: Path) -> dict:
-    from pipeline.stages.runner import read_stage
 
     docs: dict[str, dict] = {}
     for s in STAGES:
@@ -42,7 +42,7 @@ def gather(run_dir: Path) -> dict:
             status = st
     acc = docs.get("accuracy", {}).get("summary", {})
     if status == "tolerance_fail" or acc.get("status") == "tolerance_fail" and status != "fail":
-        status = "fail"  # the calibration does not meet the user's tolerance (issue 16)
+        status = "fail"  # the calibration does not meet the user's tolerance (--tolerance)
     summary["status"] = status
     if acc:  # the accuracy verdict: never a confident answer from thin data
         for k in ("reason", "advice"):

@@ -121,7 +121,7 @@ def main() -> None:
     ap.add_argument("--json", type=Path)
     a = ap.parse_args()
     if not DATA.is_dir():
-        print(f"skipped: {DATA} is absent (real KUKA hand-eye images; see docs/camera.md)")
+        print(f"skipped: {DATA} is absent (real KUKA hand-eye images; see docs/guide/camera.md)")
         return
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:

@@ -16,7 +16,7 @@ import bench_handeye as bh  # noqa: E402
 @pytest.fixture(scope="module")
 def kuka(tmp_path_factory):
     if not bh.DATA.is_dir():
-        pytest.skip(f"{bh.DATA} is absent: the real KUKA hand-eye images (see docs/camera.md) are not on this machine")
+        pytest.skip(f"{bh.DATA} is absent: the real KUKA hand-eye images (see docs/guide/camera.md) are not on this machine")
     return bh.load(bh.DATA, tmp_path_factory.mktemp("kuka"))
 
 

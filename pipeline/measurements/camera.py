@@ -43,6 +43,7 @@ class CameraModel(Composed):
     kinematics_known: bool = False
     residual_dim = 2
     residual_unit = "px"
+    robust_scale = 0.5  # px: the scale of validate's robust outlier screen (a detector's gross error is pixels)
 
     # ----- extra parameters: the intrinsics ---------------------------------------------
     def extra_names(self) -> list[str]:

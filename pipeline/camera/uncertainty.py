@@ -2,7 +2,7 @@
 
 A robot's pose error at an image moves all of that image's corners together, so residuals are
 correlated within an image and σ̂²(JᵀJ)⁻¹ (independent corners) is far too optimistic.  The
-error model here is the random-effects model of `pipeline.diagnose.clustered`: per image g,
+error model here is the random-effects model of `pipeline.diagnose.inference.clustered`: per image g,
 ``r_g = Z_g u_g + e_g`` with u_g the image's rigid pose error (6 components, covariance Ψ) and
 e_g the detector's noise (σ_w² I); Z_g = d residual / d (board ↔ camera pose), the columns of
 the chain's base frame.  Ψ and σ_w are estimated from the residuals (moments).
@@ -24,7 +24,7 @@ from pipeline.identify.model import Table
 
 def image_whitener(model, x: np.ndarray, data: Table, n_fitted: int):
     """The random-effects whitener (module docstring) at x, or None when it cannot be estimated."""
-    from pipeline.diagnose.clustered import cluster_whitener
+    from pipeline.diagnose.inference.clustered import cluster_whitener
 
     r = model.residuals(x, data).ravel()
     J = model.jacobian(x, data).reshape(r.size, -1)

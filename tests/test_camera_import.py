@@ -140,3 +140,24 @@ def test_charuco_and_aprilgrid_boards_are_found(tmp_path):
         d = detect_image(f, tgt)
         assert d.status == "ok", (spec, d.status, d.reason)
         assert np.array_equal(d.ids, np.arange(tgt.n_corners))
+
+
+def test_robocal_run_calibrates_the_imported_recording(images, tmp_path):
+    """ingest → validate → identify on a camera recording (6 views of an arm with origin errors the
+    registration cannot absorb): residuals and held-out error in px, model selection explained,
+    the jackknife σ of the fitted parameters in fit.json."""
+    import json
+
+    r = _joints(images, images / "img", tmp_path / "rec.mcap")
+    assert r.returncode == 0, r.stderr
+    run = subprocess.run([ROBOCAL, "run", str(tmp_path / "rec.mcap"), "--out", str(tmp_path / "run"),
+                          "--stages", "ingest,validate,identify", "--folds", "3"], capture_output=True, text=True,
+                         timeout=900)
+    assert run.returncode == 0, run.stderr
+    fit = json.loads((tmp_path / "run" / "identify" / "fit.json").read_text())
+    assert fit["residual_dim"] == 2 and fit["n_measurements"] == 6 * 54
+    assert fit["rms_after_m"] < 1.5 and 0 < fit["holdout_rms_m"] < 3.0  # px (the residual unit of a camera)
+    assert fit["model_selection"]["explanation"][0].startswith("registration only")
+    sig = fit["extra"]["jackknife_sigma"]
+    assert {"camera.fx", "tool.x"} <= set(sig) and all(v > 0 for v in sig.values())
+    assert fit["extra"]["images"] == 6

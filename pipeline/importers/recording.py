@@ -19,12 +19,14 @@ T0_NS = 1_700_000_000_000_000_000  # a fixed epoch for tables without times (bit
 
 def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, campaign: dict,
                          table: dict[str, np.ndarray], labels: list[str] | None = None,
-                         stream: dict[str, np.ndarray] | None = None, batch: int = 250) -> int:
+                         stream: dict[str, np.ndarray] | None = None, batch: int = 250,
+                         tips: list[str] | None = None) -> int:
     """Write `table` (rows: ``joint_positions`` (n, n_joints) in the chain's joint order, plus
     the type's columns: ``position`` (n,3), ``target`` (n,), ``orientation`` (n,4) xyzw,
     ``plane``/``group`` (n,) names; optional ``timestamp_ns``) to `out`.  With `stream` (``t_ns`` (T,)
     sorted, ns; ``q`` (T, n_joints) rad / m; optional drive state ``q_cmd`` rad / m, ``effort``
     N·m / N and ``current`` A, (T, n_joints), chain order) also the encoder stream, `batch` samples a message.
+    `tips`: the measured links of a tree (several chains from the root; ``target`` is the tip index).
     Returns rows written."""
     q = np.asarray(table["joint_positions"], float)
     n = len(q)
@@ -32,7 +34,8 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
     camp = {"system": "urdf", "measure": measure, "joint_names": desc.joint_names, **campaign}
     topic = f"/measure/{measure}"
     with RecordingWriter(out) as w:
-        w.metadata(META_URDF, {"urdf": desc.urdf, "root": desc.root, "tip": desc.tip, "source": desc.source})
+        w.metadata(META_URDF, {"urdf": desc.urdf, "root": desc.root, "tip": desc.tip, "source": desc.source,
+                               **({"tips": list(tips)} if tips else {})})
         w.metadata(META_CAMPAIGN, camp)
         for i in range(n):
             m: dict = {"timestamp_ns": int(t[i]), "joint_positions": q[i].tolist()}

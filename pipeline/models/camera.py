@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.camera.projection import radial_division, radial_division_inverse
 from pipeline.models.transforms import rot
 
 SCANNER_NAMES = ("f", "s_u", "s_v", "u0", "v0", "k", "b", "theta", "w", "phi", "psi", "tx", "ty", "tz")
@@ -64,22 +65,14 @@ def sensor_coords(px: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def undistort(ut: np.ndarray, vt: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray]:
-    """Ideal sensor coordinates u, v (m) from distorted ones (eqs. 2–3, one term)."""
-    g = 1.0 + k * (ut**2 + vt**2)
-    return ut * g, vt * g
+    """Ideal sensor coordinates u, v (m) from distorted ones (eqs. 2–3, one term): the
+    generic camera's radial-division variant (`pipeline.camera.projection`)."""
+    return radial_division(ut, vt, k)
 
 
 def distort(u: np.ndarray, v: np.ndarray, k: float, iters: int = 60) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of `undistort`: solve r̃(1 + k r̃²) = r for r̃ (Newton; monotone for k ≥ 0)."""
-    r = np.hypot(u, v)
-    rt = r.copy()
-    for _ in range(iters):
-        step = (rt * (1 + k * rt**2) - r) / (1 + 3 * k * rt**2)
-        rt = rt - step
-        if np.all(np.abs(step) <= 1e-15 * np.maximum(r, 1e-12)):
-            break
-    scale = np.divide(rt, r, out=np.ones_like(r), where=r > 0)
-    return u * scale, v * scale
+    return radial_division_inverse(u, v, k, iters)
 
 
 def camera_points(s: np.ndarray, px: np.ndarray) -> np.ndarray:

@@ -21,6 +21,7 @@ CHANNELS: dict[str, str] = {
     "/measure/pose": "measure_pose",
     "/measure/plane": "measure_plane",
     "/measure/coincidence": "measure_coincidence",
+    "/measure/camera": "measure_camera",
 }
 
 STREAM = "/robot/joint_state"  # the encoder stream: protobuf `robocal.JointStateBatch` (JSON when archived)

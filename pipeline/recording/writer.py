@@ -111,6 +111,11 @@ class RecordingWriter:
         data = {"json": value if isinstance(value, str) else json.dumps(value, separators=(",", ":"), default=jsonable)}
         self._w.add_metadata(name, data)
 
+    def attachment(self, name: str, data: bytes, media_type: str, log_time_ns: int = 0) -> None:
+        """An MCAP attachment: a file's bytes kept unchanged (e.g. a calibration image)."""
+        self._w.add_attachment(create_time=int(log_time_ns), log_time=int(log_time_ns), name=name,
+                               media_type=media_type, data=data)
+
     def flush_chunk(self) -> None:
         """Close the open chunk and push it to the OS, so it survives a crash."""
         self._w.flush()

@@ -38,6 +38,13 @@ def group_column(system, table: dict) -> np.ndarray:
     return np.full(n, system.MEASUREMENT_CHANNEL, dtype=object)
 
 
+def holdout_groups(model, data: dict) -> np.ndarray | None:
+    """Rows a held-out split keeps together (a camera image's corners), from the model's optional
+    ``holdout_groups`` hook; None: rows are split one by one."""
+    hook = getattr(model, "holdout_groups", None)
+    return None if hook is None else hook(data)
+
+
 def options_of(params: dict, model=None, rec=None) -> FitOptions:
     """Solver settings from the stage's params; with the model and recording, each parameter's prior 1σ
     (the robot model file's prior_sigma, then `prior` — the CLI's --prior — over the defaults)."""
@@ -77,14 +84,16 @@ def run(run_dir: Path, params: dict) -> dict:
         kept_data = data
     else:
         if grouped:  # keep only groups that improve held-out error
-            selection = select(model, data, k=folds, seed=int(params.get("seed", 0)), options=opts, progress=_progress)
+            selection = select(model, data, k=folds, seed=int(params.get("seed", 0)), options=opts, progress=_progress,
+                               groups_of_rows=holdout_groups(model, data))
             opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
         rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
         f = rf.fit
         if selection is not None:
             relabel(f, selection)
         kept_data = take(data, rf.kept)
-        holdout_kept = cross_validate(model, kept_data, k=folds, seed=int(params.get("seed", 0)), options=opts)
+        holdout_kept = cross_validate(model, kept_data, k=folds, seed=int(params.get("seed", 0)), options=opts,
+                                      groups=holdout_groups(model, kept_data))
     tip_sigma = point_accuracy(model, f, kept_data)
 
     n, k = len(table["record"]), model.residual_dim

@@ -178,8 +178,9 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         cap = int(params.get("outlier_fit_max_nfev", 200))
         # a first robust fit, bounded: the extended Delta's residuals reach round-off within ~50 evaluations, but
         # the Newton inside its forward kinematics keeps trf short of its 1e-12 tolerances for ~4 800 (≈ 4 min)
-        f = fit(model, model_columns(table), FitOptions(loss="soft_l1", f_scale=float(params.get("outlier_f_scale_m", 1e-4)),
-                                                        max_nfev=cap))
+        # a model whose residuals are not metres (a camera's px) states its own robust scale
+        scale = getattr(model, "robust_scale", None) or float(params.get("outlier_f_scale_m", 1e-4))
+        f = fit(model, model_columns(table), FitOptions(loss="soft_l1", f_scale=scale, max_nfev=cap))
         out.append(C.check_outliers(mchan, f.residuals_after, table["record"], float(params.get("outlier_threshold", 6.0))))
         if not f.converged and still_falling(f.history):  # the screen stands on an iterate short of the minimum
             out.append(C.Check("outlier_fit", C.WARN, f"{mchan}: the first robust fit stopped at its {cap}-"

@@ -2,9 +2,10 @@
 
 A recording of this system carries the URDF and the chain choice in the metadata record
 ``robocal.urdf`` ({urdf, root, tip, source}), the campaign (``robocal.campaign``: system
-"urdf", ``measure`` point|pose|plane|coincidence, ``joint_names``, and per type ``planes``,
-``distances``, ``sigma_m``/``sigma_rad``, ``n_targets``) and one message per measurement on
-``/measure/<type>`` (`schemas/measure_*.schema.json`).  An encoder stream is optional.
+"urdf", ``measure`` point|pose|plane|coincidence|camera, ``joint_names``, and per type ``planes``,
+``distances``, ``sigma_m``/``sigma_rad``, ``n_targets``; camera: `pipeline.camera.table`) and one
+message per measurement (camera: per image) on ``/measure/<type>`` (`schemas/measure_*.schema.json`).
+An encoder stream is optional.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from pipeline.models.urdf_arm import UrdfArm
 from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
 
 SYSTEM = "urdf"
-MEASURES = ("point", "pose", "plane", "coincidence")
+MEASURES = ("point", "pose", "plane", "coincidence", "camera")
 MEASUREMENT_CHANNEL = "/measure/point"
 STREAM_OPTIONAL = True
 GROUP_COLUMN = "label"
@@ -156,6 +157,10 @@ def model_for(arm: UrdfArm, measure: str, campaign: dict, labels: list[str] | No
     if measure == "pose":
         return PoseModel(arm, sigma_m=float(campaign.get("sigma_m", 1e-3)),
                          sigma_rad=float(campaign.get("sigma_rad", 1e-3)))
+    if measure == "camera":
+        from pipeline.camera.table import camera_model
+
+        return camera_model(arm, campaign)
     if measure == "plane":
         planes = tuple(Plane(str(p["name"]), tuple(float(v) for v in p.get("normal", (0, 0, 1))),
                              float(p.get("offset", 0.0)), bool(p.get("known", True)))
@@ -193,6 +198,10 @@ def load(rec, physics: str | None = None, payload: tuple = ()):
     arm = tree_of(rec) if is_tree(rec) else arm_of(rec)
     topic = channel_of(measure)
     msgs = rec.require(topic)
+    if measure == "camera":
+        from pipeline.camera.table import camera_table
+
+        return model_for(arm, measure, campaign), camera_table(rec, topic, msgs, arm, campaign)
     n = len(msgs)
     table = {"timestamp_ns": _column(rec, topic, msgs, "timestamp_ns", (), np.int64),
              "joint_positions": _column(rec, topic, msgs, "joint_positions", (arm.n_joints,)),

@@ -1,0 +1,1 @@
+"""Cameras: projection models, calibration targets and their detection in images."""

@@ -187,3 +187,15 @@ class UrdfArm:
                 "units": {"length": "m", "angle": "rad"},
                 "joint_names": self.joint_names,
                 "parameters": {n: float(v) for n, v in zip(names, x)}}
+
+    def link_frames(self, x: np.ndarray, q: np.ndarray) -> tuple[list[str], np.ndarray]:
+        """Every frame of the chain at joint readings q (N, n_joints), in the instrument frame:
+        names [root link, each joint's child link (fixed joints included), "tool"] and poses
+        (N, len(names), 4, 4), m.  For drawing the robot; the last pose equals `forward`'s."""
+        names, marks, s = [self.desc.root], [5], 5  # the 6 base steps end at index 5
+        for j in self.desc.joints:
+            s += 8 if j.movable else 1  # movable: x, y, z, nominal R, rx, ry, rz, the joint
+            names.append(j.child)
+            marks.append(s)
+        c = self.chain()
+        return names + ["tool"], ch.frames(c, np.asarray(x, float), np.atleast_2d(q), marks + [c.n_steps - 1])

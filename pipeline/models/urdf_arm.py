@@ -180,6 +180,19 @@ class UrdfArm:
         base, tool = self.frames_of(np.asarray(x, float))
         return write_calibrated(self.desc, self.joint_origins(np.asarray(x, float)), base, tool)
 
+    def ros_files(self, x: np.ndarray) -> dict[str, str]:
+        """Files ROS stacks load (`pipeline.models.ros_exports`): the calibrated model.urdf, the
+        robot_calibration-style calibrated_parameters.yaml and, for a Universal Robots arm, the
+        controller's ur_calibration.yaml."""
+        from pipeline.models.ros_exports import offsets_yaml, ur_calibration_yaml
+
+        x = np.asarray(x, float)
+        files = {"model.urdf": self.urdf_text(x), "calibrated_parameters.yaml": offsets_yaml(self, x)}
+        ur = ur_calibration_yaml(self.joint_names, self.joint_origins(x))
+        if ur is not None:
+            files["ur_calibration.yaml"] = ur
+        return files
+
     def to_dict(self, x: np.ndarray | None = None) -> dict:
         x = self.vector() if x is None else np.asarray(x, float)
         names = self.parameter_names()

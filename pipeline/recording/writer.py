@@ -75,6 +75,11 @@ class RecordingWriter:
     def write(self, topic: str, msg: dict, log_time_ns: int | None = None) -> None:
         """Write one message; `log_time` defaults to the message's `timestamp_ns`.  On the protobuf
         encoder stream `msg` is a batch in its JSON form (`joint_state_batch.from_dict`)."""
+        from pipeline.recording.scene import SCENE_CHANNELS
+
+        if topic in SCENE_CHANNELS:  # /tf, /robot_description: no timestamp_ns of their own
+            self.write_scene(topic, msg, int(log_time_ns))
+            return
         cid = self.channel(topic)
         t = int(msg["timestamp_ns"] if log_time_ns is None else log_time_ns)
         data = JSB.from_dict(msg) if topic == STREAM and self.stream_encoding == JSB.ENCODING else encode(msg)
@@ -83,6 +88,22 @@ class RecordingWriter:
     def _add(self, topic: str, cid: int, log_time: int, publish_time: int, data: bytes) -> None:
         self._seq[topic] += 1
         self._w.add_message(cid, log_time=log_time, data=data, publish_time=publish_time, sequence=self._seq[topic])
+
+    def write_scene(self, topic: str, msg: dict, log_time_ns: int) -> None:
+        """One message on a scene channel (`pipeline.recording.scene`: /tf, /robot_description),
+        registered under the schema name Foxglove / ROS tools recognise."""
+        from pipeline.recording import scene
+
+        if topic not in self._channels:
+            name, data = scene.scene_schema(topic)
+            sid = self._w.register_schema(name=name, encoding="jsonschema", data=data)
+            self._channels[topic] = self._w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+            self._seq[topic] = 0
+        t = int(log_time_ns)
+        self._add(topic, self._channels[topic], t, t, scene.encode(msg))
+        if topic == scene.DESCRIPTION_TOPIC:  # the URDF also as a file inside the recording
+            self._w.add_attachment(create_time=t, log_time=t, name=scene.ATTACHMENT, media_type="application/xml",
+                                   data=msg["data"].encode())
 
     def write_batch(self, t_ns: np.ndarray, q: np.ndarray, names: list[str] | tuple[str, ...],
                     device_t_ns: np.ndarray | None = None, host_t_ns: np.ndarray | None = None,
@@ -150,18 +171,24 @@ def joint_state_messages(t_ns: np.ndarray, q: np.ndarray, names: list[str] | tup
 def write_campaign(path: str | Path, metadata: dict[str, dict], stream: tuple[np.ndarray, np.ndarray, list[str]],
                    events: list[tuple[str, dict]], batch: int = 250, stream_encoding: str = JSB.ENCODING) -> None:
     """Write a whole campaign: metadata, the batched encoder stream (positions at 1 nrad
-    resolution, as before issue 17, so both encodings carry the same numbers) and the
-    measurement events, all messages in log-time order."""
+    resolution, so both encodings carry the same numbers), the measurement events and the
+    robot's frames and description for ROS / Foxglove tools (`pipeline.recording.scene`), all
+    messages in log-time order."""
+    from pipeline.recording.scene import scene_events
+
     t_ns, q, names = stream
     q = np.round(q, 9)
     starts = range(0, t_ns.size, batch)
     msgs = [(int(t_ns[s]), 0, STREAM, s) for s in starts] + [(int(m["timestamp_ns"]), 1, tp, m) for tp, m in events]
+    msgs += [(t, 2, tp, m) for t, tp, m in scene_events(metadata, (t_ns, q))]  # the robot for ROS / Foxglove
     msgs.sort(key=lambda tm: tm[0])  # stable: a batch before an event of the same time, as before
     with RecordingWriter(path, stream_encoding=stream_encoding) as w:
         for name, value in metadata.items():
             w.metadata(name, value)
-        for _, kind, topic, m in msgs:
+        for t, kind, topic, m in msgs:
             if kind == 0:
                 w.write_batch(t_ns[m:m + batch], q[m:m + batch], names)
-            else:
+            elif kind == 1:
                 w.write(topic, m)
+            else:
+                w.write_scene(topic, m, t)

@@ -16,7 +16,7 @@ campaign (the measurement postures, or the encoder stream at a few Hz where the 
 
 - ``world/robot/<nominal|calibrated>/links`` Capsules3D; ``…/joints`` Points3D at each movable
   joint's frame, labelled with the joint's name; ``…/tool`` the tool frame's axes (Arrows3D);
-- ``world/robot/calibrated/root`` the root link's axes (static, first posture — the base does not
+- ``world/robot/<calibrated, or the only robot drawn>/root`` the root link's axes (static, first posture — the base does not
   move) and ``world/instrument`` the instrument's own axes at the world origin.
 
 "nominal" is the robot as built seen through the same registration as "before calibration"
@@ -98,6 +98,7 @@ def log_robot(rec: rr.RecordingStream, kin, x_kin: dict[str, np.ndarray], q: np.
     t = np.asarray(t_ns, np.int64)
     paths: list[str] = []
     reach = None
+    primary = list(x_kin)[-1]  # labelled, with the root's axes: the calibrated robot when both are drawn
     for which, x in x_kin.items():
         names, follows, F = skeleton(kin, x, q)
         n = len(q)
@@ -118,7 +119,7 @@ def log_robot(rec: rr.RecordingStream, kin, x_kin: dict[str, np.ndarray], q: np.
         if jmask.any():
             jl = [f for f in follows if f]
             rec.log(f"{base}/joints", rr.Points3D.from_fields(radii=[1.3 * radius], colors=[rgba], labels=jl,
-                                                              show_labels=which == "calibrated"), static=True)
+                                                              show_labels=which == primary), static=True)
             rec.send_columns(f"{base}/joints", indexes=[_times(t)], columns=_partitioned(
                 rr.Points3D.columns(positions=F[:, jmask, :3, 3].reshape(-1, 3)), n, int(jmask.sum())))
             paths.append(f"{base}/joints")
@@ -127,7 +128,7 @@ def log_robot(rec: rr.RecordingStream, kin, x_kin: dict[str, np.ndarray], q: np.
         rec.send_columns(f"{base}/tool", indexes=[_times(t)], columns=_partitioned(
             rr.Arrows3D.columns(origins=o.reshape(-1, 3), vectors=v.reshape(-1, 3)), n, 3))
         paths.append(f"{base}/tool")
-        if which == "calibrated":
+        if which == primary:
             o, v = axes(F[0, 0], 0.2 * scale_m)
             rec.log(f"{base}/root", rr.Arrows3D(origins=o, vectors=v, colors=AXIS_RGB, radii=[0.2 * radius],
                                                 labels=[f"{names[0]} x", "y", "z"]), static=True)

@@ -215,25 +215,10 @@ def call_system_hook(rec: rr.RecordingStream, system: str, model, table: dict, x
     return name
 
 
-def robot_name(art: RunArtefacts) -> str:
-    """The robot's own name (the URDF's robot name, the arm model's name) or the system's."""
-    meta = (art.recording or {}).get("metadata") or {}
-    for key in ("robocal.urdf", "robocal.robot_model"):
-        m = meta.get(key)
-        if isinstance(m, dict):
-            if isinstance(m.get("urdf"), str):
-                found = re.search(r"<robot[^>]*\bname=\"([^\"]+)\"", m["urdf"])
-                if found:
-                    return found.group(1)
-            if isinstance(m.get("name"), str):
-                return m["name"]
-    return art.system
-
-
 def summary_markdown(art: RunArtefacts, figures: dict[str, Any]) -> str:
     """Headline figures as markdown for the `summary` text view."""
     mm = lambda v: "n/a" if v is None else f"{v * 1e3:.4f} mm"  # noqa: E731
-    name = robot_name(art)
+    name = art.robot_name()
     return "\n".join([
         f"# robocal run — {name}" + (f" ({art.system})" if name != art.system else ""), "",
         f"- measurements: {figures.get('n_measurements')}",

@@ -8,6 +8,11 @@ Welch–Satterthwaite degrees of freedom of the two σ (each σ is estimated fro
 Trends: weighted least squares of each parameter on time with one level per segment between flagged
 steps of that parameter; the slope's standard error scaled by the Birge ratio √(χ²/dof) when above 1;
 flagged when |slope/se| exceeds the t quantile at α/(2P) (P parameters tested for the robot).
+
+A change of the identified set (a parameter fitted in one calibration and held in the next, or the
+reverse) changes what every estimate means — the others absorb what the held one no longer
+explains — so the comparisons across it are not tested for steps; the change itself is reported
+(`free_set_changes`: news, not a step).
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ class RobotHistory:
     usable: list[dict]                    # rows the series are built from
     series: dict[str, Series] = field(default_factory=dict)
     steps: list[dict] = field(default_factory=list)
+    free_set_changes: list[dict] = field(default_factory=list)  # identified set changed between calibrations
     trends: list[dict] = field(default_factory=list)
     tolerance: list[dict] = field(default_factory=list)
     failed: list[dict] = field(default_factory=list)
@@ -99,8 +105,28 @@ def welch_dof(s1: np.ndarray, n1: np.ndarray, s2: np.ndarray, n2: np.ndarray) ->
     return np.where(np.isfinite(v), v, np.inf)
 
 
-def find_steps(series: dict[str, Series], alpha: float = 0.01) -> list[dict]:
-    """Moves between consecutive calibrations beyond the threshold (module docstring)."""
+def identified_set(row: dict) -> frozenset[str]:
+    """Names of the parameters a calibration identified (fitted, with a finite σ)."""
+    return frozenset(p["name"] for p in row.get("parameters") or []
+                     if p.get("identifiable") and p.get("std") is not None and np.isfinite(p["std"]))
+
+
+def free_set_changes(rows: list[dict]) -> list[dict]:
+    """Consecutive usable calibrations whose identified sets differ: {recording, from_recording,
+    t_ns, from_t_ns, freed, held} (names newly fitted, names no longer fitted)."""
+    out = []
+    for a, b in zip(rows, rows[1:]):
+        sa, sb = identified_set(a), identified_set(b)
+        if sa != sb:
+            out.append({"recording": b["recording"], "from_recording": a["recording"], "t_ns": b["campaign_start_ns"],
+                        "from_t_ns": a["campaign_start_ns"], "freed": sorted(sb - sa), "held": sorted(sa - sb)})
+    return out
+
+
+def find_steps(series: dict[str, Series], alpha: float = 0.01,
+               changed: frozenset[tuple[str, str]] = frozenset()) -> list[dict]:
+    """Moves between consecutive calibrations beyond the threshold (module docstring); pairs of
+    recordings in `changed` (the identified set differs between them) are not compared."""
     m = sum(max(0, s.estimate.size - 1) for s in series.values())
     if m == 0:
         return []
@@ -116,6 +142,8 @@ def find_steps(series: dict[str, Series], alpha: float = 0.01) -> list[dict]:
                                         stats.norm.isf(p)))
         z = d / sd
         for k in np.flatnonzero(np.abs(z) > crit):
+            if (s.recordings[k], s.recordings[k + 1]) in changed:
+                continue
             steps.append({"param": s.name, "unit": s.unit, "index": int(k + 1), "t_ns": int(s.t_ns[k + 1]),
                           "from_t_ns": int(s.t_ns[k]), "recording": s.recordings[k + 1], "delta": float(d[k]),
                           "sigma": float(sd[k]), "z": float(z[k]), "threshold": float(crit[k])})
@@ -178,7 +206,9 @@ def robot_history(robot_id: str, rows: list[dict], tolerance_m: float | None, al
         else:
             h.usable.append(r)
     h.series = build_series(h.usable)
-    h.steps = find_steps(h.series, alpha)
+    h.free_set_changes = free_set_changes(h.usable)
+    changed = frozenset((c["from_recording"], c["recording"]) for c in h.free_set_changes)
+    h.steps = find_steps(h.series, alpha, changed)
     h.trends = find_trends(h.series, h.steps, alpha)
     if tolerance_m is not None:
         h.tolerance = [{"recording": r["recording"], "t_ns": r["campaign_start_ns"], "holdout_rms_m": r["holdout_rms_m"]}

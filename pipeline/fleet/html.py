@@ -80,6 +80,16 @@ def robot_section(h: RobotHistory, tolerance_m: float | None) -> str:
                        f'<td class="n">{_val(s["sigma"], s["unit"])}</td><td class="n">{abs(s["z"]):.1f}</td>'
                        f'<td class="n">{s["threshold"]:.2f}</td><td><code>{escape(s["recording"])}</code></td></tr>')
         out.append("</table>")
+    if h.free_set_changes:
+        out.append('<h3>Identified parameters changed</h3><p class="note">The calibration fitted a different set of '
+                   "parameters than the one before: the estimates before and after are not compared for steps (the "
+                   'others absorb what a held parameter no longer explains).</p><table class="free-set"><tr>'
+                   "<th>from</th><th>to</th><th>newly fitted</th><th>no longer fitted</th><th>recording</th></tr>")
+        for c in h.free_set_changes:
+            out.append(f'<tr class="free-set-change" data-date="{day(c["t_ns"])}"><td>{day(c["from_t_ns"])}</td>'
+                       f'<td>{day(c["t_ns"])}</td><td>{escape(", ".join(c["freed"]) or "—")}</td>'
+                       f'<td>{escape(", ".join(c["held"]) or "—")}</td><td><code>{escape(c["recording"])}</code></td></tr>')
+        out.append("</table>")
     if h.trends:
         out.append('<h3>Trends (drift)</h3><table class="trends"><tr><th>parameter</th><th>slope per year</th>'
                    '<th>σ</th><th>|z|</th><th>threshold</th><th>χ²/dof</th></tr>')
@@ -150,6 +160,7 @@ def counts(hs: list[RobotHistory]) -> dict:
                          "trends": [{k: t[k] for k in ("param", "slope_per_year", "se_per_year", "z", "threshold")}
                                     for t in h.trends],
                          "tolerance": h.tolerance,
+                         "free_set_changes": h.free_set_changes,
                          "failed": [{"recording": r["recording"], "status": r["status"], "error": r.get("error")}
                                     for r in h.failed],
                          "insufficient": [{"recording": r["recording"], "reason": r["reason"]}

@@ -305,8 +305,9 @@ def _json(v: Any) -> str:
     return json.dumps(v, sort_keys=True, default=str)
 
 
-def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "run.rrd") -> str:
-    """The whole report page."""
+def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "run.rrd", tick=None) -> str:
+    """The whole report page; `tick(note)` is called after each section (progress)."""
+    tick = tick or (lambda note="": None)
     s = fg.summary(art)
     series = fg.residual_series(art)
     prov = fg.provenance(art, version, params)
@@ -317,9 +318,14 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     from pipeline.report.accuracy import accuracy_section
 
     acc_html = accuracy_section(art)
-    sections = [summary_section(s, warnings), acc_html, residual_section(art, series), parameter_section(art.fit),
-                observability_section(art), solver_section(art.history), validation_section(art.validate),
-                diagnosis_section(art)]
+    tick("accuracy section")
+    sections = [summary_section(s, warnings), acc_html]
+    for name, make in (("residuals", lambda: residual_section(art, series)),
+                       ("parameters", lambda: parameter_section(art.fit)), ("observability", lambda: observability_section(art)),
+                       ("solver", lambda: solver_section(art.history)), ("validation", lambda: validation_section(art.validate)),
+                       ("diagnosis", lambda: diagnosis_section(art))):
+        sections.append(make())
+        tick(f"{name} section")
     from pipeline.report import compensation  # shown when `robocal compensate` ran on this run
     comp = compensation.section(art.run_dir)
     sections += [comp or "", provenance_section(prov, rrd_name)]

@@ -3,7 +3,7 @@ accuracy map (new configurations: the jig volume, the Delta's box, the scanner's
 poses) versus the predicted 1σ; and, for information-poor arc-welder campaigns, whether the
 status is `insufficient` and the 95 % bound covers the true error.
 
-    python benchmarks/bench_accuracy_honesty.py --seeds 20            # the issue's size
+    python benchmarks/bench_accuracy_honesty.py --seeds 20            # the documented size
     python benchmarks/bench_accuracy_honesty.py --seeds 5 --systems arc-welder
 """
 

@@ -6,7 +6,7 @@ the calibrated model the paper's Table 2 truth (~24 mm of correction).  `--n` se
 
 `--accuracy-seeds N [--first-seed S] [--systems arc-welder,delta,urdf]`: N calibrations per system, each
 compensating 1 000 new targets and run on the true robot: true RMS vs the predicted 1σ RMS and the 95 %
-bound on one calibration's RMS (docs/compensate.md, "Predicted accuracy").
+bound on one calibration's RMS (docs/guide/compensate.md, "Predicted accuracy").
 
 `--delta-extended N`: only the Delta calibrated with the extended model, N targets (timing, round trip).
 """

@@ -1,4 +1,4 @@
-"""Detection benchmark of `robocal diagnose` on the arc welder (issue 7).
+"""Detection benchmark of `robocal diagnose` on the arc welder.
 
 One IK'd target set (100 contacts, payload 0/6 kg, search speeds 5/10/20 mm/s) and many
 seeded re-runs of the contact search.  Minimum detectable sizes (MDS) are read from the

@@ -1,4 +1,4 @@
-"""Issue 7's acceptance case: touch-jig campaign with 0.2 mm of joint-2 gravity compliance
+"""The diagnosis' acceptance case: touch-jig campaign with 0.2 mm of joint-2 gravity compliance
 (payload varied 0/6 kg), 0.05 mm noise (repeatability 3σ 0.15 mm), 100 contacts.
 
 Two campaigns are compared on the same seeds:

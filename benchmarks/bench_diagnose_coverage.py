@@ -1,4 +1,4 @@
-"""Confidence-interval honesty of the diagnosis (issue 7): for effects injected at a multiple of
+"""Confidence-interval honesty of the diagnosis: for effects injected at a multiple of
 their minimum detectable size, the z-scores (estimate − truth)/std over many noise seeds — mean,
 standard deviation (1 when the reported std is honest) — and the 95 % CI coverage: the share of
 the reported intervals (`ci95`, t-based with the parameter's `dof`) holding the truth, beside the

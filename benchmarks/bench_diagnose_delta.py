@@ -1,4 +1,4 @@
-"""Detection benchmark of the Delta + laser-tracker diagnosis (issue 7).
+"""Detection benchmark of the Delta + laser-tracker diagnosis.
 
 Campaign: seed 003's 27-point grid approached from both sides of every actuator, two passes
 (108 measurements), tracker noise 0.02 mm.  Truth: a random well-built Delta per seed

@@ -1,4 +1,4 @@
-"""The diagnosis on campaigns it did not make (issue 18): `tests/independent_touch.py`.
+"""The diagnosis on campaigns it did not make: `tests/independent_touch.py`.
 
 An independent generator (own 4×4 kinematics, IK, contact search and effect forms; no code shared
 with the diagnosis's signatures) makes 100-contact touch campaigns (payload 0/6 kg in blocks of 10,
@@ -51,7 +51,7 @@ REPEATABILITY = 1e-4
 OUT_OF_LIBRARY = ("bump", "dent", "wild", "glitch")
 IN_LIBRARY = {"coupling_J3_J2": ("joint_coupling", "J3->J2"), "linear_growth": ("thermal_growth", "links"),
               "coupling_J2_J3": ("joint_coupling", "J2->J3")}
-# forms the library has in a family of forms (issue 18): the generator's own form of each; counted as
+# forms the library has in a family of forms: the generator's own form of each; counted as
 # found when named in the right family (`family_named`) or located (partially_explained / unexplained)
 FORMS = {"thermal_growth": ("thermal_growth", "links", "links (warm-up"),
          "warm_up_all": ("thermal_growth", "links", "links (warm-up"),

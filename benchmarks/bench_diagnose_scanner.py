@@ -1,9 +1,9 @@
-"""Detection benchmark of the SCORBOT laser-stripe scanner diagnosis (issue 7).
+"""Detection benchmark of the SCORBOT laser-stripe scanner diagnosis.
 
 Campaign: 20 poses x 5 corners, the arm sweeping through each pose at up to 0.1 rad/s per
 joint during the capture (exposes a camera time offset), image noise 0.2 px, repeatability
 ±0.2 mm, printing error 50 µm.  Truth: Table 2's scanner with v0 and θ at their nominal values
-(identify holds these weak-gauge parameters there; see docs/diagnose.md) plus the injected
+(identify holds these weak-gauge parameters there; see docs/guide/diagnose.md) plus the injected
 effects.  Reported: false findings and `unexplained` on clean recordings; for each library
 effect at 4× and 2× its minimum detectable size (MDS, from the clean diagnosis of the same
 campaign) the share found and correctly named, the median relative parameter error, the 95 %

@@ -1,4 +1,4 @@
-"""Thermal drift with and without a recorded temperature channel (issue 7), arc welder.
+"""Thermal drift with and without a recorded temperature channel, arc welder.
 
 Campaign: 100 contacts, payload 0/6 kg, search speeds 5/10/20 mm/s, 10 s dwells (≈ 50 min),
 warm-up ΔT(t) = 8 K·(1 − exp(−t/900 s)); the injected thermal_drift moves the true tip by g·ΔT.

@@ -1,5 +1,5 @@
 """Fuzz robocal with the seeded mutation corpus of tests/fuzz_corpus.py, each case a real
-`robocal run REC --out DIR --stages …` process, and print the classification table (issue 15):
+`robocal run REC --out DIR --stages …` process, and print the classification table:
 one-line error / success (nothing lost) / success with warning / traceback / hang / memory /
 silent loss, per mutation class, with the worst CPU time and peak memory.
 

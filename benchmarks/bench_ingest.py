@@ -1,4 +1,4 @@
-"""Benchmark: the encoder stream in both encodings, side by side in one run (issue 17).
+"""Benchmark: the encoder stream in both encodings, side by side in one run (archived JSON and protobuf).
 
 Run: .venv/bin/python benchmarks/bench_ingest.py [--repeat 5] [--synthetic 1200000] [--alternatives]
 

@@ -1,4 +1,4 @@
-"""Benchmark (issue 19): planned touch campaigns on a robot that is off, against random ones.
+"""Benchmark: planned touch campaigns on a robot that is off, against random ones.
 
 For each seeded pool: the true robot (`--truth reference`, default: the paper's Table 2, ~20 mm off; `random`: errors of that size drawn per pool, up to ~70 mm off;
 default noise.  Two-stage plan (`pipeline.plan.staged`): stage 1 of

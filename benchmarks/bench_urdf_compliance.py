@@ -1,4 +1,4 @@
-"""Gravity compliance of a URDF robot (issue 18, `pipeline/diagnose/urdf_gravity.py`) on campaigns from
+"""Gravity compliance of a URDF robot (the diagnosis' gravity-compliance term) on campaigns from
 the independent generator `tests/independent_drive.py` (own FK of the URDF text, torques as −∂V/∂q), through
 `tests/test_urdf_compliance.py`'s `campaign`.
 

@@ -1,4 +1,4 @@
-"""A seeded mutation corpus over the bundled recordings (issue 15) and the classification of what
+"""A seeded mutation corpus over the bundled recordings and the classification of what
 robocal does with each file: used by tests/test_fuzz.py (bounded, in-process) and
 benchmarks/bench_fuzz.py (full size, each case a `robocal run` process).
 

@@ -1,4 +1,4 @@
-"""Build damaged and hostile recordings from the bundled ones (issue 15): byte-level damage to
+"""Build damaged and hostile recordings from the bundled ones: byte-level damage to
 MCAP framing and chunks, and content-level edits written with the `mcap` writer as a hostile
 device or tool would (any topic, schema, encoding, JSON text, metadata)."""
 

@@ -1,4 +1,4 @@
-"""Independent generator of drive state (issue 18): a URDF robot with compliant joints carrying a payload
+"""Independent generator of drive state: a URDF robot with compliant joints carrying a payload
 its URDF does not describe, and the efforts its drives measure.
 
 Shares no code with the diagnosis or robocal's simulator: forward kinematics from the URDF text with

@@ -1,4 +1,4 @@
-"""The independent generator's own MCAP writer (issue 18): a campaign of `independent_touch` as a
+"""The independent generator's own MCAP writer: a campaign of `independent_touch` as a
 controller would log it, following `schemas/` only (the schema files are registered as they are;
 no code of `pipeline.recording`).
 

@@ -1,4 +1,4 @@
-"""An independent generator of touch campaigns for testing the diagnosis (issue 18).
+"""An independent generator of touch campaigns for testing the diagnosis on data it did not make.
 
 It shares NO code with the diagnosis's effect signatures nor with `pipeline.simulate`: its own
 forward kinematics (a product of 4×4 homogeneous matrices), its own inverse kinematics (damped

@@ -1,4 +1,4 @@
-"""Test helper: a run directory that follows docs/pipeline-artefacts.md exactly, built from a real
+"""Test helper: a run directory that follows docs/reference/artefacts.md exactly, built from a real
 simulated arc-welder recording with the existing identification functions.
 
 Used by the report/rerun tests until (and as a cross-check after) the pipeline stages land.

@@ -1,4 +1,4 @@
-"""Honest accuracy (issue 16): priors of fixed parameters propagated, the workspace map, the
+"""Honest accuracy: priors of fixed parameters propagated, the workspace map, the
 `insufficient` verdict, --strict, --tolerance, --previous."""
 
 from __future__ import annotations

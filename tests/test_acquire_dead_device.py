@@ -1,4 +1,4 @@
-"""Issue 15, item 7: a device process killed (or frozen) mid-run over a real pty pair is noticed
+"""A device process killed (or frozen) mid-run over a real pty pair is noticed
 within 2 s, its gap is recorded, the port is retried with back-off, and a bridge that never
 comes back stops the acquisition (which closes a valid recording)."""
 

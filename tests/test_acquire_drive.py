@@ -1,4 +1,4 @@
-"""Drive state over the serial protocol (issue 18): SAMPLES_DRIVE frames, device-sim → pty → acquire.
+"""Drive state over the serial protocol: SAMPLES_DRIVE frames, device-sim → pty → acquire.
 
 The source recording comes from the independent generator `independent_drive` (joint j2 compliant under
 a payload the URDF lacks; commanded positions, efforts and motor currents at standstill around each
@@ -121,7 +121,7 @@ def test_device_sim_sends_drive_frames_only_for_a_stream_with_drive_state(source
 
 # ----- through a real pty ------------------------------------------------------------------------------
 def test_drive_state_through_pty_bit_for_bit_and_the_diagnosis_is_the_sources(tmp_path, source):
-    """Real time (drive windows are host-time windows: see docs/acquisition.md), a drifting, offset clock."""
+    """Real time (drive windows are host-time windows: see docs/guide/acquire.md), a drifting, offset clock."""
     out, s, rep = record_over_pty(tmp_path, "urdf", ("--recording", str(source), "--speed", "1", "--batch", "4",
                                                      "--drift-ppm", "100", "--offset-s", "2"))
     dev = s["devices"]["bridge"]

@@ -1,4 +1,4 @@
-"""Issue 17: the encoder stream as protobuf `robocal.JointStateBatch` in real MCAP files.
+"""The encoder stream as protobuf `robocal.JointStateBatch` in real MCAP files.
 
 Round trip exact; an independent reader (mcap's standard protobuf DecoderFactory, no robocal code)
 decodes the stream to the same arrays; the schema robocal registers is what protoc makes of

@@ -3,7 +3,7 @@ damped Newton on the full model; round trip, agreement with the β' closed form,
 and `robocal compensate` end to end on a run whose robot metadata asks for the extended model.
 
 The true robot is checked by `true_platform` below, a forward kinematics written here from the
-geometry of docs/delta.md (rod constraints solved by scipy), sharing no robocal function."""
+geometry of docs/reference/systems/delta.md (rod constraints solved by scipy), sharing no robocal function."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from pipeline.simulate import delta_tracker as sim
 from pipeline.simulate.delta_recording import write
 from pipeline.systems import delta_tracker as dt
 
-A, B, L1, L2, W = 0.200, 0.050, 0.350, 0.800, 0.050  # the nominal Delta of docs/delta.md, m
+A, B, L1, L2, W = 0.200, 0.050, 0.350, 0.800, 0.050  # the nominal Delta of docs/reference/systems/delta.md, m
 PHI = (np.pi / 2, np.pi, -np.pi / 2)
 
 

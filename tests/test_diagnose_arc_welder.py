@@ -1,4 +1,4 @@
-"""Diagnosis of touch campaigns with concealed effects (issue 7).
+"""Diagnosis of touch campaigns with concealed effects.
 
 One IK'd target set is planned per module and only the contact searches are re-run per case
 (`pipeline.simulate.effects.run`), so the whole module takes a few seconds.

@@ -1,4 +1,4 @@
-"""Diagnosis of Delta + laser-tracker campaigns with concealed effects (issue 7).
+"""Diagnosis of Delta + laser-tracker campaigns with concealed effects.
 
 Campaigns are simulated in memory (`simulate_effects`) and diagnosed from what a recording
 holds (the diagnosis table is rebuilt from the encoder stream); one test goes through the

@@ -1,4 +1,4 @@
-"""The diagnosis on campaigns it did not make (issue 18), a bounded run of
+"""The diagnosis on campaigns it did not make, a bounded run of
 `benchmarks/bench_diagnose_independent.py`: the generator (`tests/independent_touch.py`) shares no
 code with the diagnosis's signatures; effects at 4× their minimum detectable size."""
 
@@ -88,7 +88,7 @@ def test_an_impossible_derived_approach_speed_marks_the_record(world):
 
 def test_a_quadratic_pair_coupling_is_named_in_its_quadratic_form(world):
     """δq3 = k·(q2 − q̄2)² (the generator's form): the library's second-order coupling term names it;
-    before it existed, a J2 eccentricity or transmission error took it (issue 18)."""
+    before it existed, a J2 eccentricity or transmission error took it."""
     _, clean = _diagnose(world, None, 104)
     _, d = _diagnose(world, it.Effect("quad_coupling", 1.0), 104)
     assert [(f["effect"], f["location"]) for f in d["findings"]] == [("joint_coupling", "J2->J3 (quadratic)")]

@@ -1,4 +1,4 @@
-"""The library additions of issue 18 (`pipeline/diagnose/effects_more.py`): signatures against finite
+"""The diagnosis library's later additions (`pipeline/diagnose/effects_more.py`): signatures against finite
 differences of the model, and recovery from the product's simulator."""
 
 from __future__ import annotations

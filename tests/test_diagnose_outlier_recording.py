@@ -1,4 +1,4 @@
-"""End to end on a real MCAP (issue 18): one bad latch in the bundled arc-welder recording is named as an
+"""End to end on a real MCAP: one bad latch in the bundled arc-welder recording is named as an
 outlier record by `robocal diagnose`, not diagnosed as physics; the declared repeatability is read
 from the campaign metadata."""
 

@@ -1,4 +1,4 @@
-"""Diagnosis of SCORBOT laser-stripe scanner campaigns with concealed effects (issue 7).
+"""Diagnosis of SCORBOT laser-stripe scanner campaigns with concealed effects.
 
 Campaigns are simulated in memory and diagnosed from what a recording holds (the diagnosis
 table's joint velocities are rebuilt from the encoder stream); one test goes through the MCAP
@@ -6,7 +6,7 @@ file, the CLI and the pipeline stage.
 
 The true scanner is Table 2's with v0 and θ at their nominal values: `identify` holds those
 two weak-gauge parameters at the nominal, and a truth off them leaves geometric misfit that
-the diagnosis (rightly) reports as unexplained structure — see docs/diagnose.md."""
+the diagnosis (rightly) reports as unexplained structure — see docs/guide/diagnose.md."""
 
 from __future__ import annotations
 

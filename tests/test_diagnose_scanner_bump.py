@@ -1,4 +1,4 @@
-"""An out-of-library bump in the SCORBOT scanner's J2 transmission (issue 7): located by the
+"""An out-of-library bump in the SCORBOT scanner's J2 transmission: located by the
 lack-of-fit scan, and not named as a library effect with confidence.
 
 The bump (width 0.1 rad) is centred at one of the campaign's poses, so it acts on a few poses

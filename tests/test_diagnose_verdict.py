@@ -1,4 +1,4 @@
-"""The diagnosis' verdict functions (issue 18): floor check, outliers, influence, arbiter, status."""
+"""The diagnosis' verdict functions: floor check, outliers, influence, arbiter, status."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Drive state in the encoder stream and compliance from measured joint torques (issue 18).
+"""Drive state in the encoder stream and compliance from measured joint torques.
 
 Campaigns from the independent generator `independent_drive` (own FK of the URDF text, torques as
 ∂V/∂q of the potential energy by central differences, a payload the URDF does not describe):

@@ -1,4 +1,4 @@
-"""Issue 15: in-suite fuzzing — a seeded mutation corpus over the bundled recordings (every class
+"""In-suite fuzzing — a seeded mutation corpus over the bundled recordings (every class
 of tests/fuzz_corpus.py) through ingest and validate, and hypothesis properties over the reader
 and the decoders.  Zero tracebacks, hangs, runs over 1 GB or silent losses.  Bounded (≈ 60 s);
 the full-size run is benchmarks/bench_fuzz.py."""

@@ -1,4 +1,4 @@
-"""Issue 15: hostile and damaged input — one test per numbered item (1–6, 8; 7 is in
+"""Hostile and damaged input — one test per kind of damage (a dead or frozen device is in
 test_acquire_dead_device.py).  Each failed on the code before the fix."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""House rule: one module per concept, none over ~400 lines (issue 18: `pipeline/diagnose/`)."""
+"""House rule: one module per concept, none over ~400 lines."""
 
 from __future__ import annotations
 

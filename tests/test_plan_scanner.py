@@ -60,7 +60,7 @@ def test_bad_scanner_campaign_is_one_line(tmp_path):
     assert not (tmp_path / "x.mcap").exists()
 
 
-# ----- two stages (issue 19): operator poses first, then I-optimal on the calibrated estimate -----------------------
+# ----- two stages: operator poses first, then I-optimal on the calibrated estimate -----------------------
 
 def test_first_stage_is_spread_reachable_and_schema_valid(tmp_path):
     """The first stage's operator poses are spread (maximin: their smallest pairwise distance in the

@@ -1,4 +1,4 @@
-"""The recording contract's gaps (issue 18), on recordings written by the independent generator's own
+"""The recording contract's gaps (payload changes, search commands, faults), on recordings written by the independent generator's own
 MCAP writer (`tests/independent_recording.py`, following `schemas/` only): payload changes logged when
 they happen, each contact's search command, a search the controller aborted; old recordings without
 them stay readable."""

@@ -1,6 +1,6 @@
 """report.html: content checked against the run's figures, self-contained, and rendered by headless
-Chromium (DOM has every figure, the screenshot is not blank); the diagnosis section from an
-issue-7-shaped diagnosis.json."""
+Chromium (DOM has every figure, the screenshot is not blank); the diagnosis section from a
+diagnosis.json of the residual diagnosis' shape."""
 
 from __future__ import annotations
 

@@ -146,12 +146,12 @@ def test_blueprint_lays_out_the_views(report_run):  # noqa: F811
         if "TimePanelBlueprint:timeline" in b.schema.names:
             assert b.column("TimePanelBlueprint:timeline").to_pylist()[-1] in ("time", ["time"])
     assert {"3D", "TimeSeries"} <= kinds, kinds
-    # before and after in separate views (their scales differ by orders: issue 16), and the accuracy verdict
+    # before and after in separate views (their scales differ by orders of magnitude), and the accuracy verdict
     assert {"/world", "/encoder", "/residuals/before_mm", "/residuals/after_mm", "/solver", "/accuracy"} <= origins, origins
 
 
 def test_artefacts_shaped_as_the_documented_contract(report_run, tmp_path):  # noqa: F811
-    """The report also reads artefacts written exactly as docs/pipeline-artefacts.md describes them
+    """The report also reads artefacts written exactly as docs/reference/artefacts.md describes them
     (q_<joint> columns, history as a list, sha256 at the top of recording.json)."""
     from pipeline.report.artefacts import load_run
     from pipeline.report.html import diagnosis_section

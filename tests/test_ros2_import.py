@@ -1,4 +1,4 @@
-"""ROS 2 bags in (issue 17): real bags written by rosbags' own writer (MCAP and SQLite3 storage)
+"""ROS 2 bags in: real bags written by rosbags' own writer (MCAP and SQLite3 storage)
 from a simulated URDF robot with a known truth.
 
 The bag calibrates to the noise; joint names in another order and extra joints change nothing; a

@@ -1,4 +1,4 @@
-"""Archived encoder streams (JSON batches, before issue 17): `legacy_json_stream` decodes them
+"""Archived encoder streams (JSON batches, written before the protobuf stream): `legacy_json_stream` decodes them
 bit-identically to an independent reference (the standard library's json + numpy), and a record
 it cannot take is a one-line error naming file, channel and record."""
 

@@ -1,4 +1,4 @@
-"""Thermal drift driven by a recorded temperature channel (issue 7).
+"""Thermal drift driven by a recorded temperature channel.
 
 A warm-up ΔT(t) = ΔT∞·(1 − exp(−t/τ)) moves the true tip by g·ΔT; with the `/arm/temperature`
 sensor logged the diagnosis models the drift against the temperature, without it only against
@@ -99,13 +99,13 @@ def test_same_warm_up_without_sensor_leaves_the_linear_time_model_short(targets)
     """The honest outcome: the drift is found against time (named thermal_drift@campaign, high
     confidence), but the straight line cannot follow the exponential warm-up: structure stays
     in time in most runs (mostly the fast early rise) and the held-out RMS stays above what the
-    temperature model reaches on the same campaign (benchmark: 1.16–1.55× the floor).  Since issue 18
+    temperature model reaches on the same campaign (benchmark: 1.16–1.55× the floor).  Since the diagnosis gained its verdict and link growth,
     the time structure is also caught by the finding's misspecification test (4 of these 4 seeds)."""
     unexplained_time = 0
     for seed in range(4):
         doc = run(targets, [drift()], sensor=False, seed=seed, n_boot=10)
         assert ("thermal_drift", "campaign") in {(f["effect"], f["location"]) for f in doc["findings"]}
-        # located by the lack of fit, or by the finding's own misspecification test (issue 18: a flexible
+        # located by the lack of fit, or by the finding's own misspecification test (a flexible
         # function of time still adds to the straight line → `partially_explained`, confidence low)
         own = [f for f in doc["findings"] if (f["effect"], f["location"]) == ("thermal_drift", "campaign")][0]
         unexplained_time += (any(w["variable"] == "time_since_start_s" for w in doc["unexplained_where"])

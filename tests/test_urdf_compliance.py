@@ -1,4 +1,4 @@
-"""Gravity compliance of a URDF robot (issue 18): a joint of finite stiffness deflects under the gravity
+"""Gravity compliance of a URDF robot: a joint of finite stiffness deflects under the gravity
 torque of the links it carries (`<inertial>` masses of the URDF).  The campaign's deflections come from
 the independent generator `independent_drive`: its own forward kinematics of the URDF text (4×4 products) and the
 gravity torques as −∂V/∂q of the potential energy V = Σ m·G·z_com by central differences (the

@@ -1,4 +1,4 @@
-"""URDF robots and CSV measurements in; a calibrated URDF out (issue 14).
+"""URDF robots and CSV measurements in; a calibrated URDF out.
 
 Bad URDFs and CSVs give one line naming file, row and column; the seed-000 arm calibrates to the
 figures of the implementation before the generic chain (to 1e-9 m); the real datasets in

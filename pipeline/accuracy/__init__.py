@@ -1,1 +1,1 @@
-"""Honest accuracy: priors, propagation to a workspace map, the verdict (issue 16)."""
+"""Honest accuracy: priors, propagation to a workspace map, the verdict (pass / insufficient / fail)."""

@@ -69,7 +69,7 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict) -> dict:
                      for n, k, s, src, f in zip(model.parameter_names(), kinds, sigma, source, free)]
     doc["note"] = ("Predicted 3-D error (1σ RMS, and the 95 % bound of |error|) of the calibrated point over the map: "
                    "the fitted parameters' covariance plus the prior of every parameter held at nominal, less what "
-                   "the fit absorbs of it (docs/accuracy.md).")
+                   "the fit absorbs of it (docs/guide/accuracy.md).")
     return doc
 
 

@@ -1,6 +1,6 @@
 """Acquisition over serial ports: wire protocol, clock sync, crash-safe recording, virtual devices.
 
-See docs/acquisition.md.  Pure cores: `protocol` (frames), `clock` (device → host time),
+See docs/guide/acquire.md.  Pure cores: `protocol` (frames), `clock` (device → host time),
 `session` (frames → recording), `devicesim.device_streams`; shells: `run` (ports, signals),
 `devicesim.play` (ptys), `recover`.
 """

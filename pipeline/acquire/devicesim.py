@@ -56,7 +56,7 @@ class DeviceStream:
 
 def device_streams(rec: Recording, clock: Clock, batch: int = 1, announce_every_s: float = 1.0,
                    heartbeat_s: float = 0.1) -> dict[str, DeviceStream]:
-    """Every device's frames for the campaign in `rec` (see docs/acquisition.md)."""
+    """Every device's frames for the campaign in `rec` (see docs/guide/acquire.md)."""
     js = joint_stream(rec)
     t_all = [js.t_ns[0]]
     events: dict[str, list[tuple[int, str, dict]]] = {}

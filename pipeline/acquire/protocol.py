@@ -1,7 +1,7 @@
 """robocal serial wire protocol v1: framing, payload codecs and a resynchronising decoder.
 
 Pure functions and a pure incremental decoder (bytes in, frames and error reports out);
-no ports here.  The byte layout is documented in `docs/acquisition.md`.
+no ports here.  The byte layout is documented in `docs/guide/acquire.md`.
 
 Frame (all integers little-endian)::
 
@@ -50,7 +50,7 @@ class FrameType(IntEnum):
     CAMPAIGN_END = 0x04  # JSON: totals sent
     HEARTBEAT = 0x05  # empty: device time only (clock sync while idle)
     SAMPLES = 0x10  # binary encoder samples with controller timestamps
-    SAMPLES_DRIVE = 0x11  # SAMPLES plus the drive state: commanded positions, efforts, motor currents (issue 18)
+    SAMPLES_DRIVE = 0x11  # SAMPLES plus the drive state: commanded positions, efforts, motor currents
     EVENT = 0x20  # a measurement event of a channel: device time, topic, JSON body
 
 

@@ -1,4 +1,4 @@
-"""`robocal acquire`, `robocal device-sim`, `robocal recover` (see docs/acquisition.md)."""
+"""`robocal acquire`, `robocal device-sim`, `robocal recover` (see docs/guide/acquire.md)."""
 
 from __future__ import annotations
 

@@ -17,7 +17,7 @@ def compensate_cmd(
     out: Path = typer.Option(..., "--out", help="Program CSV to write: calibrated joints, corrected targets for a "
                              "nominal controller, status and predicted σ per row."),
 ) -> None:
-    """Inverse kinematics of the calibrated model for a program of Cartesian targets (see docs/compensate.md)."""
+    """Inverse kinematics of the calibrated model for a program of Cartesian targets (see docs/guide/compensate.md)."""
     import time
 
     from pipeline.compensate import program as pg

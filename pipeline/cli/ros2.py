@@ -115,7 +115,7 @@ def run_input(recording: Path, out: Path, urdf: Path | None, root: str | None, t
         return recording
     if len(given) < 3:
         raise RobocalError(f"{recording}: is a ROS 2 bag: give the robot as --urdf ROBOT.urdf --root LINK --tip LINK "
-                           "(and --measure-topic TOPIC; docs/ros2.md)")
+                           "(and --measure-topic TOPIC; docs/guide/import-ros2.md)")
     with locked(out):
         claim(out)
         d = fresh_stage_dir(out, "import")

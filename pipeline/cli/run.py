@@ -45,7 +45,7 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
             ("predicted point accuracy (1σ RMS)", mm(s.get("predicted_point_sigma_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
     diag = doc.get("stages", {}).get("diagnose", {}).get("summary", {})
-    if "findings" in diag:  # what the geometric model left out (issue 7)
+    if "findings" in diag:  # what the geometric model left out (the diagnosis)
         found = ", ".join(diag["findings"]) or "none"
         rows.append(("diagnosis: effects found", found))
         if diag.get("unexplained"):
@@ -148,7 +148,7 @@ def run_cmd(
     only: Optional[str] = typer.Option(None, "--stages", help="Comma-separated stages to run (default: all available)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
-    urdf: Optional[Path] = typer.Option(None, "--urdf", help="ROS 2 bag: the robot's URDF (docs/ros2.md)."),
+    urdf: Optional[Path] = typer.Option(None, "--urdf", help="ROS 2 bag: the robot's URDF (docs/guide/import-ros2.md)."),
     root: Optional[str] = typer.Option(None, "--root", help="ROS 2 bag: root link of the calibrated chain."),
     tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain."),
     joint_topic: str = ros2_cli.JOINT_TOPIC, measure_topic: Optional[str] = ros2_cli.MEASURE_TOPIC,
@@ -157,7 +157,7 @@ def run_cmd(
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached.  A ROS 2 bag is
-    imported first (into DIR/import/recording.mcap; --urdf, --root, --tip, topics: docs/ros2.md)."""
+    imported first (into DIR/import/recording.mcap; --urdf, --root, --tip, topics: docs/guide/import-ros2.md)."""
     import time
 
     from pipeline.stages.runner import run_pipeline

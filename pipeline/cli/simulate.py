@@ -70,7 +70,7 @@ def arc_welder_cmd(
         return
     if effects:
         _with_effects(out, truth, nominal, true, jig, campaign, noise, effect, payloads, search_speeds, face_order,
-                      thermal, payload_pairs, robot_id)  # the effects simulator (issue 7)
+                      thermal, payload_pairs, robot_id)  # the effects simulator (concealed physics)
         return
     with err.status(f"simulating {contacts} contacts…"):
         sim = simulate(nominal, true, jig, campaign, noise)

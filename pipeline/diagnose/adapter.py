@@ -31,7 +31,7 @@ class Adapter:
       one pose's error (None: every measurement is its own cluster), and `cluster_basis(x)`
       (n, residual_dim, p): how a pose's error reaches each residual (None: a shift per
       residual axis) — the tests are then made under the random-effects model of
-      `select.cluster_whitener` (pose-clustered inference, docs/diagnose.md);
+      `select.cluster_whitener` (pose-clustered inference, docs/guide/diagnose.md);
     - `cluster_model(x)`: (B (n, residual_dim, p), column groups) — a physical model of the cluster
       error (B_g e_g, e_g ~ N(0, diag θ), θ shared within each group, estimated from the data):
       the lack-of-fit test then whitens by it and takes its p-values from a parametric bootstrap

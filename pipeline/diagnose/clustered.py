@@ -1,5 +1,5 @@
 """Pose-clustered inference: random-effects whitening, noise components and the physical
-(parametric) model of the cluster errors (docs/diagnose.md)."""
+(parametric) model of the cluster errors (docs/guide/diagnose.md)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The diagnosis, a pure function of (measurement model, diagnosis table): the document of
-`DIR/diagnosis.json` (see docs/diagnose.md).
+`DIR/diagnosis.json` (see docs/guide/diagnose.md).
 
 1. fit the geometry (nonlinear least squares, `identify.fit`);
 2. build every library candidate's signature at the solution; gate: projected signature,

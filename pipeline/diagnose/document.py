@@ -1,5 +1,5 @@
 """Step 7 of the diagnosis: the visual proof and the document of `DIR/diagnosis.json`
-(docs/diagnose.md, "diagnosis.json"): findings with their added-variable plots, the located
+(docs/guide/diagnose.md, "diagnosis.json"): findings with their added-variable plots, the located
 structure with its plots, the re-simulated campaign, `not_identifiable`, the candidates, the
 clustered-inference summary and the held-out RMS before / after."""
 

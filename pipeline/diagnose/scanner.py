@@ -65,7 +65,7 @@ ADVICE = {
     "joint_scale": "spread the poses over a wider range of the joint's travel (more poses, e.g. --poses 20)",
 }
 
-# identify holds these weak gauges at the nominal on a clean campaign (docs/scanner.md) but frees
+# identify holds these weak gauges at the nominal on a clean campaign (docs/reference/systems/scanner.md) but frees
 # them when that lowers the cost by > 10 %, which a lens effect does: the diagnosis's baseline holds them
 WEAK_GAUGES = ("scanner.v0", "scanner.theta")
 MIN_CAPTURE_SPEED = 1e-3  # rad/s: below this the arm is still at capture and δ has no effect
@@ -245,7 +245,7 @@ def refit_terms(model, x: np.ndarray, theta: np.ndarray, data, effects, jac: boo
     The lens effects (k2, p1, p2) enter exactly: the points are reconstructed through the lens
     with those terms (u = ũ(1 + k r̃²) + Δ(ũ, ṽ)), as the simulator's camera images them, not as
     S·θ — the reconstruction is not linear in (u, v), and the additive term leaves a bias
-    of ≈ 1 % of p2 at 4× its MDS on the spread campaign (docs/diagnose.md).  The other effects
+    of ≈ 1 % of p2 at 4× its MDS on the spread campaign (docs/guide/diagnose.md).  The other effects
     stay additive, their signatures evaluated through that lens."""
     theta = np.asarray(theta, float)
     lens = np.zeros(3)

@@ -1,6 +1,6 @@
 """The scanner's pose-error (repeatability) model: how a pose's error reaches its corners' residuals
 (`pose_basis`), the physical mechanisms of the repeatability (`repeatability_basis`,
-`repeatability_model`, `encoder_basis`) and their kinematic helpers (docs/diagnose.md,
+`repeatability_model`, `encoder_basis`) and their kinematic helpers (docs/guide/diagnose.md,
 "Pose-clustered inference").  Split out of `scanner.py`, which re-exports every name."""
 
 from __future__ import annotations

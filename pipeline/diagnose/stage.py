@@ -1,4 +1,4 @@
-"""The `diagnose` stage: DIR/diagnose/diagnosis.json (contract: docs/pipeline-artefacts.md, issue 7).
+"""The `diagnose` stage: DIR/diagnose/diagnosis.json (contract: docs/reference/artefacts.md, issue 7).
 
 Reads the recording named by DIR/ingest/recording.json (its fixture and campaign metadata)
 and the encoder stream ingest decoded (DIR/ingest/encoder.parquet: the diagnosis needs the

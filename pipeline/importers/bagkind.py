@@ -66,4 +66,4 @@ def not_a_recording_hint(path: str | Path) -> str | None:
         return None
     return (f"{path}: is a ROS 2 bag, not a robocal recording: give the robot and the topics, "
             "`robocal run BAG --urdf ROBOT.urdf --root LINK --tip LINK --measure-topic TOPIC --out DIR` "
-            "(or `robocal import ros2 BAG ... --out REC.mcap` first; docs/ros2.md)")
+            "(or `robocal import ros2 BAG ... --out REC.mcap` first; docs/guide/import-ros2.md)")

@@ -1,4 +1,4 @@
-"""Drive state at each measurement, from the encoder stream's optional fields (issue 18).
+"""Drive state at each measurement, from the encoder stream's optional fields (commanded positions, efforts, motor currents).
 
 A controller that logs its drive state puts, per sample and joint, the commanded position (rad / m),
 the measured effort (the drive's torque on the link, N·m; N for a prismatic joint) and the motor

@@ -1,4 +1,4 @@
-"""Controller events beside the measurements (issue 18, the recording contract's gaps):
+"""Controller events beside the measurements (the recording contract: payload changes, search commands, faults):
 
 - ``/arm/payload`` (`payload.schema.json`): a payload / tool change at the time it happens →
   the payload schedule [{t_ns, payload_kg, tool}] (replaces the campaign metadata's schedule,

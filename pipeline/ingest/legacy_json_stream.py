@@ -1,4 +1,4 @@
-"""The encoder stream as robocal wrote it before issue 17: JSON batches (`robocal.JointState`,
+"""The encoder stream as robocal wrote it before the protobuf stream: JSON batches (`robocal.JointState`,
 `schemas/joint_state.schema.json`), still read for archived recordings.
 
 One pure function over the message bodies: each is parsed as JSON (orjson, correctly rounded;

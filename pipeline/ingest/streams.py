@@ -49,7 +49,7 @@ def _finite(rec: Recording, topic: str, i: int, key: str, a: np.ndarray) -> None
 
 def joint_stream(rec: Recording) -> JointStream:
     """The batched `/robot/joint_state` messages as one stream, decoded by the channel's message
-    encoding: ``protobuf`` (`robocal.JointStateBatch`, what robocal writes since issue 17) or
+    encoding: ``protobuf`` (`robocal.JointStateBatch`, what robocal writes now) or
     ``json`` (archived recordings: `legacy_json_stream`).  A message that does not decode against
     its registered schema is a `RobocalError` naming file, channel and record."""
     raw = rec.messages.raw.get(JOINT_STATE)

@@ -43,7 +43,7 @@ PHI = (np.pi / 2, np.pi, -np.pi / 2)
 
 @dataclass(frozen=True)
 class Delta:
-    """Nominal description of a 3-DOF Delta robot (m, rad).  See docs/delta.md for the source
+    """Nominal description of a 3-DOF Delta robot (m, rad).  See docs/reference/systems/delta.md for the source
     of the default dimensions."""
 
     name: str = "delta 90° (robocal nominal)"

@@ -12,7 +12,7 @@ Core functions are pure: `encode` (arrays → one message), `decode` (all messag
 message checked; a bad one raises `BatchError` with its index), `descriptor_problem`.
 Units: times ns since the Unix epoch, positions rad (row-major, sample × joint).
 
-Optional drive state (issue 18), same (sample, joint) layout as `positions`, empty when not logged:
+Optional drive state (commanded positions, efforts, motor currents), same (sample, joint) layout as `positions`, empty when not logged:
 `commanded_positions` (rad / m, what the controller commanded) and `efforts` (the drive's measured
 torque on the link along the joint axis, N·m; force N for a prismatic joint — ROS JointState.effort's
 convention), and `motor_currents` (A; a torque only once multiplied by the joint's torque constant,

@@ -1,4 +1,4 @@
-"""Upgrade an archived recording's encoder stream from JSON to protobuf (issue 17).
+"""Upgrade an archived recording's encoder stream from JSON to protobuf.
 
     python -m pipeline.recording.upgrade OLD.mcap NEW.mcap
 

@@ -171,9 +171,9 @@ def joint_state_messages(t_ns: np.ndarray, q: np.ndarray, names: list[str] | tup
 def write_campaign(path: str | Path, metadata: dict[str, dict], stream: tuple[np.ndarray, np.ndarray, list[str]],
                    events: list[tuple[str, dict]], batch: int = 250, stream_encoding: str = JSB.ENCODING) -> None:
     """Write a whole campaign: metadata, the batched encoder stream (positions at 1 nrad
-    resolution, so both encodings carry the same numbers), the measurement events and the
-    robot's frames and description for ROS / Foxglove tools (`pipeline.recording.scene`), all
-    messages in log-time order."""
+    resolution, as the archived JSON stream did, so both encodings carry the same numbers), the
+    measurement events and the robot's frames and description for ROS / Foxglove tools
+    (`pipeline.recording.scene`), all messages in log-time order."""
     from pipeline.recording.scene import scene_events
 
     t_ns, q, names = stream

@@ -1,4 +1,4 @@
-"""Report sections of issue 16: the accuracy verdict and map, 3-D measurement coverage,
+"""Report sections on honest accuracy: the accuracy verdict and map, 3-D measurement coverage,
 residual histograms against the noise floor, per-joint residuals before and after, the
 scanner's image-plane residual field and the Delta's per-axis residuals.  Pure: artefacts in,
 HTML (inline SVG) out."""
@@ -115,7 +115,7 @@ def image_field(pixel: np.ndarray, after: np.ndarray, size: tuple[int, int] = (6
 
 
 def accuracy_section(art: RunArtefacts) -> str:
-    """The verdict, the accuracy map and the residual views of issue 16 (empty if nothing to show)."""
+    """The verdict, the accuracy map and the residual views (empty if nothing to show)."""
     acc = art.accuracy
     html = ""
     if isinstance(acc, dict):

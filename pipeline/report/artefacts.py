@@ -1,4 +1,4 @@
-"""Reading a run directory: the artefacts of the stages before the report (docs/pipeline-artefacts.md).
+"""Reading a run directory: the artefacts of the stages before the report (docs/reference/artefacts.md).
 
 `load_run` is the only function here that touches files; it returns a `RunArtefacts` of plain
 numpy arrays and dicts that the pure figure functions take.  Optional artefacts (observe,
@@ -33,7 +33,7 @@ class RunArtefacts:
     validate: dict | None = None  # validate/validate.json
     observe: dict | None = None  # observe/observe.json
     diagnosis: dict | None = None  # diagnose/diagnosis.json (or DIR/diagnosis.json)
-    accuracy: dict | None = None  # accuracy/accuracy.json (issue 16: the map and the verdict)
+    accuracy: dict | None = None  # accuracy/accuracy.json (the accuracy map and the verdict)
     stages: dict[str, dict] = field(default_factory=dict)  # <stage>/stage.json
 
     @property

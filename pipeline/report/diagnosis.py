@@ -1,4 +1,4 @@
-"""Generic reading of diagnosis.json (issue 7) for the report: plots found in the document, plus
+"""Generic reading of diagnosis.json (the residual diagnosis) for the report: plots found in the document, plus
 added-variable plots against each finding's located variable.
 
 The report does not depend on the diagnosis's exact layout.  `find_plots` takes any object in the

@@ -195,7 +195,7 @@ def diagnosis_section(art) -> str:
     if not isinstance(doc, dict):
         return ""
     html = ""
-    if isinstance(doc.get("status"), str):  # issue 18: the verdict, outlier records, findings not reported
+    if isinstance(doc.get("status"), str):  # the diagnosis' verdict, outlier records, findings not reported
         html += (f'<p class="note">Status: <b>{escape(doc["status"].replace("_", " "))}</b> — '
                  f'{escape(str(doc.get("status_reason", "")))}</p>')
         for o in [o for o in doc.get("outlier_records") or [] if isinstance(o, dict)]:

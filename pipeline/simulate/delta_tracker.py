@@ -200,7 +200,7 @@ def _timeline(theta: np.ndarray, c: Campaign):
     return c.start_ns + np.round(T * 1e9).astype(np.int64), q, t_meas
 
 
-# ----- concealed effects and campaign variations (issue 7) ----------------------------------
+# ----- concealed effects and campaign variations -----------------------------------------
 EFFECTS = {  # name: (number of values, location kind)
     "backlash": (1, "actuator"), "actuator_scale": (1, "actuator"), "axis_yaw": (1, "leg"), "axis_tilt": (1, "leg"),
     "unequal_rods": (1, "leg"), "thermal_drift": (3, None), "tracker_scale": (1, None),

@@ -85,7 +85,7 @@ class Campaign:
     dwell_s: float = 1.0
     max_tilt_rad: float = np.radians(20)
     start_ns: int = EPOCH_NS
-    capture_speed_rad_s: float = 0.0  # > 0: the arm sweeps through each pose while the image is captured (issue 7)
+    capture_speed_rad_s: float = 0.0  # > 0: the arm sweeps through each pose while the image is captured
     spread: bool = False  # stripe rows over 10-90 % of the image and crossings spread along it (not the centre ones)
 
 
@@ -111,7 +111,7 @@ class SimResult:
     misses: tuple[int, ...] = ()  # planned poses (`simulate(..., planned=)`) that found no usable stripe
 
 
-# ----- concealed effects (issue 7) ------------------------------------------------------------
+# ----- concealed effects ---------------------------------------------------------------------
 EFFECTS = {  # name: (values, location kind) — conventions of `pipeline.diagnose.scanner`
     "tangential_distortion": (2, "camera"), "radial_k2": (1, "camera"), "time_offset": (1, "camera"),
     "stripe_peak_bias": (1, "camera"), "joint_offset": (1, "joint"), "joint_scale": (1, "joint"),

@@ -1,4 +1,4 @@
-"""Drive state of a simulated URDF robot (issue 18): joint compliance, an unmodelled payload, and the
+"""Drive state of a simulated URDF robot: joint compliance, an unmodelled payload, and the
 stream a controller logs while the robot stands at each measurement.
 
 The *true* robot: joint j of compliance c_j (rad/(N·m)) deflects under the gravity torque τ_j of the

@@ -1,2 +1,2 @@
 """The pipeline's stages (ingest → validate → identify → observe → diagnose → report) and
-the runner that chains them with content-hash caching (see docs/pipeline-artefacts.md)."""
+the runner that chains them with content-hash caching (see docs/reference/artefacts.md)."""

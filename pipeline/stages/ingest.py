@@ -1,4 +1,4 @@
-"""Stage ingest: MCAP → Parquet (see docs/pipeline-artefacts.md).
+"""Stage ingest: MCAP → Parquet (see docs/reference/artefacts.md).
 
 Writes `encoder.parquet`, one `<channel>.parquet` per measurement channel, `measurements.parquet`
 (the system's measurement table joined with motion context), `messages.parquet` (the recording less

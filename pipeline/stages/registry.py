@@ -37,7 +37,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("accuracy", "pipeline.accuracy.stage", ("ingest", "identify"), {},
           help="Predicted accuracy over the workspace (priors of fixed parameters included), the verdict."),
     Stage("diagnose", "pipeline.diagnose.stage", ("ingest", "validate", "identify", "observe"), {}, optional=True,
-          help="Residual diagnosis (issue 7)."),
+          help="Residual diagnosis: the physics the geometric model left out."),
     Stage("report", "pipeline.report.stage", ("ingest", "validate", "identify", "observe", "accuracy", "diagnose"), {},
           optional=True, help="report.html and run.rrd."),
 )

@@ -42,7 +42,7 @@ def gather(run_dir: Path) -> dict:
             status = st
     acc = docs.get("accuracy", {}).get("summary", {})
     if status == "tolerance_fail" or acc.get("status") == "tolerance_fail" and status != "fail":
-        status = "fail"  # the calibration does not meet the user's tolerance (issue 16)
+        status = "fail"  # the calibration does not meet the user's tolerance (--tolerance)
     summary["status"] = status
     if acc:  # the accuracy verdict: never a confident answer from thin data
         for k in ("reason", "advice"):

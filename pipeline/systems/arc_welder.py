@@ -18,7 +18,7 @@ SYSTEM = "arc-welder"
 MEASUREMENT_CHANNEL = "/touch/contact"
 MM, DEG = 1e-3, np.pi / 180
 
-# (theta_offset, alpha, d, a, beta) in deg/mm: seed 000 Table 2 as given in the issue
+# (theta_offset, alpha, d, a, beta) in deg/mm: seed 000 Table 2 (the paper's nominal model)
 _NOMINAL = [(0, -90, 0, 0, 0), (-90, 0, 0, 350, 0), (0, -90, 80, 0, 0),
             (0, 90, 350, 0, 0), (0, -90, -60, 0, 0), (0, 0, 0, 0, 0)]
 _TRUTH = [(0, -90.216, 0, 0, -0.007), (-91.337, 1.199, 0, 354.447, 0.123), (0.536, -90.742, 80, 0, 0),

@@ -69,7 +69,7 @@ def nominal_scanner() -> np.ndarray:
 
 
 # SCORBOT-ER VII D-H (seed 001 Table 1; dimensions from the Eshed Robotec user manual, see
-# docs/scanner.md): (alpha deg, a mm, d mm, lower deg, upper deg)
+# docs/reference/systems/scanner.md): (alpha deg, a mm, d mm, lower deg, upper deg)
 _DH = [(-90, 50.0, 358.5, -155, 155), (0, 300.0, 0.0, -135, 35), (0, 350.0, 0.0, -130, 130),
        (-90, 0.0, 0.0, -130, 130), (0, 0.0, 251.0, -180, 180)]
 
@@ -223,7 +223,7 @@ def _unit_points(Z: np.ndarray, px: np.ndarray) -> np.ndarray:
     return np.stack([v / den, u / den, 1 / den], axis=2)
 
 
-WEAK = ("v0", "theta")  # gauge directions that only lens distortion breaks (see docs/scanner.md)
+WEAK = ("v0", "theta")  # gauge directions that only lens distortion breaks (see docs/reference/systems/scanner.md)
 
 
 def global_start(model: ScannerModel, data: Table, seed: int = 0):

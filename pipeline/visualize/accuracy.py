@@ -1,4 +1,4 @@
-"""run.rrd: the accuracy map (issue 16) — map points coloured by predicted 1σ, sized by the
+"""run.rrd: the accuracy map — map points coloured by predicted 1σ, sized by the
 95 % bound, labelled in mm; and the verdict as a text document."""
 
 from __future__ import annotations

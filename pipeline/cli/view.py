@@ -32,7 +32,7 @@ def view_cmd(
     print_only: bool = typer.Option(False, "--print", help="Print the path and viewer command instead of opening it."),
 ) -> None:
     """Open the run's rerun recording (3-D jig/robot/tool tips, encoder stream, residuals, solver), or a
-    raw recording's robot and campaign (docs/view.md)."""
+    raw recording's robot and campaign (docs/guide/view.md)."""
     from pipeline.errors import RobocalError
 
     if run_dir.suffix == ".mcap":  # a raw recording: the robot as built and the campaign, with a layout

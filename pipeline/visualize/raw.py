@@ -7,7 +7,8 @@ viewport.  This writes, into `cache_dir()`, an .rrd holding (frames and units as
   registration "before calibration" fits (`pipeline.identify.model.uncalibrated`), moving along the
   campaign's postures on ``time``; ``world/instrument`` the instrument's axes;
 - ``world/tips/nominal`` the model's tool points and ``world/measured`` the measured points (point
-  and pose campaigns); the arc welder's jig (``world/jig/…``);
+  and pose campaigns); the arc welder's jig (``world/jig/…``); the Delta by its own hook
+  (``world/delta/…``, the nominal robot);
 - ``encoder/joints`` the encoder stream, or ``encoder/postures`` the measurement postures
   (rad; prismatic joints m), and ``summary`` what the recording holds.
 """
@@ -102,6 +103,13 @@ def write_raw_rrd(path: str | Path, out: str | Path | None = None) -> Path:
 
         fx = rec.metadata.get(META_FIXTURE)
         log_jig(rs, Jig.from_dict(fx) if fx else stepped_block())
+    elif system.SYSTEM == "delta-tracker":  # its platform and rods: the system's own drawing, nominal = "after"
+        from pipeline.visualize.rrd import call_system_hook
+
+        try:
+            call_system_hook(rs, system.SYSTEM, model, table, x0, x0, None)
+        except Exception as e:  # noqa: BLE001 — a drawing aid only
+            warnings.append(f"the Delta not drawn ({type(e).__name__})")
     lines = [f"# {path.name}", "", f"- system: {system.SYSTEM}", f"- measurements: {n}",
              f"- encoder samples: {0 if stream is None else len(stream['t_ns'])}", "",
              "The robot as built (red), through the registration fitted before calibration; yellow: measured points.",

@@ -144,3 +144,28 @@ def test_bundled_recordings_are_unchanged():
         with open(path, "rb") as f:
             topics = {c.topic for c in make_reader(f).get_summary().channels.values()}
         assert "/tf" not in topics and "/robot_description" not in topics
+
+
+def test_a_recording_written_as_it_comes_gets_the_scene_at_close(tmp_path):
+    """The acquisition's writer (scene=True): /tf along the encoder stream written, added at close,
+    and robocal's own reader still reads the encoder stream and metadata unchanged."""
+    from pipeline.recording.reader import read_recording
+    from pipeline.recording.schemas import META_ROBOT
+    from pipeline.recording.writer import RecordingWriter
+    from pipeline.systems import arc_welder as aw
+
+    arm = aw.nominal_arm()
+    t = 1_800_000_000_000_000_000 + np.arange(2500, dtype=np.int64) * 4_000_000  # 10 s at 250 Hz
+    q = np.column_stack([0.3 * np.sin(t * 1e-9 + k) for k in range(6)])
+    out = tmp_path / "live.mcap"
+    with RecordingWriter(out, scene=True) as w:
+        w.metadata(META_ROBOT, arm.to_dict())
+        for s in range(0, t.size, 250):
+            w.write_batch(t[s:s + 250], q[s:s + 250], [j.name for j in arm.joints])
+    doc = _read(out)
+    times = np.array([m[0] for m in doc["/tf"]["messages"]])
+    assert len(times) == 50 and np.all(np.diff(times) == 200_000_000)
+    at = {int(tt): q[i] for i, tt in enumerate(t) if int(tt) in set(times.tolist())}
+    assert _check_tf(doc, "jig", "tool", at, [j.name for j in arm.joints]) == 50
+    rec = read_recording(out)
+    assert rec.metadata[META_ROBOT] == json.loads(json.dumps(arm.to_dict())) and not rec.warnings

@@ -44,7 +44,8 @@ class RecordingWriter:
     """
 
     def __init__(self, out: str | Path | IO[bytes], chunk_size: int = 1 << 20,
-                 compression: CompressionType = CompressionType.ZSTD, stream_encoding: str = JSB.ENCODING):
+                 compression: CompressionType = CompressionType.ZSTD, stream_encoding: str = JSB.ENCODING,
+                 scene: bool = False):
         if stream_encoding not in (JSB.ENCODING, "json"):
             raise ValueError(f"stream_encoding {stream_encoding!r}: 'protobuf' or 'json'")
         self.stream_encoding = stream_encoding
@@ -59,6 +60,9 @@ class RecordingWriter:
         self._channels: dict[str, int] = {}
         self._seq: dict[str, int] = {}
         self._closed = False
+        # scene=True (a recording written as it comes, e.g. the acquisition): the robot's /tf and
+        # /robot_description are added at close from the metadata and the encoder stream written
+        self._scene: dict | None = {"meta": {}, "t": [], "q": []} if scene else None
 
     def channel(self, topic: str) -> int:
         if topic not in self._channels and topic == STREAM and self.stream_encoding == JSB.ENCODING:
@@ -114,6 +118,9 @@ class RecordingWriter:
         commanded positions rad / m, efforts N·m / N, motor currents A (protobuf only); log time = the first
         sample's."""
         t0 = int(t_ns[0])
+        if self._scene is not None:
+            self._scene["t"].append(np.asarray(t_ns, np.int64))
+            self._scene["q"].append(np.asarray(q, float))
         if self.stream_encoding == JSB.ENCODING:
             self._add(STREAM, self.channel(STREAM), t0, t0,
                       JSB.encode(t_ns, q, names, device_t_ns, host_t_ns, q_cmd, effort, current))
@@ -130,14 +137,31 @@ class RecordingWriter:
     def metadata(self, name: str, value: dict | str) -> None:
         """A metadata record; dicts are stored as {'json': <compact JSON>}."""
         data = {"json": value if isinstance(value, str) else json.dumps(value, separators=(",", ":"), default=jsonable)}
+        if self._scene is not None and isinstance(value, dict):
+            self._scene["meta"][name] = value
         self._w.add_metadata(name, data)
 
     def flush_chunk(self) -> None:
         """Close the open chunk and push it to the OS, so it survives a crash."""
         self._w.flush()
 
+    def _write_scene_at_close(self) -> None:
+        """The robot's frames along the stream written (scene=True); never at the cost of the recording."""
+        from pipeline.recording.scene import scene_events
+
+        sc, self._scene = self._scene, None
+        if not sc or not sc["t"]:
+            return
+        try:
+            events = scene_events(sc["meta"], (np.concatenate(sc["t"]), np.concatenate(sc["q"])))
+        except Exception:  # noqa: BLE001 — a description that does not parse: the recording without /tf
+            return
+        for t, topic, msg in events:
+            self.write_scene(topic, msg, t)
+
     def close(self) -> None:
         if not self._closed:
+            self._write_scene_at_close()
             self._closed = True
             self._w.finish()
             if self._own:

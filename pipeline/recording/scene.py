@@ -1,6 +1,7 @@
 """What a recording carries for ROS / Foxglove tools: the robot's frames and its description.
 
-Every recording robocal writes (simulations, CSV and ROS 2 imports) gets, beside its own channels:
+Every recording robocal writes (simulations, CSV and ROS 2 imports, acquisitions — the last at close,
+`RecordingWriter(scene=True)`) gets, beside its own channels:
 
 - ``/tf``: ``foxglove.FrameTransforms`` (JSON encoding, the JSON Schema of Foxglove's message
   schema `schemas/foxglove_frame_transforms.schema.json`), one message per posture of the campaign

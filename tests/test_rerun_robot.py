@@ -8,9 +8,6 @@ where it is absent)."""
 from __future__ import annotations
 
 import json
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -122,18 +119,9 @@ def test_rerun_viewer_shows_the_robot(tiago_run, tmp_path):
     """The real viewer, headless (Xvfb + Mesa lavapipe): the 3-D view holds the calibrated robot
     (translucent blue capsules) and the nominal one (red) inside it.  Its own port: a viewer
     already listening on rerun's default port would otherwise be handed the recording."""
-    xvfb = shutil.which("xvfb-run")
-    rerun = Path(sys.executable).with_name("rerun")
-    if xvfb is None or not rerun.is_file():
-        pytest.skip("xvfb-run or the rerun viewer not installed (apt-get install xvfb mesa-vulkan-drivers)")
-    from matplotlib.image import imread
+    from viewer_support import viewer_screenshot
 
-    shot = tmp_path / "viewer.png"
-    r = subprocess.run([xvfb, "-a", "-s", "-screen 0 1600x1000x24", str(rerun), str(tiago_run / "run.rrd"),
-                        "--window-size", "1600x1000", "--screenshot-to", str(shot), "--port", "auto"],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0 and shot.is_file(), r.stderr[-2000:]
-    img = imread(shot)[..., :3]
+    img = viewer_screenshot(tiago_run / "run.rrd", tmp_path / "viewer.png")
     h, w = img.shape[:2]
     R, G, B = img[..., 0], img[..., 1], img[..., 2]
     scene = (slice(int(0.05 * h), int(0.75 * h)), slice(int(0.13 * w), int(0.53 * w)))

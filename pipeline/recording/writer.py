@@ -137,8 +137,11 @@ class RecordingWriter:
     def metadata(self, name: str, value: dict | str) -> None:
         """A metadata record; dicts are stored as {'json': <compact JSON>}."""
         data = {"json": value if isinstance(value, str) else json.dumps(value, separators=(",", ":"), default=jsonable)}
-        if self._scene is not None and isinstance(value, dict):
-            self._scene["meta"][name] = value
+        if self._scene is not None:  # documents arrive as JSON text from the devices
+            try:
+                self._scene["meta"][name] = json.loads(value) if isinstance(value, str) else value
+            except ValueError:
+                pass
         self._w.add_metadata(name, data)
 
     def flush_chunk(self) -> None:

@@ -74,3 +74,22 @@ def test_log_axis_ticks_are_plain_text():
     ticks = [t for t in _labels(svg) if t]
     assert "mathdefault" not in svg and not any("$" in t for t in ticks)
     assert {"0.1", "1", "10"} <= set(ticks), ticks
+
+
+def test_chromium_renders_the_urdf_report(urdf_run, tmp_path):
+    """Headless Chromium: the title, the joints by name and a prismatic joint in mm in the rendered DOM,
+    and a page with drawn plots."""
+    from test_report_html import _chromium
+
+    url = (urdf_run / "report.html").resolve().as_uri()
+    dom = _chromium(["--dump-dom", url], tmp_path)
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    assert "robocal calibration report — torso_arm (urdf)" in dom.stdout
+    assert "torso_lift (mm)" in dom.stdout and "mathdefault" not in dom.stdout
+    shot = tmp_path / "report.png"
+    r = _chromium([f"--screenshot={shot}", "--window-size=1280,3000", url], tmp_path)
+    assert r.returncode == 0 and shot.is_file(), r.stderr[-2000:]
+    from matplotlib.image import imread
+
+    img = imread(shot)[..., :3]
+    assert img.std() > 0.05 and (img.max(axis=2) - img.min(axis=2) > 0.3).mean() > 0.001

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from pipeline.diagnose.diagnose import diagnose
+from pipeline.diagnose import diagnose
 from pipeline.models.jig import stepped_block
 from pipeline.simulate import effects as se
 from pipeline.simulate.arc_welder import Campaign, Noise
@@ -36,7 +36,7 @@ K_PARAM = {"encoder_eccentricity": 2, "transmission_error": 2, "thermal_drift": 
 def one(targets, injected, seed):
     es = se.run(NOM, TRUE, JIG, targets, CAMPAIGN, Noise(), injected, VAR, seed=seed)
     return diagnose(aw.TouchModel(NOM), se.diagnosis_table(es, JIG), jig_tolerance_m=JIG.tolerance_m,
-                    settings=__import__("pipeline.diagnose.diagnose", fromlist=["Settings"]).Settings(n_boot=20))
+                    settings=__import__("pipeline.diagnose.method", fromlist=["Settings"]).Settings(n_boot=20))
 
 
 def inj(name, loc, value, k):

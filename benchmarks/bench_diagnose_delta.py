@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from pipeline.diagnose import delta as dd
-from pipeline.diagnose.diagnose import diagnose
+from pipeline.diagnose.adapters import delta as dd
+from pipeline.diagnose import diagnose
 from pipeline.models.delta import Delta
 from pipeline.simulate import delta_tracker as sd
 from pipeline.simulate.effects import parse_effect

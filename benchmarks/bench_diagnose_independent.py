@@ -13,7 +13,7 @@ count as *located* when the status is `partially_explained` / `unexplained` (the
 when the injected record is among `outlier_records`; the encoder glitch — J1 reads 50 mrad off over the 30 ms
 before one latch, an impossible derived approach speed — likewise); in-library ones (linear coupling J2→J3,
 linear link growth) count as *named* when the matching finding is reported.  The saturating link growth and the
-quadratic coupling, whose forms the library has in a family of forms (`pipeline.diagnose.forms`), count as found
+quadratic coupling, whose forms the library has in a family of forms (`pipeline.diagnose.inference.forms`), count as found
 when located or named in the right family (`located_or_family_named`; `form_named`: in the generator's form), and
 `named_with_high_confidence` there counts only names outside that family (`warm_up_all`: every link warms, the
 library's all-links form; `thermal_growth`: a2 and d4 only).  Figures from before that counting (located only;
@@ -39,11 +39,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import independent_touch as it  # noqa: E402
 
-from pipeline.diagnose.diagnose import Settings, diagnose  # noqa: E402
-from pipeline.diagnose.effects import pick  # noqa: E402
-from pipeline.diagnose.gate import CONFOUND, _explained  # noqa: E402
-from pipeline.diagnose.projection import orthonormal, project_out  # noqa: E402
-from pipeline.diagnose.touch import touch_adapter  # noqa: E402
+from pipeline.diagnose import Settings, diagnose  # noqa: E402
+from pipeline.diagnose.library.term import pick  # noqa: E402
+from pipeline.diagnose.inference.gate import CONFOUND, _explained  # noqa: E402
+from pipeline.diagnose.inference.projection import orthonormal, project_out  # noqa: E402
+from pipeline.diagnose.adapters.touch import touch_adapter  # noqa: E402
 from pipeline.identify.least_squares import fit  # noqa: E402
 from pipeline.systems import arc_welder as aw  # noqa: E402
 

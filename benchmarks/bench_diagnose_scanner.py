@@ -27,8 +27,8 @@ import time
 
 import numpy as np
 
-from pipeline.diagnose import scanner as ds
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose.adapters import scanner as ds
+from pipeline.diagnose import Settings, diagnose
 from pipeline.models import camera as cam
 from pipeline.simulate import scorbot_scanner as ss
 from pipeline.simulate.effects import parse_effect

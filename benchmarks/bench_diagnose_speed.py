@@ -24,9 +24,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from pipeline.diagnose.diagnose import diagnose
+from pipeline.diagnose import diagnose
 from pipeline.diagnose.stage import diagnose_recording, settings_of
-from pipeline.diagnose.table import from_recording
+from pipeline.diagnose.adapters.touch_table import from_recording
 from pipeline.ingest.context import last_motion_sign
 from pipeline.ingest.streams import JOINT_STATE, joint_stream
 from pipeline.recording.reader import read_recording
@@ -43,7 +43,7 @@ def main() -> None:
     if "--default-blas" in sys.argv[1:]:
         import contextlib
 
-        import pipeline.diagnose.diagnose as dd
+        import pipeline.diagnose.method as dd
 
         dd.one_thread = contextlib.nullcontext
         print("BLAS threads: library default (not limited to one)")

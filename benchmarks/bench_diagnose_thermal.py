@@ -23,7 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.models.jig import stepped_block
 from pipeline.simulate import effects as se
 from pipeline.simulate.arc_welder import Campaign, Noise

@@ -30,8 +30,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import test_urdf_compliance as tc  # noqa: E402
 
-from pipeline.diagnose.diagnose import Settings, diagnose  # noqa: E402
-from pipeline.diagnose.urdf_robot import adapter  # noqa: E402
+from pipeline.diagnose import Settings, diagnose  # noqa: E402
+from pipeline.diagnose.adapters.urdf_robot import adapter  # noqa: E402
 
 S = Settings(n_boot=10, sign_flips=0)
 

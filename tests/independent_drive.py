@@ -4,7 +4,7 @@ its URDF does not describe, and the efforts its drives measure.
 Shares no code with the diagnosis or robocal's simulator: forward kinematics from the URDF text with
 its own 4×4 products (vectorised over configurations), the gravity torques as −∂V/∂q of the potential
 energy V = Σ m·G·z_com (links and payload) by central differences (robocal sums cross products:
-`pipeline.diagnose.urdf_gravity`), the deflection as a fixed point, and the efforts as what a drive
+`pipeline.diagnose.library.urdf_gravity`), the deflection as a fixed point, and the efforts as what a drive
 holding the link at standstill measures: effort = +∂V/∂q (N·m), plus noise.
 """
 

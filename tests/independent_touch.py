@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pipeline.diagnose.table import add_context
+from pipeline.diagnose.adapters.touch_table import add_context
 from pipeline.models.jig import Face, Jig, stepped_block
 from pipeline.systems import arc_welder as aw
 

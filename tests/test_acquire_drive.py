@@ -21,8 +21,8 @@ import independent_drive as gen
 from stream_support import ROBOCAL, bits, record_over_pty
 from pipeline.acquire import protocol as P
 from pipeline.acquire.devicesim import Clock, device_streams, play
-from pipeline.diagnose.diagnose import Settings, diagnose
-from pipeline.diagnose.urdf_robot import adapter, from_recording
+from pipeline.diagnose import Settings, diagnose
+from pipeline.diagnose.adapters.urdf_robot import adapter, from_recording
 from pipeline.importers.recording import T0_NS, write_urdf_recording
 from pipeline.ingest.streams import JOINT_STATE, joint_stream
 from pipeline.recording import joint_state_batch as JSB

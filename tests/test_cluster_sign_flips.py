@@ -9,7 +9,8 @@ import scipy.stats
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline.diagnose.select import cluster_sign_flip_p, orthonormal, project_out
+from pipeline.diagnose.inference.sign_flips import cluster_sign_flip_p
+from pipeline.diagnose.inference.projection import orthonormal, project_out
 
 G, M = 20, 12  # clusters, rows per cluster
 

@@ -11,9 +11,9 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.diagnose import effects as fx
-from pipeline.diagnose.diagnose import Settings, diagnose
-from pipeline.diagnose.select import forward_select
+from pipeline.diagnose.library.gravity import gravity_torque
+from pipeline.diagnose import Settings, diagnose
+from pipeline.diagnose.inference.stepwise import forward_select
 from pipeline.models.jig import stepped_block
 from pipeline.simulate import effects as se
 from pipeline.simulate.arc_welder import Campaign, Noise
@@ -134,8 +134,8 @@ def test_acceptance_compliance_payload_varied_noise_floor(payload_targets):
 def test_gravity_torque_vanishes_about_a_vertical_axis_and_scales_with_payload():
     x = NOM.vector()
     q = np.array([[0.3, 0.5, -0.2, 0.1, 0.7, 0.0], [-0.4, 1.0, -0.6, 0.5, -0.3, 1.0]])
-    t0 = fx.gravity_torque(NOM, x, q, 0.0)
-    t6 = fx.gravity_torque(NOM, x, q, 6.0)
+    t0 = gravity_torque(NOM, x, q, 0.0)
+    t6 = gravity_torque(NOM, x, q, 6.0)
     assert np.allclose(t0[:, 0], 0, atol=1e-9)  # J1 axis is vertical in the nominal model
     assert np.all(np.abs(t6[:, 1]) > np.abs(t0[:, 1]))
 

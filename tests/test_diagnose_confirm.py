@@ -1,4 +1,4 @@
-"""Honest intervals of the diagnosis's refit (`pipeline.diagnose.confirm`): CR2 cluster-robust
+"""Honest intervals of the diagnosis's refit (`pipeline.diagnose.inference.augmented`): CR2 cluster-robust
 standard errors with Bell–McCaffrey degrees of freedom, the shared-error sandwich's dof, and the
 t-based 95 % interval a finding reports."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
-from pipeline.diagnose import confirm
+from pipeline.diagnose.inference import augmented
 
 
 def test_cr2_dof_of_a_balanced_mean_is_clusters_minus_one_and_widens_the_interval():
@@ -17,14 +17,14 @@ def test_cr2_dof_of_a_balanced_mean_is_clusters_minus_one_and_widens_the_interva
     A = np.ones((G * m, 1))
     r = np.random.default_rng(0).normal(size=G * m)
     r -= r.mean()
-    std, dof = confirm.cluster_robust_std(A, r, cl)
+    std, dof = augmented.cluster_robust_std(A, r, cl)
     assert abs(dof[0] - (G - 1)) < 1e-9
     # the CR2 variance of a balanced mean is the between-cluster variance of the means / G
     means = r.reshape(G, m).mean(axis=1)
     assert abs(std[0] - means.std(ddof=1) / np.sqrt(G)) < 1e-12
-    lo, hi = confirm.t_interval(1.0, std[0], dof[0])
+    lo, hi = augmented.t_interval(1.0, std[0], dof[0])
     assert abs((hi - lo) / 2 / std[0] - stats.t.ppf(0.975, G - 1)) < 1e-12  # 2.36, not 1.96
-    assert confirm.t_interval(1.0, 0.1, np.inf) == [1.0 - 0.1 * stats.norm.ppf(0.975), 1.0 + 0.1 * stats.norm.ppf(0.975)]
+    assert augmented.t_interval(1.0, 0.1, np.inf) == [1.0 - 0.1 * stats.norm.ppf(0.975), 1.0 + 0.1 * stats.norm.ppf(0.975)]
 
 
 def test_cr2_t_interval_covers_with_few_clusters_where_the_normal_interval_does_not():
@@ -42,8 +42,8 @@ def test_cr2_t_interval_covers_with_few_clusters_where_the_normal_interval_does_
     for _ in range(600):
         e = np.repeat(rng.normal(size=G), m) + 0.5 * rng.normal(size=G * m)
         b = P @ e  # truth 0
-        std, dof = confirm.cluster_robust_std(A, e - A @ b, cl)
-        lo, hi = confirm.t_interval(b[1], std[1], dof[1])
+        std, dof = augmented.cluster_robust_std(A, e - A @ b, cl)
+        lo, hi = augmented.t_interval(b[1], std[1], dof[1])
         t_in.append(lo <= 0 <= hi)
         z_in.append(abs(b[1]) <= 1.96 * std[1])
         dofs.append(dof[1])
@@ -59,9 +59,9 @@ def test_shared_error_dof_is_the_residual_dof_without_group_errors_and_more_with
     Z = (rng.integers(0, g, n)[:, None] == np.arange(g)[None, :]).astype(float)
     r = rng.normal(size=n)
     r -= A @ np.linalg.lstsq(A, r, rcond=None)[0]
-    _, _, nu0 = confirm.shared_error_covariance(A, r, Z, 0.0)
+    _, _, nu0 = augmented.shared_error_covariance(A, r, Z, 0.0)
     assert np.allclose(nu0, n - p)
-    cov, sig, nu = confirm.shared_error_covariance(A, r, Z, 0.3)
+    cov, sig, nu = augmented.shared_error_covariance(A, r, Z, 0.3)
     v_sig = sig**2 * np.diag(np.linalg.pinv(A.T @ A))
     assert np.all(nu > n - p) and np.allclose(nu, (n - p) * (np.diag(cov) / v_sig) ** 2)
 
@@ -90,8 +90,8 @@ def test_cr2_under_a_working_covariance_is_unbiased_and_its_dof_counts_the_noisy
     for _ in range(300):
         e = np.einsum("nic,nc->ni", N, rng.normal(size=(n, 2))).ravel()
         b, r = P @ e, e - H @ e  # truth 0
-        s_w, d_w = confirm.cluster_robust_std(A, r, cl, C)
-        d_i = confirm.cluster_robust_std(A, r, cl)[1]
+        s_w, d_w = augmented.cluster_robust_std(A, r, cl, C)
+        d_i = augmented.cluster_robust_std(A, r, cl)[1]
         v_w.append(s_w**2)
         cov_w.append([abs(b[j]) <= stats.t.ppf(0.975, d_w[j]) * s_w[j] for j in range(p)])
         dof_w.append(d_w)
@@ -101,6 +101,6 @@ def test_cr2_under_a_working_covariance_is_unbiased_and_its_dof_counts_the_noisy
     assert np.all(np.mean(cov_w, axis=0) >= 0.93)
     r = rng.normal(size=n * k)
     r -= H @ r
-    s_eye, d_eye = confirm.cluster_robust_std(A, r, cl, np.broadcast_to(np.eye(k), (n, k, k)))
-    s0, d0 = confirm.cluster_robust_std(A, r, cl)
+    s_eye, d_eye = augmented.cluster_robust_std(A, r, cl, np.broadcast_to(np.eye(k), (n, k, k)))
+    s0, d0 = augmented.cluster_robust_std(A, r, cl)
     assert np.allclose(s_eye, s0, rtol=1e-8) and np.allclose(d_eye, d0, rtol=1e-6)

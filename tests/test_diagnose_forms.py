@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose import confirm, forms
-from pipeline.diagnose.effects import Effect
+from pipeline.diagnose.inference import forms, resampling
+from pipeline.diagnose.library.term import Effect
 from pipeline.identify.least_squares import kfold_indices
 
 
@@ -54,7 +54,7 @@ def test_a_simpler_form_within_one_standard_error_replaces_the_best():
         kept += chosen == [2]
         assert chosen != [0]  # the linear form is far worse here
         if chosen == [2]:  # kept only when better by more than one SE
-            e2 = {j: confirm.holdout(np.hstack([Jf, S[j]]), r, folds) ** 2 for j in (1, 2)}
+            e2 = {j: resampling.holdout(np.hstack([Jf, S[j]]), r, folds) ** 2 for j in (1, 2)}
             d = e2[1] - e2[2]
             assert d.mean() > d.std(ddof=1) / np.sqrt(d.size)
     assert best >= 5 and kept <= best // 2, (best, kept)  # the rule is exercised (7 of 40), and it bites (1)

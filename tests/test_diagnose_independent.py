@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import independent_touch as it
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.models import serial_arm
 from pipeline.systems import arc_welder as aw
 

@@ -1,4 +1,4 @@
-"""The diagnosis library's later additions (`pipeline/diagnose/effects_more.py`): signatures against finite
+"""The touch library's couplings, link growth, face shape and wire terms (`pipeline/diagnose/library/`): signatures against finite
 differences of the model, and recovery from the product's simulator."""
 
 from __future__ import annotations
@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.diagnose.diagnose import Settings, diagnose
-from pipeline.diagnose.effects import pick, signature, touch_library
+from pipeline.diagnose import Settings, diagnose
+from pipeline.diagnose.library.term import pick, signature
+from pipeline.diagnose.library.touch import touch_library
 from pipeline.models import serial_arm
 from pipeline.models.jig import stepped_block
 from pipeline.simulate import effects as se

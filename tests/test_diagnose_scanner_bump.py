@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from pipeline.blas import one_thread
-from pipeline.diagnose import lack_of_fit
-from pipeline.diagnose import scanner as ds
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose.verdict import lack_of_fit
+from pipeline.diagnose.adapters import scanner as ds
+from pipeline.diagnose import Settings, diagnose
 from pipeline.models import camera as cam
 from pipeline.simulate import scorbot_scanner as ss
 from pipeline.simulate.effects import parse_effect
@@ -176,7 +176,7 @@ def test_physical_components_recover_the_variances():
     """REML estimates of the repeatability model's six variances on residuals drawn from it (geometry
     fitted out): the pose covariance they imply is unbiased (mean over 12 draws within 15 %) and each
     draw's within 30 % (median)."""
-    from pipeline.diagnose import select
+    from pipeline.diagnose.inference import clustered
     tab = campaign(10_000)
     model = sc.ScannerModel(arm=ARM)
     x = np.concatenate([truth(), np.zeros(len(model.parameter_names()) - truth().size)])
@@ -188,14 +188,14 @@ def test_physical_components_recover_the_variances():
     A = A[:, np.linalg.norm(A, axis=0) > 0]
     src = [np.zeros((nk // 3, 3, 1))]
     true = np.array([2e-9, 5e-8, 1e-9, 2e-8, 1e-8, 4e-8])  # flange slide: δt, δω; rigid: δt, δω; δq rigid, slide
-    pm = select.PhysicalModel(src, np.array([0.0, 1e-10]), B, groups, true, cl)  # isotropic 1e-5 m noise
+    pm = clustered.PhysicalModel(src, np.array([0.0, 1e-10]), B, groups, true, cl)  # isotropic 1e-5 m noise
     Y = pm.draw(12, 2)
     with one_thread():  # small dense algebra: OpenBLAS's threads only spin-wait on a busy box
-        est = np.array([select.physical_components(Y[:, j], A, B, groups, cl, 1e-10) for j in range(12)])
+        est = np.array([clustered.physical_components(Y[:, j], A, B, groups, cl, 1e-10) for j in range(12)])
     # the mechanisms overlap (a flange rotation and the joints' rotations reach the points alike), so
     # single variances trade off against each other; what the reference uses is the covariance they imply
     def cov(theta):
-        cv = select.PhysicalModel(src, np.zeros(2), B, groups, theta, cl).column_variances()
+        cv = clustered.PhysicalModel(src, np.zeros(2), B, groups, theta, cl).column_variances()
         return np.einsum("rp,sp,p->rs", B, B, cv) * (cl[:, None] == cl[None, :])
     Vt = cov(true)
     err = [np.linalg.norm(cov(e) - Vt) / np.linalg.norm(Vt) for e in est]

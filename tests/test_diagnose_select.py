@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline.diagnose.select import forward_select
+from pipeline.diagnose.inference.stepwise import forward_select
 
 N = 200
 
@@ -101,7 +101,7 @@ def test_refined_selection_is_a_subset_of_nothing_on_noise_unless_greedy_errs(se
 def test_look_alikes_name_the_candidate_the_data_cannot_reject():
     """Truth a; c nearly collinear with a (cos 0.995) at a size where the two fit about equally:
     c is listed as a look-alike of the accepted block, an orthogonal distractor never is."""
-    from pipeline.diagnose.select import look_alikes
+    from pipeline.diagnose.inference.stepwise import look_alikes
 
     listed = far = 0
     for seed in range(20):

@@ -6,7 +6,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline.diagnose import confirm, judge, verdict
+from pipeline.diagnose.inference import resampling
+from pipeline.diagnose.verdict import arbiter, checks
 from pipeline.identify.least_squares import kfold_indices
 
 
@@ -17,16 +18,16 @@ def _design(n: int, p: int, seed: int) -> np.ndarray:
 def test_floor_check_holds_its_size_on_noise_at_the_floor_and_rejects_above_it():
     rng = np.random.default_rng(0)
     var = np.full(100, (3e-5) ** 2)
-    p = [verdict.floor_check(rng.normal(0, 3e-5, 100), 100, var, 0.01)["p_value"] for _ in range(400)]
+    p = [checks.floor_check(rng.normal(0, 3e-5, 100), 100, var, 0.01)["p_value"] for _ in range(400)]
     assert 0.0 <= np.mean(np.array(p) < 0.01) <= 0.03  # size ≈ α
-    above = verdict.floor_check(rng.normal(0, 4.5e-5, 100), 100, var, 0.01)  # 1.5× the floor
+    above = checks.floor_check(rng.normal(0, 4.5e-5, 100), 100, var, 0.01)  # 1.5× the floor
     assert above["above_floor"] and above["rms_over_floor"] > 1.3
 
 
 def test_touch_floor_variance_adds_repeatability_encoder_and_jig():
     Jq = np.zeros((2, 6))
     Jq[1, 1] = 1.0  # 1 m lever on J2
-    v = verdict.touch_floor_variance(Jq, 1e-4, 2e-5, count_rad=1e-5)
+    v = checks.touch_floor_variance(Jq, 1e-4, 2e-5, count_rad=1e-5)
     assert np.isclose(v[0], (1e-4 / 3) ** 2 + (2e-5) ** 2 / 3)
     assert np.isclose(v[1] - v[0], 1e-10 / 12)
 
@@ -39,13 +40,13 @@ def test_one_gross_error_is_named_alone(seed, row, size):
     rng = np.random.default_rng(seed + 1)
     r = rng.normal(0, 1.0, 80)
     r[row] += size * np.sign(rng.normal() or 1.0)
-    out = verdict.studentized_outliers(J, r, 0.01)
+    out = checks.studentized_outliers(J, r, 0.01)
     assert out and out[0][0] == row
     assert len(out) <= 2  # at most one clean record beyond a Bonferroni bound at α = 0.01 (rare)
 
 
 def test_clean_records_are_rarely_flagged():
-    flagged = sum(bool(verdict.studentized_outliers(_design(100, 20, s), np.random.default_rng(s).normal(size=100),
+    flagged = sum(bool(checks.studentized_outliers(_design(100, 20, s), np.random.default_rng(s).normal(size=100),
                                                     0.01)) for s in range(200))
     assert flagged <= 6  # family α = 0.01 per campaign: ~2 of 200 expected
 
@@ -58,14 +59,14 @@ def test_a_finding_carried_by_one_record_is_that_records():
     S[17, 0] = 1.0  # a column that only reaches record 17 (e.g. a signature concentrated on one contact)
     S[:, 0] += 0.05 * rng.normal(size=100)
     y[17] += 8.0
-    assert verdict.carried_by(y, D, S, 0.01) == [17]
+    assert checks.carried_by(y, D, S, 0.01) == [17]
     # a real effect spread over every record is not carried by any one or two
     S2 = rng.normal(size=(100, 1))
-    assert verdict.carried_by(rng.normal(0, 1.0, 100) + 0.8 * S2[:, 0], D, S2, 0.01) is None
+    assert checks.carried_by(rng.normal(0, 1.0, 100) + 0.8 * S2[:, 0], D, S2, 0.01) is None
 
 
 def test_misspecified_flags_a_form_that_misses_structure_along_its_variable():
-    from pipeline.diagnose.lack_of_fit import smooth_variable
+    from pipeline.diagnose.verdict.lack_of_fit import smooth_variable
 
     rng = np.random.default_rng(5)
     t = np.linspace(0, 1000, 120)
@@ -73,10 +74,10 @@ def test_misspecified_flags_a_form_that_misses_structure_along_its_variable():
     y = 5.0 * (1 - np.exp(-t / 200)) + rng.normal(0, 0.3, 120)  # ... to an exponential warm-up
     r = y - A @ np.linalg.lstsq(A, y, rcond=None)[0]
     v = smooth_variable("time_since_start_s", "s", t, np.ones((120, 1)), K=6)
-    assert verdict.misspecified(r, A, [v], 0.01) is not None
+    assert checks.misspecified(r, A, [v], 0.01) is not None
     y2 = 0.004 * t + rng.normal(0, 0.3, 120)  # a true linear drift leaves nothing along time
     r2 = y2 - A @ np.linalg.lstsq(A, y2, rcond=None)[0]
-    assert verdict.misspecified(r2, A, [v], 0.01) is None
+    assert checks.misspecified(r2, A, [v], 0.01) is None
 
 
 def test_arbiter_reports_nothing_when_the_model_is_worse_out_of_sample():
@@ -93,32 +94,32 @@ def test_arbiter_reports_nothing_when_the_model_is_worse_out_of_sample():
     r_final = r - A @ coef
     contrib = -(S @ coef[4:])[:, None]
     folds = kfold_indices(n, 5, 0, np.arange(n) // 5)
-    before, after = confirm.holdout(Jf, r, folds), confirm.holdout(A, r_final, folds)
-    assert confirm.rms(after) > confirm.rms(before)
+    before, after = resampling.holdout(Jf, r, folds), resampling.holdout(A, r_final, folds)
+    assert resampling.rms(after) > resampling.rms(before)
     fd = {"effect": "noise", "location": "x", "confidence": "high",
           "evidence": {"cv_rms_before_m": 0.0, "cv_rms_after_m": -1.0}}  # its own ablation looks fine ...
-    fin = judge.Final([fd], [0], [contrib], {0: list(range(4, 34))}, A, r_final, after)
-    out, rejected, worse, all_cv = judge.arbiter(fin, folds, Jf, r, before)
+    fin = arbiter.Final([fd], [0], [contrib], {0: list(range(4, 34))}, A, r_final, after)
+    out, rejected, worse, all_cv = arbiter.arbiter(fin, folds, Jf, r, before)
     assert worse and not out.findings and rejected[0]["confidence"] == "rejected"  # ... the whole model is not
-    assert confirm.rms(out.after_cv) == confirm.rms(before) and all_cv > confirm.rms(before)
+    assert resampling.rms(out.after_cv) == resampling.rms(before) and all_cv > resampling.rms(before)
 
 
 def test_status_names_what_is_left():
     fl = {"above_floor": True}
-    assert verdict.status(1, False, fl, False)[0] == "partially_explained"
-    assert verdict.status(1, False, {"above_floor": False}, False)[0] == "explained"
-    assert verdict.status(1, False, None, False, ["time_since_start_s→growth"])[0] == "partially_explained"
-    assert verdict.status(0, True, None, False)[0] == "unexplained"
-    assert verdict.status(0, False, fl, False)[0] == "unexplained"
-    assert verdict.status(0, False, None, False)[0] == "clean"
-    assert verdict.status(2, False, None, True)[0] == "model_worse_out_of_sample"
+    assert checks.status(1, False, fl, False)[0] == "partially_explained"
+    assert checks.status(1, False, {"above_floor": False}, False)[0] == "explained"
+    assert checks.status(1, False, None, False, ["time_since_start_s→growth"])[0] == "partially_explained"
+    assert checks.status(0, True, None, False)[0] == "unexplained"
+    assert checks.status(0, False, fl, False)[0] == "unexplained"
+    assert checks.status(0, False, None, False)[0] == "clean"
+    assert checks.status(2, False, None, True)[0] == "model_worse_out_of_sample"
 
 
 def test_advice_names_what_to_do_where_structure_is_left():
-    assert "top2" in verdict.advice_for("face top2 position")
-    assert "J2 alone" in verdict.advice_for("q_J2→J3")
-    assert "temperature" in verdict.advice_for("time_since_start_s→growth")
-    assert "J5" in verdict.advice_for("q_J5")
+    assert "top2" in checks.advice_for("face top2 position")
+    assert "J2 alone" in checks.advice_for("q_J2→J3")
+    assert "temperature" in checks.advice_for("time_since_start_s→growth")
+    assert "J5" in checks.advice_for("q_J5")
 
 
 def test_holdout_floor_check_is_calibrated_on_noise_at_the_floor():
@@ -132,9 +133,9 @@ def test_holdout_floor_check_is_calibrated_on_noise_at_the_floor():
     for _ in range(300):
         e = rng.normal(0, np.sqrt(v))
         r = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
-        p.append(verdict.holdout_floor_check(A, confirm.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"])
+        p.append(checks.holdout_floor_check(A, resampling.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"])
     p = np.array(p)
     assert 0.02 <= np.mean(p < 0.05) <= 0.09 and 0.4 <= np.mean(p < 0.5) <= 0.6
     e = rng.normal(0, 1.4 * np.sqrt(v))  # 1.4× the floor
     r = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
-    assert verdict.holdout_floor_check(A, confirm.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"] < 0.05
+    assert checks.holdout_floor_check(A, resampling.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"] < 0.05

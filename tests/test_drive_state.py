@@ -22,8 +22,8 @@ from mcap.reader import make_reader
 
 import independent_drive as gen
 from stream_support import bits
-from pipeline.diagnose.diagnose import Settings, diagnose
-from pipeline.diagnose.urdf_robot import adapter, from_recording
+from pipeline.diagnose import Settings, diagnose
+from pipeline.diagnose.adapters.urdf_robot import adapter, from_recording
 from pipeline.importers.recording import T0_NS, write_urdf_recording
 from pipeline.ingest.streams import JOINT_STATE, joint_stream
 from pipeline.models import urdf

@@ -1,7 +1,7 @@
 """The independent generators share no robocal code: importing them (and the test support they use)
 in a fresh interpreter loads no `pipeline` module.  (`independent_touch` is the stated exception: it
 reads the arm's and jig's numbers from `pipeline.systems` / `pipeline.models.jig` and builds the
-diagnosis table with `pipeline.diagnose.table`; see its docstring.)"""
+diagnosis table with `pipeline.diagnose.adapters.touch_table`; see its docstring.)"""
 
 from __future__ import annotations
 

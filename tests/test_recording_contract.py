@@ -10,9 +10,9 @@ import pytest
 
 import independent_recording as ir
 import independent_touch as it
-from pipeline.diagnose.diagnose import Settings
+from pipeline.diagnose import Settings
 from pipeline.diagnose.stage import diagnose_recording
-from pipeline.diagnose.table import from_recording
+from pipeline.diagnose.adapters.touch_table import from_recording
 from pipeline.models.jig import stepped_block
 from pipeline.recording.reader import read_recording
 from pipeline.recording.schemas import CHANNELS, validator

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from pipeline.diagnose.diagnose import Settings, diagnose
+from pipeline.diagnose import Settings, diagnose
 from pipeline.diagnose.stage import diagnose_recording
 from pipeline.errors import RobocalError
 from pipeline.ingest.temperature import TEMPERATURE, rise_at, temperature_stream
@@ -181,8 +181,8 @@ def test_delta_shares_the_temperature_model():
     """Delta + tracker (108 measurements, ≈ 2 min, τ = 120 s): found on the temperature channel
     with the sensor; without, a straight line in time is found instead (this short campaign
     cannot tell the two apart: both reach the floor)."""
-    from pipeline.diagnose import delta as dd
-    from pipeline.diagnose.table import add_temperature
+    from pipeline.diagnose.adapters import delta as dd
+    from pipeline.diagnose.adapters.touch_table import add_temperature
     from pipeline.models.delta import Delta
     from pipeline.simulate import delta_tracker as sd
     from pipeline.systems.delta_tracker import TrackerModel

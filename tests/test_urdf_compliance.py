@@ -2,7 +2,7 @@
 torque of the links it carries (`<inertial>` masses of the URDF).  The campaign's deflections come from
 the independent generator `independent_drive`: its own forward kinematics of the URDF text (4×4 products) and the
 gravity torques as −∂V/∂q of the potential energy V = Σ m·G·z_com by central differences (the
-diagnosis sums cross products instead: `pipeline.diagnose.urdf_gravity`)."""
+diagnosis sums cross products instead: `pipeline.diagnose.library.urdf_gravity`)."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ import pytest
 from r6_robot import URDF
 from test_urdf_diagnose import point_campaign
 
-from pipeline.diagnose.diagnose import Settings, diagnose
-from pipeline.diagnose.urdf_gravity import gravity_torques
-from pipeline.diagnose.urdf_robot import adapter
+from pipeline.diagnose import Settings, diagnose
+from pipeline.diagnose.library.urdf_gravity import gravity_torques
+from pipeline.diagnose.adapters.urdf_robot import adapter
 from pipeline.models import urdf, urdf_arm
 from pipeline.plan.urdf_robot import configurations
 

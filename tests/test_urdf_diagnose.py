@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.diagnose.diagnose import Settings, diagnose
-from pipeline.diagnose.urdf_robot import adapter
+from pipeline.diagnose import Settings, diagnose
+from pipeline.diagnose.adapters.urdf_robot import adapter
 from pipeline.measurements.point import PointModel
 from pipeline.models import urdf, urdf_arm
 from pipeline.plan.urdf_robot import configurations

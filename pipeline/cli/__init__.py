@@ -7,11 +7,49 @@ import sys
 import typer
 from rich.console import Console
 
+# The help panels of `robocal --help`, by what the user is doing, in this order.
+IMPORT = "Import"
+CALIBRATE = "Calibrate"
+PLAN = "Plan & compensate"
+SIMULATE = "Simulate & acquire"
+FLEET = "Fleet"
+VIEW = "View"
+PANELS = (IMPORT, CALIBRATE, PLAN, SIMULATE, FLEET, VIEW)
+
+
+class _TaskOrderedGroup(typer.core.TyperGroup):
+    """A command group that lists its commands panel by panel in the order of `PANELS` (within a
+    panel, in the order they were registered), whichever module registered them first."""
+
+    def list_commands(self, ctx) -> list[str]:
+        rank = {p: i for i, p in enumerate(PANELS)}
+        names = super().list_commands(ctx)
+        return sorted(names, key=lambda n: rank.get(getattr(self.commands[n], "rich_help_panel", None), len(PANELS)))
+
+
+def _flags_take_no_value() -> None:
+    """Show a boolean flag in the help as itself (`--force`, `--x/--no-x`), not as `--force <bool>`:
+    recent typer prints every option's type in the rich help, a flag's too, though a flag takes no
+    value.  Idempotent; a typer without `TyperOption.display_type_rich` is left as it is."""
+    cls = getattr(typer.core, "TyperOption", None)
+    shown = getattr(cls, "display_type_rich", None)
+    if shown is None or getattr(shown, "_flags_take_no_value", False):
+        return
+
+    def display_type_rich(self, ctx):
+        return None if (self.is_flag or self.count) else shown(self, ctx)
+
+    display_type_rich._flags_take_no_value = True
+    cls.display_type_rich = display_type_rich
+
+
+_flags_take_no_value()
 app = typer.Typer(name="robocal", help="Log-centric robot calibration: record, calibrate, inspect.",
-                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
+                  no_args_is_help=True, pretty_exceptions_enable=False, cls=_TaskOrderedGroup)
 simulate_app = typer.Typer(help="Simulate a calibration campaign of a reference system into an MCAP recording.",
                            no_args_is_help=True)
-app.add_typer(simulate_app, name="simulate")
+app.add_typer(simulate_app, name="simulate", rich_help_panel=SIMULATE)
+
 
 def console(stderr: bool = False) -> Console:
     """A rich console that wraps only on a terminal: in CI logs and pipes a line stays one line

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, err, simulate_app
+from pipeline.cli import SIMULATE, app, err, simulate_app
 from pipeline.errors import RobocalError
 
 ROLES = ("bridge", "tracker", "scanner")
@@ -30,7 +30,7 @@ def _parse_devices(specs: list[str]) -> dict[str, str]:
     return out
 
 
-@app.command("acquire")
+@app.command("acquire", rich_help_panel=SIMULATE)
 def acquire_cmd(
     device: list[str] = typer.Option(..., "--device", help="ROLE=PORT (bridge, tracker, scanner); repeatable."),
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
@@ -83,7 +83,7 @@ def acquire_cmd(
     err.print(f"wrote {out} ({s['stop_reason']})", highlight=False)
 
 
-@app.command("recover")
+@app.command("recover", rich_help_panel=SIMULATE)
 def recover_cmd(
     src: Path = typer.Argument(..., help="A recording cut short (crash, SIGKILL, full disk)."),
     dst: Path = typer.Argument(..., help="Where to write the restored recording."),
@@ -97,7 +97,7 @@ def recover_cmd(
               f"into {dst}; {state}", highlight=False, soft_wrap=True)
 
 
-@app.command("device-sim")
+@app.command("device-sim", rich_help_panel=SIMULATE)
 def device_sim_cmd(
     system: str = typer.Argument(..., help="Reference system, e.g. arc-welder (see `robocal simulate --help`)."),
     recording: Path = typer.Option(None, "--recording", help="Play this recording instead of simulating one."),

@@ -8,11 +8,11 @@ from typing import Optional
 import typer
 from rich.table import Table
 
-from pipeline.cli import app, console, err
+from pipeline.cli import CALIBRATE, app, console, err
 from pipeline.cli.run import PREVIOUS, PRIOR, STRICT, TARGETS, TOLERANCE, accuracy_params, strict_exit
 
 
-@app.command("calibrate")
+@app.command("calibrate", rich_help_panel=CALIBRATE)
 def calibrate_cmd(
     recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
     out: Path = typer.Option(..., "--out", help="Output folder for results.json and model.json."),

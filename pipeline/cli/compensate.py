@@ -6,10 +6,10 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, err
+from pipeline.cli import PLAN, app, err
 
 
-@app.command("compensate")
+@app.command("compensate", rich_help_panel=PLAN)
 def compensate_cmd(
     run_dir: Path = typer.Argument(..., help="Run directory of a calibration (robocal run REC --out RUN_DIR)."),
     targets: Path = typer.Option(..., "--targets", help="Targets CSV: x,y,z (m, work frame) [, qw,qx,qy,qz] "

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, console, err
+from pipeline.cli import CALIBRATE, app, console, err
 
 
-@app.command("diagnose")
+@app.command("diagnose", rich_help_panel=CALIBRATE)
 def diagnose_cmd(
     recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
     out: Path = typer.Option(..., "--out", help="Output folder for diagnosis.json."),
@@ -24,7 +24,7 @@ def diagnose_cmd(
     """Locate residual structure, name the effect from the library, model it, show the held-out fit improve."""
     from rich.table import Table
 
-    from pipeline.diagnose.diagnose import Settings
+    from pipeline.diagnose import Settings
     from pipeline.diagnose.stage import SUPPORTED, diagnose_recording
     from pipeline.errors import RobocalError
     from pipeline.recording.reader import read_recording

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, err
+from pipeline.cli import IMPORT, app, err
 
 import_app = typer.Typer(help="Bring measurements of any URDF robot in: CSV tables (and ROS 2 bags) → a recording.",
                          no_args_is_help=True)
-app.add_typer(import_app, name="import")
+app.add_typer(import_app, name="import", rich_help_panel=IMPORT)
 
 
 def _cols(s: str) -> tuple[str, ...]:

@@ -7,22 +7,19 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, err
+from pipeline.cli import PLAN, app, err
 
 
 def candidate_module(system: str):
-    """`pipeline.plan.<system module>` (e.g. pipeline.plan.arc_welder), which offers
+    """The planner part of `system`'s declaration (e.g. pipeline.plan.arc_welder), which offers
     `candidates(n, seed) -> (model, table)` and optionally `measured(n, seed)`."""
     from pipeline.errors import RobocalError
-    from pipeline.systems.registry import SYSTEMS
+    from pipeline.systems.registry import declaration
 
-    if system not in SYSTEMS:
-        raise RobocalError(f"unknown system {system!r} (known: {', '.join(sorted(SYSTEMS))})")
-    name = SYSTEMS[system].__name__.rsplit(".", 1)[-1]
-    try:
-        return importlib.import_module(f"pipeline.plan.{name}")
-    except ModuleNotFoundError:
-        raise RobocalError(f"no pose candidates for system {system!r} yet (pipeline/plan/{name}.py)") from None
+    planner = declaration(system).planner
+    if planner is None:
+        raise RobocalError(f"no pose candidates for system {system!r} yet (pipeline/plan/)")
+    return importlib.import_module(planner)
 
 
 def write_plan(out: Path, doc: dict) -> None:
@@ -36,7 +33,7 @@ def write_plan(out: Path, doc: dict) -> None:
     write_json(out, generated(doc))
 
 
-@app.command("plan")
+@app.command("plan", rich_help_panel=PLAN)
 def plan_cmd(
     system: str = typer.Argument(..., help="System, e.g. arc-welder."),
     candidates: int = typer.Option(1000, "--candidates", min=2, help="Number of candidate poses N."),
@@ -62,6 +59,10 @@ def plan_cmd(
 ) -> None:
     """D-optimal pose selection: greedy + Fedorov exchange with rank-1 (Sherman–Morrison) updates.
     For the arc welder the output is an executable campaign (schemas/campaign.schema.json)."""
+    from pipeline.errors import at_most
+
+    for option, value in (("--candidates", candidates), ("--select", select_m), ("--check", check), ("--first-stage", first_stage),):
+        at_most(option, value)
     import numpy as np
 
     from pipeline.recording.output import check_output

@@ -7,10 +7,10 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli import app, err
+from pipeline.cli import CALIBRATE, app, err
 
 
-@app.command("report")
+@app.command("report", rich_help_panel=CALIBRATE)
 def report_cmd(
     run_dir: Optional[Path] = typer.Argument(None, help="Run folder (after `robocal identify`/`observe`)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Run folder (same as the argument)."),

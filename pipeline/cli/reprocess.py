@@ -14,7 +14,7 @@ from rich.progress import (BarColumn, MofNCompleteColumn, Progress, ProgressColu
 from rich.table import Table
 from rich.text import Text
 
-from pipeline.cli import app, err
+from pipeline.cli import FLEET, app, err
 
 MAX_TABLE_ROWS = 50
 
@@ -26,7 +26,7 @@ class RateColumn(ProgressColumn):
         return Text("—/s" if not task.speed else f"{task.speed:.2f} rec/s", style="progress.data.speed")
 
 
-@app.command("reprocess")
+@app.command("reprocess", rich_help_panel=FLEET)
 def reprocess_cmd(
     archive: Path = typer.Argument(..., help="Archive folder: recordings found recursively (see --pattern), each "
                                    "optionally with <stem>.expected.json beside it."),

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 from typing import Optional
 
 import typer
 from rich.table import Table
 
-from pipeline.cli import app, console, err
-from pipeline.cli import ros2 as ros2_cli
+from pipeline.cli import CALIBRATE, app, bag_options, console, err
+
+BAG = bag_options.options(bag_options.RUN_PANEL)
 
 
 def _log(line: str) -> None:
@@ -123,37 +125,53 @@ F_SCALE = typer.Option(None, "--f-scale", help="identify: robust-loss scale, m (
 REJECT = typer.Option(None, "--reject", help="identify: reject measurements beyond this many robust σ (MAD); 0 = off (default 5).")
 FOLDS = typer.Option(None, "--folds", min=2, help="identify: folds of the held-out cross-validation (default 5).")
 FORCE = typer.Option(False, "--force", help="Run even if cached.")
-PRIOR = typer.Option(None, "--prior", help="Prior 1σ of parameters held at nominal: NAME=SIGMA, NAME a parameter, "
+ACCURACY = "Accuracy (predicted over the workspace)"
+PRIOR = typer.Option(None, "--prior", rich_help_panel=ACCURACY, help="Prior 1σ of parameters held at nominal: NAME=SIGMA, NAME a parameter, "
                      "pattern (J*.beta) or kind (length, angle, frame_translation, frame_rotation, pixel); "
                      "SIGMA SI or with a unit (0.5mm, 0.2deg). Repeatable.")
-TOLERANCE = typer.Option(None, "--tolerance", help="Required accuracy (e.g. 0.1mm): fail if the 95 % bound exceeds it "
+TOLERANCE = typer.Option(None, "--tolerance", rich_help_panel=ACCURACY, help="Required accuracy (e.g. 0.1mm): fail if the 95 % bound exceeds it "
                          "anywhere on the accuracy map.")
-PREVIOUS = typer.Option(None, "--previous", help="A previous run folder of the same robot: report parameters that "
+PREVIOUS = typer.Option(None, "--previous", rich_help_panel=ACCURACY, help="A previous run folder of the same robot: report parameters that "
                         "moved by more than 3σ.")
-TARGETS = typer.Option(None, "--targets", help="CSV of x,y,z (m) where the accuracy map is evaluated "
+TARGETS = typer.Option(None, "--targets", rich_help_panel=ACCURACY, help="CSV of x,y,z (m) where the accuracy map is evaluated "
                        "(default: a grid over the jig volume / workspace).")
 STRICT = typer.Option(False, "--strict", help="Exit 1 unless the status is pass (or warn): insufficient data or "
                       "tolerance not met.")
 
 
-@app.command("run")
+def in_panel(option: typer.models.OptionInfo, panel: str) -> typer.models.OptionInfo:
+    """A copy of `option` shown under help panel `panel` (the original keeps its own)."""
+    shown = copy.copy(option)
+    shown.rich_help_panel = panel
+    return shown
+
+
+IDENTIFY, VALIDATE = "Identify", "Validate"
+
+
+@app.command("run", rich_help_panel=CALIBRATE)
 def run_cmd(
-    recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign, or a ROS 2 bag."),
+    recording: Path = typer.Argument(..., metavar="REC", help="Recording (MCAP) of a calibration campaign, or a ROS 2 bag."),
     out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
-    loss: Optional[str] = LOSS, f_scale: Optional[float] = F_SCALE, reject: Optional[float] = REJECT,
-    folds: Optional[int] = FOLDS,
-    flag: Optional[float] = typer.Option(None, "--flag-outliers", help="validate: flag residuals beyond this many robust σ (default 6)."),
-    gap_factor: Optional[float] = typer.Option(None, "--gap-factor", help="validate: a gap is this many sample periods (default 5)."),
+    loss: Optional[str] = in_panel(LOSS, IDENTIFY), f_scale: Optional[float] = in_panel(F_SCALE, IDENTIFY),
+    reject: Optional[float] = in_panel(REJECT, IDENTIFY), folds: Optional[int] = in_panel(FOLDS, IDENTIFY),
+    flag: Optional[float] = typer.Option(None, "--flag-outliers", rich_help_panel=VALIDATE,
+                                         help="validate: flag residuals beyond this many robust σ (default 6)."),
+    gap_factor: Optional[float] = typer.Option(None, "--gap-factor", rich_help_panel=VALIDATE,
+                                               help="validate: a gap is this many sample periods (default 5)."),
     force: bool = FORCE,
     only: Optional[str] = typer.Option(None, "--stages", help="Comma-separated stages to run (default: all available)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
-    urdf: Optional[Path] = typer.Option(None, "--urdf", help="ROS 2 bag: the robot's URDF (docs/guide/import-ros2.md)."),
-    root: Optional[str] = typer.Option(None, "--root", help="ROS 2 bag: root link of the calibrated chain."),
-    tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain."),
-    joint_topic: str = ros2_cli.JOINT_TOPIC, measure_topic: Optional[str] = ros2_cli.MEASURE_TOPIC,
-    measure: Optional[str] = ros2_cli.MEASURE, window_s: float = ros2_cli.WINDOW, max_speed: float = ros2_cli.SPEED,
-    time_source: str = ros2_cli.TIME, sigma_m: float = ros2_cli.SIGMA_M, sigma_rad: float = ros2_cli.SIGMA_RAD,
+    urdf: Optional[Path] = typer.Option(None, "--urdf", rich_help_panel=bag_options.RUN_PANEL,
+                                        help="ROS 2 bag: the robot's URDF (docs/guide/import-ros2.md)."),
+    root: Optional[str] = typer.Option(None, "--root", help="ROS 2 bag: root link of the calibrated chain.",
+                                       rich_help_panel=bag_options.RUN_PANEL),
+    tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain.",
+                                      rich_help_panel=bag_options.RUN_PANEL),
+    joint_topic: str = BAG["joint_topic"], measure_topic: Optional[str] = BAG["measure_topic"],
+    measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
+    time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached.  A ROS 2 bag is
@@ -163,9 +181,13 @@ def run_cmd(
     from pipeline.stages.runner import run_pipeline
 
     t0 = time.perf_counter()
-    recording = ros2_cli.run_input(recording, out, urdf, root, tip, joint_topic=joint_topic,
-                                   measure_topic=measure_topic, measure=measure, window_s=window_s,
-                                   max_speed=max_speed, time=time_source, sigma_m=sigma_m, sigma_rad=sigma_rad)
+    from pipeline.importers.bag_import import run_input
+    from pipeline.importers.ros2 import BagSpec
+
+    spec = BagSpec(joint_topic=joint_topic, measure_topic=measure_topic, measure=measure, window_s=window_s,
+                   max_speed=max_speed, time=time_source)
+    recording = run_input(recording, out, urdf, root, tip, spec, sigma_m, sigma_rad,
+                          on_read=bag_options.print_read, on_written=bag_options.print_written)
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
@@ -186,7 +208,7 @@ def run_cmd(
         strict_exit(read_json(out / "results.json")["summary"].get("status"), strict)
 
 
-@app.command("ingest")
+@app.command("ingest", rich_help_panel=CALIBRATE)
 def ingest_cmd(recording: Path = typer.Argument(..., help="Recording (MCAP)."),
                out: Path = typer.Option(..., "--out", help="Run folder."), force: bool = FORCE) -> None:
     """MCAP → Parquet under DIR/ingest/ (encoder stream, channel tables, measurements with motion context)."""
@@ -199,7 +221,7 @@ def ingest_cmd(recording: Path = typer.Argument(..., help="Recording (MCAP)."),
     run_stage(out, "ingest", {}, recording=recording, force=force, log=_log)
 
 
-@app.command("validate")
+@app.command("validate", rich_help_panel=CALIBRATE)
 def validate_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after `robocal ingest`)."),
                  flag: Optional[float] = typer.Option(None, "--flag-outliers", help="Robust σ beyond which a residual is flagged (default 6)."),
                  gap_factor: Optional[float] = typer.Option(None, "--gap-factor", help="Sample periods that make a gap (default 5)."),
@@ -219,7 +241,7 @@ def validate_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after 
                     err.print(f"[{colour[c['status']]}]{c['status']}[/] {c['name']}: {c['message']}", highlight=False, soft_wrap=True)
 
 
-@app.command("identify")
+@app.command("identify", rich_help_panel=CALIBRATE)
 def identify_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after `robocal validate`)."),
                  loss: Optional[str] = LOSS, f_scale: Optional[float] = F_SCALE, reject: Optional[float] = REJECT,
                  folds: Optional[int] = FOLDS, force: bool = FORCE) -> None:
@@ -230,7 +252,7 @@ def identify_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after 
     _summary(out)
 
 
-@app.command("observe")
+@app.command("observe", rich_help_panel=CALIBRATE)
 def observe_cmd(out: Path = typer.Option(..., "--out", help="Run folder (after `robocal identify`)."),
                 force: bool = FORCE) -> None:
     """Observability → DIR/observe/observe.json (singular values, O1..O5, correlations, predicted accuracy)."""

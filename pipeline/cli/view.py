@@ -10,13 +10,17 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import app, err
+from pipeline.cli import VIEW, app, err
 
 
-def viewer_command(rrd: Path) -> list[str]:
-    """The command that opens `rrd` in the rerun viewer shipped with rerun-sdk."""
+LOCAL = "127.0.0.1"
+
+
+def viewer_command(rrd: Path, bind: str = LOCAL) -> list[str]:
+    """The command that opens `rrd` in the rerun viewer shipped with rerun-sdk; the viewer's own
+    server listens on `bind` only (rerun's default would be every interface, 0.0.0.0)."""
     exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
-    return [exe, str(rrd)]
+    return [exe, "--bind", bind, str(rrd)]
 
 
 def has_display() -> bool:
@@ -26,10 +30,12 @@ def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-@app.command("view")
+@app.command("view", rich_help_panel=VIEW)
 def view_cmd(
     run_dir: Path = typer.Argument(..., help="Run folder with run.rrd, the .rrd file itself, or a raw recording (.mcap)."),
     print_only: bool = typer.Option(False, "--print", help="Print the path and viewer command instead of opening it."),
+    bind: str = typer.Option(LOCAL, "--bind", help="Address the viewer's server listens on (default this machine "
+                             "only; 0.0.0.0 or :: for every interface)."),
 ) -> None:
     """Open the run's rerun recording (3-D jig/robot/tool tips, encoder stream, residuals, solver), or a
     raw recording's robot and campaign (docs/guide/view.md)."""
@@ -45,7 +51,7 @@ def view_cmd(
         rrd = run_dir if run_dir.suffix == ".rrd" else run_dir / "run.rrd"
     if not rrd.is_file():
         raise RobocalError(f"{rrd}: no rerun recording (run `robocal report {run_dir}` first)")
-    cmd = viewer_command(rrd)
+    cmd = viewer_command(rrd, bind)
     if print_only or not has_display():
         if not print_only:
             err.print("no display: not opening the viewer; run this where there is one:", highlight=False)

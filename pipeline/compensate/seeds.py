@@ -3,7 +3,7 @@
 target starts next to its answer, on the same branch.
 
 Anchors: every `stride`-th target without a hint is solved by the controller's rule
-(`serial.multistart`: the seeds in turn, the first converged within limits).  Every other
+(`ik.multistart`: the seeds in turn, the first converged within limits).  Every other
 target starts from the solution of its nearest anchor in pose space (position, and the
 rotation matrix scaled by `LEVER_M/√2`, so that a distance reads as lever-weighted pose error);
 its solution (at most `near_iters` Newton/LM steps) is accepted when it converged within limits and stayed on the anchor's branch
@@ -20,7 +20,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from pipeline.compensate import serial as S
+from pipeline.compensate import ik as S
 
 
 def features(p: np.ndarray, R: np.ndarray | None) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""The `diagnose` stage: DIR/diagnose/diagnosis.json (contract: docs/reference/artefacts.md, issue 7).
+"""The `diagnose` stage: DIR/diagnose/diagnosis.json (contract: docs/reference/artefacts.md).
 
 Reads the recording named by DIR/ingest/recording.json (its fixture and campaign metadata)
 and the encoder stream ingest decoded (DIR/ingest/encoder.parquet: the diagnosis needs the
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.diagnose.diagnose import Settings
+from pipeline.diagnose.method import Settings
 
 NAME = "diagnose"
 SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner", "urdf")
@@ -34,13 +34,13 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
                        drop_records: list[int] | None = None, stream=None) -> dict:
     """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker, SCORBOT scanner);
     `stream`: its encoder stream when already decoded (the ingest stage's `encoder.parquet`)."""
-    from pipeline.diagnose import table as dtable
-    from pipeline.diagnose.diagnose import diagnose
+    from pipeline.diagnose.adapters import touch_table as dtable
+    from pipeline.diagnose.method import diagnose
     from pipeline.identify.model import take
     from pipeline.systems.registry import detect
 
     if detect(rec).SYSTEM == "scorbot-scanner":
-        from pipeline.diagnose import scanner as dscan
+        from pipeline.diagnose.adapters import scanner as dscan
 
         model, tab, _ = dscan.from_recording(rec, stream)
         if drop_records:
@@ -51,7 +51,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
         doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
         return doc
     if detect(rec).SYSTEM == "urdf":
-        from pipeline.diagnose import urdf_robot as durdf
+        from pipeline.diagnose.adapters import urdf_robot as durdf
 
         model, tab, _ = durdf.from_recording(rec, stream)
         if drop_records:
@@ -62,7 +62,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
         doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
         return doc
     if detect(rec).SYSTEM == "delta-tracker":
-        from pipeline.diagnose import delta as ddelta
+        from pipeline.diagnose.adapters import delta as ddelta
 
         model, tab, _ = ddelta.from_recording(rec, stream)
         if drop_records:

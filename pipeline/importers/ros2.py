@@ -47,6 +47,14 @@ def at(path: Path, topic: str, record: int | None = None) -> str:
     return f"{path}: topic {topic}" + ("" if record is None else f": record {record}")
 
 
+class _Damaged(RobocalError):
+    """rosbags cannot open or read on: the storage is damaged (its messages may be salvaged)."""
+
+    def __init__(self, message: str, why: str) -> None:
+        super().__init__(message)
+        self.why = why
+
+
 def _open(path: Path):
     from rosbags.rosbag2 import Reader
 
@@ -54,7 +62,8 @@ def _open(path: Path):
         reader = Reader(path)
         reader.open()
     except Exception as e:  # noqa: BLE001 — any failure of the storage layer is the file's problem
-        raise RobocalError(f"{path}: cannot read as a ROS 2 bag ({type(e).__name__}: {e})") from None
+        why = f"{type(e).__name__}: {e}"
+        raise _Damaged(f"{path}: cannot read as a ROS 2 bag ({why})", why) from None
     return reader
 
 
@@ -105,7 +114,8 @@ def _stream(path: Path, reader, joint_topic: str, measure_topic: str, side: list
         except StopIteration:
             return
         except Exception as e:  # noqa: BLE001 — the storage layer's failure is the file's problem
-            raise RobocalError(f"{path}: cannot read the bag after message {n} ({type(e).__name__}: {e})") from None
+            why = f"{type(e).__name__}: {e}"
+            raise _Damaged(f"{path}: cannot read the bag after message {n} ({why})", f"read stops after message {n}: {why}") from None
         n += 1
         if conn.topic == joint_topic:
             yield t, data
@@ -281,21 +291,33 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     path = Path(path)
     if spec.time not in ("header", "log"):
         raise RobocalError(f"--time {spec.time!r}: expected header or log")
-    reader = _open(path)
     side: list[tuple[int, bytes]] = []
+    joints = desc.joint_names
+    warnings: list[str] = []
+    data_lost: list[str] = []  # the bag's damage: ingest's status is then warn, never pass
     try:
-        topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
+        reader = _open(path)
+        try:
+            topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
+            jt, mt, measure = choose_topics(path, topics, spec)
+            js, jlog, Q, jreport, effort = read_joint_states(path, jt, _stream(path, reader, jt, mt, side), joints)
+        finally:
+            reader.close()
+    except _Damaged as e:  # a bag cut short: calibrate from what can be read, saying what was lost
+        from pipeline.importers.ros2_salvage import salvage
+
+        sal = salvage(path, e.why, str(e))
+        topics = sal.topics
         jt, mt, measure = choose_topics(path, topics, spec)
-        joints = desc.joint_names
-        js, jlog, Q, jreport, effort = read_joint_states(path, jt, _stream(path, reader, jt, mt, side), joints)
-    finally:
-        reader.close()
+        side = sal.messages.get(mt, [])
+        js, jlog, Q, jreport, effort = read_joint_states(path, jt, iter(sal.messages.get(jt, [])), joints)
+        warnings += sal.warnings
+        data_lost = sal.warnings
     if not side:
         raise RobocalError(f"{at(path, mt)}: no messages")
     tj, jsrc = _times(js, jlog, spec.time == "header")
     ms, P, O, frame = read_measurements(path, mt, topics[mt], [d for _, d in side])
     tm, msrc = _times(ms, [t for t, _ in side], spec.time == "header")
-    warnings = []
     if jsrc != msrc:
         warnings.append(f"{path}: joint states timed by {jsrc}, measurements by {msrc} (a topic without "
                         "header stamps): the pairing assumes one clock")
@@ -327,6 +349,8 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         extras["n_targets"] = 1
     if warnings:
         extras["import_warnings"] = warnings
+    if data_lost:
+        extras["data_lost"] = data_lost
     if effort is not None:  # the joint states with their efforts, as the recording's encoder stream
         table["stream"] = {"t_ns": tj, "q": Q, "effort": effort}
     return table, extras

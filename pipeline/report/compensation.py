@@ -8,6 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.report.markup import section as _section
+from pipeline.report.markup import table as _table
+
 FILE = Path("compensation") / "compensation.json"
 SHOWN_ROWS = 200
 
@@ -19,8 +22,6 @@ def load(run_dir: Path) -> dict | None:
 
 def section(run_dir: Path) -> str | None:
     """HTML of the section, or None when no program was compensated."""
-    from pipeline.report.html import _section, _table
-
     doc = load(run_dir)
     if doc is None:
         return None

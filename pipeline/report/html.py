@@ -12,10 +12,14 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.report import compensation
 from pipeline.report import diagnosis as dg
 from pipeline.report import figures as fg
 from pipeline.report import plots
 from pipeline.report.labels import joints_unit_phrase
+from pipeline.report.markup import figure as _figure
+from pipeline.report.markup import section as _section
+from pipeline.report.markup import table as _table
 
 CSS = """
 :root { --ink:#1d2330; --muted:#5b6475; --line:#dde1e8; --bg:#f6f7f9; --ok:#2e7d32; --warn:#b26a00; --fail:#c62828; }
@@ -67,24 +71,6 @@ def _sig(v: float | None, digits: int = 5) -> str:
     if v == 0 or 1e-3 <= abs(v) < 1e6:
         return f"{v:.4f}"
     return f"{v:.{digits}g}"
-
-
-def _table(head: list[str], rows: list[list[str]], numeric: set[int] = frozenset(), row_class=None) -> str:
-    th = "".join(f"<th>{escape(h)}</th>" for h in head)
-    body = []
-    for i, r in enumerate(rows):
-        cls = f' class="{row_class(i)}"' if row_class and row_class(i) else ""
-        tds = "".join(f'<td class="n">{c}</td>' if j in numeric else f"<td>{c}</td>" for j, c in enumerate(r))
-        body.append(f"<tr{cls}>{tds}</tr>")
-    return f"<table><thead><tr>{th}</tr></thead><tbody>{''.join(body)}</tbody></table>"
-
-
-def _figure(svg: str, caption: str, fig_id: str) -> str:
-    return f'<figure id="{fig_id}" class="plot">{svg}<figcaption>{escape(caption)}</figcaption></figure>'
-
-
-def _section(sid: str, title: str, body: str) -> str:
-    return f'<section id="{sid}"><h2>{escape(title)}</h2>{body}</section>'
 
 
 def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
@@ -326,7 +312,6 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
                        ("diagnosis", lambda: diagnosis_section(art))):
         sections.append(make())
         tick(f"{name} section")
-    from pipeline.report import compensation  # shown when `robocal compensate` ran on this run
     comp = compensation.section(art.run_dir)
     sections += [comp or "", provenance_section(prov, rrd_name)]
     titles = [("summary", "Summary")] + ([("accuracy", "Accuracy")] if acc_html else []) + [

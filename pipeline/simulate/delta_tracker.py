@@ -271,7 +271,7 @@ def _via_timeline(waypoints: np.ndarray, measure: np.ndarray, c: Campaign, warmu
 def simulate_effects(delta: Delta, truth: Truth, campaign: Campaign = Campaign(), noise: Noise = Noise(),
                      effects: tuple = (), variations: Variations = Variations()) -> SimResult:
     """A campaign with concealed effects in the TRUE robot/tracker (sign conventions of
-    `pipeline.diagnose.delta`) and campaign variations.  Several effects may be combined."""
+    `pipeline.diagnose.adapters.delta`) and campaign variations.  Several effects may be combined."""
     from dataclasses import replace
 
     from pipeline.ingest.context import last_motion_sign

@@ -2,7 +2,7 @@
 
 Same controller as `pipeline.simulate.arc_welder` (nominal IK to an approach pose, search
 along the nominal face normal, contact decided by the true robot), but the true robot also
-has the effects of `pipeline.diagnose.effects` (compliance under gravity and payload,
+has the effects of `pipeline.diagnose.library.term` (compliance under gravity and payload,
 backlash, harmonics, scale, wrist coupling, thermal drift, trigger pretravel and latency, face
 offsets, and the out-of-library `bump`), and the campaign can vary what exposes them
 (payloads, search speeds, face order, a warm-up logged or not by a temperature sensor —
@@ -19,8 +19,11 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from pipeline.diagnose import effects as fx
-from pipeline.diagnose.table import add_context, last_motion_sign
+from pipeline.diagnose.library.gravity import gravity_torque
+from pipeline.diagnose.library.term import joint_offsets
+from pipeline.diagnose.library.thermal import thermal_drift_effect
+from pipeline.diagnose.library.touch import effect_by_name
+from pipeline.diagnose.adapters.touch_table import add_context, last_motion_sign
 from pipeline.identify.identifiability import analyse
 from pipeline.models import ik, serial_arm
 from pipeline.models.jig import Jig
@@ -140,7 +143,7 @@ def compliance_design(nominal: SerialArm, t: Targets, payloads_kg: tuple[float, 
     Jg = Jg[:, analyse(Jg, model.parameter_names(), priority=model.priority()).free]
     _, Jq = serial_arm.joint_jacobian(xn, q)
     jq = Jq[np.arange(q.shape[0]), t.axis]  # (N, n_joints) m/rad along the measured axis
-    C = np.stack([jq * fx.gravity_torque(nominal, xn, q, p) for p in payloads_kg], axis=1)  # (N, P, n_joints)
+    C = np.stack([jq * gravity_torque(nominal, xn, q, p) for p in payloads_kg], axis=1)  # (N, P, n_joints)
     loaded = np.sqrt(np.einsum("npj,npj->j", C, C))
     C = C[:, :, loaded > 1e-6 * loaded.max()]  # joints gravity never loads (a vertical axis) carry nothing
     G = np.repeat(Jg[:, None, :], len(payloads_kg), axis=1)
@@ -207,7 +210,7 @@ def _resolve(injected, arm, jig):
     dummy = {"face": np.array([f.id for f in jig.faces])}
     out = []
     for e in injected:
-        eff = fx.effect_by_name(arm, dummy, e.name, e.location, jig.tolerance_m)
+        eff = effect_by_name(arm, dummy, e.name, e.location, jig.tolerance_m)
         if len(e.values) != eff.k:
             raise ValueError(f"effect {e.label}: {eff.k} value(s) expected ({', '.join(eff.parameters)})")
         out.append((eff, np.array(e.values, float)))
@@ -297,7 +300,7 @@ def run(nominal: SerialArm, truth: SerialArm, jig: Jig, targets: Targets, campai
            "last_motion_sign": last_motion_sign(t_ns, q_stream, t_c), **_thermal_context(variations, t_c, t_ns)}
 
     def extra_q(q):
-        return fx.joint_offsets(joint_eff, truth, xt, {**ctx, "joint_positions": q}) if joint_eff else 0.0
+        return joint_offsets(joint_eff, truth, xt, {**ctx, "joint_positions": q}) if joint_eff else 0.0
 
     extra_tip = np.zeros((n, 3))
     for e, th in tip_eff:
@@ -334,7 +337,7 @@ def _thermal_retarget(eff: list, variations: Variations) -> list:
     """With a warm-up, thermal_drift follows the true temperature rise (values in m/K)."""
     if _warm(variations) is None:
         return eff
-    as_temp = fx.thermal_drift_effect({"temperature_rise_K": np.zeros(1), "temperature_sensor": np.array(["true"])})
+    as_temp = thermal_drift_effect({"temperature_rise_K": np.zeros(1), "temperature_sensor": np.array(["true"])})
     return [(as_temp, th) if e.name == "thermal_drift" else (e, th) for e, th in eff]
 
 

@@ -42,7 +42,7 @@ def project(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, X: np.ndarray,
     p_c = np.einsum("nji,nj->ni", R_c, X - C)
     if fx is None or not (fx["k2"] or fx["p1"] or fx["p2"]):
         return cam.project(s, p_c), p_c[:, 2]
-    from pipeline.diagnose.scanner import lens_excess
+    from pipeline.diagnose.library.lens import lens_excess
 
     x, y, z = p_c[:, 0], p_c[:, 1], p_c[:, 2]
     u, v = s[cam.I_F] * y / z, s[cam.I_F] * x / z  # ideal sensor coordinates
@@ -56,7 +56,7 @@ def project(R_c: np.ndarray, C: np.ndarray, s: np.ndarray, X: np.ndarray,
 
 def stripe_normal(px: np.ndarray) -> np.ndarray:
     """Unit normal (2,) across the stripe through pixels px (M,2), +V side (V for one pixel)."""
-    from pipeline.diagnose.scanner import stripe_normal
+    from pipeline.diagnose.library.lens import stripe_normal
 
     return stripe_normal(px)
 

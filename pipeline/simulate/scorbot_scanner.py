@@ -112,7 +112,7 @@ class SimResult:
 
 
 # ----- concealed effects ---------------------------------------------------------------------
-EFFECTS = {  # name: (values, location kind) — conventions of `pipeline.diagnose.scanner`
+EFFECTS = {  # name: (values, location kind) — conventions of `pipeline.diagnose.adapters.scanner`
     "tangential_distortion": (2, "camera"), "radial_k2": (1, "camera"), "time_offset": (1, "camera"),
     "stripe_peak_bias": (1, "camera"), "joint_offset": (1, "joint"), "joint_scale": (1, "joint"),
     "bump": (1, "joint:centre"),  # out-of-library: a Gaussian bump (rad) in one joint's transmission, J<i>:centre
@@ -180,7 +180,7 @@ def simulate(arm_nominal: SerialArm, arm_truth: SerialArm, scanner_truth: np.nda
              planned: list[tuple[np.ndarray, np.ndarray, float]] | None = None) -> SimResult:
     """Run the campaign (module docstring).  Raises RuntimeError if the truth cannot see
     enough corners from reachable poses.  `effects` (`pipeline.simulate.effects.Injected`,
-    names of `EFFECTS`) are injected into the TRUE camera/arm (`pipeline.diagnose.scanner`).
+    names of `EFFECTS`) are injected into the TRUE camera/arm (`pipeline.diagnose.adapters.scanner`).
     `plan_cache` (a dict the caller keeps): the planned poses (the operator's IK, most of the
     time; the effects do not change them) memoised by the random generator's state before each
     plan — bit-identical results, several times faster when one campaign is re-simulated.

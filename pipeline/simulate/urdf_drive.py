@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.urdf_gravity import gravity_torques
+from pipeline.diagnose.library.urdf_gravity import gravity_torques
 
 
 def parse_compliance(text: str, joints: list[str]) -> np.ndarray:

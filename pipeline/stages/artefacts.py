@@ -20,6 +20,7 @@ import pyarrow.parquet as pq
 from pipeline.recording.writer import jsonable
 
 VECTORS_KEY = b"robocal.vectors"
+STAGE_FILE = "stage.json"  # DIR/<stage>/stage.json: the stage's record (key, inputs, outputs, summary)
 
 
 def _jsonable(o: Any) -> Any:
@@ -112,3 +113,14 @@ def write_table(path: Path, table: Mapping[str, np.ndarray] | pa.Table) -> None:
 
 def read_table(path: Path) -> dict[str, np.ndarray]:
     return from_arrow(pq.read_table(path))
+
+
+def read_stage(run_dir: Path, name: str) -> dict | None:
+    """The record DIR/<name>/stage.json of a stage that ran, or None (absent or unreadable)."""
+    p = Path(run_dir) / name / STAGE_FILE
+    if not p.is_file():
+        return None
+    try:
+        return read_json(p)
+    except (ValueError, RecursionError):  # not JSON, or nested past the recursion limit
+        return None

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from pipeline import __version__
+from pipeline.stages.artefacts import read_stage
 from pipeline.stages.registry import STAGES
 
 HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
@@ -22,7 +23,6 @@ def _consistent(run_dir: Path, docs: dict[str, dict], doc: dict) -> bool:
 
 
 def gather(run_dir: Path) -> dict:
-    from pipeline.stages.runner import read_stage
 
     docs: dict[str, dict] = {}
     for s in STAGES:

@@ -24,12 +24,10 @@ from typing import Any, Callable
 
 from pipeline import __version__
 from pipeline.errors import RobocalError
-from pipeline.stages.artefacts import dumps, read_json, sha256_file, write_json
+from pipeline.stages.artefacts import STAGE_FILE, dumps, read_stage, sha256_file, write_json
 from pipeline.stages.registry import BY_NAME, STAGES, Stage
-from pipeline.stages.runfolder import STAGE_MARKER, claim, fresh_stage_dir, locked
-
-STAGE_FILE = "stage.json"
-
+from pipeline.stages.results import gather
+from pipeline.stages.runfolder import STAGE_MARKER, claim, fresh_stage_dir, locked, record_manifest
 
 class StageFailed(RobocalError):
     """A stage reported `status: fail` (e.g. a validation check); the run stops."""
@@ -82,16 +80,6 @@ def load_module(stage: Stage) -> ModuleType | None:
 
 def available_stages() -> list[Stage]:
     return [s for s in STAGES if not s.optional or is_available(s)]
-
-
-def read_stage(run_dir: Path, name: str) -> dict | None:
-    p = Path(run_dir) / name / STAGE_FILE
-    if not p.is_file():
-        return None
-    try:
-        return read_json(p)
-    except ValueError:
-        return None
 
 
 def _outputs(run_dir: Path, name: str, summary: dict) -> dict[str, str]:
@@ -183,6 +171,7 @@ def _run_stage(run_dir: Path, name: str, params: dict | None, recording: Path | 
         except BaseException as e:  # the run's results must not look like a pass after a crash
             why = str(e) if isinstance(e, RobocalError) else f"{type(e).__name__}: {e}"
             try:
+                record_manifest(run_dir / name)
                 write_results(run_dir, error=f"stage {name} stopped: {why}")
             except OSError:
                 pass
@@ -193,6 +182,7 @@ def _run_stage(run_dir: Path, name: str, params: dict | None, recording: Path | 
                "inputs": inputs, "elapsed_s": elapsed, "robocal_version": __version__,
                "summary": summary, "outputs": _outputs(run_dir, name, summary)}
         (run_dir / name / STAGE_FILE).write_text(dumps(doc))
+        record_manifest(run_dir / name)
         out = Outcome(name, False, elapsed, key, summary)
     if log:
         log(f"{name}: " + ("cached" if out.cached else f"ran in {out.elapsed_s:.2f} s") + f" (key {key[:12]})")
@@ -226,7 +216,6 @@ def run_pipeline(recording: Path, run_dir: Path, params: dict[str, dict] | None 
 def write_results(run_dir: Path, error: str | None = None) -> dict:
     """DIR/results.json: the summaries of every stage run so far, plus the headline figures;
     `error` (a stage that stopped) makes the status `fail` with that reason."""
-    from pipeline.stages.results import gather
 
     doc = gather(run_dir)
     if error is not None:

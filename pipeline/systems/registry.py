@@ -1,7 +1,7 @@
 """Which system a recording belongs to, and the module that models it.
 
-A system module offers ``SYSTEM`` (its name), ``MEASUREMENT_CHANNEL`` and
-``load(rec) -> (MeasurementModel, table)``.
+The systems are those declared in `pipeline.systems.catalog`; each one's loader module offers
+``SYSTEM`` (its name), ``MEASUREMENT_CHANNEL`` and ``load(rec) -> (MeasurementModel, table)``.
 """
 
 from __future__ import annotations
@@ -11,23 +11,17 @@ from types import ModuleType
 from pipeline.errors import RobocalError
 from pipeline.recording.reader import Recording
 from pipeline.recording.schemas import META_CAMPAIGN
-import importlib
-import pkgutil
+from pipeline.systems.catalog import CATALOG
+from pipeline.systems.system import System
 
-import pipeline.systems as _pkg
-
-
-def _discover() -> dict[str, ModuleType]:
-    """Every module of `pipeline.systems` that defines SYSTEM is a system."""
-    found: dict[str, ModuleType] = {}
-    for m in sorted(pkgutil.iter_modules(_pkg.__path__), key=lambda m: m.name):
-        mod = importlib.import_module(f"pipeline.systems.{m.name}")
-        if hasattr(mod, "SYSTEM") and hasattr(mod, "load"):
-            found[mod.SYSTEM] = mod
-    return found
+SYSTEMS: dict[str, ModuleType] = {name: s.part("loader") for name, s in CATALOG.items()}
 
 
-SYSTEMS: dict[str, ModuleType] = _discover()
+def declaration(name: str) -> System:
+    """The declaration of system `name`; an unknown name is a one-line error listing the known ones."""
+    if name not in CATALOG:
+        raise RobocalError(f"unknown system {name!r} (known: {', '.join(sorted(CATALOG))})")
+    return CATALOG[name]
 
 
 def detect(rec: Recording) -> ModuleType:

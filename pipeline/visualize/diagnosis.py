@@ -1,7 +1,7 @@
 """The diagnosis's visual proof in rerun (rerun-sdk 0.41): every plot of diagnosis.json.
 
 `log_diagnosis(rec, run_dir_or_doc)` logs each plot found in the document (the layout of
-`pipeline.diagnose.visual`, discovered by `pipeline.report.diagnosis.find_plots`: added-variable
+`pipeline.diagnose.document.plots`, discovered by `pipeline.report.diagnosis.find_plots`: added-variable
 plots of each finding and each `unexplained_where` entry, the measured vs re-simulated
 residuals) as scatter series:
 

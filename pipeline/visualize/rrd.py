@@ -197,14 +197,14 @@ def log_arm(rec: rr.RecordingStream, arm, x_after: np.ndarray, table: dict,
 
 def call_system_hook(rec: rr.RecordingStream, system: str, model, table: dict, x_before: np.ndarray,
                      x_after: np.ndarray, art: RunArtefacts) -> str | None:
-    """Call `pipeline.visualize.<system>.log_system` if that module exists; returns its name."""
-    name = f"pipeline.visualize.{system.replace('-', '_')}"
-    try:
-        mod = importlib.import_module(name)
-    except ModuleNotFoundError as e:
-        if e.name == name:
-            return None
-        raise
+    """Call `log_system` of the visualizer part of `system`'s declaration (`pipeline.systems.catalog`)
+    if it has one; returns the visualizer's name."""
+    from pipeline.systems.catalog import CATALOG
+
+    name = CATALOG[system].visualizer if system in CATALOG else None
+    if name is None:
+        return None
+    mod = importlib.import_module(name)
     hook = getattr(mod, "log_system", None)
     if hook is None:
         return None

@@ -1,0 +1,71 @@
+"""The options of a ROS 2 bag import (topics, standstill pairing, pose σ) shared by `robocal import
+ros2` and `robocal run BAG`, and how the command line tells what an import read and wrote.
+Registers no command."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from pipeline.cli import err
+from pipeline.importers import standstill
+
+RUN_PANEL = "Import (when REC is a ROS 2 bag or needs --urdf)"
+
+
+def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
+    """The bag options by parameter name, shown under help panel `panel` (None: the command's own)."""
+    kw = {"rich_help_panel": panel}
+    return {
+        "joint_topic": typer.Option("/joint_states", "--joint-topic", help="sensor_msgs/msg/JointState topic.", **kw),
+        "measure_topic": typer.Option(None, "--measure-topic", help="geometry_msgs/msg/PointStamped or PoseStamped "
+                                      "topic (default: the bag's only one).", **kw),
+        "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type).", **kw),
+        "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window", min=1e-6,
+                                 help="Standstill window around each measurement, s.", **kw),
+        "max_speed": typer.Option(standstill.DEFAULT_MAX_SPEED, "--still-speed", min=1e-12,
+                                  help="Largest joint speed (peak-to-peak over the window / window) still counted as "
+                                       "standing still, rad/s (m/s for prismatic joints).", **kw),
+        "time": typer.Option("header", "--time", help="Times from header (header.stamp; receive time for a topic "
+                             "without stamps) or log (the bag's receive times).", **kw),
+        "sigma_m": typer.Option(1e-3, "--sigma-m", help="Pose: position uncertainty, m.", **kw),
+        "sigma_rad": typer.Option(1e-3, "--sigma-rad", help="Pose: orientation uncertainty, rad.", **kw),
+    }
+
+
+def print_read(bag: Path, extras: dict) -> None:
+    """What the import read: its warnings, the topics and the standstill pairing, every excluded record."""
+    for w in extras.get("import_warnings", []):
+        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+    r = extras["ros2"]
+    p = r["pairing"]
+    js = r["joint_states"]
+    if js.get("efforts_dropped"):
+        err.print(f"[yellow]warning:[/] {js['efforts_dropped']}", highlight=False, soft_wrap=True)
+    skipped = f", {js['n_skipped_other_joints']} naming only other joints skipped" if js["n_skipped_other_joints"] else ""
+    err.print(f"{bag}: {js['n_used']} joint states on {r['joint_topic']} "
+              f"(ignored joints: {', '.join(js['ignored_joints']) or 'none'}{skipped}), "
+              f"{p['n_measurements']} measurements on {r['measure_topic']} in frame {r['frame_id']!r}", highlight=False,
+              soft_wrap=True)
+    err.print(f"standstill pairing (window {p['window_s']:g} s, max speed {p['max_speed_rad_s_or_m_s']:g} rad/s): "
+              f"{p['n_paired']} paired, {p['n_moving']} taken while moving, {p['n_not_covered']} outside the joint "
+              "states — excluded", highlight=False, soft_wrap=True)
+    for e in p["moving"]:
+        err.print(f"[yellow]excluded:[/] {r['measure_topic']} record {e['index']} at {e['t_s']:.3f} s: moving "
+                  f"({e['joint']} {e['speed']:.3g} rad/s over the window)", highlight=False, soft_wrap=True)
+    for e in p["not_covered"]:
+        err.print(f"[yellow]excluded:[/] {r['measure_topic']} record {e['index']} at {e['t_s']:.3f} s: no joint "
+                  "states around it", highlight=False, soft_wrap=True)
+    listed = len(p["moving"]) + len(p["not_covered"])
+    if listed < p["n_moving"] + p["n_not_covered"]:
+        err.print(f"… and {p['n_moving'] + p['n_not_covered'] - listed} more excluded (all counted in the "
+                  "recording's campaign metadata)", highlight=False)
+
+
+def print_written(done) -> None:
+    """What the import wrote (a `pipeline.importers.bag_import.BagImport`)."""
+    if done.n_stream is not None:
+        err.print(f"kept the efforts of {done.n_stream} joint states in the encoder stream", highlight=False)
+    err.print(f"imported {done.n} {done.kind} measurements of {done.n_joints} joints ({done.root} → {done.tip}) "
+              f"into {done.out}", highlight=False, soft_wrap=True)

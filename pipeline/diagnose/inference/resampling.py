@@ -1,0 +1,57 @@
+"""Resampling of a diagnosis: grouped cross-validation on time blocks (`time_blocks`, `holdout`, `rms`)
+and the bootstrap selection frequency (`bootstrap_frequency`).  Both use the model linearised at the
+full-data solution, exact to first order and a few small least squares each; residuals in m,
+flattened measurement-major."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.diagnose.inference.projection import orthonormal, project_out
+from pipeline.diagnose.inference.stepwise import forward_select
+
+
+def time_blocks(t: np.ndarray, size: int = 5) -> np.ndarray:
+    """Group label of each measurement: consecutive blocks of `size` in time order."""
+    order = np.argsort(np.asarray(t), kind="stable")
+    g = np.empty(order.size, int)
+    g[order] = np.arange(order.size) // size
+    return g
+
+
+def holdout(A: np.ndarray, r: np.ndarray, folds: list[np.ndarray]) -> np.ndarray:
+    """Held-out residuals (n,) of the linearised model r + A·δ: each fold predicted from the others."""
+    out = np.full(r.size, np.nan)
+    norms = np.linalg.norm(A, axis=0)
+    norms[norms == 0] = 1
+    As = A / norms
+    for test in folds:
+        train = np.setdiff1d(np.arange(r.size), test)
+        d, *_ = np.linalg.lstsq(As[train], -r[train], rcond=1e-10)
+        out[test] = r[test] + As[test] @ d
+    return out
+
+
+def rms(v: np.ndarray) -> float:
+    return float(np.sqrt(np.nanmean(np.asarray(v) ** 2)))
+
+
+def bootstrap_frequency(J: np.ndarray, r: np.ndarray, S: list[np.ndarray], tolerances: list[float],
+                        groups: np.ndarray, alpha: float, n_boot: int = 40, seed: int = 0) -> np.ndarray:
+    """How often each candidate is selected when the campaign's groups are resampled (n_cand,):
+    per resample the same stepwise selection as the diagnosis (`stepwise.forward_select`: greedy
+    pass, backward elimination, pair additions) on the resampled, re-projected problem."""
+    rng = np.random.default_rng(seed)
+    uniq = np.unique(groups)
+    members = [np.flatnonzero(groups == u) for u in uniq]
+    count = np.zeros(len(S))
+    p_geo = orthonormal(J).shape[1]
+    for _ in range(n_boot):
+        pick = rng.integers(0, uniq.size, uniq.size)
+        idx = np.concatenate([members[i] for i in pick])
+        Q = orthonormal(J[idx])
+        rb = project_out(r[idx][:, None], Q)[:, 0]
+        Sb = [project_out(s[idx], Q) for s in S]
+        for st in forward_select(rb, Sb, idx.size - p_geo, alpha, tolerances):
+            count[st.index] += 1
+    return count / max(n_boot, 1)

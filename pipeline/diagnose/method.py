@@ -1,0 +1,155 @@
+"""The diagnosis, a pure function of (measurement model, diagnosis table): the document of
+`DIR/diagnosis.json` (see docs/guide/diagnose.md).
+
+1. fit the geometry (nonlinear least squares, `identify.fit`);
+2. build every library candidate's signature at the solution; gate: projected signature,
+   minimum detectable size vs plausible size, confounding → `not_identifiable` with advice;
+3. forward selection by grouped F with Holm's correction (family α);
+4. joint nonlinear refit of geometry + accepted effects (parameters with 1σ);
+5. evidence: grouped cross-validation on time blocks (same folds before/after), ΔBIC,
+   bootstrap selection frequency;
+6. lack-of-fit of the final residuals against smooth functions of each joint angle, time,
+   approach speed (and, for touch campaigns, `adapters.touch_variables`) → `unexplained` and where;
+7. the verdict (`verdict.arbiter`, `verdict.checks`): the held-out arbiter, findings carried by one or
+   two records (`verdict.outliers` runs the diagnosis again without them), misspecification along
+   each finding's own variable, twins, back to the declared noise floor → `status`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.blas import one_thread
+from pipeline.diagnose.adapters.adapter import Adapter
+from pipeline.diagnose.adapters.touch import touch_adapter
+from pipeline.diagnose.document.assemble import add_plots, assemble, clustered_summary
+from pipeline.diagnose.inference import forms, refit, resampling, screen
+from pipeline.diagnose.inference.stepwise import look_alikes
+from pipeline.diagnose.library.term import Effect
+from pipeline.diagnose.library.touch_probe import tip_speed_vector
+from pipeline.diagnose.verdict import arbiter, grading, outliers
+from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Diagnosis settings: family α of the selection and of the lack-of-fit test, folds, group
+    size (consecutive measurements per cross-validation group), bootstrap resamples."""
+
+    alpha: float = 0.01
+    folds: int = 5
+    block: int = 5
+    n_boot: int = 40
+    seed: int = 0
+    max_terms: int = 8
+    sign_flips: int = 9999  # with clusters: draws of the findings' cluster-robust check (0: off)
+    # the robot's declared repeatability (3σ, m; ISO 9283 datasheet figure): the noise floor the
+    # residuals are compared with (None: not declared, the back-to-the-floor check is not made)
+    repeatability_3sigma_m: float | None = None
+
+
+def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | None = None,
+             settings: Settings = Settings(), library: list[Effect] | None = None,
+             geometry_fit: Fit | None = None, adapter: Adapter | None = None) -> dict:
+    """Diagnose a campaign (module docstring).  `model` is a measurement model; `table` a
+    diagnosis table.  Without `adapter`, `model` is an arc-welder TouchModel and the table a
+    touch diagnosis table (`pipeline.diagnose.adapters.touch_table`).  Vector residuals (residual_dim k > 1)
+    are flattened measurement-major; cross-validation and bootstrap keep a measurement's k
+    rows together.  Runs with one BLAS thread (`pipeline.blas`: small matrices)."""
+    with one_thread():
+        if adapter is not None:
+            return _diagnose(model, table, jig_tolerance_m=jig_tolerance_m, x0=x0, settings=settings,
+                             library=library, geometry_fit=geometry_fit, adapter=adapter)
+
+        def run(tab, gf, x_start):
+            return _diagnose(model, tab, jig_tolerance_m=jig_tolerance_m, x0=x_start, settings=settings,
+                             library=library, geometry_fit=gf, adapter=None, influence=True)
+
+        speed = ((lambda x, t: np.linalg.norm(tip_speed_vector(x, t), axis=1))
+                 if "approach_joint_velocity" in table else None)
+        return outliers.screened(run, model, table, x0=x0, geometry_fit=geometry_fit, alpha=settings.alpha,
+                                 speed=speed)
+
+
+def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, settings: Settings,
+              library: list[Effect] | None, geometry_fit: Fit | None, adapter: Adapter | None,
+              influence: bool = False) -> dict:
+    s = settings
+    ad = adapter or touch_adapter(model, table, jig_tolerance_m, library, s.repeatability_3sigma_m)
+    # 1. the geometry, 2. every candidate's signature at its solution and the noise the tests assume
+    f = _geometry(model, table, ad, x0, geometry_fit)
+    p = screen.problem(model, table, f, ad)
+    nz = screen.noise_model(ad, f.x, p)
+    # 3. gate and selection (iterated with the noise model), each finding's form by held-out error
+    sel = screen.select(p, nz, s)
+    groups = np.repeat(resampling.time_blocks(ad.time_s, s.block), p.k)
+    folds = kfold_indices(p.n * p.k, s.folds, s.seed, groups)
+    form_cv = _choose_forms(p, nz, sel, folds)
+    # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
+    alikes = (look_alikes(sel.r_w, sel.Sp, p.dof, [sel.testable.index(i) for i in sel.accepted], sel.tols)
+              if sel.accepted else {})
+    # 4. joint refit, 5. evidence per finding (ablation CV, ΔBIC, bootstrap)
+    before_cv = resampling.holdout(p.Jf, p.r, folds)
+    rf = refit.joint_refit(model, table, f, ad, adapter, p.lib, sel.accepted, p.Jf, p.r, p.dof, nz.cl, nz.nm, nz.src)
+    after_cv = resampling.holdout(rf.A, rf.r_final, folds)
+    boot = (resampling.bootstrap_frequency(sel.Jf_w, sel.r_w, sel.Sp, sel.tols, groups, s.alpha, s.n_boot, s.seed)
+            if sel.accepted and s.n_boot else np.zeros(len(sel.testable)))
+    ng = len(f.names)
+    findings, contributions, col_of = refit.finding_records(
+        rf, table, ad, p.lib, sel.accepted, sel.steps, ng, p.k, folds, after_cv, sel.gates, sel.testable, alikes,
+        sel.robust_p, boot)
+    for fd, i in zip(findings, sel.accepted):
+        if i in form_cv:
+            fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
+    # 6. the held-out arbiter and the records that carry a finding (`verdict.arbiter`); pose-clustered
+    # campaigns: the unweighted CV ignores the shared pose errors, so there the findings rest on the
+    # pose sign-flip check instead and a finding without CV improvement is graded `low`
+    fin = arbiter.Final(findings, sel.accepted, contributions, col_of, rf.A, rf.r_final, after_cv)
+    W = nz.W
+    fin, rejected, worse, all_cv = (arbiter.arbiter(fin, folds, p.Jf, p.r, before_cv) if W is None
+                                    else (fin, [], False, resampling.rms(after_cv)))
+    carried = arbiter.carried(fin, p.k, s.alpha) if influence and W is None else {}
+    # lack of fit, the confidence of each name, back to the floor (`verdict.grading`)
+    nk = p.n * p.k
+    variables, lof, where = grading.locate(ad, rf.z[:ng], fin.r_final, fin.A, W, nk, s.alpha, s.seed, nz.src, nz.nm,
+                                           nz.cl, nz.M)
+    effects = [p.lib[i] for i in fin.accepted]
+    misfit = grading.grade(fin.findings, effects, fin.contributions, [fin.col_of[i] for i in fin.accepted], fin.A,
+                           fin.r_final, variables, where, sel.gates, W, s.alpha)
+    floor, st_name, st_reason = grading.floor_and_status(ad, rf.z[:ng], fin.r_final, fin.A, fin.after_cv, folds,
+                                                         fin.findings, where, worse, misfit, s.alpha)
+    # 7. visual proof (added-variable plots, the re-simulated campaign: pure arrays) and the document
+    resim = add_plots(ad, fin.findings, effects, fin.contributions, where, variables, p.r, fin.r_final, fin.A, p.Jf,
+                      p.n, p.k)
+    return assemble(
+        system=model.system, n=p.n, k=p.k, sigma=p.sigma, sigma_after=rf.sigma_after, s=s,
+        clustered=None if W is None else clustered_summary(W, nz.nm, s, ad, p.lib, sel.dropped),
+        status=(st_name, st_reason), floor=floor, findings=fin.findings, rejected=rejected,
+        carried=carried if influence else None, gates=sel.gates, where=where, lof=lof, before_cv=before_cv,
+        after_cv=fin.after_cv, all_cv=all_cv, names=f.names, z=rf.z, free=f.free, resim=resim)
+
+
+def _geometry(model, table, ad: Adapter, x0: np.ndarray | None, geometry_fit: Fit | None) -> Fit:
+    """Step 1: the geometric fit, unless given.  The weak gauges the adapter holds stay at the model's
+    nominal (`Adapter.held`): freed because a term lowers the cost, they would absorb that term
+    before it is tested."""
+    if geometry_fit is None and ad.held:
+        names0 = list(model.parameter_names())
+        idx = [names0.index(h) for h in ad.held]
+        x0 = np.array(model.initial_guess(table) if x0 is None else x0, float)
+        x0[idx] = model.nominal()[idx]
+        geometry_fit = fit(model, table, FitOptions(x0=x0, fixed=tuple(ad.held)))
+    return geometry_fit or fit(model, table, FitOptions(x0=x0))
+
+
+def _choose_forms(p: screen.Problem, nz: screen.Noise, sel: screen.Selection, folds: list) -> dict:
+    """Each finding's functional form among its family's forms: the held-out error decides
+    (`inference.forms`; independent errors only).  Returns {library index: forms tried}."""
+    if nz.W is not None or not sel.accepted:
+        return {}
+    chosen, form_cv = forms.choose(p.lib, sel.accepted, sel.testable, p.S, p.Jf, p.r, folds)
+    if chosen != sel.accepted:
+        sel.restrict(p, chosen)
+    return form_cv

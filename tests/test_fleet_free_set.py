@@ -1,6 +1,6 @@
-"""A changed set of identified parameters between two calibrations is news, not a step: the pair is
-not tested for steps, the change is listed (history, page, fleet.json); `--tolerance` takes SI metres
-or a unit, as `run --tolerance` does."""
+"""A changed set of identified parameters between two calibrations is news: listed on its own (history,
+page, fleet.json), and a step found across it carries the change; `--tolerance` takes SI metres or a
+unit, as `run --tolerance` does."""
 
 from __future__ import annotations
 
@@ -26,17 +26,19 @@ def _row(i: int, x: float, names: tuple[str, ...], std: float = 1e-5) -> dict:
             "holdout_rms_m": 1e-4}
 
 
-def test_a_jump_across_a_changed_free_set_is_not_a_step():
+def test_a_changed_free_set_is_listed_and_marks_a_step_across_it():
     rows = [_row(i, 0.0, ("a", "b", "c")) for i in range(4)]
     rows += [_row(4, 5e-4, ("a", "b"))] + [_row(i, 5e-4, ("a", "b")) for i in range(5, 8)]
     (h,) = fleet_history(rows)
-    assert h.steps == []  # 50σ jump of "a", but "c" stopped being fitted at the same calibration
     (c,) = h.free_set_changes
     assert c["recording"] == "m04.mcap" and c["held"] == ["c"] and c["freed"] == []
+    (s,) = h.steps  # 50σ jump of "a" where "c" stopped being fitted: reported, with the change
+    assert s["recording"] == "m04.mcap" and s["free_set_change"] == {"freed": [], "held": ["c"]}
     # the same jump with an unchanged set is a step
     rows2 = [_row(i, 0.0 if i < 4 else 5e-4, ("a", "b")) for i in range(8)]
     (h2,) = fleet_history(rows2)
     assert [(s["param"], s["recording"]) for s in h2.steps] == [("a", "m04.mcap")] and h2.free_set_changes == []
+    assert "free_set_change" not in h2.steps[0]
     assert free_set_changes(rows2) == []
 
 
@@ -59,7 +61,8 @@ def test_fleet_cli_lists_the_change_and_reads_tolerance_with_units(tmp_path):
     p = run_cli("fleet", path, "--out", out, "--tolerance", "0.25mm")
     assert p.returncode == 0, p.stderr
     doc = json.loads(out.with_suffix(".json").read_text())["robots"]["r1"]
-    assert doc["steps"] == [] and doc["free_set_changes"][0]["held"] == ["c"]
+    assert doc["free_set_changes"][0]["held"] == ["c"]
+    assert [st["free_set_change"]["held"] for st in doc["steps"]] == [["c"]]  # the step m02 → m03 carries it
     assert [t["recording"] for t in doc["tolerance"]] == ["m05.mcap"]  # 0.3 mm > 0.25 mm
     assert "Identified parameters changed" in out.read_text() and "identified set changed" in p.stderr
     p2 = run_cli("fleet", path, "--out", tmp_path / "f2.html", "--tolerance", "2.5e-4")  # SI metres

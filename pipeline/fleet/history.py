@@ -10,9 +10,11 @@ steps of that parameter; the slope's standard error scaled by the Birge ratio �
 flagged when |slope/se| exceeds the t quantile at α/(2P) (P parameters tested for the robot).
 
 A change of the identified set (a parameter fitted in one calibration and held in the next, or the
-reverse) changes what every estimate means — the others absorb what the held one no longer
-explains — so the comparisons across it are not tested for steps; the change itself is reported
-(`free_set_changes`: news, not a step).
+reverse) is reported on its own (`free_set_changes`: news about the campaign, not about the robot),
+and a step found across such a change carries it (`free_set_change`): the others may have absorbed
+what a held parameter no longer explains, so the reader weighs that step knowing it.  (Steps are not
+suppressed there: in a simulated fleet the rank test swaps dependent pairs such as J2.d / J3.d from
+one month to the next, and a real step coincides with such a swap.)
 """
 
 from __future__ import annotations
@@ -124,9 +126,10 @@ def free_set_changes(rows: list[dict]) -> list[dict]:
 
 
 def find_steps(series: dict[str, Series], alpha: float = 0.01,
-               changed: frozenset[tuple[str, str]] = frozenset()) -> list[dict]:
-    """Moves between consecutive calibrations beyond the threshold (module docstring); pairs of
-    recordings in `changed` (the identified set differs between them) are not compared."""
+               changed: dict[tuple[str, str], dict] | None = None) -> list[dict]:
+    """Moves between consecutive calibrations beyond the threshold (module docstring); a step
+    between a pair of recordings in `changed` (the identified set differs) carries that change."""
+    changed = changed or {}
     m = sum(max(0, s.estimate.size - 1) for s in series.values())
     if m == 0:
         return []
@@ -142,11 +145,13 @@ def find_steps(series: dict[str, Series], alpha: float = 0.01,
                                         stats.norm.isf(p)))
         z = d / sd
         for k in np.flatnonzero(np.abs(z) > crit):
+            extra = {}
             if (s.recordings[k], s.recordings[k + 1]) in changed:
-                continue
+                c = changed[(s.recordings[k], s.recordings[k + 1])]
+                extra = {"free_set_change": {"freed": c["freed"], "held": c["held"]}}
             steps.append({"param": s.name, "unit": s.unit, "index": int(k + 1), "t_ns": int(s.t_ns[k + 1]),
                           "from_t_ns": int(s.t_ns[k]), "recording": s.recordings[k + 1], "delta": float(d[k]),
-                          "sigma": float(sd[k]), "z": float(z[k]), "threshold": float(crit[k])})
+                          "sigma": float(sd[k]), "z": float(z[k]), "threshold": float(crit[k]), **extra})
     return steps
 
 
@@ -207,7 +212,7 @@ def robot_history(robot_id: str, rows: list[dict], tolerance_m: float | None, al
             h.usable.append(r)
     h.series = build_series(h.usable)
     h.free_set_changes = free_set_changes(h.usable)
-    changed = frozenset((c["from_recording"], c["recording"]) for c in h.free_set_changes)
+    changed = {(c["from_recording"], c["recording"]): c for c in h.free_set_changes}
     h.steps = find_steps(h.series, alpha, changed)
     h.trends = find_trends(h.series, h.steps, alpha)
     if tolerance_m is not None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import typer
 
@@ -42,7 +43,10 @@ def import_csv(
     files: list[Path] = typer.Argument(..., help="CSV file(s); rows of several files are concatenated."),
     urdf: Path = typer.Option(..., "--urdf", help="Robot description (URDF); meshes are not needed."),
     root: str = typer.Option(..., "--root", help="Root link of the calibrated chain."),
-    tip: str = typer.Option(..., "--tip", help="Tip link of the calibrated chain."),
+    tip: list[str] = typer.Option(..., "--tip", help="Tip link of the calibrated chain; a robot measured at several "
+                                  "links: LINK=X,Y,Z (its position columns), repeatable (point)."),
+    coupled: list[str] = typer.Option([], "--coupled", help="A joint driven by others, not in the CSV: "
+                                      "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2 (repeatable)."),
     measure: str = typer.Option(..., "--measure", help="point | pose | plane | coincidence."),
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
     joint_units: str = typer.Option("rad", "--joint-units", help="Revolute joint columns in rad or deg."),
@@ -56,9 +60,14 @@ def import_csv(
     unknown_planes: bool = typer.Option(False, "--unknown-planes", help="Estimate the planes' tilt and offset."),
     group_from: str = typer.Option("file", "--group-from", help="Coincidence group of a row: file or parent/file."),
     distance: list[str] = typer.Option([], "--distance", help="Known distance between two groups: A:B:METRES."),
-    sigma_m: float = typer.Option(1e-3, "--sigma-m", help="Pose: position uncertainty, m."),
+    sigma_m: Optional[float] = typer.Option(None, "--sigma-m", help="The instrument's position uncertainty (1σ per "
+                                            "axis), m: residuals far above it fail the calibration naming the likely "
+                                            "cause (units, columns, chain); pose: also the weighting (default 1 mm)."),
     sigma_rad: float = typer.Option(1e-3, "--sigma-rad", help="Pose: orientation uncertainty, rad."),
     robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
+    instrument: str = typer.Option("", "--instrument", help="Instrument identity (tracker serial, mocap room) stored "
+                                                            "in the campaign: recordings sharing a registration "
+                                                            "must name the same (robocal evaluate)."),
 ) -> None:
     """Map CSV columns to the URDF's joints (by header name) and write a recording `robocal run` calibrates."""
     from pipeline.errors import RobocalError
@@ -70,11 +79,17 @@ def import_csv(
         raise RobocalError(f"--measure {measure!r}: expected point, pose, plane or coincidence")
     if joint_units not in ("rad", "deg") or length_units not in ("m", "mm"):
         raise RobocalError("--joint-units takes rad or deg, --length-units m or mm")
+    if sigma_m is not None and not (sigma_m > 0 and sigma_m < 1):
+        raise RobocalError(f"--sigma-m {sigma_m!r}: expected the instrument's 1σ in m, 0 < σ < 1")
     if measure == "pose" and not orientation:
         raise RobocalError("--measure pose needs --orientation-cols")
     if out.exists() and out.resolve() in {f.resolve() for f in files}:
         raise RobocalError(f"{out}: --out is one of the input files")
-    desc = urdf_mod.read(urdf, root, tip)
+    tips = _tips(tip, measure, target)
+    desc = urdf_mod.read(urdf, root, tip[0]) if tips is None and not coupled else _tree_desc(urdf, root, tips or
+                                                                                            [(tip[0], None)], coupled)
+    if tips:
+        position, target = ",".join(tips[0][1]), [",".join(c) for _, c in tips[1:]]
     planes = dict(parse_plane(p) for p in plane)
     for p in planes.values():
         p["known"] = not unknown_planes
@@ -84,8 +99,16 @@ def import_csv(
                    planes=planes)
     table, extras = read_table(files, desc, spec)
     campaign = {**extras, "source_files": [str(f) for f in files], "robot_id": robot_id or desc.name}
+    if instrument:
+        campaign["instrument"] = instrument
+    if coupled:
+        from pipeline.models.urdf_tree import parse_coupling
+
+        campaign["coupled"] = {c: {"terms": t, "offset": o} for c, t, o in map(parse_coupling, coupled)}
     if measure == "pose":
-        campaign |= {"sigma_m": sigma_m, "sigma_rad": sigma_rad}
+        campaign |= {"sigma_m": 1e-3 if sigma_m is None else sigma_m, "sigma_rad": sigma_rad}
+    elif sigma_m is not None:
+        campaign["sigma_m"] = sigma_m
     if distance:
         ds = []
         for d in distance:
@@ -97,6 +120,57 @@ def import_csv(
         campaign["distances"] = ds
     for w in extras.get("import_warnings", []):
         err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
-    n = write_urdf_recording(out, desc, measure, campaign, table)
+    n = write_urdf_recording(out, desc, measure, campaign, table, tips=[t for t, _ in tips] if tips else None)
     err.print(f"imported {n} {measure} measurements of {len(desc.joint_names)} joints "
-              f"({desc.root} → {desc.tip}) into {out}", highlight=False, soft_wrap=True)
+              f"({desc.root} → {', '.join(t for t, _ in tips) if tips else desc.tip}) into {out}",
+              highlight=False, soft_wrap=True)
+
+
+def _tips(items: list[str], measure: str, target: list[str]) -> list[tuple[str, tuple[str, ...]]] | None:
+    """None for one chain (`--tip LINK`); [(link, (x, y, z) columns), …] for `--tip LINK=X,Y,Z` repeated."""
+    from pipeline.errors import RobocalError
+
+    if len(items) == 1 and "=" not in items[0]:
+        return None
+    out = []
+    for it in items:
+        link, sep, cols = it.partition("=")
+        c = tuple(v.strip() for v in cols.split(","))
+        if not sep or not link.strip() or len(c) != 3 or not all(c):
+            raise RobocalError(f"--tip {it!r}: with several tips, each is LINK=X,Y,Z (its position columns)")
+        out.append((link.strip(), c))
+    if measure != "point":
+        raise RobocalError(f"--tip LINK=X,Y,Z: several measured links need --measure point (got {measure})")
+    if target:
+        raise RobocalError("--target-cols and --tip LINK=X,Y,Z cannot be combined: give each link's columns with --tip")
+    if len({t for t, _ in out}) != len(out):
+        raise RobocalError("--tip: a link is given twice")
+    return out
+
+
+def _tree_desc(urdf: Path, root: str, tips: list, coupled: list[str]):
+    """A description whose movable joints are the tree's read joints (every joint of the chains root →
+    tips but the coupled ones), for the CSV reader and the recording's joint order."""
+    from dataclasses import replace
+
+    from pipeline.errors import RobocalError
+    from pipeline.models import urdf as urdf_mod
+    from pipeline.models.urdf_tree import UrdfTree, parse_coupling
+    from pipeline.systems.urdf_robot import check_coupling
+
+    try:
+        text = urdf.read_text()
+    except (OSError, UnicodeDecodeError) as e:
+        raise RobocalError(f"{urdf}: cannot read URDF ({e.__class__.__name__}: {e})") from None
+    descs = tuple(urdf_mod.parse(text, root, t, source=str(urdf), allow_mimic=True) for t, _ in tips)
+    movable = {j.name for d in descs for j in d.movable}
+    cp = {c: v for c, v in urdf_mod.mimic_couplings(text, str(urdf)).items() if c in movable}
+    for c, t, o in map(parse_coupling, coupled):
+        if c not in movable:
+            raise RobocalError(f"--coupled {c!r}: not a movable joint of the chains {root} → "
+                               f"{', '.join(t for t, _ in tips)}")
+        cp[c] = (t, o)
+    check_coupling(cp, movable, "--coupled")
+    tree = UrdfTree(descs, coupled=tuple((c, tuple(sorted(t.items())), o) for c, (t, o) in sorted(cp.items())))
+    read = {n for n in tree.joint_names}
+    return replace(descs[0], joints=tuple(j for j in tree.all_joints if j.name in read))

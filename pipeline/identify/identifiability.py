@@ -84,9 +84,26 @@ def analyse(J: np.ndarray, names: list[str], fixed: np.ndarray | None = None,
         order += [int(i) for i in cand[piv]]
         pivots += [float(d) for d in diag] + [0.0] * (cand.size - diag.size)
         dropped += [int(i) for i in cand[piv[k:]]]
-    for i in dropped:
-        reasons[i] = "dependent: " + combination(J, names, i, free)
+    for i, text in zip(dropped, combinations(J, names, dropped, free)):
+        reasons[i] = "dependent: " + text
     return Identifiability(free=free, reasons=reasons, pivots=np.array(pivots), order=np.array(order, int))
+
+
+def combinations(J: np.ndarray, names: list[str], dropped: list[int], free: np.ndarray, top: int = 3) -> list[str]:
+    """`combination` of every dropped column, from one least-squares solve with many right-hand sides."""
+    if not dropped:
+        return []
+    norms = np.linalg.norm(J, axis=0)
+    norms[norms == 0] = 1.0
+    F = np.flatnonzero(free)
+    coefs, *_ = np.linalg.lstsq(J[:, F] / norms[F], J[:, dropped] / norms[dropped], rcond=None)
+    out = []
+    for k, i in enumerate(dropped):
+        coef = coefs[:, k]
+        best = np.argsort(-np.abs(coef))[:top]
+        terms = " ".join(f"{coef[b]:+.2f}·{names[F[b]]}" for b in best if abs(coef[b]) > 1e-3)
+        out.append(f"{names[i]} ≈ {terms or '0'}")
+    return out
 
 
 def combination(J: np.ndarray, names: list[str], i: int, free: np.ndarray, top: int = 3) -> str:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
+from pipeline.blas import single_threaded
 from pipeline.identify.identifiability import RANK_TOL, Identifiability, analyse
 from pipeline.identify.model import MeasurementModel, Table, n_rows, take, uncalibrated
 
@@ -68,6 +69,7 @@ def _flat_jac(model: MeasurementModel, x: np.ndarray, data: Table) -> np.ndarray
     return J.reshape(-1, J.shape[-1])
 
 
+@single_threaded
 def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()) -> Fit:
     """Identify the model's parameters from `data` (see module docstring)."""
     t0 = time.perf_counter()
@@ -216,6 +218,7 @@ def holdout_warning(n: int, k: int, residual_dim: int, n_free: int) -> str | Non
     return None
 
 
+@single_threaded
 def cross_validate(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0,
                    options: FitOptions = FitOptions(), groups: np.ndarray | None = None) -> np.ndarray:
     """Held-out residuals (n, residual_dim) m: each fold predicted by a fit on the others."""

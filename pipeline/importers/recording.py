@@ -20,19 +20,22 @@ T0_NS = 1_700_000_000_000_000_000  # a fixed epoch for tables without times (bit
 
 def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, campaign: dict,
                          table: dict[str, np.ndarray], labels: list[str] | None = None,
-                         stream: dict[str, np.ndarray] | None = None, batch: int = 250) -> int:
+                         stream: dict[str, np.ndarray] | None = None, batch: int = 250,
+                         tips: list[str] | None = None) -> int:
     """Write `table` (rows: ``joint_positions`` (n, n_joints) in the chain's joint order, plus
     the type's columns: ``position`` (n,3), ``target`` (n,), ``orientation`` (n,4) xyzw,
     ``plane``/``group`` (n,) names; optional ``timestamp_ns``) to `out`.  With `stream` (``t_ns`` (T,)
     sorted, ns; ``q`` (T, n_joints) rad / m; optional drive state ``q_cmd`` rad / m, ``effort``
     N·m / N and ``current`` A, (T, n_joints), chain order) also the encoder stream, `batch` samples a message.
+    `tips`: the measured links of a tree (several chains from the root; ``target`` is the tip index).
     Returns rows written."""
     q = np.asarray(table["joint_positions"], float)
     n = len(q)
     t = np.asarray(table.get("timestamp_ns", T0_NS + np.arange(n) * 1_000_000_000), np.int64)
     camp = {"system": "urdf", "measure": measure, "joint_names": desc.joint_names, **campaign}
     topic = f"/measure/{measure}"
-    meta_urdf = {"urdf": desc.urdf, "root": desc.root, "tip": desc.tip, "source": desc.source}
+    meta_urdf = {"urdf": desc.urdf, "root": desc.root, "tip": desc.tip, "source": desc.source,
+                 **({"tips": list(tips)} if tips else {})}
     st = None if stream is None else (np.asarray(stream["t_ns"], np.int64), np.asarray(stream["q"], float))
     scene = sorted(scene_events({META_URDF: meta_urdf}, st, (t, q)), key=lambda e: e[0])
     with RecordingWriter(out) as w:

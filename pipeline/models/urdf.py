@@ -151,8 +151,9 @@ def load_urdf_model(text: str, source: str = "<urdf>"):
         raise _fail(source, f"URDF could not be parsed ({type(e).__name__}: {e})") from None
 
 
-def parse(text: str, root: str, tip: str, source: str = "<urdf>") -> RobotDescription:
-    """The chain root → tip of a URDF text (see module docstring)."""
+def parse(text: str, root: str, tip: str, source: str = "<urdf>", allow_mimic: bool = False) -> RobotDescription:
+    """The chain root → tip of a URDF text (see module docstring).  A `<mimic>` joint is refused
+    unless `allow_mimic` (a tree model that drives it from the joint it mimics: `mimic_couplings`)."""
     robot = load_urdf_model(text, source)
     links = set(robot.link_map)
     for role, ln in (("root", root), ("tip", tip)):
@@ -169,7 +170,7 @@ def parse(text: str, root: str, tip: str, source: str = "<urdf>") -> RobotDescri
         ln = j.parent
     joints = []
     for j in reversed(path):
-        if j.mimic is not None:
+        if j.mimic is not None and not allow_mimic:
             raise _fail(source, f"joint {j.name!r} mimics another joint: mimic joints are not supported in a chain")
         if j.type not in KNOWN_TYPES:
             raise _fail(source, f"joint {j.name!r} of type {j.type!r} cannot be part of a calibrated chain")
@@ -192,6 +193,18 @@ def parse(text: str, root: str, tip: str, source: str = "<urdf>") -> RobotDescri
         raise _fail(source, f"the chain {root!r} → {tip!r} has no movable joint")
     return RobotDescription(name=robot.robot.name or "robot", root=root, tip=tip, joints=tuple(joints),
                             urdf=text, source=source)
+
+
+def mimic_couplings(text: str, source: str = "<urdf>") -> dict[str, tuple[dict[str, float], float]]:
+    """{joint: ({mimicked joint: multiplier}, offset rad)} of the URDF's `<mimic>` elements."""
+    robot = load_urdf_model(text, source)
+    out = {}
+    for j in robot.robot.joints:
+        if j.mimic is not None:
+            mult = 1.0 if j.mimic.multiplier is None else float(j.mimic.multiplier)
+            off = 0.0 if j.mimic.offset is None else float(j.mimic.offset)
+            out[j.name] = ({str(j.mimic.joint): mult}, off)
+    return out
 
 
 def read(path: str | Path, root: str, tip: str) -> RobotDescription:

@@ -85,7 +85,9 @@ def run(run_dir: Path, params: dict) -> dict:
         errors.append(bad)  # checked against the schema before any numeric conversion
     if not errors:
         try:
-            _, table = system.load(rec)
+            from pipeline.systems.registry import load_with_physics
+
+            _, table = load_with_physics(system, rec, params.get("physics") or "auto", params.get("payload"))
             meas = measurement_table(dict(table), stream, window_s=float(params.get("context_window_s", 0.02)),
                                      temperature=temperature_stream(rec), path=path,
                                      channel=mchan)
@@ -111,6 +113,8 @@ def run(run_dir: Path, params: dict) -> dict:
         "errors": errors,
         "n_measurements": n,
     }
+    if params.get("physics") is not None or params.get("payload"):  # the model's gravity terms, for every stage
+        doc["physics"] = {"physics": params.get("physics"), "payload": list(params.get("payload") or [])}
     write_json(out / "recording.json", doc)
     lost = bool(doc["warnings"]) or bool(errors)  # a damaged file (or bag it came from): no status pass
     return {"status": "warn" if lost else "pass", "system": system.SYSTEM, "n_measurements": n,
@@ -214,5 +218,8 @@ def load_system(run_dir: Path, with_stream: bool = False):
     if rec is None:
         rec = read_recording(info["source"]["path"], skip=SCENE if with_stream else SCENE | {JOINT_STATE})
     system = SYSTEMS[info["system"]]
-    model, _ = system.load(rec)
+    from pipeline.systems.registry import load_with_physics
+
+    phys = info.get("physics") or {}
+    model, _ = load_with_physics(system, rec, phys.get("physics") or "auto", phys.get("payload"))
     return system, model, rec

@@ -57,6 +57,98 @@ def arm_of(rec) -> UrdfArm:
     return UrdfArm(desc)
 
 
+def is_tree(rec) -> bool:
+    """Whether the recording needs the tree model: several tips or coupled joints."""
+    meta, campaign = rec.meta(META_URDF), rec.meta(META_CAMPAIGN)
+    tips = meta.get("tips") if isinstance(meta, dict) else None
+    return bool((isinstance(tips, list) and len(tips) > 1) or campaign.get("coupled"))
+
+
+def tree_of(rec, lateral: tuple[str, ...] = ()):
+    """The recording's `UrdfTree`: chains root → each of robocal.urdf's `tips` (or its `tip`),
+    joints coupled by the campaign's `coupled` ({joint: {terms: {joint: factor}, offset: rad}}) or by
+    the URDF's `<mimic>` elements."""
+    from pipeline.models.urdf_tree import UrdfTree
+
+    meta, campaign = rec.meta(META_URDF), rec.meta(META_CAMPAIGN)
+    if not isinstance(meta, dict) or not all(isinstance(meta.get(k), str) for k in ("urdf", "root", "tip")):
+        raise RobocalError(f"{rec.path}: metadata robocal.urdf must hold strings urdf, root and tip")
+    src = f"{rec.path}: metadata robocal.urdf"
+    tips = meta.get("tips") or [meta["tip"]]
+    if not isinstance(tips, list) or not all(isinstance(t, str) for t in tips) or len(set(tips)) != len(tips):
+        raise RobocalError(f"{src}: tips must be a list of distinct link names")
+    descs = tuple(urdf.parse(meta["urdf"], meta["root"], t, source=src, allow_mimic=True) for t in tips)
+    movable = {j.name for d in descs for j in d.movable}
+    coupled = {c: v for c, v in urdf.mimic_couplings(meta["urdf"], src).items() if c in movable}
+    for c, v in (campaign.get("coupled") or {}).items():
+        terms = v.get("terms") if isinstance(v, dict) else None
+        if c not in movable or not isinstance(terms, dict) or not terms:
+            raise RobocalError(f"{rec.path}: metadata robocal.campaign: coupled joint {c!r} is not a movable joint "
+                               "of the chains or has no terms")
+        coupled[c] = ({str(k): float(f) for k, f in terms.items()}, float(v.get("offset", 0.0)))
+    check_coupling(coupled, movable, f"{rec.path}: metadata robocal.campaign")
+    tree = UrdfTree(descs, coupled=tuple((c, tuple(sorted(t.items())), o) for c, (t, o) in sorted(coupled.items())),
+                    lateral=tuple(lateral))
+    names = campaign.get("joint_names", tree.joint_names)
+    if list(names) != tree.joint_names:
+        raise RobocalError(f"{rec.path}: campaign joint_names {names} differ from the tree's read joints "
+                           f"{tree.joint_names}")
+    return tree
+
+
+def check_coupling(coupled: dict, movable: set, where_: str) -> None:
+    """Each coupled joint is driven by movable joints that are not coupled themselves (no chain, no cycle)."""
+    for c, (terms, _) in coupled.items():
+        for k in terms:
+            if k not in movable:
+                raise RobocalError(f"{where_}: coupled joint {c!r} names unknown joint {k!r}")
+            if k in coupled:
+                raise RobocalError(f"{where_}: coupled joint {c!r} is driven by {k!r}, itself coupled "
+                                   "(a cycle or a chain of couplings)")
+
+
+def physics_model(rec, table: dict, physics: str | None = None, payload: tuple = ()):
+    """A `TreePointModel` of a point recording, with the physics terms `physics` asks for
+    (`pipeline.physics.compliance.parse_spec`); None where the rigid single-chain model serves."""
+    from pipeline.measurements.tree_point import TreePointModel
+    from pipeline.physics import compliance
+
+    mode, families = compliance.parse_spec(physics or "none")
+    tree = is_tree(rec)
+    meta = rec.meta(META_URDF)
+    if mode == "auto":
+        from pipeline.physics.gravity import has_inertials
+
+        if not (isinstance(meta, dict) and isinstance(meta.get("urdf"), str) and has_inertials(meta["urdf"])):
+            families = ()
+    if payload and not families:
+        raise RobocalError(f"{rec.path}: --payload needs gravity terms (--physics auto or a list, and URDF inertials)")
+    if not tree and not families:
+        return None
+    rigid = tree_of(rec)
+    compliant, lateral = compliance.candidates(rigid, table["joint_positions"], families, payload,
+                                               source=f"{rec.path}: metadata robocal.urdf")
+    return TreePointModel(tree_of(rec, lateral), compliant=compliant, payload=payload, forced=mode == "fixed")
+
+
+def model_like(rec, names: list[str], payload: tuple = ()):
+    """The `TreePointModel` of a point recording with the physics terms a calibration has (`names`: its
+    parameter names — ``J.compliance``, ``J.lateral1``), whatever this recording's loads: a calibrated
+    model is applied as it was fitted.  None when `names` hold no physics term and `rec` is no tree."""
+    from pipeline.measurements.tree_point import TreePointModel
+
+    compliant = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".compliance"))
+    lateral = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".lateral1"))
+    if not (compliant or lateral or is_tree(rec)):
+        return None
+    tree = tree_of(rec, lateral)
+    known = {j.name for j in tree.all_joints}
+    if not set(compliant + lateral) <= known:
+        raise RobocalError(f"{rec.path}: the calibration's physics terms name joints {sorted(set(compliant + lateral) - known)} "
+                           "that are not in this recording's chains")
+    return TreePointModel(tree, compliant=compliant, payload=payload)
+
+
 def model_for(arm: UrdfArm, measure: str, campaign: dict, labels: list[str] | None = None):
     """The measurement model of `measure` over `arm` (campaign settings applied)."""
     if measure == "point":
@@ -90,11 +182,15 @@ def _column(rec, topic, msgs, key, shape, dtype=float):
     return np.stack(out) if out else np.zeros((0,) + shape, dtype)
 
 
-def load(rec):
-    """Measurement model and measurement table of a URDF recording."""
+def load(rec, physics: str | None = None, payload: tuple = ()):
+    """Measurement model and measurement table of a URDF recording.  `physics` and `payload`: the
+    gravity terms offered to identification (`physics_model`; point measurements); None keeps the
+    rigid model (the command line and the run's stages ask for ``auto`` by default)."""
     measure = campaign_measure(rec)
     campaign = rec.meta(META_CAMPAIGN)
-    arm = arm_of(rec)
+    if is_tree(rec) and measure != "point":
+        raise RobocalError(f"{rec.path}: several tips or coupled joints need point measurements (got {measure})")
+    arm = tree_of(rec) if is_tree(rec) else arm_of(rec)
     topic = channel_of(measure)
     msgs = rec.require(topic)
     n = len(msgs)
@@ -132,7 +228,22 @@ def load(rec):
         table["label"] = np.array(names, object)
     if measure == "coincidence":
         table["group"] = table.pop("group")
-    model = model_for(arm, measure, campaign, labels)
+    if measure != "point" and (payload or physics not in (None, "auto", "none")):
+        raise RobocalError(f"{rec.path}: --physics {physics} / --payload need point measurements (got {measure})")
+    model = physics_model(rec, table, physics, payload) if measure == "point" else None
+    if model is None:
+        model = model_for(arm, measure, campaign, labels)
+    sessions = campaign.get("sessions") or []
+    if sessions:  # several recordings calibrated together (pipeline.importers.merge)
+        counts = [int(s.get("rows", 0)) for s in sessions]
+        if sum(counts) != n:
+            raise RobocalError(f"{rec.path}: metadata robocal.campaign: sessions hold {sum(counts)} rows, "
+                               f"{topic} has {n}")
+        table["session"] = np.repeat(np.arange(len(counts)), counts).astype(np.int64)
+        if campaign.get("registration") == "per-recording" and len(counts) > 1 and measure != "coincidence":
+            from pipeline.measurements.sessions import SessionFrames
+
+            model = SessionFrames(model, len(counts))
     if measure == "coincidence" and campaign.get("distances"):
         table = _with_distances(rec, table, campaign["distances"], labels, arm.n_joints)
     return model, table

@@ -27,8 +27,9 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.diagnose.library.term import Effect
-from pipeline.diagnose.library.urdf_gravity import gravity_torques, inertials
+from pipeline.diagnose.library.urdf_gravity import gravity_torques
 from pipeline.diagnose.verdict import lack_of_fit
+from pipeline.physics.gravity import has_inertials
 
 PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3, "joint_compliance": 1e-4,
              "joint_compliance_per_ampere": 1e-2}  # rad/A: 1e-4 rad/(N·m) × a torque constant up to 100 N·m/A
@@ -59,9 +60,23 @@ def _rows(data) -> np.ndarray:
     return np.asarray(data.get("kind", np.zeros(n, int))) == 0
 
 
+def read_joints(model) -> list:
+    """The joints of the recording's readings (`UrdfJoint`), in column order: a chain's movable joints,
+    or a tree's joints but the coupled ones."""
+    kin = model.kin
+    if hasattr(kin, "all_joints"):
+        read = set(kin.joint_names)
+        return [j for j in kin.all_joints if j.name in read]
+    return list(kin.desc.movable)
+
+
+def _urdf(model) -> str:
+    return model.kin.urdf if hasattr(model.kin, "all_joints") else model.kin.desc.urdf
+
+
 def library(model, table) -> list[Effect]:
     q = np.asarray(table["joint_positions"], float)
-    joints = model.kin.desc.movable
+    joints = read_joints(model)
     lib: list[Effect] = []
     for j, jt in enumerate(joints):
         lib.append(Effect("joint_scale", jt.name, (f"{jt.name}.scale",), ("1",), PLAUSIBLE["joint_scale"], "direct",
@@ -94,7 +109,7 @@ def _torque_kind(model, table) -> tuple | None:
     if "joint_currents" in table:
         return ("motor current", "A", "compliance_current", "motor current", "compliance_per_ampere", "rad/A",
                 PLAUSIBLE["joint_compliance_per_ampere"])
-    if inertials(model.kin.desc):
+    if has_inertials(_urdf(model)):
         return ("gravity torque", "N·m", "compliance", "URDF inertials", "compliance", "rad/(N*m)",
                 PLAUSIBLE["joint_compliance"])
     return None
@@ -108,7 +123,13 @@ def load_torques(model, data) -> np.ndarray:
         return -np.asarray(data["joint_efforts"], float)
     if "joint_currents" in data:
         return -np.asarray(data["joint_currents"], float)
-    return gravity_torques(model.kin.desc, np.asarray(data["joint_positions"], float))
+    q = np.asarray(data["joint_positions"], float)
+    if hasattr(model.kin, "all_joints"):  # a tree: the whole tree's load on each read joint
+        from pipeline.physics.compliance import loads
+
+        col = [i for i, j in enumerate(model.kin.all_joints) if j.name in set(model.kin.joint_names)]
+        return loads(model.kin, q, getattr(model, "payload", ())).axial[:, col]
+    return gravity_torques(model.kin.desc, q)
 
 
 def signatures(model, x: np.ndarray, data, effects) -> list[np.ndarray]:

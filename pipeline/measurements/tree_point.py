@@ -1,0 +1,195 @@
+"""3-D points measured on several tips of a robot's tree, with the robot's static compliance.
+
+Data columns: ``joint_positions`` (n, n_joints) rad/m (the read joints of `UrdfTree.joint_names`),
+``position`` (n, 3) m in the instrument frame, ``target`` (n,) int: the tip the row measures (index
+into `UrdfTree.tips`).  Residual: predicted − measured, (n, 3) m.  With physics terms, the gravity
+load on every movable joint of the tree comes from the joint readings, the URDF's inertials and the
+payload (`pipeline.physics.compliance.loads`: Pinocchio, computed once per set of readings).
+
+Physics terms (parameters appended after the kinematics', rad/(N·m), nominal 0 = rigid):
+
+* ``J.compliance``: joint J turns by c_J · τ_J (its axial gravity moment) — a joint's torsional
+  compliance (the inverse of its stiffness, N·m/rad);
+* ``J.lateral1``, ``J.lateral2``: joint J's child frame tilts by c · τ about each axis normal to
+  J's axis (bearing and link bending), through the tree's lateral virtual joints.
+
+The deflections enter the chain exactly (as joint values); the loads are evaluated at the
+configuration given in the table (the readings to first order; `pipeline.physics.compliance`
+re-evaluates them at the deflected configuration for static equilibrium).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.identify.model import Table
+from pipeline.measurements.composed import Composed
+from pipeline.models import chain as ch
+
+COMPLIANCE_UNIT = "rad/(N·m)"
+
+
+@dataclass(frozen=True)
+class TreePointModel(Composed):
+    """Points on the tips of a `UrdfTree` (see module docstring)."""
+
+    compliant: tuple[str, ...] = ()  # joints with a torsional compliance parameter
+    payload: tuple = ()  # ((mass kg, link, (x, y, z) m in the link frame), …) carried besides the URDF's links
+    forced: bool = False  # True: the physics terms are always fitted (not left to the model selection)
+    residual_dim = 3
+
+    # ----- physics parameters ---------------------------------------------------------------
+    def extra_names(self) -> list[str]:
+        return [f"{j}.compliance" for j in self.compliant] + \
+               [f"{j}.lateral{a}" for j in self.kin.lateral for a in (1, 2)]
+
+    def extra_units(self) -> list[str]:
+        return [COMPLIANCE_UNIT] * len(self.extra_names())
+
+    def extra_nominal(self) -> np.ndarray:
+        return np.zeros(len(self.extra_names()))
+
+    def extra_priority(self) -> np.ndarray:
+        return np.ones(len(self.extra_names()), int)
+
+    def groups(self) -> dict[str, list[str]]:
+        g = dict(self.kin.groups())
+        phys = {}
+        if self.compliant:
+            phys["joint compliance"] = [f"{j}.compliance" for j in self.compliant]
+        if self.kin.lateral:
+            phys["lateral compliance"] = [f"{j}.lateral{a}" for j in self.kin.lateral for a in (1, 2)]
+        if self.forced:
+            g["registration"] = g["registration"] + [n for v in phys.values() for n in v]
+            return g
+        return g | phys
+
+    # ----- evaluation ------------------------------------------------------------------------
+    def deflected(self, x: np.ndarray, data: Table) -> np.ndarray:
+        """Full joint matrix (n, J_all + 2·L) with the compliant deflections added (rad)."""
+        qf = self.kin.expand(data["joint_positions"])
+        _, xe = self.split(x)
+        if not self.extra_names():
+            return qf
+        col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
+        nc = len(self.compliant)
+        load = self.load(data)
+        ax = load.axial
+        for i, j in enumerate(self.compliant):
+            qf[:, col[j]] += xe[i] * ax[:, col[j]]
+        lat = load.lateral
+        nj = len(self.kin.all_joints)
+        for i, j in enumerate(self.kin.lateral):
+            for a in range(2):
+                qf[:, nj + 2 * i + a] = xe[nc + 2 * i + a] * lat[:, col[j], a]
+        return qf
+
+    def load(self, data: Table):
+        """Gravity load (`pipeline.physics.gravity.Load`) on every joint of the tree at the table's readings."""
+        from pipeline.physics.compliance import loads
+
+        return loads(self.kin, data["joint_positions"], self.payload)
+
+    def _predict(self, x: np.ndarray, data: Table, jac: bool):
+        xk, _ = self.split(x)
+        qf = self.deflected(x, data)
+        n = len(qf)
+        tip = np.asarray(data.get("target", np.zeros(n, int)), int)
+        P = len(self.parameter_names())
+        p = np.empty((n, 3))
+        J = np.zeros((n, 3, P)) if jac else None
+        col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
+        nj, nc = len(self.kin.all_joints), len(self.compliant)
+        for k in range(len(self.kin.descs)):
+            rows = np.flatnonzero(tip == k)
+            if rows.size == 0:
+                continue
+            c = self.kin.chain(k)
+            if not jac:
+                p[rows] = ch.forward(c, xk, qf[rows])[1]
+                continue
+            p[rows], J[rows] = ch.jacobian(c, xk, qf[rows], width=P)
+            if self.extra_names():
+                _, Jq = ch.joint_jacobian(c, xk, qf[rows])
+                load = self.load(data)
+                ax = load.axial[rows]
+                for i, j in enumerate(self.compliant):
+                    J[rows, :, self.n_kin + i] = Jq[:, :, col[j]] * ax[:, col[j], None]
+                lat = load.lateral[rows]
+                for i, j in enumerate(self.kin.lateral):
+                    for a in range(2):
+                        J[rows, :, self.n_kin + nc + 2 * i + a] = Jq[:, :, nj + 2 * i + a] * lat[:, col[j], a, None]
+        return p, J
+
+    @property
+    def n_kin(self) -> int:
+        return len(self.kin.parameter_names())
+
+    def tool(self, x: np.ndarray, q: np.ndarray, jac: bool = True, angular: bool = True):
+        """Tip 0's tool frame from readings `q` (rigid): for callers that draw or plan one tool."""
+        xk, _ = self.split(x)
+        c = self.kin.chain(0)
+        qf = self.kin.expand(q)
+        if not jac:
+            R, p = ch.forward(c, xk, qf)
+            return p, None, R, None
+        width = len(self.parameter_names())
+        if not angular:
+            p, Jp = ch.jacobian(c, xk, qf, width=width)
+            return p, Jp, None, None
+        return ch.jacobian(c, xk, qf, angular=True, width=width)
+
+    def residuals(self, x: np.ndarray, data: Table) -> np.ndarray:
+        return self._predict(x, data, False)[0] - np.asarray(data["position"], float)
+
+    def jacobian(self, x: np.ndarray, data: Table) -> np.ndarray:
+        return self._predict(x, data, True)[1]
+
+    def points(self, x: np.ndarray, data: Table):
+        return self._predict(x, data, True)
+
+    def initial_guess(self, data: Table) -> np.ndarray:
+        """Nominal robot; registration by the best rigid fit of the nominal tip points onto the measured."""
+        x = self.nominal()
+        p = self._predict(np.where(np.char.startswith(np.array(self.parameter_names()), "base."), 0.0, x), data,
+                          False)[0]
+        return _registered(self, x, p, np.asarray(data["position"], float))
+
+    def exports(self, x: np.ndarray) -> dict[str, str]:
+        """model.urdf (geometry) and, with physics terms, model.physics.yaml (what URDF cannot carry)."""
+        out = {"model.urdf": self.kin.urdf_text(self.split(x)[0])}
+        if self.extra_names():
+            from pipeline.physics.compliance import document, to_yaml
+
+            out["model.physics.yaml"] = to_yaml(document(self, x))
+        return out
+
+    def describe(self, x: np.ndarray) -> dict:
+        d = super().describe(x)
+        if self.extra_names():
+            from pipeline.physics.compliance import document
+
+            d["physics"] = document(self, x)
+        return d
+
+
+def _registered(model: TreePointModel, x: np.ndarray, p: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """`x` with base.* set by the best rigid fit (scipy) of predicted points `p` onto `measured`."""
+    from scipy.spatial.transform import Rotation
+
+    from pipeline.models.urdf import rpy_of
+
+    if len(p) < 3 or np.linalg.matrix_rank(p - p.mean(0), tol=1e-6) < 2:
+        return x
+    rot, _ = Rotation.align_vectors(measured - measured.mean(0), p - p.mean(0))
+    R = rot.as_matrix()
+    ib = model.parameter_names().index("base.x")
+    x = x.copy()
+    x[ib:ib + 3] = measured.mean(0) - R @ p.mean(0)
+    x[ib + 3:ib + 6] = rpy_of(R)
+    return x
+
+
+__all__ = ["TreePointModel", "COMPLIANCE_UNIT"]

@@ -224,24 +224,10 @@ def test_rerun_viewer_renders_the_panels(thin_run, tmp_path):
     """The real rerun viewer, headless under Xvfb with Mesa's software Vulkan (Debian xvfb,
     mesa-vulkan-drivers): its screenshot shows the 3-D scene with the accuracy map (viridis
     spheres), the robot (blue), and drawn time-series panels on the right."""
-    import shutil
-    import subprocess
-    import sys
-    from pathlib import Path
+    from viewer_support import viewer_screenshot
 
-    from matplotlib.image import imread
-
-    xvfb = shutil.which("xvfb-run")
-    rerun = Path(sys.executable).with_name("rerun")
-    if xvfb is None or not rerun.is_file():
-        pytest.skip("xvfb-run or the rerun viewer not installed (apt-get install xvfb mesa-vulkan-drivers)")
     out, _ = thin_run
-    shot = tmp_path / "viewer.png"
-    r = subprocess.run([xvfb, "-a", "-s", "-screen 0 1600x1000x24", str(rerun), str(out / "run.rrd"),
-                        "--window-size", "1600x1000", "--screenshot-to", str(shot)],
-                       capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0 and shot.is_file(), r.stderr[-2000:]
-    img = imread(shot)[..., :3]
+    img = viewer_screenshot(out / "run.rrd", tmp_path / "viewer.png")
     h, w = img.shape[:2]
     R, G, B = img[..., 0], img[..., 1], img[..., 2]
     scene = (slice(int(0.05 * h), int(0.75 * h)), slice(int(0.13 * w), int(0.53 * w)))

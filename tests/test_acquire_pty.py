@@ -29,6 +29,8 @@ def test_campaign_through_pty_calibrates_like_the_direct_recording(tmp_path, sys
         assert b.metadata[name] == a.metadata[name]
     for topic, msgs in a.messages.items():
         assert len(b.messages[topic]) > 0
+        if topic in ("/tf", "/robot_description"):  # derived by each writer on its own clock (recording.scene)
+            continue
         if topic != "/robot/joint_state":
             strip = lambda m: {k: v for k, v in m.items() if not k.endswith("_ns")}  # noqa: E731
             assert [strip(m) for m in b.messages[topic]] == [strip(m) for m in msgs]

@@ -21,6 +21,7 @@ import numpy as np
 
 from pipeline.acquire import protocol as P
 from pipeline.ingest.streams import joint_stream
+from pipeline.recording.scene import SCENE_CHANNELS
 from pipeline.recording.reader import Recording
 from pipeline.recording.schemas import META_CAMPAIGN
 
@@ -61,8 +62,8 @@ def device_streams(rec: Recording, clock: Clock, batch: int = 1, announce_every_
     t_all = [js.t_ns[0]]
     events: dict[str, list[tuple[int, str, dict]]] = {}
     for topic in list(rec.messages.raw):
-        if topic == JOINT_STATE or not rec.messages.raw[topic]:
-            continue
+        if topic == JOINT_STATE or not rec.messages.raw[topic] or topic in SCENE_CHANNELS:
+            continue  # /tf, /robot_description: derived by the writer, not sent by any device
         msgs = rec.messages[topic]
         role = CHANNEL_DEVICE.get(topic, "bridge")
         for m in msgs:

@@ -71,7 +71,7 @@ def acquire(devices: dict[str, str], out: Path, *, max_s: float | None = None, c
     ports = {role: Port(role, path) for role, path in devices.items()}
     sel = selectors.DefaultSelector()
     f = open(out, "wb")
-    writer = RecordingWriter(f)
+    writer = RecordingWriter(f, scene=True)  # /tf and /robot_description added at close (recording.scene)
     acq = Acquisition(writer, devices)
     t_start = time.monotonic()
     next_flush = t_start + FLUSH_S

@@ -145,7 +145,7 @@ def device_sim_cmd(
     rec_system = rec.metadata.get(META_CAMPAIGN, {}).get("system")
     if rec_system and rec_system != system:
         raise RobocalError(f"{recording}: is a {rec_system} campaign, not {system}")
-    t0 = min(m["timestamp_ns"] for msgs in rec.messages.values() for m in msgs[:1])
+    t0 = min(m["timestamp_ns"] for msgs in rec.messages.values() for m in msgs[:1] if "timestamp_ns" in m)  # not /tf
     clock = Clock(t0=int(t0), offset_ns=int(round(offset_s * 1e9)), drift=drift_ppm * 1e-6)
     streams = device_streams(rec, clock, batch=batch)
     imp = Impairments(corrupt, drop, noise, disconnect_every, disconnect_for, disconnect_device, seed)

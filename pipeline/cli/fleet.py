@@ -16,8 +16,9 @@ def fleet_cmd(
     summary: Path = typer.Argument(..., help="Reprocess results: the --out folder of `robocal reprocess`, its "
                                    "results/ dataset, or one Parquet file."),
     out: Path = typer.Option(..., "--out", help="Page to write (self-contained HTML); fleet.json beside it ({generator, robots: {id: flags}})."),
-    tolerance_m: Optional[float] = typer.Option(None, "--tolerance-m", min=0.0, help="Stated accuracy tolerance: "
-                                                "held-out RMS (m) above it is flagged."),
+    tolerance: Optional[str] = typer.Option(None, "--tolerance", "--tolerance-m", help="Stated accuracy tolerance: "
+                                            "held-out RMS above it is flagged; SI metres (2.5e-4) or with a unit "
+                                            "(0.25mm), as `run --tolerance`."),
     alpha: float = typer.Option(0.01, "--alpha", min=1e-9, max=0.5, help="Family false-flag rate per robot "
                                 "(steps and trends each)."),
 ) -> None:
@@ -29,6 +30,13 @@ def fleet_cmd(
     from pipeline.recording.output import check_output
     from pipeline.stages.artefacts import write_json
 
+    tolerance_m = None
+    if tolerance is not None:
+        from pipeline.accuracy.prior import parse_quantity
+
+        tolerance_m = parse_quantity(tolerance, "--tolerance")
+        if not tolerance_m > 0:
+            raise RobocalError(f"--tolerance {tolerance!r}: must be positive")
     if out.suffix.lower() == ".json":
         raise RobocalError(f"{out}: the page is HTML (fleet.json is written beside it); give e.g. fleet.html")
     if out.exists() and out.is_dir():
@@ -46,6 +54,8 @@ def fleet_cmd(
         flags = [f"step {s['param']} on {_day(s['t_ns'])} (|z| {abs(s['z']):.1f})" for s in h.steps]
         flags += [f"trend {t['param']} (|z| {abs(t['z']):.1f})" for t in h.trends]
         flags += [f"{len(h.tolerance)} above tolerance"] if h.tolerance else []
+        flags += [f"identified set changed on {', '.join(_day(c['t_ns']) for c in h.free_set_changes)}"] \
+            if h.free_set_changes else []
         flags += [f"{len(h.failed)} failed"] if h.failed else []
         flags += [f"{len(h.insufficient)} insufficient"] if h.insufficient else []
         err.print(f"{h.robot_id}: {len(h.usable)}/{len(h.rows)} calibrations; " + ("; ".join(flags) or "no flags"),

@@ -78,19 +78,29 @@ def reprocess_cmd(
                         TextColumn("[green]{task.fields[ok]} ok[/] [red]{task.fields[failed]} failed[/] "
                                    "[yellow]{task.fields[regressed]} regressed[/] {task.fields[skipped]} done before"),
                         RateColumn(), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                        console=err if err.is_terminal else Console(stderr=True, width=160), transient=False)
+                        console=err if err.is_terminal else Console(stderr=True, width=160), transient=False,
+                        disable=not err.is_terminal)  # a log or CI job gets lines instead (pipeline.progress)
+    from pipeline.progress import Ticker
+
+    lines = None if err.is_terminal else Ticker("reprocess", unit="recordings", tty=False)
     bar = None
 
     def on_plan(n_todo: int, n_kept: int) -> None:
         nonlocal bar
         counts["skipped"] = n_kept
         bar = progress.add_task("reprocess", total=n_todo, **counts)
+        if lines is not None:
+            lines.total = n_todo
+            lines.stream.write(f"reprocess: {n_todo} recording(s) to process, {n_kept} done before\n")
+            lines.wrote = True  # and a last line with the counts at the end
 
     def on_row(row: dict) -> None:
         key = "failed" if row["status"] in ("fail", "error", "crash", "lost") else "regressed" \
             if row["regressions"] else "ok"
         counts[key] += 1
         progress.update(bar, advance=1, **counts)
+        if lines is not None:
+            lines(f"{counts['ok']} ok, {counts['failed']} failed, {counts['regressed']} regressed")
 
     def on_start(client) -> None:
         n = len(client.scheduler_info().get("workers", {}))
@@ -105,6 +115,8 @@ def reprocess_cmd(
     finally:
         if early_server:
             fork_server.stop()  # the cluster is closed: nothing is forked from it any more
+    if lines is not None:
+        lines.done(f"{counts['ok']} ok, {counts['failed']} failed, {counts['regressed']} regressed")
     rows = res.all_rows
     for s in res.skipped_paths:
         err.print(f"[yellow]skipped[/] {s}", highlight=False)

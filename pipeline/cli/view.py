@@ -32,15 +32,23 @@ def has_display() -> bool:
 
 @app.command("view", rich_help_panel=VIEW)
 def view_cmd(
-    run_dir: Path = typer.Argument(..., help="Run folder with run.rrd (or the .rrd file itself)."),
+    run_dir: Path = typer.Argument(..., help="Run folder with run.rrd, the .rrd file itself, or a raw recording (.mcap)."),
     print_only: bool = typer.Option(False, "--print", help="Print the path and viewer command instead of opening it."),
     bind: str = typer.Option(LOCAL, "--bind", help="Address the viewer's server listens on (default this machine "
                              "only; 0.0.0.0 or :: for every interface)."),
 ) -> None:
-    """Open the run's rerun recording (3-D jig/robot/tool tips, encoder stream, residuals, solver)."""
+    """Open the run's rerun recording (3-D jig/robot/tool tips, encoder stream, residuals, solver), or a
+    raw recording's robot and campaign (docs/guide/view.md)."""
     from pipeline.errors import RobocalError
 
-    rrd = run_dir if run_dir.suffix == ".rrd" else run_dir / "run.rrd"
+    if run_dir.suffix == ".mcap":  # a raw recording: the robot as built and the campaign, with a layout
+        from pipeline.visualize.raw import write_raw_rrd
+
+        if not run_dir.is_file():
+            raise RobocalError(f"{run_dir}: no such recording")
+        rrd = write_raw_rrd(run_dir)
+    else:
+        rrd = run_dir if run_dir.suffix == ".rrd" else run_dir / "run.rrd"
     if not rrd.is_file():
         raise RobocalError(f"{rrd}: no rerun recording (run `robocal report {run_dir}` first)")
     cmd = viewer_command(rrd, bind)

@@ -8,6 +8,13 @@ Welch–Satterthwaite degrees of freedom of the two σ (each σ is estimated fro
 Trends: weighted least squares of each parameter on time with one level per segment between flagged
 steps of that parameter; the slope's standard error scaled by the Birge ratio √(χ²/dof) when above 1;
 flagged when |slope/se| exceeds the t quantile at α/(2P) (P parameters tested for the robot).
+
+A change of the identified set (a parameter fitted in one calibration and held in the next, or the
+reverse) is reported on its own (`free_set_changes`: news about the campaign, not about the robot),
+and a step found across such a change carries it (`free_set_change`): the others may have absorbed
+what a held parameter no longer explains, so the reader weighs that step knowing it.  (Steps are not
+suppressed there: in a simulated fleet the rank test swaps dependent pairs such as J2.d / J3.d from
+one month to the next, and a real step coincides with such a swap.)
 """
 
 from __future__ import annotations
@@ -43,6 +50,7 @@ class RobotHistory:
     usable: list[dict]                    # rows the series are built from
     series: dict[str, Series] = field(default_factory=dict)
     steps: list[dict] = field(default_factory=list)
+    free_set_changes: list[dict] = field(default_factory=list)  # identified set changed between calibrations
     trends: list[dict] = field(default_factory=list)
     tolerance: list[dict] = field(default_factory=list)
     failed: list[dict] = field(default_factory=list)
@@ -99,8 +107,29 @@ def welch_dof(s1: np.ndarray, n1: np.ndarray, s2: np.ndarray, n2: np.ndarray) ->
     return np.where(np.isfinite(v), v, np.inf)
 
 
-def find_steps(series: dict[str, Series], alpha: float = 0.01) -> list[dict]:
-    """Moves between consecutive calibrations beyond the threshold (module docstring)."""
+def identified_set(row: dict) -> frozenset[str]:
+    """Names of the parameters a calibration identified (fitted, with a finite σ)."""
+    return frozenset(p["name"] for p in row.get("parameters") or []
+                     if p.get("identifiable") and p.get("std") is not None and np.isfinite(p["std"]))
+
+
+def free_set_changes(rows: list[dict]) -> list[dict]:
+    """Consecutive usable calibrations whose identified sets differ: {recording, from_recording,
+    t_ns, from_t_ns, freed, held} (names newly fitted, names no longer fitted)."""
+    out = []
+    for a, b in zip(rows, rows[1:]):
+        sa, sb = identified_set(a), identified_set(b)
+        if sa != sb:
+            out.append({"recording": b["recording"], "from_recording": a["recording"], "t_ns": b["campaign_start_ns"],
+                        "from_t_ns": a["campaign_start_ns"], "freed": sorted(sb - sa), "held": sorted(sa - sb)})
+    return out
+
+
+def find_steps(series: dict[str, Series], alpha: float = 0.01,
+               changed: dict[tuple[str, str], dict] | None = None) -> list[dict]:
+    """Moves between consecutive calibrations beyond the threshold (module docstring); a step
+    between a pair of recordings in `changed` (the identified set differs) carries that change."""
+    changed = changed or {}
     m = sum(max(0, s.estimate.size - 1) for s in series.values())
     if m == 0:
         return []
@@ -116,9 +145,13 @@ def find_steps(series: dict[str, Series], alpha: float = 0.01) -> list[dict]:
                                         stats.norm.isf(p)))
         z = d / sd
         for k in np.flatnonzero(np.abs(z) > crit):
+            extra = {}
+            if (s.recordings[k], s.recordings[k + 1]) in changed:
+                c = changed[(s.recordings[k], s.recordings[k + 1])]
+                extra = {"free_set_change": {"freed": c["freed"], "held": c["held"]}}
             steps.append({"param": s.name, "unit": s.unit, "index": int(k + 1), "t_ns": int(s.t_ns[k + 1]),
                           "from_t_ns": int(s.t_ns[k]), "recording": s.recordings[k + 1], "delta": float(d[k]),
-                          "sigma": float(sd[k]), "z": float(z[k]), "threshold": float(crit[k])})
+                          "sigma": float(sd[k]), "z": float(z[k]), "threshold": float(crit[k]), **extra})
     return steps
 
 
@@ -178,7 +211,9 @@ def robot_history(robot_id: str, rows: list[dict], tolerance_m: float | None, al
         else:
             h.usable.append(r)
     h.series = build_series(h.usable)
-    h.steps = find_steps(h.series, alpha)
+    h.free_set_changes = free_set_changes(h.usable)
+    changed = {(c["from_recording"], c["recording"]): c for c in h.free_set_changes}
+    h.steps = find_steps(h.series, alpha, changed)
     h.trends = find_trends(h.series, h.steps, alpha)
     if tolerance_m is not None:
         h.tolerance = [{"recording": r["recording"], "t_ns": r["campaign_start_ns"], "holdout_rms_m": r["holdout_rms_m"]}

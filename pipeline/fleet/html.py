@@ -75,10 +75,21 @@ def robot_section(h: RobotHistory, tolerance_m: float | None) -> str:
                    '<th>recording</th></tr>')
         for s in h.steps:
             out.append(f'<tr class="step" data-param="{escape(s["param"])}" data-date="{day(s["t_ns"])}">'
-                       f'<td><code>{escape(s["param"])}</code></td><td>{day(s["from_t_ns"])}</td>'
+                       f'<td><code>{escape(s["param"])}</code>{_changed(s)}</td><td>{day(s["from_t_ns"])}</td>'
                        f'<td>{day(s["t_ns"])}</td><td class="n">{_val(s["delta"], s["unit"])}</td>'
                        f'<td class="n">{_val(s["sigma"], s["unit"])}</td><td class="n">{abs(s["z"]):.1f}</td>'
                        f'<td class="n">{s["threshold"]:.2f}</td><td><code>{escape(s["recording"])}</code></td></tr>')
+        out.append("</table>")
+    if h.free_set_changes:
+        out.append('<h3>Identified parameters changed</h3><p class="note">The calibration fitted a different set of '
+                   "parameters than the one before (news about the campaign, not a step of the robot); a step across "
+                   "such a change is marked: the others may have absorbed what a held parameter no longer explains."
+                   '</p><table class="free-set"><tr>'
+                   "<th>from</th><th>to</th><th>newly fitted</th><th>no longer fitted</th><th>recording</th></tr>")
+        for c in h.free_set_changes:
+            out.append(f'<tr class="free-set-change" data-date="{day(c["t_ns"])}"><td>{day(c["from_t_ns"])}</td>'
+                       f'<td>{day(c["t_ns"])}</td><td>{escape(", ".join(c["freed"]) or "—")}</td>'
+                       f'<td>{escape(", ".join(c["held"]) or "—")}</td><td><code>{escape(c["recording"])}</code></td></tr>')
         out.append("</table>")
     if h.trends:
         out.append('<h3>Trends (drift)</h3><table class="trends"><tr><th>parameter</th><th>slope per year</th>'
@@ -145,13 +156,25 @@ def counts(hs: list[RobotHistory]) -> dict:
     from pipeline.recording.output import GENERATOR
 
     return {"generator": GENERATOR, "robots": {h.robot_id: {"calibrations": len(h.rows), "usable": len(h.usable),
-                         "steps": [{k: s[k] for k in ("param", "t_ns", "recording", "delta", "sigma", "z",
-                                                      "threshold")} for s in h.steps],
+                         "steps": [{k: s[k] for k in ("param", "t_ns", "recording", "delta", "sigma", "z", "threshold",
+                                                      "free_set_change") if k in s} for s in h.steps],
                          "trends": [{k: t[k] for k in ("param", "slope_per_year", "se_per_year", "z", "threshold")}
                                     for t in h.trends],
                          "tolerance": h.tolerance,
+                         "free_set_changes": h.free_set_changes,
                          "failed": [{"recording": r["recording"], "status": r["status"], "error": r.get("error")}
                                     for r in h.failed],
                          "insufficient": [{"recording": r["recording"], "reason": r["reason"]}
                                           for r in h.insufficient]}
                                   for h in hs}}
+
+
+def _changed(step: dict) -> str:
+    """The mark of a step found across a change of the identified set."""
+    c = step.get("free_set_change")
+    if not c:
+        return ""
+    what = "; ".join(x for x in (("fitted " + ", ".join(c["freed"])) if c["freed"] else "",
+                                 ("held " + ", ".join(c["held"])) if c["held"] else "") if x)
+    return f' <span class="note">(identified set changed: {escape(what)})</span>'
+

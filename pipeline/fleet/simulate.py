@@ -112,11 +112,21 @@ def simulate_fleet(archive: Path, spec: FleetSpec = FleetSpec(), workers: int = 
     truth_path = check_output(archive / "fleet.truth.json", "truth")  # before anything is written:
     for job in jobs:  # a file robocal did not write is never replaced
         check_output(campaign_path(*job))
+    from pipeline.progress import Ticker
+
+    tick = Ticker("simulate fleet", total=len(jobs), unit="campaigns")
     if workers > 1:
         with ProcessPoolExecutor(workers) as pool:
-            done = list(pool.map(simulate_campaign, *zip(*jobs)))
+            done = []
+            for d in pool.map(simulate_campaign, *zip(*jobs)):
+                done.append(d)
+                tick(f"{d['robot_id']} month {d['month']}")
     else:
-        done = [simulate_campaign(*j) for j in jobs]
+        done = []
+        for j in jobs:
+            done.append(simulate_campaign(*j))
+            tick(str(campaign_path(*j).relative_to(archive)))
+    tick.done()
     truth: dict = {"spec": {k: v for k, v in spec.__dict__.items() if k != "changes"},
                    "changes": [c.__dict__ for c in spec.changes], "parameter_names": names,
                    "robots": {spec.robot_id(r): [d for d in done if d["robot_id"] == spec.robot_id(r)]

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.models.urdf import RobotDescription
+from pipeline.recording.scene import scene_events
 from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
 from pipeline.recording.writer import RecordingWriter
 
@@ -33,10 +34,15 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
     t = np.asarray(table.get("timestamp_ns", T0_NS + np.arange(n) * 1_000_000_000), np.int64)
     camp = {"system": "urdf", "measure": measure, "joint_names": desc.joint_names, **campaign}
     topic = f"/measure/{measure}"
+    meta_urdf = {"urdf": desc.urdf, "root": desc.root, "tip": desc.tip, "source": desc.source,
+                 **({"tips": list(tips)} if tips else {})}
+    st = None if stream is None else (np.asarray(stream["t_ns"], np.int64), np.asarray(stream["q"], float))
+    scene = sorted(scene_events({META_URDF: meta_urdf}, st, (t, q)), key=lambda e: e[0])
     with RecordingWriter(out) as w:
-        w.metadata(META_URDF, {"urdf": desc.urdf, "root": desc.root, "tip": desc.tip, "source": desc.source,
-                               **({"tips": list(tips)} if tips else {})})
+        w.metadata(META_URDF, meta_urdf)
         w.metadata(META_CAMPAIGN, camp)
+        for ts, tp, msg in scene:  # the robot for ROS / Foxglove tools (pipeline.recording.scene)
+            w.write_scene(tp, msg, ts)
         for i in range(n):
             m: dict = {"timestamp_ns": int(t[i]), "joint_positions": q[i].tolist()}
             if "position" in table:

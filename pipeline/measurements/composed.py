@@ -92,7 +92,10 @@ class Composed:
         return fit(self, data, FitOptions(fixed=fixed_for(self, ["registration"]), before=False)).x
 
     def exports(self, x: np.ndarray) -> dict[str, str]:
-        """The calibrated robot as a URDF (when the kinematics come from one)."""
+        """The calibrated robot as a URDF (when the kinematics come from one), with the parameter
+        files ROS stacks load (`UrdfArm.ros_files`)."""
+        if hasattr(self.kin, "ros_files"):
+            return self.kin.ros_files(self.split(x)[0])
         if not hasattr(self.kin, "urdf_text"):
             return {}
         return {"model.urdf": self.kin.urdf_text(self.split(x)[0])}

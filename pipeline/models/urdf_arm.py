@@ -180,6 +180,19 @@ class UrdfArm:
         base, tool = self.frames_of(np.asarray(x, float))
         return write_calibrated(self.desc, self.joint_origins(np.asarray(x, float)), base, tool)
 
+    def ros_files(self, x: np.ndarray) -> dict[str, str]:
+        """Files ROS stacks load (`pipeline.models.ros_exports`): the calibrated model.urdf, the
+        robot_calibration-style calibrated_parameters.yaml and, for a Universal Robots arm, the
+        controller's ur_calibration.yaml."""
+        from pipeline.models.ros_exports import offsets_yaml, ur_calibration_yaml
+
+        x = np.asarray(x, float)
+        files = {"model.urdf": self.urdf_text(x), "calibrated_parameters.yaml": offsets_yaml(self, x)}
+        ur = ur_calibration_yaml(self.joint_names, self.joint_origins(x))
+        if ur is not None:
+            files["ur_calibration.yaml"] = ur
+        return files
+
     def to_dict(self, x: np.ndarray | None = None) -> dict:
         x = self.vector() if x is None else np.asarray(x, float)
         names = self.parameter_names()
@@ -187,3 +200,15 @@ class UrdfArm:
                 "units": {"length": "m", "angle": "rad"},
                 "joint_names": self.joint_names,
                 "parameters": {n: float(v) for n, v in zip(names, x)}}
+
+    def link_frames(self, x: np.ndarray, q: np.ndarray) -> tuple[list[str], np.ndarray]:
+        """Every frame of the chain at joint readings q (N, n_joints), in the instrument frame:
+        names [root link, each joint's child link (fixed joints included), "tool"] and poses
+        (N, len(names), 4, 4), m.  For drawing the robot; the last pose equals `forward`'s."""
+        names, marks, s = [self.desc.root], [5], 5  # the 6 base steps end at index 5
+        for j in self.desc.joints:
+            s += 8 if j.movable else 1  # movable: x, y, z, nominal R, rx, ry, rz, the joint
+            names.append(j.child)
+            marks.append(s)
+        c = self.chain()
+        return names + ["tool"], ch.frames(c, np.asarray(x, float), np.atleast_2d(q), marks + [c.n_steps - 1])

@@ -44,7 +44,8 @@ class RecordingWriter:
     """
 
     def __init__(self, out: str | Path | IO[bytes], chunk_size: int = 1 << 20,
-                 compression: CompressionType = CompressionType.ZSTD, stream_encoding: str = JSB.ENCODING):
+                 compression: CompressionType = CompressionType.ZSTD, stream_encoding: str = JSB.ENCODING,
+                 scene: bool = False):
         if stream_encoding not in (JSB.ENCODING, "json"):
             raise ValueError(f"stream_encoding {stream_encoding!r}: 'protobuf' or 'json'")
         self.stream_encoding = stream_encoding
@@ -59,6 +60,9 @@ class RecordingWriter:
         self._channels: dict[str, int] = {}
         self._seq: dict[str, int] = {}
         self._closed = False
+        # scene=True (a recording written as it comes, e.g. the acquisition): the robot's /tf and
+        # /robot_description are added at close from the metadata and the encoder stream written
+        self._scene: dict | None = {"meta": {}, "t": [], "q": []} if scene else None
 
     def channel(self, topic: str) -> int:
         if topic not in self._channels and topic == STREAM and self.stream_encoding == JSB.ENCODING:
@@ -75,6 +79,11 @@ class RecordingWriter:
     def write(self, topic: str, msg: dict, log_time_ns: int | None = None) -> None:
         """Write one message; `log_time` defaults to the message's `timestamp_ns`.  On the protobuf
         encoder stream `msg` is a batch in its JSON form (`joint_state_batch.from_dict`)."""
+        from pipeline.recording.scene import SCENE_CHANNELS
+
+        if topic in SCENE_CHANNELS:  # /tf, /robot_description: no timestamp_ns of their own
+            self.write_scene(topic, msg, int(log_time_ns))
+            return
         cid = self.channel(topic)
         t = int(msg["timestamp_ns"] if log_time_ns is None else log_time_ns)
         data = JSB.from_dict(msg) if topic == STREAM and self.stream_encoding == JSB.ENCODING else encode(msg)
@@ -83,6 +92,22 @@ class RecordingWriter:
     def _add(self, topic: str, cid: int, log_time: int, publish_time: int, data: bytes) -> None:
         self._seq[topic] += 1
         self._w.add_message(cid, log_time=log_time, data=data, publish_time=publish_time, sequence=self._seq[topic])
+
+    def write_scene(self, topic: str, msg: dict, log_time_ns: int) -> None:
+        """One message on a scene channel (`pipeline.recording.scene`: /tf, /robot_description),
+        registered under the schema name Foxglove / ROS tools recognise."""
+        from pipeline.recording import scene
+
+        if topic not in self._channels:
+            name, data = scene.scene_schema(topic)
+            sid = self._w.register_schema(name=name, encoding="jsonschema", data=data)
+            self._channels[topic] = self._w.register_channel(topic=topic, message_encoding="json", schema_id=sid)
+            self._seq[topic] = 0
+        t = int(log_time_ns)
+        self._add(topic, self._channels[topic], t, t, scene.encode(msg))
+        if topic == scene.DESCRIPTION_TOPIC:  # the URDF also as a file inside the recording
+            self._w.add_attachment(create_time=t, log_time=t, name=scene.ATTACHMENT, media_type="application/xml",
+                                   data=msg["data"].encode())
 
     def write_batch(self, t_ns: np.ndarray, q: np.ndarray, names: list[str] | tuple[str, ...],
                     device_t_ns: np.ndarray | None = None, host_t_ns: np.ndarray | None = None,
@@ -93,6 +118,9 @@ class RecordingWriter:
         commanded positions rad / m, efforts N·m / N, motor currents A (protobuf only); log time = the first
         sample's."""
         t0 = int(t_ns[0])
+        if self._scene is not None:
+            self._scene["t"].append(np.asarray(t_ns, np.int64))
+            self._scene["q"].append(np.asarray(q, float))
         if self.stream_encoding == JSB.ENCODING:
             self._add(STREAM, self.channel(STREAM), t0, t0,
                       JSB.encode(t_ns, q, names, device_t_ns, host_t_ns, q_cmd, effort, current))
@@ -109,6 +137,11 @@ class RecordingWriter:
     def metadata(self, name: str, value: dict | str) -> None:
         """A metadata record; dicts are stored as {'json': <compact JSON>}."""
         data = {"json": value if isinstance(value, str) else json.dumps(value, separators=(",", ":"), default=jsonable)}
+        if self._scene is not None:  # documents arrive as JSON text from the devices
+            try:
+                self._scene["meta"][name] = json.loads(value) if isinstance(value, str) else value
+            except ValueError:
+                pass
         self._w.add_metadata(name, data)
 
     def attachment(self, name: str, data: bytes, media_type: str, log_time_ns: int = 0) -> None:
@@ -120,8 +153,23 @@ class RecordingWriter:
         """Close the open chunk and push it to the OS, so it survives a crash."""
         self._w.flush()
 
+    def _write_scene_at_close(self) -> None:
+        """The robot's frames along the stream written (scene=True); never at the cost of the recording."""
+        from pipeline.recording.scene import scene_events
+
+        sc, self._scene = self._scene, None
+        if not sc or not sc["t"]:
+            return
+        try:
+            events = scene_events(sc["meta"], (np.concatenate(sc["t"]), np.concatenate(sc["q"])))
+        except Exception:  # noqa: BLE001 — a description that does not parse: the recording without /tf
+            return
+        for t, topic, msg in events:
+            self.write_scene(topic, msg, t)
+
     def close(self) -> None:
         if not self._closed:
+            self._write_scene_at_close()
             self._closed = True
             self._w.finish()
             if self._own:
@@ -155,18 +203,24 @@ def joint_state_messages(t_ns: np.ndarray, q: np.ndarray, names: list[str] | tup
 def write_campaign(path: str | Path, metadata: dict[str, dict], stream: tuple[np.ndarray, np.ndarray, list[str]],
                    events: list[tuple[str, dict]], batch: int = 250, stream_encoding: str = JSB.ENCODING) -> None:
     """Write a whole campaign: metadata, the batched encoder stream (positions at 1 nrad
-    resolution, as the archived JSON stream did, so both encodings carry the same numbers) and the
-    measurement events, all messages in log-time order."""
+    resolution, as the archived JSON stream did, so both encodings carry the same numbers), the
+    measurement events and the robot's frames and description for ROS / Foxglove tools
+    (`pipeline.recording.scene`), all messages in log-time order."""
+    from pipeline.recording.scene import scene_events
+
     t_ns, q, names = stream
     q = np.round(q, 9)
     starts = range(0, t_ns.size, batch)
     msgs = [(int(t_ns[s]), 0, STREAM, s) for s in starts] + [(int(m["timestamp_ns"]), 1, tp, m) for tp, m in events]
+    msgs += [(t, 2, tp, m) for t, tp, m in scene_events(metadata, (t_ns, q))]  # the robot for ROS / Foxglove
     msgs.sort(key=lambda tm: tm[0])  # stable: a batch before an event of the same time, as before
     with RecordingWriter(path, stream_encoding=stream_encoding) as w:
         for name, value in metadata.items():
             w.metadata(name, value)
-        for _, kind, topic, m in msgs:
+        for t, kind, topic, m in msgs:
             if kind == 0:
                 w.write_batch(t_ns[m:m + batch], q[m:m + batch], names)
-            else:
+            elif kind == 1:
                 w.write(topic, m)
+            else:
+                w.write_scene(topic, m, t)

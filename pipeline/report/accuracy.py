@@ -61,26 +61,31 @@ def histograms(before: np.ndarray, after: np.ndarray, floor_m: float | None) -> 
     return _svg(fig)
 
 
-def joints_before_after(joints: dict[str, np.ndarray], before: np.ndarray, after: np.ndarray) -> str:
-    """|residual| against each joint angle, before (top row) and after (bottom row)."""
+def joints_before_after(joints: dict[str, np.ndarray], before: np.ndarray, after: np.ndarray,
+                        prismatic: frozenset = frozenset()) -> str:
+    """|residual| against each joint angle (deg; a prismatic joint's travel mm), before (top row)
+    and after (bottom row)."""
+    from pipeline.report.labels import joint_scale
+
     names = list(joints)
     with rc_context(RC):
         fig, ax = _fig(min(2.0 * len(names), 12.0), 4.2, 2, len(names))
         for j, n in enumerate(names):
-            q = np.degrees(np.asarray(joints[n], float))
+            scale, unit = joint_scale(n, prismatic)
+            q = np.asarray(joints[n], float) * scale
             for row, (r, col) in enumerate(((before, "#d62728"), (after, "#2ca02c"))):
                 a = ax[row, j]
                 for k in range(r.shape[1]):
                     a.scatter(q, r[:, k] * MM, s=5, color=AXIS_RGB[k] if r.shape[1] > 1 else col, linewidths=0)
                 a.axhline(0, color="k", lw=0.5)
                 if row == 1:
-                    a.set_xlabel(f"{n} (deg)")
+                    a.set_xlabel(f"{n} ({unit})")
                 if j == 0:
                     a.set_ylabel(("before" if row == 0 else "after") + " (mm)")
     return _svg(fig)
 
 
-def per_axis(t_s: np.ndarray, after: np.ndarray) -> str:
+def per_axis(t_s: np.ndarray, after: np.ndarray, x_label: str = "time since first measurement (s)") -> str:
     """The Delta's residuals per axis (x red, y green, z blue) against time."""
     with rc_context(RC):
         fig, ax = _fig(6.4, 2.8)
@@ -88,7 +93,7 @@ def per_axis(t_s: np.ndarray, after: np.ndarray) -> str:
         for k, c in zip(range(after.shape[1]), "xyz"):
             a.scatter(t_s, after[:, k] * MM, s=10, color=AXIS_RGB[k], label=c, linewidths=0)
         a.axhline(0, color="k", lw=0.5)
-        a.set_xlabel("time since first measurement (s)")
+        a.set_xlabel(x_label)
         a.set_ylabel("residual after (mm)")
         a.legend()
     return _svg(fig)
@@ -174,8 +179,12 @@ def accuracy_section(art: RunArtefacts) -> str:
                           "(residual σ) dashed.", "fig-histograms")
         joints = art.joint_columns()
         if joints:
-            html += _fig_html(joints_before_after(joints, before, after), "Residuals against each joint angle, before "
-                              "(top) and after (bottom) calibration (mm vs deg); x/y/z components red/green/blue.",
+            from pipeline.report.labels import joints_unit_phrase
+
+            unit = joints_unit_phrase(joints, art.prismatic_joints())
+            html += _fig_html(joints_before_after(joints, before, after, art.prismatic_joints()),
+                              "Residuals against each joint angle, before "
+                              f"(top) and after (bottom) calibration (mm vs {unit}); x/y/z components red/green/blue.",
                               "fig-joints-before-after")
         meas = art.measurements or {}
         if art.system == "scorbot-scanner" and "pixel" in meas:
@@ -183,7 +192,10 @@ def accuracy_section(art: RunArtefacts) -> str:
                               "Scanner: residuals after calibration at their image points (arrows: x/y components, "
                               "colour: 3-D norm, mm).", "fig-image-field")
         if after.shape[1] == 3 and "timestamp_ns" in art.residuals:
-            t = np.asarray(art.residuals["timestamp_ns"], float)
-            html += _fig_html(per_axis((t - t.min()) * 1e-9, after), "Residuals after calibration per axis "
+            from pipeline.report.labels import time_axis
+
+            x, x_label = time_axis(np.asarray(art.residuals["timestamp_ns"], np.int64))
+            html += _fig_html(per_axis(x, after, x_label),
+                              "Residuals after calibration per axis "
                               "(x red, y green, z blue).", "fig-per-axis")
     return f'<section id="accuracy"><h2>Accuracy</h2>{html}</section>' if html else ""

@@ -59,6 +59,32 @@ class RunArtefacts:
         src.setdefault("path", self.recording.get("path") or self.stages.get("ingest", {}).get("params", {}).get("recording"))
         return src
 
+    @property
+    def metadata(self) -> dict:
+        m = (self.recording or {}).get("metadata")
+        return m if isinstance(m, dict) else {}
+
+    def prismatic_joints(self) -> frozenset[str]:
+        """Names of the robot's prismatic joints (readings in m), from the recording's URDF."""
+        import xml.etree.ElementTree as ET
+
+        text = (self.metadata.get("robocal.urdf") or {}).get("urdf")
+        if not isinstance(text, str):
+            return frozenset()
+        try:
+            root = ET.fromstring(text.encode())
+        except ET.ParseError:
+            return frozenset()
+        return frozenset(j.get("name") for j in root.findall("joint") if j.get("type") == "prismatic")
+
+    def robot_name(self) -> str:
+        """A URDF robot's own name (its URDF's robot name), else the system's name."""
+        import re
+
+        text = (self.metadata.get("robocal.urdf") or {}).get("urdf")
+        found = re.search(r"<robot[^>]*\bname=[\"']([^\"']+)", text) if isinstance(text, str) else None
+        return found.group(1) if found else self.system
+
     def joint_columns(self) -> dict[str, np.ndarray]:
         """Joint angles (rad) of each measurement by joint name, from `q_<joint>` columns or a
         `joint_positions` (n, n_joints) column; empty if the measurements carry no joints."""
@@ -67,6 +93,8 @@ class RunArtefacts:
         jp = meas.get("joint_positions")
         if not out and jp is not None and np.ndim(jp) == 2:
             names = list((self.recording.get("encoder") or {}).get("joints") or [])
+            if len(names) != jp.shape[1]:  # no encoder stream: the campaign's (the URDF's) joint names
+                names = list(self.metadata.get("robocal.campaign", {}).get("joint_names") or [])
             if len(names) != jp.shape[1]:
                 names = [f"J{i + 1}" for i in range(jp.shape[1])]
             out = {n: np.asarray(jp[:, i], float) for i, n in enumerate(names)}

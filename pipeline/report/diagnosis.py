@@ -108,9 +108,10 @@ def _effect_column(effect: str, location: Any, columns: list[str]) -> str | None
     return None
 
 
-def located_plots(doc: dict, measurements: dict[str, np.ndarray] | None, residuals: dict[str, np.ndarray]
-                  ) -> list[PlotSpec]:
-    """Residuals of the geometric fit against each finding's located variable (added-variable view)."""
+def located_plots(doc: dict, measurements: dict[str, np.ndarray] | None, residuals: dict[str, np.ndarray],
+                  prismatic: frozenset = frozenset()) -> list[PlotSpec]:
+    """Residuals of the geometric fit against each finding's located variable (added-variable view;
+    joint readings in deg, a prismatic joint's in mm)."""
     if not measurements or "record" not in measurements:
         return []
     cols = list(measurements)
@@ -127,7 +128,10 @@ def located_plots(doc: dict, measurements: dict[str, np.ndarray] | None, residua
             continue
         x = np.asarray(measurements[col], float)[idx[ok]]
         if col.startswith("q_"):
-            x, label = np.degrees(x), f"{col[2:]} (deg)"
+            from pipeline.report.labels import joint_scale
+
+            scale, unit = joint_scale(col[2:], prismatic)
+            x, label = x * scale, f"{col[2:]} ({unit})"
         else:
             label = col
         out.append(PlotSpec(title=f"{f.get('effect', 'finding')}: residuals of the geometric fit against {label}",

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from pipeline.report import labels
 from pipeline.report.artefacts import RunArtefacts, residual_matrix
 
 DISPLAY = {"m": ("mm", 1e3), "rad": ("deg", 180.0 / np.pi), "m/px": ("µm/px", 1e6)}
@@ -108,6 +109,9 @@ class ResidualSeries:
     joints: dict[str, np.ndarray]  # joint name -> (n·k,) rad
     component: np.ndarray  # (n·k,) int
     used: np.ndarray  # (n·k,) bool: False for measurements rejected as outliers
+    prismatic: frozenset = frozenset()  # joints whose readings are m (plotted in mm, not deg)
+    time_label: str = "time since first measurement (s)"  # or the table row, for tables without times
+    group_title: str = "face / channel"  # what a residual group is (a jig face; a URDF campaign's target)
 
 
 def residual_series(art: RunArtefacts) -> ResidualSeries:
@@ -119,8 +123,7 @@ def residual_series(art: RunArtefacts) -> ResidualSeries:
     for key, m in mats.items():
         if m.shape[1] != k:
             mats[key] = np.full((n, k), np.nan)
-    t = np.asarray(res["timestamp_ns"], np.int64)
-    t_s = (t - t.min()) * 1e-9 if n else np.zeros(0)
+    t_s, time_label = labels.time_axis(np.asarray(res["timestamp_ns"], np.int64))
     joints: dict[str, np.ndarray] = {}
     meas = art.measurements
     if meas is not None and "record" in meas:
@@ -136,7 +139,8 @@ def residual_series(art: RunArtefacts) -> ResidualSeries:
     return ResidualSeries(group=rep(groups), t_s=rep(t_s), before=mats["before"].ravel(),
                           after=mats["after"].ravel(), holdout=mats["holdout"].ravel(),
                           joints={j: rep(v) for j, v in joints.items()}, component=np.tile(np.arange(k), n),
-                          used=rep(art.used))
+                          used=rep(art.used), prismatic=art.prismatic_joints(), time_label=time_label,
+                          group_title=labels.group_title(art.system))
 
 
 def correlation(art: RunArtefacts) -> tuple[list[str], np.ndarray] | None:

@@ -16,6 +16,7 @@ from pipeline.report import compensation
 from pipeline.report import diagnosis as dg
 from pipeline.report import figures as fg
 from pipeline.report import plots
+from pipeline.report.labels import joints_unit_phrase
 from pipeline.report.markup import figure as _figure
 from pipeline.report.markup import section as _section
 from pipeline.report.markup import table as _table
@@ -101,14 +102,18 @@ def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
 def residual_section(art, series: fg.ResidualSeries) -> str:
     rows = [[escape(r["group"]), str(r["n"]), _mm(r["rms_before_m"]), _mm(r["rms_after_m"]),
              _mm(r["rms_holdout_m"])] for r in fg.group_table(art)]
-    html = _table(["face / channel", "n", "RMS before", "RMS after", "RMS held out"], rows, {1, 2, 3, 4})
-    html += _figure(plots.residuals_by_group(series), "Residuals per face/channel before and after calibration "
+    html = _table([series.group_title, "n", "RMS before", "RMS after", "RMS held out"], rows, {1, 2, 3, 4})
+    html += _figure(plots.residuals_by_group(series), f"Residuals per {series.group_title.replace(' / ', '/')} "
+                    "before and after calibration "
                     "(mm); held out = predicted by a fit that did not see the measurement.", "fig-residuals-group")
-    html += _figure(plots.residuals_vs_time(series), "Residuals against time since the first measurement (mm): "
+    against = ("time since the first measurement" if series.time_label.startswith("time")
+               else "the measurement's row in the table (it has no times)")
+    html += _figure(plots.residuals_vs_time(series), f"Residuals against {against} (mm): "
                     "structure here means drift.", "fig-residuals-time")
     if series.joints:
+        unit = joints_unit_phrase(series.joints, series.prismatic)
         html += _figure(plots.residuals_vs_joints(series), "Residuals after calibration against each joint angle "
-                        "(mm vs deg): structure here means an effect the model leaves out.", "fig-residuals-joints")
+                        f"(mm vs {unit}): structure here means an effect the model leaves out.", "fig-residuals-joints")
     return _section("residuals", "Residuals", html)
 
 
@@ -198,22 +203,24 @@ def diagnosis_section(art) -> str:
                  "reported as findings): " + escape(", ".join(f"{d.get('effect')}@{d.get('location')}" for d in dropped))
                  + "</p>")
     b, a = doc.get("holdout_rms_before_m"), doc.get("holdout_rms_after_m")
+    unit = "posture" if art.system == "urdf" else "jig face / pose"  # what the diagnosis's folds keep together
     if isinstance(b, (int, float)) and not rows:
         html += (f'<p class="note">Held-out RMS of the geometric model in the diagnosis\'s own cross-validation: '
-                 f"{b * 1e3:.4f} mm (its folds keep each jig face / pose together, so it differs from the summary's "
+                 f"{b * 1e3:.4f} mm (its folds keep each {unit} together, so it differs from the summary's "
                  "k-fold figure).</p>")
     elif isinstance(b, (int, float)) and isinstance(a, (int, float)):
         html += _figure(plots.bars(["before", "after"], [b * 1e3, a * 1e3], "held-out RMS (mm)",
                                    "held-out RMS: geometry only vs with the findings"),
                         f"Held-out RMS before {b * 1e3:.4f} mm, after modelling the findings {a * 1e3:.4f} mm "
-                        "(the diagnosis's own cross-validation, folds grouped by face / pose: it differs from the "
+                        f"(the diagnosis's own cross-validation, folds grouped by {unit.removeprefix('jig ')}: it "
+                        "differs from the "
                         "summary's k-fold figure).",
                         "fig-diagnosis-improvement")
     cols = None
     if art.measurements is not None:
         cols = {k: v for k, v in art.measurements.items() if np.ndim(v) == 1}
         cols.update({f"q_{n}": v for n, v in art.joint_columns().items()})
-    specs = dg.find_plots(doc) or dg.located_plots(doc, cols, art.residuals)
+    specs = dg.find_plots(doc) or dg.located_plots(doc, cols, art.residuals, art.prismatic_joints())
     for i, p in enumerate(specs):
         scale = 1e3 if p.lengths else 1.0
         series = {k[:-2] if k.endswith("_m") else k: v for k, v in p.series.items()}
@@ -244,10 +251,11 @@ def diagnosis_section(art) -> str:
         html += '<p class="note">No structure left in the residuals (lack-of-fit tests).</p>'
     lof = [t for t in doc.get("lack_of_fit", []) or [] if isinstance(t, dict)]
     if lof:
+        raw = any(isinstance(t.get("p_value_raw"), (int, float)) for t in lof)  # the column only where there are values
         html += "<h3>Lack-of-fit tests</h3>" + _table(
-            ["variable", "statistic", "p-value (Holm)", "p-value (raw)"],
-            [[escape(str(t.get("variable", ""))), escape(dg._fmt(t.get("statistic"), "")), _p(t.get("p_value")),
-              _p(t.get("p_value_raw"))] for t in lof], {1, 2, 3}) + (
+            ["variable", "statistic", "p-value (Holm)"] + (["p-value (raw)"] if raw else []),
+            [[escape(str(t.get("variable", ""))), escape(dg._fmt(t.get("statistic"), "")), _p(t.get("p_value"))]
+             + ([_p(t.get("p_value_raw"))] if raw else []) for t in lof], {1, 2, 3}) + (
             '<p class="note">Holm-adjusted p-values are capped at 1 (three significant figures below it): 1 means '
             "no evidence of structure against that variable.</p>")
     return _section("diagnosis", "Diagnosis", html)
@@ -283,8 +291,9 @@ def _json(v: Any) -> str:
     return json.dumps(v, sort_keys=True, default=str)
 
 
-def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "run.rrd") -> str:
-    """The whole report page."""
+def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "run.rrd", tick=None) -> str:
+    """The whole report page; `tick(note)` is called after each section (progress)."""
+    tick = tick or (lambda note="": None)
     s = fg.summary(art)
     if isinstance(art.accuracy, dict) and art.accuracy.get("map_rms_1sigma_m") is not None:
         s["accuracy_map_rms_1sigma_m"] = art.accuracy["map_rms_1sigma_m"]
@@ -297,9 +306,14 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     from pipeline.report.accuracy import accuracy_section
 
     acc_html = accuracy_section(art)
-    sections = [summary_section(s, warnings), acc_html, residual_section(art, series), parameter_section(art.fit),
-                observability_section(art), solver_section(art.history), validation_section(art.validate),
-                diagnosis_section(art)]
+    tick("accuracy section")
+    sections = [summary_section(s, warnings), acc_html]
+    for name, make in (("residuals", lambda: residual_section(art, series)),
+                       ("parameters", lambda: parameter_section(art.fit)), ("observability", lambda: observability_section(art)),
+                       ("solver", lambda: solver_section(art.history)), ("validation", lambda: validation_section(art.validate)),
+                       ("diagnosis", lambda: diagnosis_section(art))):
+        sections.append(make())
+        tick(f"{name} section")
     comp = compensation.section(art.run_dir)
     sections += [comp or "", provenance_section(prov, rrd_name)]
     titles = [("summary", "Summary")] + ([("accuracy", "Accuracy")] if acc_html else []) + [
@@ -312,10 +326,12 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     titles.append(("provenance", "Provenance"))
     nav = "".join(f'<a href="#{i}">{escape(t)}</a>' for i, t in titles)
     src = prov.get("input_path") or "recording"
+    name = art.robot_name() if hasattr(art, "robot_name") else s["system"]
+    name = s["system"] if name == s["system"] else f"{name} ({s['system']})"
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
             f'<meta name="generator" content="robocal/{__version__}">'
             f'<meta name="viewport" content="width=device-width, initial-scale=1">'
-            f"<title>robocal report — {escape(s['system'])}</title><style>{CSS}</style></head><body>"
-            f"<header><h1>robocal calibration report — {escape(s['system'])}</h1>"
+            f"<title>robocal report — {escape(name)}</title><style>{CSS}</style></head><body>"
+            f"<header><h1>robocal calibration report — {escape(name)}</h1>"
             f"<p>{escape(str(src))} · robocal {escape(version)}</p></header><nav>{nav}</nav>"
             f"<main>{''.join(sections)}</main></body></html>\n")

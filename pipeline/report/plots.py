@@ -14,6 +14,7 @@ from matplotlib import rc_context
 from matplotlib.figure import Figure
 
 from pipeline.report.figures import ResidualSeries
+from pipeline.report.labels import joint_scale, plain_log_ticks
 
 MM = 1e3
 DEG = 180.0 / np.pi
@@ -103,8 +104,8 @@ def residuals_vs_time(s: ResidualSeries) -> str:
         for a in ax[:, 0]:
             a.axhline(0, color="k", lw=0.6)
             a.set_ylabel("residual (mm)")
-        ax[1, 0].set_xlabel("time since first measurement (s)")
-        ax[0, 0].legend(loc="center left", bbox_to_anchor=(1.0, 0.0), title="face / channel")
+        ax[1, 0].set_xlabel(s.time_label)
+        ax[0, 0].legend(loc="center left", bbox_to_anchor=(1.0, 0.0), title=s.group_title)
     return _svg(fig)
 
 
@@ -120,17 +121,18 @@ def residuals_vs_joints(s: ResidualSeries) -> str:
             if i >= len(joints):
                 a.set_visible(False)
                 continue
-            q = s.joints[joints[i]] * DEG
+            scale, unit = joint_scale(joints[i], s.prismatic)  # deg; a prismatic joint's m in mm
+            q = s.joints[joints[i]] * scale
             for g, c in colors.items():
                 m = s.group == g
                 a.scatter(q[m], s.after[m] * MM, s=10, color=c, label=g if i == 0 else None, linewidths=0)
                 a.scatter(q[m], s.holdout[m] * MM, s=12, facecolors="none", edgecolors=c, linewidths=0.6)
             a.axhline(0, color="k", lw=0.6)
-            a.set_xlabel(f"{joints[i]} (deg)")
+            a.set_xlabel(f"{joints[i]} ({unit})")
             if i % ncols == 0:
                 a.set_ylabel("residual after (mm)")
         if joints:
-            fig.legend(loc="outside right center", title="face / channel")
+            fig.legend(loc="outside right center", title=s.group_title)
     return _svg(fig)
 
 
@@ -142,6 +144,7 @@ def singular_values(s: np.ndarray) -> str:
         k = np.arange(1, s.size + 1)
         a.bar(k, s, color="#1f77b4", width=0.7)
         a.set_yscale("log")
+        plain_log_ticks(a)
         a.set_xlabel("index")
         a.set_ylabel("singular value (scaled Jacobian)")
         if s.size and s[-1] > 0:
@@ -173,6 +176,7 @@ def solver_history(history: Sequence[float]) -> str:
         a.plot(np.arange(h.size), h, marker="o", ms=3, color="#5a5ac8")
         if h.size and np.all(h > 0):
             a.set_yscale("log")
+            plain_log_ticks(a)
         a.set_xlabel("evaluation")
         a.set_ylabel("RMS residual (mm)")
     return _svg(fig)

@@ -30,19 +30,24 @@ def run(run_dir: Path, params: dict[str, Any] | None = None) -> dict[str, Any]:
     figures = results_figures(art)
     out: dict[str, Any] = {**figures, "files": {}}
     shown = {k: v for k, v in params.items() if k != "recording"}
+    from pipeline.progress import Ticker
+
+    tick = Ticker("report", total=7 * bool(params.get("html", True)) + bool(params.get("rrd", True)), unit="parts")
     if params.get("html", True):
         html_path = run_dir / REPORT_HTML
-        html_path.write_text(render(art, __version__, shown, RUN_RRD if params.get("rrd", True) else None),
+        html_path.write_text(render(art, __version__, shown, RUN_RRD if params.get("rrd", True) else None, tick),
                              encoding="utf-8")
         out["files"]["html"] = REPORT_HTML
     if params.get("rrd", True):
         from pipeline.visualize.rrd import write_rrd
 
         info = write_rrd(art, run_dir / RUN_RRD, figures, params)
+        tick("rerun recording")
         out["files"]["rrd"] = RUN_RRD
         out["rrd_entities"] = info["entities"]
         out["rrd_system_hook"] = info["system_hook"]
         if info["warnings"]:
             out["warnings"] = info["warnings"]
+    tick.done()
     out["outputs"] = sorted(out["files"].values())  # files outside DIR/report/ (for the runner's cache)
     return out  # timings live in stage.json (the runner's), never in results

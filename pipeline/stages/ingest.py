@@ -20,6 +20,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from pipeline.errors import RobocalError, where
+from pipeline.recording.scene import SCENE_CHANNELS
 from pipeline.ingest.guards import first_schema_error
 from pipeline.ingest.streams import JOINT_STATE, joint_stream
 from pipeline.ingest.tables import channel_table, encoder_table, measurement_table
@@ -29,6 +30,7 @@ from pipeline.stages.artefacts import read_json, read_table, sha256_file, write_
 
 NAME = "ingest"
 MESSAGES = "messages.parquet"
+SCENE = frozenset(SCENE_CHANNELS)  # /tf, /robot_description: for ROS / Foxglove tools, not read by the stages
 
 
 def channel_file(topic: str) -> str:
@@ -47,7 +49,7 @@ def channel_file(topic: str) -> str:
 def run(run_dir: Path, params: dict) -> dict:
     out = Path(run_dir) / NAME
     path = Path(params["recording"])
-    rec = read_recording(path)
+    rec = read_recording(path, skip=SCENE)  # /tf, /robot_description: for ROS tools, not calibration data
     from pipeline.systems.registry import detect
 
     system = detect(rec)
@@ -214,7 +216,7 @@ def load_system(run_dir: Path, with_stream: bool = False):
     info = recording_info(run_dir)
     rec = None if with_stream else read_messages(run_dir, info)
     if rec is None:
-        rec = read_recording(info["source"]["path"], skip=frozenset() if with_stream else frozenset({JOINT_STATE}))
+        rec = read_recording(info["source"]["path"], skip=SCENE if with_stream else SCENE | {JOINT_STATE})
     system = SYSTEMS[info["system"]]
     from pipeline.systems.registry import load_with_physics
 

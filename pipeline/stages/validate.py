@@ -83,7 +83,9 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
     from pipeline.systems.registry import SYSTEMS
 
     info = recording_info(run_dir)
-    rec = read_recording(info["source"]["path"])
+    from pipeline.stages.ingest import SCENE
+
+    rec = read_recording(info["source"]["path"], skip=SCENE)  # as ingest read it (one cached read)
     system = SYSTEMS[info["system"]]
     mchan = info["measurement_channel"]
     out: list[C.Check] = []

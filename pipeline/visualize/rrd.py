@@ -20,6 +20,7 @@ Per-system hooks: module ``pipeline.visualize.<system>`` (``-`` → ``_``) with
 from __future__ import annotations
 
 import importlib
+import re
 import inspect
 from pathlib import Path
 from typing import Any
@@ -29,7 +30,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from pipeline.report.artefacts import RunArtefacts, residual_matrix
-from pipeline.visualize import scene
+from pipeline.visualize import robot, scene
 from pipeline.visualize.source import align, model_and_table
 
 TIMELINE = "time"
@@ -37,6 +38,7 @@ ITERATION = "iteration"
 NOMINAL_RGB = (220, 80, 60)
 CALIBRATED_RGB = (40, 160, 90)
 HOLDOUT_RGB = (230, 150, 30)
+MEASURED_RGB = (250, 200, 0)
 ROBOT_RATE_HZ = 5.0
 APP_ID = "robocal"
 
@@ -54,8 +56,9 @@ def _component_colors(rgb: tuple[int, int, int], k: int) -> list[tuple[int, int,
 
 
 def entity_part(label: str) -> str:
-    """A group label as one entity-path part (a channel name such as /tracker/point → tracker_point)."""
-    part = "_".join(p for p in str(label).split("/") if p)
+    """A group label as one entity-path part (a channel name such as /tracker/point → tracker_point,
+    "target 0" → target_0: rerun's entity paths take no unescaped whitespace)."""
+    part = "_".join(p for p in re.split(r"[/\s]+", str(label)) if p)
     return part or "all"
 
 
@@ -108,6 +111,17 @@ def log_solver(rec: rr.RecordingStream, history: list[float]) -> str:
     return path
 
 
+def arrow_scale(residuals: np.ndarray, longest_m: float = 0.1) -> int:
+    """Magnification of residual arrows: 100, 10 or 1, the largest that keeps the longest arrow
+    within `longest_m` (µm residuals ×100; a real robot's mm residuals ×10)."""
+    r = np.asarray(residuals, float)
+    big = float(np.nanmax(np.linalg.norm(r, axis=1))) if r.size else 0.0
+    for k in (100, 10):
+        if k * big <= longest_m:
+            return k
+    return 1
+
+
 def log_points(rec: rr.RecordingStream, model, table: dict, x_before: np.ndarray, x_after: np.ndarray,
                residual_after: np.ndarray | None = None) -> list[str]:
     """The model's 3-D points at every measurement, nominal and calibrated; residual vectors when the
@@ -122,10 +136,16 @@ def log_points(rec: rr.RecordingStream, model, table: dict, x_before: np.ndarray
     rec.log("world/tips/correction", rr.LineStrips3D(np.stack([p0, p1], axis=1), colors=[(120, 120, 120)],
                                                       radii=[0.0004]), static=True)
     paths = ["world/tips/nominal", "world/tips/calibrated", "world/tips/correction"]
+    measured = np.asarray(table.get("position", np.zeros((0, 3))), float)
+    if measured.shape == p1.shape:  # what the instrument measured (point, pose), in the same frame
+        rec.log("world/measured", rr.Points3D(measured, colors=[MEASURED_RGB], radii=[0.003], labels=labels,
+                                              show_labels=False), static=True)
+        paths.append("world/measured")
     if residual_after is not None and getattr(model, "residual_dim", 0) == 3 and len(residual_after) == len(p1):
-        rec.log("world/residuals/after_x100", rr.Arrows3D(origins=p1, vectors=-100 * residual_after,
-                                                          colors=[CALIBRATED_RGB]), static=True)
-        paths.append("world/residuals/after_x100")
+        k = arrow_scale(residual_after)
+        rec.log(f"world/residuals/after_x{k}", rr.Arrows3D(origins=p1, vectors=-k * residual_after,
+                                                           colors=[CALIBRATED_RGB]), static=True)
+        paths.append(f"world/residuals/after_x{k}")
     # the measurement being made, on the recording's timeline
     t = np.asarray(table.get("timestamp_ns", []), np.int64)
     if t.size == len(p1):
@@ -198,14 +218,16 @@ def call_system_hook(rec: rr.RecordingStream, system: str, model, table: dict, x
 def summary_markdown(art: RunArtefacts, figures: dict[str, Any]) -> str:
     """Headline figures as markdown for the `summary` text view."""
     mm = lambda v: "n/a" if v is None else f"{v * 1e3:.4f} mm"  # noqa: E731
+    name = art.robot_name()
     return "\n".join([
-        f"# robocal run — {art.system}", "",
+        f"# robocal run — {name}" + (f" ({art.system})" if name != art.system else ""), "",
         f"- measurements: {figures.get('n_measurements')}",
         f"- RMS before: {mm(figures.get('rms_before_m'))}",
         f"- RMS after: {mm(figures.get('rms_after_m'))}",
         f"- held-out RMS: {mm(figures.get('holdout_rms_m'))}",
         f"- parameters identified / total: {figures.get('n_identifiable')} / {figures.get('n_parameters')}",
-        "", "Red: nominal model's points; green: calibrated. Arrows: residual vectors (after ×100).",
+        "", "Red: nominal model's points and robot; green points, blue robot: calibrated; yellow: measured.",
+        "Arrows: residual vectors after calibration, magnified (×k in the entity name).",
         "The solver plot uses the `iteration` timeline (select it in the time panel).",
     ])
 
@@ -230,7 +252,7 @@ def diagnosis_markdown(doc: dict) -> str:
 def blueprint(has_scene: bool) -> rrb.Blueprint:
     """Layout: 3-D scene left; encoder, residuals and solver/summary right; time panel on `time`."""
     right = rrb.Vertical(
-        rrb.TimeSeriesView(origin="/encoder", name="Encoder stream (rad)"),
+        rrb.TimeSeriesView(origin="/encoder", name="Joint readings (rad; prismatic m)"),
         rrb.Tabs(rrb.TimeSeriesView(origin="/residuals/after_mm", name="Residuals after (mm)"),
                  rrb.TimeSeriesView(origin="/residuals/before_mm", name="Residuals before (mm)"),
                  rrb.TimeSeriesView(origin="/residuals/holdout_mm", name="Residuals held out (mm)")),
@@ -286,9 +308,10 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
     else:
         model, table = built
         table = align(table, np.asarray(art.residuals["record"]))
-        x_before = np.asarray(art.fit["nominal"], float)
         x_after = np.asarray(art.fit["x"], float)
+        x_before = robot.nominal_registered(model, table, np.asarray(art.fit["nominal"], float), warnings)
         entities += log_points(rec, model, table, x_before, x_after, residual_matrix(art.residuals, "after"))
+        entities += robot.log_robots(rec, model, table, x_before, x_after, art.encoder, warnings)
         arm = getattr(model, "arm", None)
         if arm is not None and hasattr(arm, "joints") and "joint_positions" in table:
             x_arm = arm_vector(model, arm, x_after)

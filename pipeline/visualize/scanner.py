@@ -69,5 +69,43 @@ def log_system(rec, model, table: dict, x_before: np.ndarray, x_after: np.ndarra
             rec.log("world/scanner/stripe", rr.LineStrips3D([model.points(x_after, sub)[0]], colors=[STRIPE_RGB],
                                                             radii=[0.0007]))
     rec.reset_time()
+    log_camera(rec, model, table, x_after)
     if path is not None:
         rec.save(path)
+
+
+def camera_poses(model, x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The calibrated camera frame {C} in the base frame at joint readings q (N, 5): rotations
+    (N, 3, 3) and origins (N, 3), m — flange pose (eq. 8) · hand-eye transform (eqs. 9–10)."""
+    from pipeline.models import camera as cam
+
+    x = np.asarray(x, float)
+    s = x[:cam.N_SCANNER]
+    Rf, pf = model.flange(x, np.atleast_2d(q))
+    R_he = cam.hand_eye_rotation(s[cam.I_W], s[cam.I_PHI], s[cam.I_PSI])
+    return Rf @ R_he, pf + np.einsum("nij,j->ni", Rf, s[cam.I_TX:cam.I_TZ + 1])
+
+
+def log_camera(rec, model, table: dict, x_after: np.ndarray) -> None:
+    """``world/scanner/camera``: the calibrated camera at each measurement pose on ``time``, with its
+    frustum (a pinhole of the calibrated focal length and the 640×480 image; {C}'s x runs down the
+    image rows V, y along the columns U, z forward: rerun's DRF)."""
+    from pipeline.models import camera as cam
+
+    if not hasattr(model, "flange"):
+        return
+    pose = np.asarray(table.get("pose", np.zeros(len(table["joint_positions"]), int)))
+    first = np.array([np.flatnonzero(pose == i)[0] for i in np.unique(pose)])
+    q = np.asarray(table["joint_positions"], float)[first]
+    t_ns = np.asarray(table.get("timestamp_ns", np.arange(len(pose))), np.int64)[first]
+    R, p = camera_poses(model, x_after, q)
+    s = np.asarray(x_after, float)[:cam.N_SCANNER]
+    w, h = getattr(model, "image_size", (640, 480))
+    rec.log("world/scanner/camera", rr.Pinhole(focal_length=[float(s[cam.I_F] / s[cam.I_SU]), float(s[cam.I_F] / s[cam.I_SV])],
+                                               principal_point=[float(s[cam.I_U0]), float(s[cam.I_V0])],
+                                               width=w, height=h, camera_xyz=rr.ViewCoordinates.DRF,
+                                               image_plane_distance=0.05), static=True)
+    rec.send_columns("world/scanner/camera",
+                     indexes=[rr.TimeColumn(TIMELINE, timestamp=t_ns.astype("datetime64[ns]"))],
+                     columns=rr.Transform3D.columns(translation=p, mat3x3=R))
+

@@ -6,6 +6,7 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
 
 from pipeline.errors import RobocalError
 from pipeline.identify.least_squares import FitOptions, cross_validate, fit, holdout_warning, point_accuracy
@@ -88,6 +89,12 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
+    if solver == "lm":
+        from pipeline.physics.summary import summarise
+
+        physics_doc = summarise(model, f, table, options, k_folds, seed, float(np.sqrt(np.nanmean(holdout**2))))
+        if physics_doc is not None:  # geometry-only vs with-physics held-out, each kept term's reading
+            doc["physics"] = physics_doc
     from pipeline.accuracy.stage import guarded_document
 
     acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {})

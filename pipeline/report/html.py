@@ -294,14 +294,18 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
                      if c.get("status") == "warn"]
     from pipeline.report.accuracy import accuracy_section
 
+    from pipeline.report.physics import section_html as physics_section
+
     acc_html = accuracy_section(art)
-    sections = [summary_section(s, warnings), acc_html, residual_section(art, series), parameter_section(art.fit),
+    phys_html = physics_section(art.fit)
+    sections = [summary_section(s, warnings), acc_html, residual_section(art, series), phys_html,
+                parameter_section(art.fit),
                 observability_section(art), solver_section(art.history), validation_section(art.validate),
                 diagnosis_section(art)]
     comp = compensation.section(art.run_dir)
     sections += [comp or "", provenance_section(prov, rrd_name)]
     titles = [("summary", "Summary")] + ([("accuracy", "Accuracy")] if acc_html else []) + [
-              ("residuals", "Residuals"), ("parameters", "Parameters"),
+              ("residuals", "Residuals")] + ([("physics", "Physics")] if phys_html else []) + [("parameters", "Parameters"),
               ("observability", "Observability"), ("solver", "Solver"), ("validation", "Validation")]
     if art.diagnosis is not None:
         titles.append(("diagnosis", "Diagnosis"))

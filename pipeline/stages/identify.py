@@ -112,6 +112,11 @@ def run(run_dir: Path, params: dict) -> dict:
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
+    from pipeline.physics.summary import summarise
+
+    physics = summarise(model, f, kept_data, opts, folds, int(params.get("seed", 0)), rms(holdout_kept))
+    if physics is not None:  # geometry-only vs with-physics held-out, each kept term's reading
+        doc["physics"] = physics
     if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
         doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
     out.mkdir(parents=True, exist_ok=True)
@@ -122,7 +127,7 @@ def run(run_dir: Path, params: dict) -> dict:
     keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
             "loss", "function_evaluations", "predicted_point_sigma_rms_m", "warnings")
-    return {k_: doc[k_] for k_ in keys} | ({"extra": doc["extra"]} if "extra" in doc else {})
+    return {k_: doc[k_] for k_ in keys} | {k_: doc[k_] for k_ in ("extra", "physics") if k_ in doc}
 
 
 def read_fit(run_dir: Path) -> dict:

@@ -40,6 +40,7 @@ class BagSpec:
     window_s: float = standstill.DEFAULT_WINDOW_S
     max_speed: float = standstill.DEFAULT_MAX_SPEED
     time: str = "header"  # header (header.stamp, falling back to receive time) | log (receive time)
+    tips: tuple = ()  # ((link, PointStamped topic), …): a tree measured on several tips, one topic each
 
 
 def at(path: Path, topic: str, record: int | None = None) -> str:
@@ -92,11 +93,33 @@ def choose_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> tuple[st
     return jt, mt, measure
 
 
-def _stream(path: Path, reader, joint_topic: str, measure_topic: str, side: list):
+def tip_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> list[str]:
+    """The measurement topic of each of `spec.tips`, checked: in the bag, PointStamped, each once."""
+    out = []
+    for link, topic in spec.tips:
+        if topic not in topics:
+            cands = sorted(t for t, ty in topics.items() if ty in MEASURE_TYPES)
+            raise RobocalError(f"{at(path, topic)}: not in the bag (--measure-topic {link}={topic}); measurement "
+                               f"topics: {', '.join(cands) or 'none'}")
+        if topics[topic] != POINT:
+            raise RobocalError(f"{at(path, topic)}: is {topics[topic]}; a tip's topic must be {POINT} "
+                               f"(--measure-topic {link}={topic})")
+        if topic in out:
+            raise RobocalError(f"{at(path, topic)}: named for two tips (--measure-topic)")
+        out.append(topic)
+    if spec.measure not in (None, "point"):
+        raise RobocalError(f"--measure {spec.measure!r}: several tips give point measurements")
+    return out
+
+
+def _stream(path: Path, reader, joint_topic: str, measure_topic, side: list):
     """Yield (receive time ns, CDR bytes) of the joint topic in bag order, one message at a time (the
-    long topic is never held whole); the measurement topic's go to `side`.  A storage failure is one
-    line saying how far the bag was read."""
-    conns = [c for c in reader.connections if c.topic in (joint_topic, measure_topic)]
+    long topic is never held whole); the measurement topics' (`measure_topic`: one or a list) go to
+    `side` as (receive time, bytes) or, for a list, (topic, receive time, bytes).  A storage failure is
+    one line saying how far the bag was read."""
+    several = isinstance(measure_topic, (list, tuple))
+    wanted = {joint_topic, *(measure_topic if several else (measure_topic,))}
+    conns = [c for c in reader.connections if c.topic in wanted]
     it = reader.messages(connections=conns)
     n = 0
     while True:
@@ -110,7 +133,7 @@ def _stream(path: Path, reader, joint_topic: str, measure_topic: str, side: list
         if conn.topic == joint_topic:
             yield t, data
         else:
-            side.append((t, bytes(data)))
+            side.append((conn.topic, t, bytes(data)) if several else (t, bytes(data)))
 
 
 def _decoder(path: Path, topic: str, typename: str):
@@ -282,19 +305,30 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     if spec.time not in ("header", "log"):
         raise RobocalError(f"--time {spec.time!r}: expected header or log")
     reader = _open(path)
-    side: list[tuple[int, bytes]] = []
+    side: list = []
     try:
         topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
-        jt, mt, measure = choose_topics(path, topics, spec)
+        if spec.tips:
+            mts = tip_topics(path, topics, spec)
+            jt, measure = choose_topics(path, topics, BagSpec(joint_topic=spec.joint_topic,
+                                                              measure_topic=mts[0]))[0], "point"
+            mt = ", ".join(mts)
+        else:
+            jt, mt, measure = choose_topics(path, topics, spec)
         joints = desc.joint_names
-        js, jlog, Q, jreport, effort = read_joint_states(path, jt, _stream(path, reader, jt, mt, side), joints)
+        js, jlog, Q, jreport, effort = read_joint_states(
+            path, jt, _stream(path, reader, jt, mts if spec.tips else mt, side), joints)
     finally:
         reader.close()
-    if not side:
-        raise RobocalError(f"{at(path, mt)}: no messages")
     tj, jsrc = _times(js, jlog, spec.time == "header")
-    ms, P, O, frame = read_measurements(path, mt, topics[mt], [d for _, d in side])
-    tm, msrc = _times(ms, [t for t, _ in side], spec.time == "header")
+    if spec.tips:
+        ms, P, O, frame, tm, msrc, target = _tip_measurements(path, topics, mts, side, spec.time == "header")
+    else:
+        if not side:
+            raise RobocalError(f"{at(path, mt)}: no messages")
+        ms, P, O, frame = read_measurements(path, mt, topics[mt], [d for _, d in side])
+        tm, msrc = _times(ms, [t for t, _ in side], spec.time == "header")
+        target = np.zeros(len(tm), int)
     warnings = []
     if jsrc != msrc:
         warnings.append(f"{path}: joint states timed by {jsrc}, measurements by {msrc} (a topic without "
@@ -316,17 +350,43 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     if measure == "pose":
         table["orientation"] = O[keep]
     else:
-        table["target"] = np.zeros(len(keep), int)
+        table["target"] = target[keep]
     extras = {
         "source_files": [str(path)],
-        "ros2": {"joint_topic": jt, "measure_topic": mt, "measure_type": topics[mt], "frame_id": frame,
+        "ros2": {"joint_topic": jt, "measure_topic": mt, "measure_type": POINT if spec.tips else topics[mt],
+                 "frame_id": frame,
                  "time_joint_states": jsrc, "time_measurements": msrc, "t0_ns": t0, "joint_states": jreport,
                  "pairing": summ, "measurement_records": keep.tolist()},
     }
     if measure == "point":
         extras["n_targets"] = 1
+    if spec.tips:
+        extras["ros2"]["tip_topics"] = {link: topic for link, topic in spec.tips}
     if warnings:
         extras["import_warnings"] = warnings
     if effort is not None:  # the joint states with their efforts, as the recording's encoder stream
         table["stream"] = {"t_ns": tj, "q": Q, "effort": effort}
     return table, extras
+
+
+def _tip_measurements(path: Path, topics: dict, mts: list[str], side: list, use_header: bool):
+    """The measurements of several tips' topics as one table: (stamps, positions, None, frame, times,
+    time source, tip index (m,)); one instrument frame for all."""
+    stamps, P, T, target, frame, src = [], [], [], [], None, None
+    for k, topic in enumerate(mts):
+        rows = [(t, d) for tp, t, d in side if tp == topic]
+        if not rows:
+            raise RobocalError(f"{at(path, topic)}: no messages")
+        ms, p, _, fr = read_measurements(path, topic, topics[topic], [d for _, d in rows])
+        if frame is not None and fr != frame:
+            raise RobocalError(f"{at(path, topic)}: frame {fr!r}, but {mts[0]} is in {frame!r} (one instrument "
+                               "frame per campaign)")
+        frame = fr
+        tm, s_ = _times(ms, [t for t, _ in rows], use_header)
+        src = s_ if src in (None, s_) else "mixed"
+        stamps.append(ms)
+        P.append(p)
+        T.append(tm)
+        target.append(np.full(len(tm), k, int))
+    return (np.concatenate(stamps), np.concatenate(P), None, frame or "", np.concatenate(T), src,
+            np.concatenate(target))

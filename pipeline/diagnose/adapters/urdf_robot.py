@@ -228,7 +228,7 @@ def adapter(model, table, held: tuple[str, ...] | None = None):
                    located=lambda e: e.data.get("located"))
 
 
-def from_recording(rec, stream=None):
+def from_recording(rec, stream=None, physics: dict | None = None):
     """(model, diagnosis table, info) of a URDF recording: its measurements with the time since
     the first one (the measurement order where a table came without times) and, where the encoder
     stream carries drive state, ``joint_efforts`` (N·m) and ``commanded_positions`` (rad) at each
@@ -237,7 +237,12 @@ def from_recording(rec, stream=None):
     from pipeline.recording.schemas import META_CAMPAIGN
     from pipeline.systems import urdf_robot
 
-    model, table = urdf_robot.load(rec)
+    if physics:  # the run's gravity-term choice: the same model as identify's
+        from pipeline.physics.compliance import parse_payload
+
+        model, table = urdf_robot.load(rec, physics.get("physics"), parse_payload(physics.get("payload")))
+    else:
+        model, table = urdf_robot.load(rec)
     t = np.asarray(table["timestamp_ns"], np.int64)
     tab = dict(table)
     tab["time_since_start_s"] = (t - t.min()) * 1e-9 if t.size else np.zeros(0)

@@ -44,8 +44,8 @@ def test_run_every_stage_on_a_tree_with_physics(run):
     assert '<section id="physics">' in html and "geometry only" in html
     phys = res["physics"]
     # the physics terms carry the data: geometry alone is far worse held out, with them near the noise floor
-    floor = truth["noise_m"] * np.sqrt(3)  # 3-D RMS of isotropic noise per axis
-    assert phys["holdout_with_physics_m"] < 1.6 * floor
+    floor = truth["noise_m"]  # robocal's RMS is per residual component: the noise σ per axis
+    assert phys["holdout_with_physics_m"] < 1.5 * floor
     assert phys["holdout_geometry_only_m"] > 3 * phys["holdout_with_physics_m"]
     by = {t["joint"]: t for t in phys["terms"] if t["family"] == "joint-compliance"}
     for j in ("torso_j1", "torso_j2"):  # the best-loaded joints: stiffness within 3σ of the truth

@@ -64,13 +64,17 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=150, help="postures per campaign (two hand markers each)")
     ap.add_argument("--noise-m", type=float, default=2e-4)
     a = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        rows = [one(s, a.n, a.noise_m, Path(tmp)) for s in a.seeds]
     print(f"humanoid, {a.n} postures × 2 hands, noise {a.noise_m * 1e3:.2f} mm per axis")
-    print("seed | held-out mm: geometry only | with physics | --physics none | floor | calibrate s: auto | none")
-    for r in rows:
-        print(f"{r['seed']:4d} | {r['geometry_m'] * 1e3:26.3f} | {r['physics_m'] * 1e3:12.3f} | "
-              f"{r['none_m'] * 1e3:14.3f} | {r['floor_m'] * 1e3:5.3f} | {r['t_auto']:17.1f} | {r['t_none']:4.1f}")
+    print("seed | held-out mm: geometry only | with physics | --physics none | floor | calibrate s: auto | none",
+          flush=True)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for s in a.seeds:  # one line per seed as it finishes
+            r = one(s, a.n, a.noise_m, Path(tmp))
+            rows.append(r)
+            print(f"{r['seed']:4d} | {r['geometry_m'] * 1e3:26.3f} | {r['physics_m'] * 1e3:12.3f} | "
+                  f"{r['none_m'] * 1e3:14.3f} | {r['floor_m'] * 1e3:5.3f} | {r['t_auto']:17.1f} | {r['t_none']:4.1f}",
+                  flush=True)
     print("\nrecovered stiffness (N·m/rad) vs truth, z = (ĉ − c)/σ̂ of the compliance")
     for r in rows:
         cells = [f"{j} {k_hat:.3g}/{k:.3g} z={zz:+.1f}" for j, (zz, k_hat, k) in r["z"].items()]

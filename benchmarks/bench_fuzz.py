@@ -5,6 +5,10 @@ silent loss, per mutation class, with the worst CPU time and peak memory.
 
     .venv/bin/python benchmarks/bench_fuzz.py --per-class 40          # full size (≈ 330 cases)
     .venv/bin/python benchmarks/bench_fuzz.py --per-class 4 --stages ingest,validate   # bounded
+    .venv/bin/python benchmarks/bench_fuzz.py --surfaces 24    # CSV, URDF, bags, campaigns, run folders, …
+
+`--surfaces N` runs N cases of each surface of tests/fuzz_surfaces.py instead, in this process (their
+actions are library calls: import, parse, read_bag, run_pipeline, plan…), each with its CPU time.
 """
 
 from __future__ import annotations
@@ -65,8 +69,41 @@ def run_case(path: Path, out: Path, stages: str, original: int, timeout_s: float
     return "silent-loss", cpu, peak_gb, f"{original - got} lost, status {res['summary']['status']}"
 
 
+def surfaces(seed: int, per_class: int, show: int) -> None:
+    """The surface corpus (tests/fuzz_surfaces.py) in this process: table of outcomes per surface."""
+    from fuzz_surfaces import FAILURES, SURFACES, classify, surface_cases
+
+    cols = ("error", "ok", "warned") + FAILURES
+    table: dict[str, Counter] = defaultdict(Counter)
+    examples: list[str] = []
+    worst = (0.0, "")
+    work = workdir()
+    t0, n = time.monotonic(), 0
+    try:
+        for case in surface_cases(seed, per_class):
+            c0 = time.process_time()
+            outcome, detail = classify(case, work / f"s{n}")
+            worst = max(worst, (time.process_time() - c0, case.name))
+            table[case.cls][outcome] += 1
+            if outcome in FAILURES and len(examples) < show * 5:
+                examples.append(f"{case.name}: {outcome}: {detail[-300:]}")
+            shutil.rmtree(work / f"s{n}", ignore_errors=True)
+            n += 1
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    print(f"robocal surface fuzz: {n} cases (seed {seed}, {per_class} per surface) in {time.monotonic() - t0:.0f} s")
+    print(f"{'surface':10s} " + " ".join(f"{c:>17s}" for c in cols))
+    for cls in SURFACES:
+        print(f"{cls:10s} " + " ".join(f"{table[cls][c]:>17d}" for c in cols))
+    print(f"most CPU: {worst[0]:.1f} s ({worst[1]})")
+    for e in examples:
+        print(f"  {e}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--surfaces", type=int, default=0, help="run N cases of every surface of tests/fuzz_surfaces.py "
+                    "(CSV, URDF, ROS 2 bags, campaigns, targets, run folders, archives, …) instead")
     ap.add_argument("--per-class", type=int, default=40, help="cases per mutation class (default 40: ~330 cases)")
     ap.add_argument("--seed", type=int, default=15)
     ap.add_argument("--sources", default="delta-tracker,scorbot-scanner,arc-welder-touch")
@@ -75,6 +112,8 @@ def main() -> None:
     ap.add_argument("--mem-gb", type=float, default=1.0)
     ap.add_argument("--show", type=int, default=3, help="examples printed per failing outcome")
     a = ap.parse_args()
+    if a.surfaces:
+        return surfaces(a.seed, a.surfaces, a.show)
     sources = tuple(s for s in a.sources.split(",") if s)
     originals = {s: message_count(BUNDLED[s]) for s in sources}
     work = workdir()

@@ -1,7 +1,9 @@
-"""In-suite fuzzing — a seeded mutation corpus over the bundled recordings (every class
-of tests/fuzz_corpus.py) through ingest and validate, and hypothesis properties over the reader
-and the decoders.  Zero tracebacks, hangs, runs over 1 GB or silent losses.  Bounded (≈ 60 s);
-the full-size run is benchmarks/bench_fuzz.py."""
+"""In-suite fuzzing — a seeded mutation corpus over the bundled recordings (every class of
+tests/fuzz_corpus.py) through ingest and validate, one case of every kind of edit of the other
+surfaces (tests/fuzz_surfaces.py: CSV, URDF, ROS 2 bags, campaign and target files, run folders,
+archives, …), and hypothesis properties over the reader and the decoders.  Zero tracebacks, hangs,
+runs over 1 GB, silent losses or changed user files.  Bounded (≈ 2 min); the full-size run is
+benchmarks/bench_fuzz.py."""
 
 from __future__ import annotations
 
@@ -42,6 +44,25 @@ def test_mutation_corpus_every_class(tmp_path):
     assert {c for c, _ in table} == set(CLASSES)
     assert not bad, bad
     assert _status_kb("VmHWM:") - rss0 < 1_000_000  # kB: under 1 GB more, bombs included
+
+
+def test_surface_corpus_every_class(tmp_path):
+    """One case of every kind of edit of every surface beyond the recordings (CSV, URDF, ROS 2 bags,
+    campaign and target files, run folders, archives, recordings missing their topic or running
+    backwards, command-line counts, figures): one-line errors, successes that say what they lost,
+    never a traceback, hang or a user's file changed."""
+    from fuzz_surfaces import FAILURES as SURFACE_FAILURES, SURFACES, classify, surface_cases
+
+    table: Counter = Counter()
+    bad = []
+    for i, case in enumerate(surface_cases(seed=2)):
+        outcome, detail = classify(case, tmp_path / f"s{i}")
+        table[case.cls, outcome] += 1
+        if outcome in SURFACE_FAILURES:
+            bad.append((case.name, outcome, detail))
+    assert not bad, bad
+    assert {c for c, _ in table} == set(SURFACES)
+    assert table["ros2bag", "warned"] >= 1 and table["csv", "error"] >= 8 and table["runfolder", "error"] >= 5
 
 
 GOOD = BUNDLED["delta-tracker"].read_bytes()

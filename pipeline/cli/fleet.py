@@ -72,6 +72,10 @@ def simulate_fleet_cmd(
     workers: int = typer.Option(1, "--workers", min=1, help="Processes."),
 ) -> None:
     """A fleet of arc-welding robots calibrated monthly (truth to ARCHIVE/fleet.truth.json)."""
+    from pipeline.errors import MAX_CONTACTS, MAX_COUNT, at_most
+
+    for option, value in (("--robots", robots), ("--months", months), ("--contacts", contacts),):
+        at_most(option, value, MAX_CONTACTS if option == "--contacts" else MAX_COUNT)
     from pipeline.errors import RobocalError
     from pipeline.fleet.simulate import Change, FleetSpec, simulate_fleet
 

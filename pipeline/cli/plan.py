@@ -59,6 +59,10 @@ def plan_cmd(
 ) -> None:
     """D-optimal pose selection: greedy + Fedorov exchange with rank-1 (Sherman–Morrison) updates.
     For the arc welder the output is an executable campaign (schemas/campaign.schema.json)."""
+    from pipeline.errors import at_most
+
+    for option, value in (("--candidates", candidates), ("--select", select_m), ("--check", check), ("--first-stage", first_stage),):
+        at_most(option, value)
     import numpy as np
 
     from pipeline.recording.output import check_output

@@ -39,6 +39,10 @@ def delta_tracker_cmd(
                                        "(robocal plan delta-tracker --out) instead of the grid."),
 ) -> None:
     """Laser-tracker campaign of seed 003's 90° Delta robot."""
+    from pipeline.errors import at_most
+
+    for option, value in (("--points", points), ("--passes", passes),):
+        at_most(option, value)
     from pipeline.errors import RobocalError
     from pipeline.models.delta import Delta
     from pipeline.recording.output import check_output, distinct_outputs

@@ -33,6 +33,10 @@ def scorbot_scanner_cmd(
                                              "stages of a staged campaign: run back to back, one recording."),
 ) -> None:
     """Laser-stripe scanner on a SCORBOT-ER VII (seed 001): stripe crossings of a printed 30 mm grid."""
+    from pipeline.errors import at_most
+
+    for option, value in (("--poses", poses), ("--corners", corners),):
+        at_most(option, value)
     from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
     from pipeline.recording.writer import write_campaign
     from pipeline.simulate import scorbot_scanner as sim

@@ -41,6 +41,10 @@ def urdf_cmd(
 ) -> None:
     """Random truth (errors of the stated size) and a campaign (random configurations, or a planned
     CAMPAIGN.json executed on the true robot), written as a URDF recording."""
+    from pipeline.errors import at_most
+
+    for option, value in (("--poses", poses), ("--groups", groups),):
+        at_most(option, value)
     from pipeline.errors import RobocalError
     from pipeline.importers.recording import T0_NS, write_urdf_recording
     from pipeline.models import urdf as urdf_mod

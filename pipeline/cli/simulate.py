@@ -42,6 +42,10 @@ def arc_welder_cmd(
                                              "Repeat for the stages of a staged campaign: run back to back, one recording."),
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
+    from pipeline.errors import MAX_CONTACTS, MAX_COUNT, at_most
+
+    for option, value in (("--contacts", contacts),):
+        at_most(option, value, MAX_CONTACTS if option == "--contacts" else MAX_COUNT)
     from pipeline.models.jig import stepped_block
     from pipeline.recording.output import check_output, distinct_outputs
     from pipeline.simulate.arc_welder import Campaign, Noise, simulate, truth_document
@@ -59,6 +63,12 @@ def arc_welder_cmd(
         campaign = replace(campaign, dwell_s=dwell_s)
     if start:
         campaign = replace(campaign, start_ns=_start_ns(start))
+    from pipeline.errors import RobocalError
+    from pipeline.plan.campaign import MAX_SAMPLES, expected_samples
+
+    if not campaign_file and not expected_samples(campaign) <= MAX_SAMPLES:
+        raise RobocalError(f"--contacts {contacts} --dwell-s {campaign.dwell_s}: ~{expected_samples(campaign):.3g} "
+                           f"encoder samples, more than robocal simulates in one campaign ({MAX_SAMPLES:.0e})")
     jig = stepped_block()
     thermal = (warm_up, temperature_sensor)
     effects = (effect or payloads or search_speeds or face_order != "shuffled" or warm_up or temperature_sensor

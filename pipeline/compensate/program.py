@@ -22,40 +22,30 @@ from scipy.spatial.transform import Rotation
 
 from pipeline.compensate import serial
 from pipeline.errors import RobocalError
+from pipeline.importers.csv_text import check_bound, read_columns
+from pipeline.importers.csv_text import numbers as parse_numbers
 
 QUAT = ("qw", "qx", "qy", "qz")
 
 
 def read_targets(path: Path, joint_names: list[str]) -> dict:
     """Targets from CSV: p (N,3), R (N,3,3) or None, hint (N,n) or None, names (one-line errors)."""
-    try:
-        t = pacsv.read_csv(path)
-    except FileNotFoundError:
-        raise RobocalError(f"{path}: no such targets file") from None
-    except (pa.ArrowInvalid, UnicodeDecodeError) as e:
-        raise RobocalError(f"{path}: not a targets CSV ({str(e).splitlines()[0]})") from None
-    cols = set(t.column_names)
+    hint_cols = [f"q_{j}" for j in joint_names]
+    header, t, n_rows = read_columns(path, {"x", "y", "z", "name", *QUAT, *hint_cols})
+    cols = set(header)
     if missing := [c for c in ("x", "y", "z") if c not in cols]:
         raise RobocalError(f"{path}: missing column(s) {', '.join(missing)} (need x,y,z in m)")
-    if t.num_rows == 0:
+    if n_rows == 0:
         raise RobocalError(f"{path}: no targets")
 
     def numbers(names: list[str]) -> np.ndarray:
-        out = np.empty((t.num_rows, len(names)))
+        out = np.empty((n_rows, len(names)))
         for k, c in enumerate(names):
-            try:
-                v = t.column(c).to_numpy(zero_copy_only=False).astype(float)
-            except (ValueError, TypeError, pa.ArrowInvalid):
-                v = np.full(t.num_rows, np.nan)
-                raw = t.column(c).to_pylist()
-                for i, r in enumerate(raw):
-                    try:
-                        v[i] = float(r)
-                    except (TypeError, ValueError):
-                        raise RobocalError(f"{path}: row {i + 1} (line {i + 2}), column {c}: {r!r} is not a number") from None
+            v = parse_numbers(path, c, t[c], first_line=1)
             bad = np.flatnonzero(~np.isfinite(v))
             if bad.size:
                 raise RobocalError(f"{path}: row {bad[0] + 1} (line {bad[0] + 2}), column {c}: missing or not finite")
+            check_bound(path, c, v, first_line=1)
             out[:, k] = v
         return out
 
@@ -69,9 +59,8 @@ def read_targets(path: Path, joint_names: list[str]) -> dict:
         if (bad := np.flatnonzero(np.abs(norm - 1) > 1e-6)).size:
             raise RobocalError(f"{path}: row {bad[0] + 1} (line {bad[0] + 2}): quaternion norm {norm[bad[0]]:.6g} is not 1")
         R = Rotation.from_quat(qv[:, [1, 2, 3, 0]]).as_matrix()
-    hint_cols = [f"q_{j}" for j in joint_names]
     hint = numbers(hint_cols) if set(hint_cols) <= cols else None
-    names = [str(v) for v in t.column("name").to_pylist()] if "name" in cols else [""] * t.num_rows
+    names = list(t["name"]) if "name" in cols else [""] * n_rows
     return {"p": p, "R": R, "hint": hint, "names": names}
 
 
@@ -82,18 +71,29 @@ def load_run(run_dir: Path) -> dict:
     fit_path = Path(run_dir) / "identify" / "fit.json"
     if not fit_path.is_file():
         raise RobocalError(f"{run_dir}: no identify/fit.json (calibrate with `robocal run REC --out {run_dir}`)")
-    fit = json.loads(fit_path.read_text())
+    try:
+        fit = json.loads(fit_path.read_text())
+        if not isinstance(fit, dict) or not isinstance(fit.get("names"), list):
+            raise ValueError("not a JSON object with a list of parameter names")
+    except (UnicodeDecodeError, ValueError, RecursionError) as e:
+        raise RobocalError(f"{fit_path}: not robocal's fit (not valid JSON: {str(e).splitlines()[0][:120]}); "
+                           "re-run `robocal run`") from None
     system, model, _ = load_system(Path(run_dir))
     if list(fit["names"]) != list(model.parameter_names()):
         raise RobocalError(f"{fit_path}: parameters do not match the {system.SYSTEM} model of the recording")
-    free = np.asarray(fit["free"], bool)
-    cov = np.asarray(fit["cov"], float).reshape(int(free.sum()), int(free.sum()))
-    if fit.get("cov_fixture") is not None:  # the fixture's machining tolerance (identify stage)
-        cov = cov + np.asarray(fit["cov_fixture"], float).reshape(cov.shape)
-    n_used, k = fit.get("n_used"), fit.get("residual_dim")
-    dof = int(n_used * k - free.sum()) if n_used is not None and k is not None else None
-    return {"system": system.SYSTEM, "model": model, "x_nominal": np.asarray(fit["nominal"], float),
-            "x": np.asarray(fit["x"], float), "free": free, "cov": cov, "dof": dof}
+    try:
+        free = np.asarray(fit["free"], bool)
+        cov = np.asarray(fit["cov"], float).reshape(int(free.sum()), int(free.sum()))
+        if fit.get("cov_fixture") is not None:  # the fixture's machining tolerance (identify stage)
+            cov = cov + np.asarray(fit["cov_fixture"], float).reshape(cov.shape)
+        n_used, k = fit.get("n_used"), fit.get("residual_dim")
+        dof = int(n_used * k - free.sum()) if n_used is not None and k is not None else None
+        out = {"system": system.SYSTEM, "model": model, "x_nominal": np.asarray(fit["nominal"], float),
+               "x": np.asarray(fit["x"], float), "free": free, "cov": cov, "dof": dof}
+    except (KeyError, TypeError, ValueError, OverflowError) as e:
+        raise RobocalError(f"{fit_path}: not robocal's fit ({type(e).__name__}: {str(e)[:120]}); "
+                           "re-run `robocal run`") from None
+    return out
 
 
 def point_jacobian(model, x: np.ndarray, free: np.ndarray, q: np.ndarray) -> np.ndarray:

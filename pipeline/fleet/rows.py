@@ -175,8 +175,8 @@ def gate(row: dict, recording: Path) -> dict:
         summary = {k: row[k] for k in (*FIGURES, "status")}
         try:
             row["regressions"] = compare_expected(summary, read_json(exp))
-        except (ValueError, TypeError, AttributeError) as e:
-            row["regressions"] = [f"{exp.name}: unreadable expected figures ({e})"]
+        except (ValueError, TypeError, AttributeError, RecursionError) as e:
+            row["regressions"] = [f"{exp.name}: unreadable expected figures ({str(e)[:200]})"]
         row["expected"] = exp.name
     row["ok"] = row["status"] not in FAILED and not row["regressions"]
     return row

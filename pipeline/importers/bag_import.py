@@ -77,7 +77,7 @@ def run_input(recording: Path, out: Path, urdf: Path | None, root: str | None, t
     """What `robocal run` reads: `recording` itself, or — for a ROS 2 bag — the recording imported
     from it into DIR/import/recording.mcap (re-imported each run: bit-identical, so the stages after
     it stay cached).  Bag options without a bag, or a bag without the robot, are one-line errors."""
-    from pipeline.stages.runfolder import claim, fresh_stage_dir, locked
+    from pipeline.stages.runfolder import claim, fresh_stage_dir, locked, record_manifest
 
     given = [f"--{k}" for k, v in (("urdf", urdf), ("root", root), ("tip", tip)) if v is not None]
     if ros2_kind(recording) is None:
@@ -92,7 +92,10 @@ def run_input(recording: Path, out: Path, urdf: Path | None, root: str | None, t
         claim(out)
         d = fresh_stage_dir(out, "import")
         rec = d / "recording.mcap"
-        done = import_bag(recording, urdf, root, tip, rec, spec, sigma_m, sigma_rad, on_read=on_read)
+        try:
+            done = import_bag(recording, urdf, root, tip, rec, spec, sigma_m, sigma_rad, on_read=on_read)
+        finally:
+            record_manifest(d)  # what robocal wrote there, so a rerun replaces only that
         if on_written is not None:
             on_written(done)
     return rec

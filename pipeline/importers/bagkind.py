@@ -1,6 +1,7 @@
 """Is this input a ROS 2 bag?  Cheap checks on the first bytes, no bag library needed.
 
-A ROS 2 bag is a folder with ``metadata.yaml`` (what ``ros2 bag record`` writes), or one of its
+A ROS 2 bag is a folder with ``metadata.yaml`` (what ``ros2 bag record`` writes; or, from a
+recorder killed before writing it, with ``ros2``-profile MCAP files), or one of its
 storage files on its own: an SQLite3 database (``.db3``) or an MCAP file whose header profile is
 ``ros2`` (robocal's own recordings carry profile ``robocal``) or, under another profile, whose
 summary lists CDR-encoded channels (rosbags then says which profile it cannot read).
@@ -46,7 +47,9 @@ def ros2_kind(path: str | Path) -> str | None:
     """'folder', 'mcap' or 'sqlite3' when `path` is a ROS 2 bag (or its storage file), else None."""
     p = Path(path)
     if p.is_dir():
-        return "folder" if (p / "metadata.yaml").is_file() else None
+        if (p / "metadata.yaml").is_file() or any(mcap_profile(f) == "ros2" for f in sorted(p.glob("*.mcap"))[:4]):
+            return "folder"
+        return None
     if not p.is_file():
         return None
     profile = mcap_profile(p)

@@ -14,11 +14,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.csv as pacsv
 from scipy.spatial.transform import Rotation
 
 from pipeline.errors import RobocalError
+from pipeline.importers.csv_text import check_bound, numbers, read_columns
 from pipeline.models.urdf import RobotDescription
 
 # A reading beyond its URDF limit by more than this fraction of the joint's range (or, for a joint
@@ -43,43 +42,23 @@ class CsvSpec:
     planes: dict = field(default_factory=dict)  # plane name (file stem) -> {"normal": (3,), "offset": col or value}
 
 
-def _read(path: Path, spec: CsvSpec) -> dict[str, np.ndarray]:
-    opts = pacsv.ReadOptions(column_names=list(spec.columns)) if spec.columns else pacsv.ReadOptions()
-    try:
-        t = pacsv.read_csv(path, read_options=opts)
-    except (pa.ArrowInvalid, OSError) as e:
-        raise RobocalError(f"{path}: cannot read CSV ({str(e).splitlines()[0]})") from None
-    out = {}
-    for name in t.column_names:
-        col = t.column(name)
-        if pa.types.is_integer(col.type) or pa.types.is_floating(col.type):
-            out[name] = col.to_numpy(zero_copy_only=False).astype(float)
-        else:
-            out[name] = np.asarray(col.to_pylist(), object)
-    return out
-
-
-def _numeric(path: Path, cols: dict, name: str) -> np.ndarray:
-    v = cols[name]
-    if v.dtype == object:
-        for i, s in enumerate(v):
-            try:
-                float(s)
-            except (TypeError, ValueError):
-                raise RobocalError(f"{path}: row {i + 2}: column {name!r}: {s!r} is not a number") from None
-        v = v.astype(float)
+def _numeric(path: Path, cols: dict, name: str, scale: float = 1.0) -> np.ndarray:
+    """The column `name` in SI (× `scale`): finite, within ±BOUND, else one line naming file, row and column."""
+    v = numbers(path, name, cols[name]) * scale
     bad = np.flatnonzero(~np.isfinite(v))
     if bad.size:
         raise RobocalError(f"{path}: row {bad[0] + 2}: column {name!r} is empty, NaN or inf")
+    check_bound(path, name, v)
     return v
 
 
-def _need(path: Path, cols: dict, names: list[str], what: str, used: set[str]) -> None:
-    missing = [c for c in names if c not in cols]
+def _need(path: Path, header: list[str], names: list[str], what: str, used: set[str]) -> None:
+    missing = [c for c in names if c not in header]
     if missing:
-        unknown = [c for c in cols if c not in used and c not in names]
+        unknown = [c for c in header if c not in used and c not in names]
+        more = f", … ({len(unknown) - 20} more)" if len(unknown) > 20 else ""
         raise RobocalError(f"{path}: missing {what} column(s) {', '.join(missing)}"
-                           f"{'; unused columns: ' + ', '.join(unknown) if unknown else ''}")
+                           f"{'; unused columns: ' + ', '.join(unknown[:20]) + more if unknown else ''}")
 
 
 def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tuple[dict[str, np.ndarray], dict]:
@@ -96,13 +75,14 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
     warnings: list[str] = []
     for path in paths:
         path = Path(path)
-        cols = _read(path, spec)
-        n = len(next(iter(cols.values()))) if cols else 0
+        used = set(spec.position) | {c for t in spec.targets for c in t} | set(spec.orientation)
+        pl_off = spec.planes.get(path.stem, {}).get("offset")
+        keep = set(names) | used | ({pl_off} if isinstance(pl_off, str) else set())
+        header, cols, n = read_columns(path, keep, spec.columns)
         if n == 0:
             raise RobocalError(f"{path}: no data rows")
-        used = set(spec.position) | {c for t in spec.targets for c in t} | set(spec.orientation)
-        _need(path, cols, names, "joint", used)
-        q = np.stack([_numeric(path, cols, c) for c in names], axis=1) * jscale
+        _need(path, header, names, "joint", used)
+        q = np.stack([_numeric(path, cols, c, s) for c, s in zip(names, jscale)], axis=1)
         finite = np.isfinite(hi - lo)
         slack = np.where(finite, LIMIT_SLACK * np.where(finite, hi - lo, 0.0), 0.0)
         lo_e = np.where(finite, lo - slack, np.where(ang, -4 * np.pi, -np.inf))
@@ -119,16 +99,16 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
                                f"limits [{lo[k]:.6g}, {hi[k]:.6g}]{hint}")
         part: dict[str, np.ndarray] = {"joint_positions": q}
         if spec.measure in ("point", "pose"):
-            _need(path, cols, list(spec.position), "position", set(names))
-            pos = [np.stack([_numeric(path, cols, c) for c in spec.position], 1) * lscale]
+            _need(path, header, list(spec.position), "position", set(names))
+            pos = [np.stack([_numeric(path, cols, c, lscale) for c in spec.position], 1)]
             for t in spec.targets:
-                _need(path, cols, list(t), "target position", set(names))
-                pos.append(np.stack([_numeric(path, cols, c) for c in t], 1) * lscale)
+                _need(path, header, list(t), "target position", set(names))
+                pos.append(np.stack([_numeric(path, cols, c, lscale) for c in t], 1))
             part["position"] = np.concatenate(pos)
             part["target"] = np.repeat(np.arange(len(pos)), n)
             part["joint_positions"] = np.tile(q, (len(pos), 1))
         if spec.measure == "pose":
-            _need(path, cols, list(spec.orientation), "orientation", set(names))
+            _need(path, header, list(spec.orientation), "orientation", set(names))
             o = np.stack([_numeric(path, cols, c) for c in spec.orientation], 1)
             if spec.orientation_kind == "rpy":  # URDF rpy: R = Rz(yaw) Ry(pitch) Rx(roll)
                 part["orientation"] = Rotation.from_euler("ZYX", o[:, ::-1]).as_quat()
@@ -142,8 +122,8 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
             pl = spec.planes[stem]
             off = pl["offset"]
             if isinstance(off, str):
-                _need(path, cols, [off], "plane offset", set(names))
-                v = _numeric(path, cols, off) * lscale
+                _need(path, header, [off], "plane offset", set(names))
+                v = _numeric(path, cols, off, lscale)
                 if np.ptp(v) > 1e-9:
                     raise RobocalError(f"{path}: column {off!r} (plane offset) differs between rows")
                 off = float(v[0])

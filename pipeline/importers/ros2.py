@@ -48,6 +48,14 @@ def at(path: Path, topic: str, record: int | None = None) -> str:
     return f"{path}: topic {topic}" + ("" if record is None else f": record {record}")
 
 
+class _Damaged(RobocalError):
+    """rosbags cannot open or read on: the storage is damaged (its messages may be salvaged)."""
+
+    def __init__(self, message: str, why: str) -> None:
+        super().__init__(message)
+        self.why = why
+
+
 def _open(path: Path):
     from rosbags.rosbag2 import Reader
 
@@ -55,7 +63,8 @@ def _open(path: Path):
         reader = Reader(path)
         reader.open()
     except Exception as e:  # noqa: BLE001 — any failure of the storage layer is the file's problem
-        raise RobocalError(f"{path}: cannot read as a ROS 2 bag ({type(e).__name__}: {e})") from None
+        why = f"{type(e).__name__}: {e}"
+        raise _Damaged(f"{path}: cannot read as a ROS 2 bag ({why})", why) from None
     return reader
 
 
@@ -93,25 +102,6 @@ def choose_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> tuple[st
     return jt, mt, measure
 
 
-def tip_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> list[str]:
-    """The measurement topic of each of `spec.tips`, checked: in the bag, PointStamped, each once."""
-    out = []
-    for link, topic in spec.tips:
-        if topic not in topics:
-            cands = sorted(t for t, ty in topics.items() if ty in MEASURE_TYPES)
-            raise RobocalError(f"{at(path, topic)}: not in the bag (--measure-topic {link}={topic}); measurement "
-                               f"topics: {', '.join(cands) or 'none'}")
-        if topics[topic] != POINT:
-            raise RobocalError(f"{at(path, topic)}: is {topics[topic]}; a tip's topic must be {POINT} "
-                               f"(--measure-topic {link}={topic})")
-        if topic in out:
-            raise RobocalError(f"{at(path, topic)}: named for two tips (--measure-topic)")
-        out.append(topic)
-    if spec.measure not in (None, "point"):
-        raise RobocalError(f"--measure {spec.measure!r}: several tips give point measurements")
-    return out
-
-
 def _stream(path: Path, reader, joint_topic: str, measure_topic, side: list):
     """Yield (receive time ns, CDR bytes) of the joint topic in bag order, one message at a time (the
     long topic is never held whole); the measurement topics' (`measure_topic`: one or a list) go to
@@ -128,7 +118,8 @@ def _stream(path: Path, reader, joint_topic: str, measure_topic, side: list):
         except StopIteration:
             return
         except Exception as e:  # noqa: BLE001 — the storage layer's failure is the file's problem
-            raise RobocalError(f"{path}: cannot read the bag after message {n} ({type(e).__name__}: {e})") from None
+            why = f"{type(e).__name__}: {e}"
+            raise _Damaged(f"{path}: cannot read the bag after message {n} ({why})", f"read stops after message {n}: {why}") from None
         n += 1
         if conn.topic == joint_topic:
             yield t, data
@@ -304,32 +295,52 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     path = Path(path)
     if spec.time not in ("header", "log"):
         raise RobocalError(f"--time {spec.time!r}: expected header or log")
-    reader = _open(path)
     side: list = []
-    try:
-        topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
+    joints = desc.joint_names
+    warnings: list[str] = []
+    data_lost: list[str] = []  # the bag's damage: ingest's status is then warn, never pass
+
+    from pipeline.importers.ros2_tips import tip_measurements, tip_topics
+
+    def topics_of(topics):
         if spec.tips:
             mts = tip_topics(path, topics, spec)
-            jt, measure = choose_topics(path, topics, BagSpec(joint_topic=spec.joint_topic,
-                                                              measure_topic=mts[0]))[0], "point"
-            mt = ", ".join(mts)
+            return choose_topics(path, topics, BagSpec(joint_topic=spec.joint_topic, measure_topic=mts[0]))[0], \
+                mts, "point"
+        jt, mt, measure = choose_topics(path, topics, spec)
+        return jt, mt, measure
+
+    try:
+        reader = _open(path)
+        try:
+            topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
+            jt, mts, measure = topics_of(topics)
+            js, jlog, Q, jreport, effort = read_joint_states(path, jt, _stream(path, reader, jt, mts, side), joints)
+        finally:
+            reader.close()
+    except _Damaged as e:  # a bag cut short: calibrate from what can be read, saying what was lost
+        from pipeline.importers.ros2_salvage import salvage
+
+        sal = salvage(path, e.why, str(e))
+        topics = sal.topics
+        jt, mts, measure = topics_of(topics)
+        if spec.tips:
+            side = [(tp, t, d) for tp in mts for t, d in sal.messages.get(tp, [])]
         else:
-            jt, mt, measure = choose_topics(path, topics, spec)
-        joints = desc.joint_names
-        js, jlog, Q, jreport, effort = read_joint_states(
-            path, jt, _stream(path, reader, jt, mts if spec.tips else mt, side), joints)
-    finally:
-        reader.close()
+            side = sal.messages.get(mts, [])
+        js, jlog, Q, jreport, effort = read_joint_states(path, jt, iter(sal.messages.get(jt, [])), joints)
+        warnings += sal.warnings
+        data_lost = sal.warnings
+    mt = ", ".join(mts) if spec.tips else mts
     tj, jsrc = _times(js, jlog, spec.time == "header")
     if spec.tips:
-        ms, P, O, frame, tm, msrc, target = _tip_measurements(path, topics, mts, side, spec.time == "header")
+        ms, P, O, frame, tm, msrc, target = tip_measurements(path, topics, mts, side, spec.time == "header")
     else:
         if not side:
             raise RobocalError(f"{at(path, mt)}: no messages")
         ms, P, O, frame = read_measurements(path, mt, topics[mt], [d for _, d in side])
         tm, msrc = _times(ms, [t for t, _ in side], spec.time == "header")
         target = np.zeros(len(tm), int)
-    warnings = []
     if jsrc != msrc:
         warnings.append(f"{path}: joint states timed by {jsrc}, measurements by {msrc} (a topic without "
                         "header stamps): the pairing assumes one clock")
@@ -364,29 +375,9 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         extras["ros2"]["tip_topics"] = {link: topic for link, topic in spec.tips}
     if warnings:
         extras["import_warnings"] = warnings
+    if data_lost:
+        extras["data_lost"] = data_lost
     if effort is not None:  # the joint states with their efforts, as the recording's encoder stream
         table["stream"] = {"t_ns": tj, "q": Q, "effort": effort}
     return table, extras
 
-
-def _tip_measurements(path: Path, topics: dict, mts: list[str], side: list, use_header: bool):
-    """The measurements of several tips' topics as one table: (stamps, positions, None, frame, times,
-    time source, tip index (m,)); one instrument frame for all."""
-    stamps, P, T, target, frame, src = [], [], [], [], None, None
-    for k, topic in enumerate(mts):
-        rows = [(t, d) for tp, t, d in side if tp == topic]
-        if not rows:
-            raise RobocalError(f"{at(path, topic)}: no messages")
-        ms, p, _, fr = read_measurements(path, topic, topics[topic], [d for _, d in rows])
-        if frame is not None and fr != frame:
-            raise RobocalError(f"{at(path, topic)}: frame {fr!r}, but {mts[0]} is in {frame!r} (one instrument "
-                               "frame per campaign)")
-        frame = fr
-        tm, s_ = _times(ms, [t for t, _ in rows], use_header)
-        src = s_ if src in (None, s_) else "mixed"
-        stamps.append(ms)
-        P.append(p)
-        T.append(tm)
-        target.append(np.full(len(tm), k, int))
-    return (np.concatenate(stamps), np.concatenate(P), None, frame or "", np.concatenate(T), src,
-            np.concatenate(target))

@@ -76,6 +76,8 @@ def check_metadata(rec) -> None:
 def first_schema_error(rec, topic: str) -> str | None:
     """'file: channel: record i: what' for the first message of `topic` that breaks its JSON Schema
     or holds an integer beyond int64; None when all conform (or robocal has no schema for it)."""
+    if not rec.messages.raw.get(topic):  # renamed, another system's, or never written
+        return rec.missing(topic)
     stem = CHANNELS.get(topic)
     if stem is None:
         return None

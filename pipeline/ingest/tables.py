@@ -52,6 +52,8 @@ def measurement_table(table: dict[str, np.ndarray], stream: JointStream | None,
     n = len(next(iter(table.values())))
     out = dict(table)
     out.setdefault("record", np.arange(n, dtype=np.int64))
+    if time_column in table:
+        check_times(np.asarray(table[time_column], np.int64), np.asarray(out["record"]), path, channel, time_column)
     if temperature is not None and time_column in table:
         out["temperature_rise_K"] = rise_at(temperature, np.asarray(table[time_column], np.int64), path, channel,
                                             out["record"])
@@ -64,6 +66,21 @@ def measurement_table(table: dict[str, np.ndarray], stream: JointStream | None,
         out[f"dir_{name}"] = ctx["last_motion_sign"][:, j].astype(np.int8)
     out["time_since_start_s"] = ctx["time_since_start_s"]
     return out
+
+
+def check_times(t_ns: np.ndarray, record: np.ndarray, path: object, channel: str, column: str) -> None:
+    """Measurement times (ns since the Unix epoch) must not be negative nor run backwards in record
+    order (rows of one record share its time): one line naming the record, before anything is fitted."""
+    from pipeline.errors import RobocalError, where
+
+    if (neg := np.flatnonzero(t_ns < 0)).size:
+        raise RobocalError(f"{where(path, channel, int(record[neg[0]]))}: {column} {int(t_ns[neg[0]])} is negative "
+                           "(before 1970): not a time of this recording")
+    order = np.argsort(record, kind="stable")
+    if (back := np.flatnonzero(np.diff(t_ns[order]) < 0)).size:
+        k = order[back[0] + 1]
+        raise RobocalError(f"{where(path, channel, int(record[k]))}: {column} {int(t_ns[k])} is earlier than the "
+                           f"previous record's {int(t_ns[order[back[0]]])}: measurement times run backwards")
 
 
 MODEL_EXCLUDE_PREFIXES = ("v_", "dir_")

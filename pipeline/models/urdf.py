@@ -18,6 +18,8 @@ import numpy as np
 
 from pipeline.errors import RobocalError
 
+MAX_DEPTH = 64  # element nesting of a URDF (robot/joint/origin is 3; vendor extensions add a few)
+BOUND = 1e6  # |origin xyz (m) / rpy (rad) / axis|: anything larger is damage, not geometry
 MOVABLE = ("revolute", "continuous", "prismatic")
 KNOWN_TYPES = MOVABLE + ("fixed",)
 
@@ -78,10 +80,27 @@ def _xml_checks(text: str, source: str) -> None:
         raise _fail(source, f"not valid URDF XML ({e})") from None
     if root.tag != "robot":
         raise _fail(source, f"root element is <{root.tag}>, expected <robot>")
-    links = {ln.get("name") for ln in root.findall("link")}
+    if not root.get("name"):
+        raise _fail(source, "<robot> has no name attribute")
+    stack = [(root, 0)]
+    while stack:  # a URDF is a few elements deep; thousands is damage (and lxml would print a warning)
+        el, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise _fail(source, f"<{el.tag}> is nested more than {MAX_DEPTH} elements deep: not a URDF")
+        stack += [(c, depth + 1) for c in el]
+    links: set = set()
+    for ln in root.findall("link"):
+        if ln.get("name") in links:
+            raise _fail(source, f"link {ln.get('name')!r} is defined twice (<link name=...> must be unique)")
+        links.add(ln.get("name"))
+    joints: set = set()
     parent_of: dict[str, str] = {}
     for j in root.findall("joint"):
         name, typ = j.get("name"), j.get("type")
+        if name in joints:
+            raise _fail(source, f"joint {name!r} is defined twice (<joint name=...> must be unique)")
+        joints.add(name)
+        _origin_bound(j, source)
         if typ not in KNOWN_TYPES + ("floating", "planar"):
             raise _fail(source, f"joint {name!r} has unknown type {typ!r} (expected one of {', '.join(KNOWN_TYPES)})")
         p, c = j.find("parent"), j.find("child")
@@ -101,6 +120,23 @@ def _xml_checks(text: str, source: str) -> None:
                 raise _fail(source, f"the joints form a cycle through link {ln!r}")
             seen.add(ln)
             ln = parent_of[ln]
+
+
+def _origin_bound(joint: ET.Element, source: str) -> None:
+    """A joint's <origin> xyz (m) and rpy (rad), and its <axis>, must be numbers within ±BOUND."""
+    for tag, attrs in (("origin", ("xyz", "rpy")), ("axis", ("xyz",))):
+        el = joint.find(tag)
+        for a in attrs:
+            text = None if el is None else el.get(a)
+            if text is None:
+                continue
+            try:
+                v = [float(x) for x in text.split()]
+            except ValueError:
+                continue  # the parser's own message names it
+            if any(not abs(x) <= BOUND for x in v):
+                raise _fail(source, f"joint {joint.get('name')!r}: <{tag} {a}={text[:60]!r}>: beyond ±{BOUND:g} "
+                                    "(m, rad) or not finite: not a robot's geometry")
 
 
 def load_urdf_model(text: str, source: str = "<urdf>"):

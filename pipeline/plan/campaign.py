@@ -76,7 +76,14 @@ def load_document(path: str | Path) -> dict:
         raise RobocalError(f"{path}: no such campaign file") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as e:
         raise RobocalError(f"{path}: not a JSON campaign file ({e})") from None
-    errors = sorted(validator("campaign").iter_errors(doc), key=lambda e: list(e.absolute_path))
+    except RecursionError:
+        raise RobocalError(f"{path}: not a campaign file (JSON nested deeper than Python can read)") from None
+    except OSError as e:
+        raise RobocalError(f"{path}: cannot read ({type(e).__name__}: {e.strerror or e})") from None
+    try:
+        errors = sorted(validator("campaign").iter_errors(doc), key=lambda e: list(e.absolute_path))
+    except RecursionError:
+        raise RobocalError(f"{path}: not a campaign file (JSON nested too deep to check)") from None
     if errors:
         where = "/".join(str(p) for p in errors[0].absolute_path).replace("measurements/", "measurement ") or "document"
         raise RobocalError(f"{path}: {where}: {errors[0].message} (schemas/campaign.schema.json)")
@@ -122,12 +129,27 @@ def read(path: str | Path, system: str | None = None, n_joints: int | None = Non
                     rate_hz=float(c.get("rate_hz", base.rate_hz)),
                     joint_speed_rad_s=float(c.get("joint_speed_rad_s", base.joint_speed_rad_s)),
                     dwell_s=float(c.get("dwell_s", base.dwell_s)))
+    samples = expected_samples(camp)
+    if not samples <= MAX_SAMPLES:
+        raise RobocalError(f"{path}: controller: {len(rows)} contacts at these settings make ~{samples:.3g} encoder "
+                           f"samples, more than robocal runs in one campaign ({MAX_SAMPLES:.0e})")
     return TouchCampaign(path=path, doc=doc, face_id=[r["face"] for r in rows],
                          axis=np.array([AXES.index(r["axis"]) for r in rows], int),
                          coordinate=np.array([r["coordinate"] for r in rows], float),
                          q_approach=np.array([r["approach_joints_rad"] for r in rows], float).reshape(len(rows), nj),
                          dq=np.array([r["search_joint_rate_rad_per_m"] for r in rows], float).reshape(len(rows), nj),
                          direction=np.array([r["search_direction"] for r in rows], float), campaign=camp)
+
+
+MAX_SAMPLES = 5e7  # encoder samples of one executed campaign (~2.4 GB of joint positions: beyond is damage)
+
+
+def expected_samples(c: Campaign) -> float:
+    """About how many encoder samples running campaign `c` logs (moves at most π at joint speed, two
+    dwells, a search over the travel at search speed, per contact)."""
+    with np.errstate(all="ignore"):
+        per_contact = 2 * c.dwell_s + c.search_travel_m / c.search_speed_m_s + 2 * (np.pi / c.joint_speed_rad_s * 1.5 + 0.3)
+        return float(c.contacts * per_contact * c.rate_hz)
 
 
 def concat(parts: list[TouchCampaign]) -> TouchCampaign:

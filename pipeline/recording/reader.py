@@ -96,11 +96,17 @@ class Recording:
 
     def require(self, topic: str) -> list[dict]:
         if not self.messages.raw.get(topic):
-            have = ", ".join(sorted(self.messages)) or "none"
-            raise RobocalError(f"{where(self.path, topic)}: channel missing or empty (channels present: {have})")
+            raise RobocalError(self.missing(topic))
         if self.registration.get(topic):
             raise RobocalError(f"{where(self.path, topic)}: {self.registration[topic]}")
         return self.messages[topic]
+
+    def missing(self, topic: str) -> str:
+        """'file: channel T: channel missing or empty (channels present: …)', one line whatever the
+        topics hold (control characters escaped, each topic cut at 80 characters, at most 12 listed)."""
+        names = sorted(self.messages.raw)
+        have = ", ".join(_printable(t) for t in names[:12]) + (f", … ({len(names) - 12} more)" if len(names) > 12 else "")
+        return f"{where(self.path, topic)}: channel missing or empty (channels present: {have or 'none'})"
 
     def meta(self, name: str) -> dict:
         if name not in self.metadata:
@@ -108,18 +114,25 @@ class Recording:
         return self.metadata[name]
 
 
+def _printable(topic: str) -> str:
+    """A topic as it can be printed on one line: control and non-printable characters escaped, ≤ 80 characters."""
+    out = topic if topic.isprintable() else repr(topic)[1:-1]
+    return out if len(out) <= 80 else out[:79] + "…"
+
+
 def read_recording(path: str | Path, topics: set[str] | None = None, skip: frozenset[str] = frozenset(),
-                   limits: ReadLimits | None = None) -> Recording:
+                   limits: ReadLimits | None = None, foreign: bool = False) -> Recording:
     """Read every complete record (messages of `topics`, or all, less those of `skip`) and the metadata.
 
     A damaged chunk (bad framing, CRC, compression, or over `limits`) is skipped with a warning and
     reading carries on at the next intact chunk; the messages read are compared with the summary's
     counts per channel.  Inside `cached_reads()` a second read of the same unchanged file is served
-    from memory (a run reads its recording once)."""
+    from memory (a run reads its recording once).  `foreign`: any MCAP file (a ROS 2 bag's storage
+    file being salvaged), not only robocal's recordings."""
     path = Path(path)
     from pipeline.importers.bagkind import not_a_recording_hint
 
-    if (hint := not_a_recording_hint(path)) is not None:
+    if not foreign and (hint := not_a_recording_hint(path)) is not None:
         raise RobocalError(hint)
     if not path.is_file():
         raise RobocalError(f"{path}: no such file")

@@ -11,7 +11,7 @@ import numpy as np
 from matplotlib import rc_context
 
 from pipeline.report.artefacts import RunArtefacts, residual_matrix
-from pipeline.report.plots import MM, RC, _fig, _svg
+from pipeline.report.plots import MM, RC, _fig, _svg, hist_bins
 
 AXIS_RGB = ("#d62728", "#2ca02c", "#1f77b4")  # x, y, z
 
@@ -49,7 +49,8 @@ def histograms(before: np.ndarray, after: np.ndarray, floor_m: float | None) -> 
         for a, r, name, col in ((ax[0, 0], before, "before", "#d62728"), (ax[0, 1], after, "after", "#2ca02c")):
             r = np.asarray(r, float).ravel()
             r = r[np.isfinite(r)] * MM
-            a.hist(r, bins=30, color=col)
+            r, bins = hist_bins(r, 30)
+            a.hist(r, bins=bins, color=col)
             if floor_m:
                 for s in (-floor_m, floor_m):
                     a.axvline(s * MM, color="k", ls="--", lw=0.8)

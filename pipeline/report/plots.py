@@ -40,6 +40,21 @@ def _fig(w: float, h: float, nrows: int = 1, ncols: int = 1, **kw) -> tuple[Figu
     return fig, axes
 
 
+def hist_bins(v: np.ndarray, n: int) -> tuple[np.ndarray, int | np.ndarray]:
+    """(finite values of `v`, bins) for a histogram: `n` equal bins, or one bin spanning the values
+    when their range is too narrow (a few equal measurements) or too wide for `n` finite-sized bins."""
+    v = np.asarray(v, float).ravel()
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return v, n
+    try:
+        np.histogram_bin_edges(v, bins=n)
+        return v, n
+    except ValueError:
+        lo, hi = float(v.min()), float(v.max())
+        return v, (np.array([lo, hi]) if lo < hi else 1)
+
+
 def group_colors(groups: Sequence[str]) -> dict[str, str]:
     return {g: COLORS[i % len(COLORS)] for i, g in enumerate(sorted(set(groups)))}
 
@@ -168,7 +183,8 @@ def point_sigma(t_s: np.ndarray, sigma_m: np.ndarray) -> str:
     with rc_context(RC):
         fig, ax = _fig(6.0, 2.8)
         a = ax[0, 0]
-        a.hist(np.asarray(sigma_m, float) * MM, bins=20, color="#17becf")
+        v, bins = hist_bins(np.asarray(sigma_m, float) * MM, 20)
+        a.hist(v, bins=bins, color="#17becf")
         a.set_xlabel("predicted point accuracy, 1σ (mm)")
         a.set_ylabel("measurements")
     return _svg(fig)

@@ -122,5 +122,5 @@ def read_stage(run_dir: Path, name: str) -> dict | None:
         return None
     try:
         return read_json(p)
-    except ValueError:
+    except (ValueError, RecursionError):  # not JSON, or nested past the recursion limit
         return None

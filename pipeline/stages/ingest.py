@@ -96,6 +96,8 @@ def run(run_dir: Path, params: dict) -> dict:
         except (TypeError, ValueError, OverflowError, KeyError, IndexError, AttributeError,
                 ArithmeticError) as e:  # the schema allowed it but the model cannot take it
             errors.append(f"{where(path, mchan)}: cannot be used ({type(e).__name__}: {e})")
+    camp = rec.metadata.get("robocal.campaign")
+    lost_at_import = [w for w in camp.get("data_lost", []) if isinstance(w, str)] if isinstance(camp, dict) else []
     doc = {
         "system": system.SYSTEM,
         "measurement_channel": mchan,
@@ -105,14 +107,14 @@ def run(run_dir: Path, params: dict) -> dict:
         "encoder": {"samples": 0 if stream is None else len(stream),
                     "joints": [] if stream is None else list(stream.names)},
         "complete": rec.complete,
-        "warnings": list(rec.warnings),
+        "warnings": list(rec.warnings) + lost_at_import,  # the file's damage, and the source's before import
         "errors": errors,
         "n_measurements": n,
     }
     if params.get("physics") is not None or params.get("payload"):  # the model's gravity terms, for every stage
         doc["physics"] = {"physics": params.get("physics"), "payload": list(params.get("payload") or [])}
     write_json(out / "recording.json", doc)
-    lost = bool(rec.warnings) or bool(errors)  # a damaged file: no status pass
+    lost = bool(doc["warnings"]) or bool(errors)  # a damaged file (or bag it came from): no status pass
     return {"status": "warn" if lost else "pass", "system": system.SYSTEM, "n_measurements": n,
             "encoder_samples": doc["encoder"]["samples"],
             "channels": channels, "source": doc["source"], "warnings": doc["warnings"], "errors": errors}

@@ -3,8 +3,12 @@ an exclusive lock so that two runs on one folder take turns.
 
 `DIR/.robocal-run` marks a run folder (written when robocal creates it, or adopts an empty one, or
 one that holds nothing but what an earlier robocal wrote: stage folders with their stage.json);
-`DIR/<stage>/.robocal-stage` marks a stage folder.  A non-empty folder without the marker is the
-user's: robocal refuses it with one line and touches nothing in it.  `DIR/.robocal-lock` is locked
+`DIR/<stage>/.robocal-stage` marks a stage folder and, once the stage has ended (done or stopped),
+lists the files robocal wrote in it (its manifest; `stage.json`'s `outputs` list them too).
+Replacing a stage folder removes only those files: anything else in it (a user's file, in a folder
+robocal wrote or one a robocal from before the markers wrote) makes robocal refuse with one line
+naming it.  A non-empty folder without the run marker is the user's: robocal refuses it with one
+line and touches nothing in it.  `DIR/.robocal-lock` is locked
 with `fcntl.flock` (released by the kernel when the process dies, so a killed run never leaves a
 stale lock); it holds the pid of the run that has it, for the message of the run that waits.
 """
@@ -12,6 +16,7 @@ stale lock); it holds the pid of the run that has it, for the message of the run
 from __future__ import annotations
 
 import fcntl
+import json
 import os
 import shutil
 import time
@@ -50,8 +55,63 @@ _TOP_FILES = {"results.json", "report.html", "run.rrd", LOCK}
 
 
 def _legacy_stage(d: Path) -> bool:
-    """A stage folder a robocal from before the markers wrote (its stage.json is there)."""
-    return d.is_dir() and (d / "stage.json").is_file()
+    """A stage folder a robocal from before the markers wrote: its stage.json and nothing else than
+    the files that stage.json lists."""
+    return d.is_dir() and (d / "stage.json").is_file() and _foreign_file(d) is None
+
+
+def record_manifest(d: Path) -> None:
+    """Write into the stage folder's marker the files robocal wrote there (every file present
+    now: the folder was emptied when the stage began)."""
+    d = Path(d)
+    files = sorted(p.relative_to(d).as_posix() for p in d.rglob("*") if (p.is_file() or p.is_symlink())
+                   and p.name != STAGE_MARKER)
+    (d / STAGE_MARKER).write_text(json.dumps({"written_by": "robocal", "files": files}, indent=0) + "\n")
+
+
+def _owned(d: Path) -> set[str] | None:
+    """The files of stage folder `d` robocal wrote (relative to `d`), or None when it cannot tell
+    (a stage that was killed before it ended: its marker lists nothing and there is no stage.json)."""
+    owned: set[str] = {STAGE_MARKER}
+    known = False
+    try:
+        doc = json.loads((d / STAGE_MARKER).read_text())
+        owned |= set(doc["files"])
+        known = True
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        pass
+    try:
+        stage = json.loads((d / "stage.json").read_text())
+        prefix = d.name + "/"
+        owned |= {"stage.json"} | {k[len(prefix):] for k in stage.get("outputs", {}) if k.startswith(prefix)}
+        known = True
+    except (OSError, ValueError, AttributeError, TypeError, RecursionError):
+        pass
+    return owned if known else None
+
+
+def _foreign_file(d: Path) -> Path | None:
+    """The first file (or link) in stage folder `d` that robocal did not write there, if any."""
+    owned = _owned(d)
+    if owned is None:
+        return None
+    for p in sorted(d.rglob("*")):
+        if (p.is_file() or p.is_symlink() or not p.is_dir()) and p.relative_to(d).as_posix() not in owned:
+            return p
+    return None
+
+
+def _remove_owned(d: Path) -> None:
+    """Remove stage folder `d`, which holds only what robocal wrote (checked by the caller)."""
+    if _owned(d) is None:  # a stage killed before it ended: everything in it is that run's
+        shutil.rmtree(d)
+        return
+    for p in sorted(d.rglob("*"), key=lambda p: len(p.parts), reverse=True):
+        if p.is_symlink() or not p.is_dir():
+            p.unlink()
+        else:
+            p.rmdir()
+    d.rmdir()
 
 
 def _legacy_run(run_dir: Path) -> bool:
@@ -84,11 +144,15 @@ def fresh_stage_dir(run_dir: Path, name: str) -> Path:
     """An empty `run_dir/name`, removing the previous one only if robocal wrote it."""
     d = Path(run_dir) / name
     if d.exists():
-        if not (d / STAGE_MARKER).is_file() and (not d.is_dir() or any(d.iterdir())) and not _legacy_stage(d):
+        if not d.is_dir() or d.is_symlink() or (not (d / STAGE_MARKER).is_file() and any(d.iterdir())
+                                                 and not (d / "stage.json").is_file()):
             raise RobocalError(f"{d}: not written by robocal (no {STAGE_MARKER}); robocal will not replace it — "
                                "move it away or choose another --out")
+        if (foreign := _foreign_file(d)) is not None:
+            raise RobocalError(f"{foreign}: not written by robocal; robocal will not delete it — move it out of "
+                               f"{d} or choose another --out")
         try:
-            shutil.rmtree(d)
+            _remove_owned(d)
         except OSError as e:
             raise _oserror(d, e) from None
     try:

@@ -27,7 +27,7 @@ from pipeline.errors import RobocalError
 from pipeline.stages.artefacts import STAGE_FILE, dumps, read_stage, sha256_file, write_json
 from pipeline.stages.registry import BY_NAME, STAGES, Stage
 from pipeline.stages.results import gather
-from pipeline.stages.runfolder import STAGE_MARKER, claim, fresh_stage_dir, locked
+from pipeline.stages.runfolder import STAGE_MARKER, claim, fresh_stage_dir, locked, record_manifest
 
 class StageFailed(RobocalError):
     """A stage reported `status: fail` (e.g. a validation check); the run stops."""
@@ -171,6 +171,7 @@ def _run_stage(run_dir: Path, name: str, params: dict | None, recording: Path | 
         except BaseException as e:  # the run's results must not look like a pass after a crash
             why = str(e) if isinstance(e, RobocalError) else f"{type(e).__name__}: {e}"
             try:
+                record_manifest(run_dir / name)
                 write_results(run_dir, error=f"stage {name} stopped: {why}")
             except OSError:
                 pass
@@ -181,6 +182,7 @@ def _run_stage(run_dir: Path, name: str, params: dict | None, recording: Path | 
                "inputs": inputs, "elapsed_s": elapsed, "robocal_version": __version__,
                "summary": summary, "outputs": _outputs(run_dir, name, summary)}
         (run_dir / name / STAGE_FILE).write_text(dumps(doc))
+        record_manifest(run_dir / name)
         out = Outcome(name, False, elapsed, key, summary)
     if log:
         log(f"{name}: " + ("cached" if out.cached else f"ran in {out.elapsed_s:.2f} s") + f" (key {key[:12]})")

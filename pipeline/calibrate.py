@@ -13,6 +13,7 @@ from pipeline.identify.least_squares import FitOptions, cross_validate, fit, hol
 from pipeline.identify.results import results_document
 from pipeline.recording.reader import read_recording
 from pipeline.stages.artefacts import sha256_file
+from pipeline.physics.loading import load_with_physics  # noqa: F401 — also used from here
 from pipeline.systems.registry import detect
 
 
@@ -116,21 +117,6 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
 
     (out / "results.json").write_text(dumps(doc))  # numpy-aware (the accuracy map), NaN → null
     return doc
-
-
-def load_with_physics(system, rec, physics: str | None, payload: list[str] | None):
-    """`system.load(rec)`, with the gravity terms asked for where the system models them."""
-    import inspect
-
-    from pipeline.physics.compliance import parse_payload, parse_spec
-
-    mode, _ = parse_spec(physics)
-    loads = payload or []
-    if "physics" in inspect.signature(system.load).parameters:
-        return system.load(rec, physics=physics, payload=parse_payload(loads))
-    if mode == "fixed" or loads:
-        raise RobocalError(f"{rec.path}: system {system.SYSTEM} has no gravity terms (--physics, --payload)")
-    return system.load(rec)
 
 
 def summary_rows(doc: dict) -> list[tuple[str, str]]:

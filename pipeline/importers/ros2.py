@@ -22,12 +22,19 @@ import numpy as np
 
 from pipeline.errors import RobocalError
 from pipeline.importers import standstill
+from pipeline.importers.ros2_messages import (  # noqa: F401 — the names other importers use from here
+    JOINT_STATE,
+    MEASURE_TYPES,
+    POINT,
+    POSE,
+    _decoder,
+    _stamp,
+    _times,
+    at,
+    read_measurements,
+)
 from pipeline.models.urdf import RobotDescription
 
-JOINT_STATE = "sensor_msgs/msg/JointState"
-POINT = "geometry_msgs/msg/PointStamped"
-POSE = "geometry_msgs/msg/PoseStamped"
-MEASURE_TYPES = {POINT: "point", POSE: "pose"}
 
 
 @dataclass(frozen=True)
@@ -41,11 +48,6 @@ class BagSpec:
     max_speed: float = standstill.DEFAULT_MAX_SPEED
     time: str = "header"  # header (header.stamp, falling back to receive time) | log (receive time)
     tips: tuple = ()  # ((link, PointStamped topic), …): a tree measured on several tips, one topic each
-
-
-def at(path: Path, topic: str, record: int | None = None) -> str:
-    """'file: topic /x: record 12' — the prefix of every bag input error."""
-    return f"{path}: topic {topic}" + ("" if record is None else f": record {record}")
 
 
 class _Damaged(RobocalError):
@@ -125,24 +127,6 @@ def _stream(path: Path, reader, joint_topic: str, measure_topic, side: list):
             yield t, data
         else:
             side.append((conn.topic, t, bytes(data)) if several else (t, bytes(data)))
-
-
-def _decoder(path: Path, topic: str, typename: str):
-    from rosbags.typesys import Stores, get_typestore
-
-    store = get_typestore(Stores.LATEST)
-
-    def decode(i: int, data: bytes):
-        try:
-            return store.deserialize_cdr(data, typename)
-        except Exception as e:  # noqa: BLE001 — the library's errors (SerdeError, struct, …) are the data's
-            raise RobocalError(f"{at(path, topic, i)}: CDR does not decode as {typename} "
-                               f"({type(e).__name__}: {e})") from None
-    return decode
-
-
-def _stamp(msg) -> int:
-    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
 
 
 class _Rows:
@@ -245,46 +229,6 @@ def read_joint_states(path: Path, topic: str, messages, joints: list[str]):
         else:
             report["efforts"] = True
     return t[:, 0], t[:, 1], q, report, effort
-
-
-def read_measurements(path: Path, topic: str, typename: str, datas: list[bytes]):
-    """(header stamps ns (m,), positions (m, 3) m, orientations (m, 4) x,y,z,w or None, frame id)."""
-    decode = _decoder(path, topic, typename)
-    m = len(datas)
-    P = np.empty((m, 3))
-    O = np.empty((m, 4)) if typename == POSE else None
-    stamps = np.empty(m, np.int64)
-    frame = None
-    for i, data in enumerate(datas):
-        msg = decode(i, data)
-        if frame is None:
-            frame = msg.header.frame_id
-        elif msg.header.frame_id != frame:
-            raise RobocalError(f"{at(path, topic, i)}: frame {msg.header.frame_id!r}, but earlier measurements "
-                               f"are in {frame!r} (one instrument frame per campaign)")
-        stamps[i] = _stamp(msg)
-        if O is None:
-            P[i] = (msg.point.x, msg.point.y, msg.point.z)
-        else:
-            p, o = msg.pose.position, msg.pose.orientation
-            P[i] = (p.x, p.y, p.z)
-            O[i] = (o.x, o.y, o.z, o.w)
-    bad = np.flatnonzero(~np.isfinite(P).all(1) | (False if O is None else ~np.isfinite(O).all(1)))
-    if len(bad):
-        raise RobocalError(f"{at(path, topic, int(bad[0]))}: position or orientation is NaN or inf")
-    if O is not None:
-        norm = np.linalg.norm(O, axis=1)
-        zero = np.flatnonzero(norm < 1e-9)
-        if len(zero):
-            raise RobocalError(f"{at(path, topic, int(zero[0]))}: orientation quaternion is zero")
-        O = O / norm[:, None]
-    return stamps, P, O, frame or ""
-
-
-def _times(stamps: np.ndarray, log, use_header: bool) -> tuple[np.ndarray, str]:
-    if use_header and np.all(stamps > 0):
-        return stamps, "header.stamp"
-    return np.asarray(log, np.int64), "receive time"
 
 
 def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()) -> tuple[dict, dict]:

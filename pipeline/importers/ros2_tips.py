@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import RobocalError
-from pipeline.importers.ros2 import MEASURE_TYPES, POINT, BagSpec, _times, at, read_measurements
+from pipeline.importers.ros2_messages import MEASURE_TYPES, POINT, _times, at, read_measurements
 
 
-def tip_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> list[str]:
+def tip_topics(path: Path, topics: dict[str, str], spec) -> list[str]:
     """The measurement topic of each of `spec.tips`, checked: in the bag, PointStamped, each once."""
     out = []
     for link, topic in spec.tips:

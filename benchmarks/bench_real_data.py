@@ -9,6 +9,7 @@ part) in mm.  Peer figures (same data, every 5th row held out, registration only
 TIAGo 5.59 → 5.24 mm, UR10e 4.86 → 6.70 mm; MUKCa on panda_1: 7.79 → 0.347 mm (mean absolute).
 
     python benchmarks/bench_real_data.py [--only tiago,ur10,mate,panda] [--folds 5]
+    python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca   # the peers' own protocols
 """
 
 from __future__ import annotations
@@ -84,9 +85,24 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--only", default="tiago,ur10,mate,panda")
     ap.add_argument("--folds", type=int, default=5)
+    ap.add_argument("--protocols", default="", help="tiago-sessions,mukca: the peers' own held-out protocols "
+                    "(benchmarks/peer_protocols.py) instead of the table above")
+    ap.add_argument("--models", default="registration only,groups,all,shrinkage",
+                    help="model choices of --protocols (Panda's groups selection costs minutes of CPU)")
+    ap.add_argument("--mukca-train", default="front_center", help="panda_2 placement fitted (--protocols mukca)")
     a = ap.parse_args()
     if not REAL.is_dir():
         sys.exit(f"real data not found at {REAL}")
+    if a.protocols:
+        import peer_protocols as pp
+
+        choices = tuple(c.strip() for c in a.models.split(","))
+        with tempfile.TemporaryDirectory() as tmp:
+            if "tiago-sessions" in a.protocols:
+                pp.tiago(REAL, Path(tmp), choices)
+            if "mukca" in a.protocols:
+                pp.mukca(REAL, Path(tmp), choices, a.mukca_train)
+        return
     robocal = str(Path(sys.executable).parent / "robocal")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -13,14 +13,13 @@ from pipeline.identify.least_squares import FitOptions, cross_validate, fit, hol
 from pipeline.identify.results import results_document
 from pipeline.recording.reader import read_recording
 from pipeline.stages.artefacts import sha256_file
-from pipeline.physics.loading import load_with_physics  # noqa: F401 — also used from here
-from pipeline.systems.registry import detect
+from pipeline.systems.registry import detect, load_with_physics
 
 
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
               seed: int = 0, solver: str = "lm", joint_offsets: bool = False, variant: str | None = None,
               select_groups: bool = True, accuracy: dict | None = None, physics: str | None = None,
-              payload: list[str] | None = None) -> dict:
+              payload: list[str] | None = None, model_choice: str = "groups") -> dict:
     """Read, identify, cross-validate; write DIR/results.json and DIR/model.json.
 
     `solver`: 'lm' (least squares, default) or 'ga' (seed 001's genetic algorithm, for systems
@@ -29,6 +28,8 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     (systems whose model has a `variant` field, e.g. delta-tracker: simplified, extended).  `physics`,
     `payload`: gravity terms of a URDF robot (`pipeline.physics.compliance`)."""
     t0 = time.perf_counter()
+    if model_choice not in ("groups", "shrinkage"):
+        raise RobocalError(f"--model-choice {model_choice!r}: expected groups or shrinkage")
     path, out = Path(path), Path(out)
     rec = read_recording(path)
     system = detect(rec)
@@ -56,12 +57,24 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
                          (accuracy or {}).get("prior") or {})[0]
     if options.prior_sigma is None:  # the fit judges a parameter freed off the nominal geometry against it
         options = dataclasses_replace(options, prior_sigma=sigma0)
+    from pipeline.recording.schemas import META_CAMPAIGN
+    from pipeline.validate.plausibility import screen
+
+    _joint_limits(path, rec, system, table)  # the check `robocal run`'s validate applies: the same verdict
+    gross = screen(model, table, rec.metadata.get(META_CAMPAIGN, {}), options)  # before any open-ended solve
+    if gross["status"] == "fail":
+        raise RobocalError(f"{path}: {gross['message']}")
     if solver == "ga":
         from pipeline.identify.genetic import cross_validate_ga, fit_ga
         if not hasattr(model, "batch_cost_fn"):
             raise RobocalError(f"{path}: system {system.SYSTEM} has no genetic-algorithm solver (use --solver lm)")
         f = fit_ga(model, table)
         holdout = cross_validate_ga(model, table, k=k_folds, seed=seed)
+    elif solver == "lm" and model_choice == "shrinkage" and getattr(model, "groups", None) and model.groups():
+        from pipeline.identify.shrinkage import shrunk_fit
+
+        selection = None
+        f, shrunk, holdout = shrunk_fit(model, table, options, k=k_folds, seed=seed)
     elif solver == "lm":
         selection = None
         if select_groups and getattr(model, "groups", None) and model.groups():
@@ -85,6 +98,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
                            source={"path": str(path), "sha256": sha256_file(path)}, warnings=warnings,
                            k_folds=k_folds)
     doc["solver"] = solver
+    from pipeline.identify.results import with_3d
+
+    doc = with_3d(doc, model, table, f.residuals_before, f.residuals_after, holdout)
     if solver == "lm" and selection is not None:
         from pipeline.identify.complexity import explain
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
@@ -96,9 +112,18 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         physics_doc = summarise(model, f, table, options, k_folds, seed, float(np.sqrt(np.nanmean(holdout**2))))
         if physics_doc is not None:  # geometry-only vs with-physics held-out, each kept term's reading
             doc["physics"] = physics_doc
+    if solver == "lm" and model_choice == "shrinkage" and selection is None and "shrunk" in locals():
+        from pipeline.identify.shrinkage import shrinkage_document
+
+        doc["model_selection"] = shrinkage_document(shrunk)
+        if shrunk.per_group:
+            doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
     from pipeline.accuracy.stage import guarded_document
 
-    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {})
+    from pipeline.identify.least_squares import kfold_indices
+
+    folds = kfold_indices(len(holdout), k_folds, seed)
+    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {}, (holdout, folds))
     if (accuracy or {}).get("previous"):
         from pipeline.accuracy.previous import compare, read_parameters
 
@@ -107,6 +132,17 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     doc["accuracy"] = acc
     doc["status"] = acc["status"]
     doc["status_reason"], doc["status_advice"] = acc["reason"], acc["advice"]
+    from pipeline.identify.plausibility import implausible as find_implausible, warnings_of
+
+    implausible = []
+    if solver == "lm" and getattr(model, "groups", None) and model.groups():  # URDF robots
+        implausible = doc["implausible"] = find_implausible(model, f.x, f.free, options.prior_sigma)
+        doc["warnings"] += warnings_of(implausible)
+    if implausible and doc["status"] == "pass":  # never a silent pass over a parameter beyond its prior
+        doc["status"] = "warn"
+        doc["status_reason"] = (f"{len(implausible)} parameter(s) estimated beyond 3 prior σ from nominal: "
+                                + ", ".join(p["name"] for p in implausible))
+        doc["status_advice"] = "check the robot description and the data; or widen the prior (--prior) if intended"
     if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures
         doc.update(model.extra_metrics(f.nominal, f.x, table))
     out.mkdir(parents=True, exist_ok=True)
@@ -119,18 +155,40 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     return doc
 
 
+def _joint_limits(path: Path, rec, system, table: dict) -> None:
+    """Refuse measurements outside the robot model's joint limits, as `robocal run` (validate) does."""
+    from pipeline.stages.validate import _limits
+    from pipeline.validate.checks import FAIL, check_joint_limits
+
+    lim = _limits(rec, system)
+    if lim is None or "joint_positions" not in table:
+        return
+    lo, hi, names = lim
+    q = np.asarray(table["joint_positions"], float)
+    if q.ndim != 2 or q.shape[1] != len(lo):
+        return
+    rec_ids = np.asarray(table.get("record", np.arange(len(q))))
+    c = check_joint_limits(system.MEASUREMENT_CHANNEL if hasattr(system, "MEASUREMENT_CHANNEL") else "measurements",
+                           q, rec_ids, lo, hi, names)
+    if c.status == FAIL:
+        raise RobocalError(f"{path}: joint_limits: {c.message}")
+
+
 def summary_rows(doc: dict) -> list[tuple[str, str]]:
     """Display rows (mm for lengths) of a results document."""
     mm = lambda v: f"{v * 1e3:.4f} mm"  # noqa: E731
-    acc = doc["predicted_point_accuracy"]
+    axis = " (per axis)" if doc.get("rms_3d_after_m") is not None else ""
     return [
         ("system", doc["system"]),
         ("measurements", str(doc["n_measurements"])),
-        ("RMS before", mm(doc["rms_before_m"])),
-        ("RMS after", mm(doc["rms_after_m"])),
-        (f"held-out RMS ({doc['holdout_folds']}-fold CV)", mm(doc["holdout_rms_m"])),
+        ("RMS before" + axis, mm(doc["rms_before_m"])),
+        ("RMS after" + axis, mm(doc["rms_after_m"])),
+        (f"held-out RMS ({doc['holdout_folds']}-fold CV){axis}", mm(doc["holdout_rms_m"])),
+        *([("RMS of the 3-D error before / after", f"{mm(doc['rms_3d_before_m'])} / {mm(doc['rms_3d_after_m'])}"),
+           ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(doc.get("holdout_kind", "")).startswith(
+               "whole") else f"{doc['holdout_folds']}-fold, within this recording") + ")",
+            mm(doc["holdout_rms_3d_m"]))] if doc.get("rms_3d_after_m") is not None else []),
         ("max |residual| after", mm(doc["max_abs_after_m"])),
-        ("predicted 3-D point accuracy (1σ, RMS)", mm(acc["rms_1sigma_m"])),
         *([("predicted over the workspace (1σ RMS / worst 95 %)",
             f"{mm(doc['accuracy']['map_rms_1sigma_m'])} / {mm(doc['accuracy']['map_max_bound95_m'])}")]
           if "map_rms_1sigma_m" in doc.get("accuracy", {}) else []),

@@ -301,12 +301,17 @@ def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, pa
     return out
 
 
-def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geometry: bool = True) -> Path:
-    """humanoid.urdf (nominal), postures.csv and truth.json under `out_dir`; returns the folder."""
+def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geometry: bool = True,
+          session: int | None = None) -> Path:
+    """humanoid.urdf (nominal), postures.csv and truth.json under `out_dir`; returns the folder.  The robot
+    (truth) comes from `seed`; `session` (default: the same stream) draws another set of postures and noise
+    of the same robot — a second measurement session."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     t = default_truth(rng, geometry)
+    if session is not None:
+        rng = np.random.default_rng([seed, session])
     joints, links = humanoid()
     (out_dir / "humanoid.urdf").write_text(urdf_text(joints, links))
     q = postures(rng, n)
@@ -315,7 +320,7 @@ def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geo
     data = np.column_stack([q[k] for k in READ] + [y["left"], y["right"]])
     lines = [",".join(cols)] + [",".join(f"{v:.12g}" for v in row) for row in data]
     (out_dir / "postures.csv").write_text("\n".join(lines) + "\n")
-    truth = {"noise_m": noise_m, "n": n, "seed": seed, "coupled": COUPLED,
+    truth = {"noise_m": noise_m, "n": n, "seed": seed, "session": session, "coupled": COUPLED,
              "stiffness_Nm_per_rad": {k: 1 / v for k, v in t.compliance.items()},
              "lateral_stiffness_Nm_per_rad": {k: 1 / v for k, v in t.lateral.items()},
              **{k: v for k, v in vars(t).items()}}

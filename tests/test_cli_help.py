@@ -97,7 +97,8 @@ def test_commands_are_grouped_by_task_in_order():
     panels = _panels(res.output)
     assert [p for p in panels if p != "Options"] == list(PANELS)
     assert panels["Import"] == ["import"]
-    assert {"run", "calibrate", "diagnose", "report", "ingest", "validate", "identify", "observe"} == set(panels["Calibrate"])
+    assert {"run", "calibrate", "diagnose", "evaluate", "report", "ingest", "validate", "identify", "observe"} == set(
+        panels["Calibrate"])
     assert set(panels["Plan & compensate"]) == {"plan", "compensate"}
     assert set(panels["Simulate & acquire"]) == {"simulate", "device-sim", "acquire", "recover"}
     assert set(panels["Fleet"]) == {"reprocess", "fleet"}

@@ -29,7 +29,7 @@ def humanoid(tmp_path_factory):
 
 
 def _model(rec, physics):
-    from pipeline.calibrate import load_with_physics
+    from pipeline.systems.registry import load_with_physics
     from pipeline.recording.reader import read_recording
     from pipeline.systems.registry import detect
 
@@ -73,16 +73,24 @@ def test_physics_jacobian_matches_finite_differences(humanoid):
         assert np.abs(fd - J[:, :, i]).max() <= 1e-6 * max(1.0, np.abs(J[:, :, i]).max()), names[i]
 
 
-def test_stiffness_recovered_and_held_out_at_the_noise_floor(humanoid, tmp_path):
-    """With the gravity terms: every true stiffness within 2σ, held-out at the noise floor; geometry
-    alone is clearly worse on the same rows and split."""
+@pytest.fixture(scope="module")
+def calibrations(humanoid, tmp_path_factory):
+    """The humanoid calibrated with the gravity terms and with geometry alone (no group selection)."""
     from pipeline.calibrate import calibrate
     from pipeline.identify.least_squares import FitOptions
 
+    rec, _ = humanoid
+    d = tmp_path_factory.mktemp("cal")
+    phys = calibrate(rec, d / "phys", FitOptions(), select_groups=False, physics="joint-compliance,lateral-compliance")
+    geo = calibrate(rec, d / "geo", FitOptions(), select_groups=False, physics="none")
+    return d, phys, geo
+
+
+def test_stiffness_recovered_and_held_out_at_the_noise_floor(humanoid, calibrations):
+    """With the gravity terms: every true stiffness within 2σ, held-out at the noise floor; geometry
+    alone is clearly worse on the same rows and split."""
     rec, truth = humanoid
-    phys = calibrate(rec, tmp_path / "phys", FitOptions(), select_groups=False,
-                     physics="joint-compliance,lateral-compliance")
-    geo = calibrate(rec, tmp_path / "geo", FitOptions(), select_groups=False, physics="none")
+    tmp_path, phys, geo = calibrations
     noise = truth["noise_m"]
     assert phys["holdout_rms_m"] < 1.3 * noise, phys["holdout_rms_m"]
     assert geo["holdout_rms_m"] > 3 * phys["holdout_rms_m"], (geo["holdout_rms_m"], phys["holdout_rms_m"])
@@ -129,3 +137,23 @@ def test_gravity_terms_need_inertials_and_known_payload_links(humanoid, tmp_path
     assert r.returncode == 2 and "<inertial>" in r.stderr and "Traceback" not in r.stderr, r.stderr
     r = run_cli("calibrate", rec, "--out", tmp_path / "c2", "--payload", "2@nowhere")
     assert r.returncode == 2 and "'nowhere' is not in the URDF" in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_evaluate_carries_the_physics_to_a_new_session(humanoid, calibrations, tmp_path):
+    """`robocal evaluate` applies the calibrated model, physics included, to another session of the same
+    robot without refitting: the 3-D error stays at the noise floor; the geometry-only calibration's does not."""
+    rec, truth = humanoid
+    cal, _, _ = calibrations
+    d = hu.write(tmp_path / "s2", seed=11, n=80, noise_m=2e-4, session=2)
+    rec2 = tmp_path / "s2.mcap"
+    assert run_cli("import", "csv", d / "postures.csv", "--urdf", d / "humanoid.urdf", "--root", "base", *TIPS,
+                   *COUPLED, "--measure", "point", "--out", rec2).returncode == 0
+    figures = {}
+    for name in ("phys", "geo"):
+        r = run_cli("evaluate", cal / name, rec2, "--out", tmp_path / f"ev_{name}")
+        assert r.returncode == 0, r.stderr
+        (doc,) = json.loads((tmp_path / f"ev_{name}" / "evaluation.json").read_text())["recordings"]
+        figures[name] = doc["rms_3d_m"]
+    floor = np.sqrt(3) * truth["noise_m"]
+    assert figures["phys"] < 1.3 * floor, figures
+    assert figures["geo"] > 3 * figures["phys"], figures

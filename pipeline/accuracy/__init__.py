@@ -1,1 +1,1 @@
-"""Honest accuracy: priors, propagation to a workspace map, the verdict (pass / insufficient / fail)."""
+"""Honest accuracy: priors, propagation to a workspace map, the verdict (pass / warn / insufficient / fail), the held-out check."""

@@ -50,8 +50,9 @@ def read_targets(path: str | Path) -> np.ndarray:
     return np.array(rows)
 
 
-def accuracy_document(model, rec, x, free, cov, data, params: dict) -> dict:
-    """Everything of the stage but the file writing (also used by `robocal calibrate`)."""
+def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None) -> dict:
+    """Everything of the stage but the file writing (also used by `robocal calibrate`).
+    `holdout`: (held-out residuals (n, k) over `data`, fold indices) of the run's cross-validation."""
     file_priors = rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {}
     sigma, kinds, source = prior.prior_sigma(model, file_priors, params.get("prior") or {})
     fixture = rec.metadata.get(META_FIXTURE)
@@ -63,7 +64,8 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict) -> dict:
         tol = rec.metadata.get(META_CAMPAIGN, {}).get("tolerance_m")
     advise = assess.touch_advice(fixture) if fixture and "faces" in fixture else None
     doc = assess.evaluate(model, x, free, cov, data, sigma, map_data, uncalibrated(model, data),
-                          None if tol is None else float(tol), advise)
+                          None if tol is None else float(tol), advise, holdout,
+                          robot_meta=rec.metadata.get(META_ROBOT, {}))
     doc["map"]["description"] = what
     doc["priors"] = [{"name": n, "kind": k, "sigma": float(s), "source": src, "fixed": not bool(f)}
                      for n, k, s, src, f in zip(model.parameter_names(), kinds, sigma, source, free)]
@@ -73,11 +75,11 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict) -> dict:
     return doc
 
 
-def guarded_document(model, rec, x, free, cov, data, params: dict) -> dict:
+def guarded_document(model, rec, x, free, cov, data, params: dict, holdout=None) -> dict:
     """`accuracy_document`, but a model this module cannot map (a new measurement type) gives status
     `not_assessed` with the reason instead of losing the calibration; bad user input still raises."""
     try:
-        return accuracy_document(model, rec, x, free, cov, data, params)
+        return accuracy_document(model, rec, x, free, cov, data, params, holdout)
     except RobocalError:
         raise
     except Exception as e:  # noqa: BLE001 — reported in results.json, never silent
@@ -85,15 +87,32 @@ def guarded_document(model, rec, x, free, cov, data, params: dict) -> dict:
                 "advice": "report this model to the robocal maintainers", "map": {}}
 
 
+def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict):
+    """(held-out residuals of the used rows, folds) of the identify stage's cross-validation (the
+    same seeded split, `kfold_indices`), or None when it has none."""
+    from pipeline.identify.least_squares import kfold_indices
+    from pipeline.stages.artefacts import read_stage
+
+    k = int(fit.get("residual_dim", 1))
+    cols = [f"holdout_{j}" for j in range(k)]
+    folds = int(fit.get("holdout_folds", 0) or 0)
+    if folds < 2 or not all(c in res for c in cols):
+        return None
+    seed = int(((read_stage(run_dir, IDENTIFY) or {}).get("params") or {}).get("seed", 0))
+    h = np.stack([np.asarray(res[c], float) for c in cols], axis=1)[used]
+    return h, kfold_indices(int(used.sum()), folds, seed)
+
+
 def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
     _, model, rec = load_system(run_dir)
     fit = read_fit(run_dir)
     table = read_measurements(run_dir)
-    used = read_table(run_dir / IDENTIFY / "residuals.parquet")["used"].astype(bool)
+    res = read_table(run_dir / IDENTIFY / "residuals.parquet")
+    used = res["used"].astype(bool)
     data = take(model_columns(table), used)
     x, free = np.asarray(fit["x"], float), np.asarray(fit["free"], bool)
-    doc = guarded_document(model, rec, x, free, fit["cov"], data, params)
+    doc = guarded_document(model, rec, x, free, fit["cov"], data, params, run_holdout(run_dir, res, used, fit))
     if params.get("previous"):
         doc["previous"] = {"run": str(params["previous"]),
                            **compare(fit["parameters"], read_parameters(Path(params["previous"])))}

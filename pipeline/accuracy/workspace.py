@@ -127,3 +127,22 @@ def map_table(model, x: np.ndarray, data: dict, targets: np.ndarray | None = Non
     if targets is not None:
         raise RobocalError(f"accuracy map: system {system} cannot place user targets; omit --targets")
     return dict(data), "measured configurations (no workspace map for this system)"
+
+
+def spread_table(model, data: dict, n: int = 200, seed: int = 0) -> dict | None:
+    """n configurations drawn uniformly within the arm's joint limits (±π where a joint has none),
+    the other columns as the first measurement's: where a campaign *could* measure, for counting the
+    parameters a full model identifies.  None for a model without an arm's joint limits."""
+    arm = getattr(model, "arm", None) or getattr(model, "kin", None)
+    q = np.asarray(data.get("joint_positions", np.zeros((0, 0))), float)
+    lo, hi = getattr(arm, "lower", None), getattr(arm, "upper", None)
+    if arm is None or lo is None or hi is None or q.ndim != 2 or not len(q):
+        return None
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    if lo.shape != (q.shape[1],) or hi.shape != lo.shape:
+        return None
+    lo = np.where(np.isfinite(lo), lo, -np.pi)
+    hi = np.where(np.isfinite(hi), hi, np.pi)
+    table = {k: np.repeat(np.asarray(v)[:1], n, axis=0) for k, v in data.items()}
+    table["joint_positions"] = np.random.default_rng(seed).uniform(lo, hi, (n, lo.size))
+    return table

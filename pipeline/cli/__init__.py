@@ -80,7 +80,7 @@ SIMULATORS = ("simulate", "sim_delta", "sim_scanner", "sim_urdf", "fleet")
 # these, not all the others' dependencies (every command pays its own imports only).
 COMMAND_MODULES: dict[str, tuple[str, ...]] = {
     "acquire": ("acquire",), "recover": ("acquire",), "device-sim": ("acquire", *SIMULATORS),
-    "calibrate": ("calibrate",), "compensate": ("compensate",), "diagnose": ("diagnose",), "fleet": ("fleet",),
+    "calibrate": ("calibrate",), "evaluate": ("evaluate",), "compensate": ("compensate",), "diagnose": ("diagnose",), "fleet": ("fleet",),
     "import": ("importer", "ros2"), "plan": ("plan",), "report": ("report",), "reprocess": ("reprocess",),
     "run": ("run",), "ingest": ("run",), "validate": ("run",), "identify": ("run",), "observe": ("run",),
     "simulate": SIMULATORS, "view": ("view",),

@@ -15,7 +15,8 @@ from pipeline.cli.run import (PAYLOAD, PHYSICS, PREVIOUS, PRIOR, STRICT, TARGETS
 
 @app.command("calibrate", rich_help_panel=CALIBRATE)
 def calibrate_cmd(
-    recording: Path = typer.Argument(..., help="Recording (MCAP) of a calibration campaign."),
+    recordings: list[Path] = typer.Argument(..., help="Recording(s) (MCAP) of a calibration campaign; several "
+                                                      "recordings of one robot are calibrated together (sessions)."),
     out: Path = typer.Option(..., "--out", help="Output folder for results.json and model.json."),
     loss: str = typer.Option("linear", "--loss", help="Loss: linear, huber or soft_l1."),
     folds: int = typer.Option(5, "--folds", min=2, help="Folds of the held-out cross-validation."),
@@ -27,15 +28,25 @@ def calibrate_cmd(
                                 help="Model variant of the system (delta-tracker: simplified, extended)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
+    registration: str = typer.Option("shared", "--registration", help="Several recordings: shared (one instrument "
+                                                                      "frame) or per-recording."),
+    model_choice: str = typer.Option("groups", "--model-choice",
+                                     help="URDF robots: groups (keep groups that lower held-out error) or shrinkage "
+                                          "(every parameter pulled toward nominal by its prior; scale by leaving out "
+                                          "whole sessions/placements, else GCV)."),
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""
     from pipeline.calibrate import calibrate, summary_rows
     from pipeline.identify.least_squares import FitOptions
+    from pipeline.importers.merge import merged_input
+
+    recording = merged_input(recordings, out, registration, run_folder=False)
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,
                         joint_offsets=joint_offsets, variant=variant, physics=physics, payload=payload,
+                        model_choice=model_choice,
                         accuracy=accuracy_params(prior, tolerance, previous, targets))
     for w in doc["warnings"]:
         err.print(f"[yellow]warning:[/] {w}", highlight=False)

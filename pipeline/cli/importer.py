@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import typer
 
@@ -59,9 +60,14 @@ def import_csv(
     unknown_planes: bool = typer.Option(False, "--unknown-planes", help="Estimate the planes' tilt and offset."),
     group_from: str = typer.Option("file", "--group-from", help="Coincidence group of a row: file or parent/file."),
     distance: list[str] = typer.Option([], "--distance", help="Known distance between two groups: A:B:METRES."),
-    sigma_m: float = typer.Option(1e-3, "--sigma-m", help="Pose: position uncertainty, m."),
+    sigma_m: Optional[float] = typer.Option(None, "--sigma-m", help="The instrument's position uncertainty (1σ per "
+                                            "axis), m: residuals far above it fail the calibration naming the likely "
+                                            "cause (units, columns, chain); pose: also the weighting (default 1 mm)."),
     sigma_rad: float = typer.Option(1e-3, "--sigma-rad", help="Pose: orientation uncertainty, rad."),
     robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
+    instrument: str = typer.Option("", "--instrument", help="Instrument identity (tracker serial, mocap room) stored "
+                                                            "in the campaign: recordings sharing a registration "
+                                                            "must name the same (robocal evaluate)."),
 ) -> None:
     """Map CSV columns to the URDF's joints (by header name) and write a recording `robocal run` calibrates."""
     from pipeline.errors import RobocalError
@@ -73,6 +79,8 @@ def import_csv(
         raise RobocalError(f"--measure {measure!r}: expected point, pose, plane or coincidence")
     if joint_units not in ("rad", "deg") or length_units not in ("m", "mm"):
         raise RobocalError("--joint-units takes rad or deg, --length-units m or mm")
+    if sigma_m is not None and not (sigma_m > 0 and sigma_m < 1):
+        raise RobocalError(f"--sigma-m {sigma_m!r}: expected the instrument's 1σ in m, 0 < σ < 1")
     if measure == "pose" and not orientation:
         raise RobocalError("--measure pose needs --orientation-cols")
     if out.exists() and out.resolve() in {f.resolve() for f in files}:
@@ -91,12 +99,16 @@ def import_csv(
                    planes=planes)
     table, extras = read_table(files, desc, spec)
     campaign = {**extras, "source_files": [str(f) for f in files], "robot_id": robot_id or desc.name}
+    if instrument:
+        campaign["instrument"] = instrument
     if coupled:
         from pipeline.models.urdf_tree import parse_coupling
 
         campaign["coupled"] = {c: {"terms": t, "offset": o} for c, t, o in map(parse_coupling, coupled)}
     if measure == "pose":
-        campaign |= {"sigma_m": sigma_m, "sigma_rad": sigma_rad}
+        campaign |= {"sigma_m": 1e-3 if sigma_m is None else sigma_m, "sigma_rad": sigma_rad}
+    elif sigma_m is not None:
+        campaign["sigma_m"] = sigma_m
     if distance:
         ds = []
         for d in distance:

@@ -82,6 +82,8 @@ def plan_cmd(
         err.print(f"stage {doc['stage']} of {doc['stages']}: {len(doc['measurements'])} measurements planned from "
                   f"{doc['n_candidates']} candidates in {doc['selection_s']:.3f} s; predicted landing probability "
                   f"min {min(p):.3f}, mean {np.mean(p):.3f}; margin {margin * 1e3:.1f} mm")
+        for w in doc.get("warnings", []):
+            err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
         if doc["stage"] < doc["stages"]:
             err.print(f"next: robocal simulate {system} --campaign {out} --out REC.mcap (or run it on the robot); "
                       f"robocal run REC.mcap --out RUN; robocal plan {system} --after RUN --select N --out NEXT.json")

@@ -10,7 +10,11 @@ Compensation of target (p_t, R_t):
 2. calibrated-model IK started there (same branch; a jump > `branch_jump_rad` is reported);
 3. corrected target (R_c, p_c) = nominal forward kinematics of the calibrated joints: a
    nominal controller's IK of it returns the calibrated joints.
-Each row gets a status: ok, unreachable (no convergence), singular (smallest singular value of
+A target the same-branch solve misses (no convergence, or outside the limits) is solved again from
+the multistart seeds and EXTRA_SEEDS more spread within the limits (`spread_seeds`); reached within
+the limits there it is a branch_change, not unreachable.  A target without a nominal solution gets
+the same spread of starts.
+Each row gets a status: ok, unreachable (no convergence from any start), singular (smallest singular value of
 the lever-scaled 6×n Jacobian, at the nominal or the calibrated solution, below `singular_threshold_m`,
 5 mm per rad: 0.1 mm of tool motion costs 20 mrad of joint motion), out_of_limits, branch_change (the
 sign of det J differs between the nominal and the calibrated solution: a singularity lies between
@@ -32,6 +36,16 @@ __all__ = ["LEVER_M", "STATUS", "ChainKinematics", "Compensated", "IKOptions", "
 
 
 STATUS = ("ok", "unreachable", "out_of_limits", "singular", "branch_change")
+EXTRA_SEEDS = 64  # starts spread within the limits, tried on a target no given seed reaches
+
+
+def spread_seeds(kin: Kinematics, seeds: np.ndarray, n: int = EXTRA_SEEDS) -> np.ndarray:
+    """The given seeds, then n configurations drawn within the joint limits (±π where none; fixed
+    generator): a target the controller's few seeds miss is not called unreachable before these."""
+    lo = np.where(np.isfinite(kin.lower), kin.lower, -np.pi)
+    hi = np.where(np.isfinite(kin.upper), kin.upper, np.pi)
+    more = np.random.default_rng(0).uniform(lo, hi, (n, kin.n_joints))
+    return np.vstack([np.asarray(seeds, float).reshape(-1, kin.n_joints), more])
 
 
 @dataclass
@@ -63,9 +77,16 @@ def compensate(kin: Kinematics, x_nominal: np.ndarray, x_calibrated: np.ndarray,
     within = np.all((q[rows] >= kin.lower) & (q[rows] <= kin.upper), axis=1)
     status[rows[e > 1e-9]] = "unreachable"
     status[rows[(e <= 1e-9) & ~within]] = "out_of_limits"
+    lost = rows[(e > 1e-9) | ~within]  # the same-branch start missed: a solution within limits may still exist
+    if lost.size:
+        ql, okl = multistart(kin, x_calibrated, p_t[lost], None if R_t is None else R_t[lost],
+                             spread_seeds(kin, seeds), options)
+        found = lost[okl]
+        q[found], status[found] = ql[okl], "branch_change"  # reached, from another start: not the nominal branch
     rest = np.flatnonzero(~ok_nom)  # no nominal solution within limits: any calibrated one, else why not
     if rest.size:
-        qr, okr = multistart(kin, x_calibrated, p_t[rest], None if R_t is None else R_t[rest], seeds, options)
+        qr, okr = multistart(kin, x_calibrated, p_t[rest], None if R_t is None else R_t[rest],
+                             spread_seeds(kin, seeds), options)
         q[rest] = qr
         bad = rest[~okr]
         if bad.size:

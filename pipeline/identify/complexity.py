@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pipeline.identify.least_squares import FitOptions, cross_validate
+from pipeline.identify.least_squares import FitOptions, cross_validate, fit
 from pipeline.identify.model import MeasurementModel, Table
 
 MIN_GAIN = 0.02  # a group must lower the held-out RMS by 2 % to be kept
@@ -48,19 +48,31 @@ def fixed_for(model: MeasurementModel, kept: list[str]) -> tuple[str, ...]:
 
 
 def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, options: FitOptions = FitOptions(),
-           min_gain: float = MIN_GAIN, groups_of_rows: np.ndarray | None = None, z: float = Z_KEEP) -> Selection:
+           min_gain: float = MIN_GAIN, groups_of_rows: np.ndarray | None = None, z: float = Z_KEEP,
+           progress=None) -> Selection:
     """Forward selection of parameter groups by k-fold held-out error (see module docstring).
 
     A candidate is kept when it lowers the held-out RMS by `min_gain` AND the row-wise paired
     improvement of the squared held-out errors is significant: its mean exceeds `z` standard
     errors (one-sided).  On a few dozen rows a group can win the cross-validation by chance; the
     paired test asks that the win be carried by the rows, not by one or two of them."""
+    from pipeline.identify.group_holdout import held_out, row_groups
+
     candidates = [g for g in model.groups() if g != "registration" and not g.startswith("_")]
     kept = ["registration"]
+    # sessions, placements, sockets: leave whole ones out, their own points / frames refitted from their rows
+    whole = row_groups(model, data) if groups_of_rows is None else None
 
     def errors(groups: list[str]) -> np.ndarray:
         opts = replace(options, fixed=tuple(set(options.fixed) | set(fixed_for(model, groups))))
-        r = cross_validate(model, data, k=k, seed=seed, options=opts, groups=groups_of_rows)
+        if whole is not None:
+            if progress is not None:
+                progress(f"model choice: {' + '.join(groups)}, {len(np.unique(whole))} groups left out in turn")
+            r = held_out(model, data, whole, lambda d, _: fit(model, d, replace(opts, before=False)).x, None)
+        else:
+            if progress is not None:
+                progress(f"model choice: {' + '.join(groups)}, {k}-fold")
+            r = cross_validate(model, data, k=k, seed=seed, options=opts, groups=groups_of_rows)
         return np.nansum(r**2, axis=1)  # squared held-out error per row
 
     def rms(e: np.ndarray) -> float:
@@ -69,9 +81,12 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
     def better(e_new: np.ndarray, e_old: np.ndarray) -> bool:
         d = e_old - e_new
         se = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else np.inf
-        return rms(e_new) < rms(e_old) * (1 - min_gain) and float(d.mean()) > z * se
+        ok = rms(e_new) < rms(e_old) * (1 - min_gain) and float(d.mean()) > z * se
+        if ok and whole is not None:  # never worse than registration only on a group it did not see
+            ok = all(e_new[whole == g].mean() <= e_reg[whole == g].mean() for g in np.unique(whole))
+        return ok
 
-    e_best = errors(kept)
+    e_best = e_reg = errors(kept)
     reg = rms(e_best)
     rounds: list[dict] = [{"candidate": "registration", "holdout_rms_m": reg, "kept": True}]
 
@@ -93,7 +108,9 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
         candidates.remove(g)
     # a small campaign may support a few parameters of a group but not the whole group
     n_res = len(next(iter(data.values()))) * model.residual_dim
-    singles = [n for g in candidates for n in model.groups()[g]] if n_res <= SINGLE_MAX_RESIDUALS else []
+    # (not with whole groups left out: a few groups cannot judge single parameters, and each costs a fit per group)
+    singles = ([n for g in candidates for n in model.groups()[g]] if n_res <= SINGLE_MAX_RESIDUALS and whole is None
+               else [])
     for _ in range(SINGLE_MAX_ROUNDS if singles else 0):
         n = grow(_screen(model, data, kept, singles, options))
         if n is None:
@@ -107,8 +124,6 @@ def _screen(model: MeasurementModel, data: Table, kept: list[str], singles: list
             options: FitOptions) -> list[str]:
     """The `SINGLE_SCREEN` candidates whose Jacobian column, projected off the fitted ones, would
     lower the residual sum of squares most in one linearised step (cheap: one fit)."""
-    from pipeline.identify.least_squares import fit
-
     names = model.parameter_names()
     opts = replace(options, fixed=tuple(set(options.fixed) | set(fixed_for(model, kept))), before=False)
     f = fit(model, data, opts)

@@ -53,7 +53,7 @@ def measurement_table(table: dict[str, np.ndarray], stream: JointStream | None,
     out = dict(table)
     out.setdefault("record", np.arange(n, dtype=np.int64))
     if time_column in table:
-        check_times(np.asarray(table[time_column], np.int64), np.asarray(out["record"]), path, channel, time_column)
+        check_times(*times_in_order(table, np.asarray(out["record"]), time_column), path, channel, time_column)
     if temperature is not None and time_column in table:
         out["temperature_rise_K"] = rise_at(temperature, np.asarray(table[time_column], np.int64), path, channel,
                                             out["record"])
@@ -66,6 +66,22 @@ def measurement_table(table: dict[str, np.ndarray], stream: JointStream | None,
         out[f"dir_{name}"] = ctx["last_motion_sign"][:, j].astype(np.int8)
     out["time_since_start_s"] = ctx["time_since_start_s"]
     return out
+
+
+def times_in_order(table: dict, record: np.ndarray, column: str = "timestamp_ns") -> tuple[np.ndarray, np.ndarray]:
+    """(times, records) whose order is checked: the measured rows only (rows derived from the campaign, ``kind``
+    ≠ 0 — known distances — have no time of their own), and where several recordings were merged (``session``)
+    each session's times shifted to start after the previous sessions' (in order within each, not across)."""
+    t = np.asarray(table[column], np.int64).copy()
+    rec = np.asarray(record)
+    own = np.asarray(table["kind"]) == 0 if "kind" in table else np.ones(t.size, bool)
+    if "session" in table:
+        ses = np.asarray(table["session"])
+        for s_ in range(1, int(ses.max()) + 1 if ses.size else 0):
+            m, before = own & (ses == s_), own & (ses < s_)
+            if m.any() and before.any():
+                t[m] += max(0, int(t[before].max()) - int(t[m].min()) + 1)
+    return t[own], rec[own]
 
 
 def check_times(t_ns: np.ndarray, record: np.ndarray, path: object, channel: str, column: str) -> None:

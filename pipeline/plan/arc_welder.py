@@ -88,7 +88,27 @@ def touch_campaign(n_candidates: int, m: int, seed: int = 0, margin_m: float = 0
         row["landing_probability"] = float(pi)
     doc.update({"n_candidates": int(pool.face.size), "seed": seed, "selection_s": time.perf_counter() - t1,
                 "elapsed_s_note": "selection_s excludes the candidates' inverse kinematics", **extra})
+    if w := landing_warning(np.asarray(p, float)):
+        doc["warnings"] = [w]
     return doc
+
+
+LANDING_MIN = 0.5  # a contact predicted to land less often than this is named
+LANDING_EXPECTED = 0.9  # warn when fewer than this share of the contacts is expected to land
+
+
+def landing_warning(p: np.ndarray) -> str | None:
+    """A warning when the plan's own landing probabilities (`staged.landing_probability`, under the
+    model's uncertainty) predict a poor campaign: any contact below LANDING_MIN, or fewer than
+    LANDING_EXPECTED of the contacts expected to land."""
+    if p.size == 0:
+        return None
+    low = np.flatnonzero(p < LANDING_MIN)
+    if not low.size and p.sum() >= LANDING_EXPECTED * p.size:
+        return None
+    return (f"this campaign is predicted to land poorly: {p.sum():.1f} of {p.size} contacts expected to touch their "
+            f"face" + (f"; contacts {', '.join(str(int(i)) for i in low[:8])} below {LANDING_MIN:.0%}" if low.size else "")
+            + " — widen the stand-off (--margin), plan a first stage (--stages 2), or calibrate roughly first")
 
 
 def stages_so_far(run_dir) -> tuple:

@@ -127,6 +127,17 @@ def accuracy_section(art: RunArtefacts) -> str:
                 ("worst 1σ", _mm(acc.get("map_max_1sigma_m"))), ("worst 95 % bound", _mm(acc.get("map_max_bound95_m"))),
                 ("uncalibrated 1σ (priors, RMS)", _mm(acc.get("map_uncalibrated_rms_1sigma_m"))),
                 ("residuals per identified parameter", f"{acc.get('residuals_per_parameter', 0):.3g}")]
+        info = acc.get("information") or {}
+        if info:
+            rows.append(("distinct measurements / residual degrees of freedom",
+                         f"{info.get('n_distinct')} of {info.get('n_measurements')} / {info.get('dof')}"))
+        ho = acc.get("holdout_check") or {}
+        if ho:
+            rows.append(("held-out RMS / predicted by σ̂ and the design",
+                         f"{_mm(ho.get('holdout_rms_m'))} / {_mm(ho.get('predicted_holdout_rms_m'))} "
+                         f"(p = {float(ho.get('p_value', 1)):.2g}"
+                         + (f"; stated accuracy inflated ×{float(ho['inflation']):.2f})" if not ho.get("consistent", True)
+                            else ")")))
         tol = acc.get("tolerance")
         if tol:
             rows.append(("tolerance", f"{_mm(tol['tolerance_m'])}: {tol['status']} ({tol['points_within']} of "

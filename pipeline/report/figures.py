@@ -49,6 +49,9 @@ def summary(art: RunArtefacts) -> dict[str, Any]:
         "loss": fit.get("loss", "linear"),
         "solver_evaluations": len(art.history),
     }
+    for k in ("rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m"):  # URDF points / poses (identify)
+        if fit.get(k) is not None:
+            out[k] = fit[k]
     obs = art.observe or {}
     sig = obs.get("predicted_point_sigma_m")
     if sig:

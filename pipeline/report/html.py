@@ -78,8 +78,13 @@ def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
              ("parameters identified", f"{s['n_identifiable']} / {s['n_parameters']}"),
              ("measurements", f"{s['n_measurements']}" + (f" ({s['n_rejected']} rejected)" if s["n_rejected"] else "")),
              ("max |residual| after", _mm(s["max_abs_after_m"]))]
-    if "predicted_point_sigma_rms_m" in s:
-        cards.append(("predicted point accuracy (1σ RMS)", _mm(s["predicted_point_sigma_rms_m"])))
+    if s.get("rms_3d_after_m") is not None:  # URDF points / poses: the norm of the 3-D error, as other tools publish
+        cards[:3] = [(f"{k} (per axis)", v) for k, v in cards[:3]]
+        cards[:0] = [("RMS of the 3-D error before → after",
+                      f"{_mm(s.get('rms_3d_before_m'))} → {_mm(s['rms_3d_after_m'])}"),
+                     ("held-out RMS of the 3-D error (k-fold, within this recording)", _mm(s.get("holdout_rms_3d_m")))]
+    if s.get("accuracy_map_rms_1sigma_m") is not None:  # the one stated accuracy: the map's (accuracy section)
+        cards.append(("predicted accuracy over the workspace (1σ RMS)", _mm(s["accuracy_map_rms_1sigma_m"])))
     if s.get("sigma_m") is not None:
         cards.append(("residual σ", _mm(s["sigma_m"])))
     html = '<div class="cards">' + "".join(
@@ -141,11 +146,6 @@ def observability_section(art) -> str:
         html += "<h3>Strongest correlations</h3>" + _table(
             ["parameter", "parameter", "correlation"],
             [[f"<code>{escape(a)}</code>", f"<code>{escape(b)}</code>", f"{v:+.3f}"] for a, b, v in top], {2})
-    sig = obs.get("predicted_point_sigma_m")
-    if sig:
-        html += _figure(plots.point_sigma(np.zeros(len(sig)), np.asarray(sig, float)),
-                        "Predicted 3-D 1σ accuracy of the calibrated model's point at the measured poses (mm).",
-                        "fig-point-sigma")
     if not html:
         html = '<p class="note">The observe stage has not run for this directory.</p>'
     return _section("observability", "Observability", html)
@@ -286,6 +286,8 @@ def _json(v: Any) -> str:
 def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "run.rrd") -> str:
     """The whole report page."""
     s = fg.summary(art)
+    if isinstance(art.accuracy, dict) and art.accuracy.get("map_rms_1sigma_m") is not None:
+        s["accuracy_map_rms_1sigma_m"] = art.accuracy["map_rms_1sigma_m"]
     series = fg.residual_series(art)
     prov = fg.provenance(art, version, params)
     warnings = list(prov["warnings"])

@@ -155,7 +155,9 @@ def simulate(nominal: SerialArm, truth: SerialArm, jig: Jig, campaign: Campaign 
             a, b = fc.other_axes()
             on_face[i] = (fc.extent[0][0] <= p_true[i, a] <= fc.extent[0][1]
                           and fc.extent[1][0] <= p_true[i, b] <= fc.extent[1][1])
-        good = (g0 > 0) & (s > 0) & (s < campaign.search_travel_m) & on_face & (np.abs(gap(s)) < 1e-10)
+        q_c = q_a + s[:, None] * dq  # where the search latches: a controller stops a search at a joint limit
+        within = np.all((q_c >= nominal.lower) & (q_c <= nominal.upper), axis=1)
+        good = (g0 > 0) & (s > 0) & (s < campaign.search_travel_m) & on_face & (np.abs(gap(s)) < 1e-10) & within
         dropped += int((~good).sum())
         idx = np.flatnonzero(good)[:need]
         kept.append({"face": faces[idx], "q_a": q_a[idx], "dq": dq[idx], "s": s[idx], "axis": axis[idx]})

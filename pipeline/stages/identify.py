@@ -14,7 +14,9 @@ from pipeline.identify.exports import write_exports
 from pipeline.identify.least_squares import FitOptions, cross_validate, holdout_warning, point_accuracy
 from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.outliers import fit_rejecting
-from pipeline.identify.results import parameter_table
+from pipeline.identify.results import parameter_table, with_3d
+from pipeline.identify.plausibility import implausible, warnings_of
+from pipeline.identify.shrinkage import shrinkage_document
 from pipeline.ingest.tables import model_columns
 from pipeline.recording.schemas import META_FIXTURE, META_ROBOT
 from pipeline.stages.artefacts import read_json, write_json, write_table
@@ -49,6 +51,12 @@ def options_of(params: dict, model=None, rec=None) -> FitOptions:
                       prior_sigma=prior)
 
 
+def _progress(line: str) -> None:
+    import sys
+
+    print(f"identify: {line}", file=sys.stderr, flush=True)
+
+
 def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
     out = run_dir / NAME
@@ -56,17 +64,27 @@ def run(run_dir: Path, params: dict) -> dict:
     table = read_measurements(run_dir)
     data = model_columns(table)
     opts = options_of(params, model, rec)
-    selection = None
-    if getattr(model, "groups", None) and model.groups():  # keep only groups that improve held-out error
-        selection = select(model, data, k=int(params.get("folds", 5)), seed=int(params.get("seed", 0)), options=opts)
-        opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
-    rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
-    f = rf.fit
-    if selection is not None:
-        relabel(f, selection)
-    kept_data = take(data, rf.kept)
+    selection = shrunk = None
     folds = int(params.get("folds", 5))
-    holdout_kept = cross_validate(model, kept_data, k=folds, seed=int(params.get("seed", 0)), options=opts)
+    grouped = bool(getattr(model, "groups", None) and model.groups())
+    if grouped and params.get("model_choice", "groups") == "shrinkage":  # every parameter, pulled toward nominal
+        from pipeline.identify.outliers import RobustFit
+        from pipeline.identify.shrinkage import shrunk_fit
+
+        f, shrunk, holdout_kept = shrunk_fit(model, data, opts, k=folds, seed=int(params.get("seed", 0)),
+                                             progress=_progress)
+        rf = RobustFit(f, np.ones(len(table["record"]), bool))
+        kept_data = data
+    else:
+        if grouped:  # keep only groups that improve held-out error
+            selection = select(model, data, k=folds, seed=int(params.get("seed", 0)), options=opts, progress=_progress)
+            opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
+        rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
+        f = rf.fit
+        if selection is not None:
+            relabel(f, selection)
+        kept_data = take(data, rf.kept)
+        holdout_kept = cross_validate(model, kept_data, k=folds, seed=int(params.get("seed", 0)), options=opts)
     tip_sigma = point_accuracy(model, f, kept_data)
 
     n, k = len(table["record"]), model.residual_dim
@@ -103,6 +121,7 @@ def run(run_dir: Path, params: dict) -> dict:
         "parameters": parameter_table(f),
         "warnings": [w for w in [holdout_warning(int(rf.kept.sum()), folds, k, int(free.sum()))] if w],
     }
+    doc = with_3d(doc, model, take(data, rf.kept), before[rf.kept], after[rf.kept], holdout_kept)
     tol = (rec.metadata.get(META_FIXTURE) or {}).get("tolerance_m")
     if tol and "face" in kept_data:  # per-face machining error, shared by a face's contacts (not in σ̂²(JᵀJ)⁻¹)
         Jf = model.jacobian(f.x, kept_data).reshape(-1, f.x.size)[:, free]
@@ -117,6 +136,10 @@ def run(run_dir: Path, params: dict) -> dict:
     physics = summarise(model, f, kept_data, opts, folds, int(params.get("seed", 0)), rms(holdout_kept))
     if physics is not None:  # geometry-only vs with-physics held-out, each kept term's reading
         doc["physics"] = physics
+    if shrunk is not None:
+        doc["model_selection"] = shrinkage_document(shrunk)
+        if shrunk.per_group:
+            doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
     if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
         doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
     out.mkdir(parents=True, exist_ok=True)
@@ -127,6 +150,12 @@ def run(run_dir: Path, params: dict) -> dict:
     keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
             "loss", "function_evaluations", "predicted_point_sigma_rms_m", "warnings")
+    if opts.prior_sigma is not None and grouped:  # robot parameters beyond their prior: named, never a silent pass
+        doc["implausible"] = implausible(model, f.x, f.free, opts.prior_sigma)
+        if doc["implausible"]:
+            doc["warnings"] += warnings_of(doc["implausible"])
+            doc["status"] = "warn"
+    keys += tuple(k_ for k_ in ("status", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
     return {k_: doc[k_] for k_ in keys} | {k_: doc[k_] for k_ in ("extra", "physics") if k_ in doc}
 
 

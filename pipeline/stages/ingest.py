@@ -83,9 +83,9 @@ def run(run_dir: Path, params: dict) -> dict:
         errors.append(bad)  # checked against the schema before any numeric conversion
     if not errors:
         try:
-            from pipeline.physics.loading import load_with_physics
+            from pipeline.systems.registry import load_with_physics
 
-            _, table = load_with_physics(system, rec, params.get("physics"), params.get("payload"))
+            _, table = load_with_physics(system, rec, params.get("physics") or "auto", params.get("payload"))
             meas = measurement_table(dict(table), stream, window_s=float(params.get("context_window_s", 0.02)),
                                      temperature=temperature_stream(rec), path=path,
                                      channel=mchan)
@@ -216,8 +216,8 @@ def load_system(run_dir: Path, with_stream: bool = False):
     if rec is None:
         rec = read_recording(info["source"]["path"], skip=frozenset() if with_stream else frozenset({JOINT_STATE}))
     system = SYSTEMS[info["system"]]
-    from pipeline.physics.loading import load_with_physics
+    from pipeline.systems.registry import load_with_physics
 
     phys = info.get("physics") or {}
-    model, _ = load_with_physics(system, rec, phys.get("physics"), phys.get("payload"))
+    model, _ = load_with_physics(system, rec, phys.get("physics") or "auto", phys.get("payload"))
     return system, model, rec

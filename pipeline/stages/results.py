@@ -9,7 +9,8 @@ from pipeline.stages.artefacts import read_stage
 from pipeline.stages.registry import STAGES
 
 HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
-            "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m")
+            "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m",
+            "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind")  # 3-D: URDF points/poses
 
 
 def _consistent(run_dir: Path, docs: dict[str, dict], doc: dict) -> bool:
@@ -44,6 +45,9 @@ def gather(run_dir: Path) -> dict:
     if status == "tolerance_fail" or acc.get("status") == "tolerance_fail" and status != "fail":
         status = "fail"  # the calibration does not meet the user's tolerance (--tolerance)
     summary["status"] = status
+    if "predicted_point_sigma_rms_m" in summary:  # kept for the expected files; never displayed
+        summary["superseded"] = {"predicted_point_sigma_rms_m": "fit covariance at the measurements only; the stated "
+                                                                "accuracy is predicted_map_rms_1sigma_m"}
     if acc:  # the accuracy verdict: never a confident answer from thin data
         for k in ("reason", "advice"):
             if acc.get(k):

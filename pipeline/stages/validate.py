@@ -120,6 +120,9 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         msgs = decoded[mchan]
         if table is not None and "timestamp_ns" in table:
             t_m, rec_m = table["timestamp_ns"], table["record"]
+            from pipeline.ingest.tables import times_in_order
+
+            t_m, rec_m = times_in_order(table, rec_m)  # measured rows; in order within each merged recording
         else:
             ok = [(i, m["timestamp_ns"]) for i, m in enumerate(msgs) if isinstance(m.get("timestamp_ns"), int)]
             rec_m = np.array([i for i, _ in ok], int)
@@ -164,6 +167,14 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         from pipeline.stages.ingest import load_system
 
         _, model, _ = load_system(run_dir)
+        from pipeline.recording.schemas import META_CAMPAIGN
+        from pipeline.validate.plausibility import screen
+
+        # residuals orders of magnitude above the instrument: wrong units, columns or chain (listed when it fails)
+        gross = screen(model, model_columns(table), rec.metadata.get(META_CAMPAIGN, {}))
+        if gross["status"] == "fail":
+            out.append(C.Check("plausibility", C.FAIL, f"{mchan}: {gross['message']}", mchan, []))
+            return out
         cap = int(params.get("outlier_fit_max_nfev", 200))
         # a first robust fit, bounded: the extended Delta's residuals reach round-off within ~50 evaluations, but
         # the Newton inside its forward kinematics keeps trf short of its 1e-12 tolerances for ~4 800 (≈ 4 min)

@@ -40,3 +40,18 @@ def detect(rec: Recording) -> ModuleType:
     have = ", ".join(sorted(t for t, m in rec.messages.raw.items() if m)) or "none"
     want = ", ".join(sorted(m.MEASUREMENT_CHANNEL for m in SYSTEMS.values()))
     raise RobocalError(f"{rec.path}: no measurement channel found (looked for {want}; present: {have})")
+
+
+def load_with_physics(system, rec, physics: str | None, payload: list[str] | None):
+    """`system.load(rec)`, with the gravity terms asked for where the system models them."""
+    import inspect
+
+    from pipeline.physics.compliance import parse_payload, parse_spec
+
+    mode, _ = parse_spec(physics)
+    loads = payload or []
+    if "physics" in inspect.signature(system.load).parameters:
+        return system.load(rec, physics=physics or "auto", payload=parse_payload(loads))
+    if mode == "fixed" or loads:
+        raise RobocalError(f"{rec.path}: system {system.SYSTEM} has no gravity terms (--physics, --payload)")
+    return system.load(rec)

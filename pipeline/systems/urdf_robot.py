@@ -113,7 +113,7 @@ def physics_model(rec, table: dict, physics: str | None = None, payload: tuple =
     from pipeline.measurements.tree_point import TreePointModel
     from pipeline.physics import compliance
 
-    mode, families = compliance.parse_spec(physics)
+    mode, families = compliance.parse_spec(physics or "none")
     tree = is_tree(rec)
     meta = rec.meta(META_URDF)
     if mode == "auto":
@@ -129,6 +129,24 @@ def physics_model(rec, table: dict, physics: str | None = None, payload: tuple =
     compliant, lateral = compliance.candidates(rigid, table["joint_positions"], families, payload,
                                                source=f"{rec.path}: metadata robocal.urdf")
     return TreePointModel(tree_of(rec, lateral), compliant=compliant, payload=payload, forced=mode == "fixed")
+
+
+def model_like(rec, names: list[str], payload: tuple = ()):
+    """The `TreePointModel` of a point recording with the physics terms a calibration has (`names`: its
+    parameter names — ``J.compliance``, ``J.lateral1``), whatever this recording's loads: a calibrated
+    model is applied as it was fitted.  None when `names` hold no physics term and `rec` is no tree."""
+    from pipeline.measurements.tree_point import TreePointModel
+
+    compliant = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".compliance"))
+    lateral = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".lateral1"))
+    if not (compliant or lateral or is_tree(rec)):
+        return None
+    tree = tree_of(rec, lateral)
+    known = {j.name for j in tree.all_joints}
+    if not set(compliant + lateral) <= known:
+        raise RobocalError(f"{rec.path}: the calibration's physics terms name joints {sorted(set(compliant + lateral) - known)} "
+                           "that are not in this recording's chains")
+    return TreePointModel(tree, compliant=compliant, payload=payload)
 
 
 def model_for(arm: UrdfArm, measure: str, campaign: dict, labels: list[str] | None = None):
@@ -166,7 +184,8 @@ def _column(rec, topic, msgs, key, shape, dtype=float):
 
 def load(rec, physics: str | None = None, payload: tuple = ()):
     """Measurement model and measurement table of a URDF recording.  `physics` and `payload`: the
-    gravity terms offered to identification (`physics_model`; point measurements)."""
+    gravity terms offered to identification (`physics_model`; point measurements); None keeps the
+    rigid model (the command line and the run's stages ask for ``auto`` by default)."""
     measure = campaign_measure(rec)
     campaign = rec.meta(META_CAMPAIGN)
     if is_tree(rec) and measure != "point":
@@ -214,6 +233,17 @@ def load(rec, physics: str | None = None, payload: tuple = ()):
     model = physics_model(rec, table, physics, payload) if measure == "point" else None
     if model is None:
         model = model_for(arm, measure, campaign, labels)
+    sessions = campaign.get("sessions") or []
+    if sessions:  # several recordings calibrated together (pipeline.importers.merge)
+        counts = [int(s.get("rows", 0)) for s in sessions]
+        if sum(counts) != n:
+            raise RobocalError(f"{rec.path}: metadata robocal.campaign: sessions hold {sum(counts)} rows, "
+                               f"{topic} has {n}")
+        table["session"] = np.repeat(np.arange(len(counts)), counts).astype(np.int64)
+        if campaign.get("registration") == "per-recording" and len(counts) > 1 and measure != "coincidence":
+            from pipeline.measurements.sessions import SessionFrames
+
+            model = SessionFrames(model, len(counts))
     if measure == "coincidence" and campaign.get("distances"):
         table = _with_distances(rec, table, campaign["distances"], labels, arm.n_joints)
     return model, table

@@ -134,9 +134,24 @@ def check_event_time(channel: str, t_ns: np.ndarray, stream_span: tuple[int, int
 
 
 # ----- duplicates --------------------------------------------------------------------------
-def check_duplicates(channel: str, bodies: Sequence[bytes | dict], t_ns: np.ndarray | None = None) -> Check:
+def _content_key(b: bytes | dict, ignore: tuple[str, ...]) -> bytes:
+    """The message without its bookkeeping fields (time, sequence), for a repeated-reading test."""
+    if isinstance(b, (bytes, bytearray)):
+        try:
+            b = json.loads(b)
+        except ValueError:
+            return bytes(b)
+    if isinstance(b, dict):
+        b = {k: v for k, v in b.items() if k not in ignore}
+    return json.dumps(b, sort_keys=True).encode()
+
+
+def check_duplicates(channel: str, bodies: Sequence[bytes | dict], t_ns: np.ndarray | None = None,
+                     ignore: tuple[str, ...] = ("timestamp_ns", "seq", "record")) -> Check:
     """Messages whose body repeats an earlier one exactly, or (measurement channels, `t_ns`
-    given) whose timestamp repeats an earlier one.  Names the later copies."""
+    given) whose timestamp repeats an earlier one, or (measurement channels) whose content repeats
+    an earlier one's apart from the `ignore` fields (the same configuration and reading at another
+    time: a copied row adds no information).  Names the later copies."""
     seen: dict[bytes, int] = {}
     bad = []
     for i, b in enumerate(bodies):
@@ -146,12 +161,25 @@ def check_duplicates(channel: str, bodies: Sequence[bytes | dict], t_ns: np.ndar
             bad.append(i)
         else:
             seen[h] = i
+    same = []
     if t_ns is not None:
         t = np.asarray(t_ns, np.int64)
         _, first = np.unique(t, return_index=True)
         bad += sorted(set(range(t.size)) - set(first.tolist()))
-    return make("duplicates", channel, bad, WARN, f"{channel}: no duplicated messages",
-                "duplicate an earlier message (same body or same timestamp)")
+        content: dict[bytes, int] = {}
+        for i, b in enumerate(bodies):
+            h = hashlib.blake2b(_content_key(b, ignore), digest_size=16).digest()
+            if h in content and i not in bad:
+                same.append(i)
+            content.setdefault(h, i)
+    if same and not bad:
+        distinct = len(bodies) - len(same)
+        return make("duplicates", channel, same, WARN, "",
+                    f"repeat an earlier measurement's configuration and reading at another time "
+                    f"({distinct} distinct of {len(bodies)}): a repeated row adds no information")
+    return make("duplicates", channel, bad + same, WARN, f"{channel}: no duplicated messages",
+                "duplicate an earlier message (same body or same timestamp)"
+                + (f"; {len(same)} more repeat an earlier one's configuration and reading" if same else ""))
 
 
 # ----- NaN / inf ----------------------------------------------------------------------------

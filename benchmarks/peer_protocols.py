@@ -1,0 +1,145 @@
+"""The peers' own held-out protocols on real data, every model evaluated by `pipeline.evaluate`.
+
+* FIGAROH's frozen TIAGo protocol (`figaroh_tiago_sessions/SOURCE.md`): fit on the 2021-11-30 session only,
+  evaluate on the other three without refitting (registration included).  Target: FIGAROH's full model,
+  3.07 / 2.83 / 2.44 mm (norm of the 3-D error, RMS).
+* MUKCa's protocol on panda_2 (`mukca_panda/SOURCE.md`): fit on one placement, evaluate on the others by
+  the spread of the ball centres about their socket's mean and the socket-distance error; MUKCa's own
+  calibrated URDF evaluated by the same code.
+
+Models compared: registration only (nominal robot), robocal's default group selection (`groups`, k-fold
+over rows), every group free (`all`), shrinkage toward nominal (`shrinkage`: scale by leaving out whole
+sockets where the recording has several, else GCV); `+tool`: the tool point estimated too (MUKCa frees its
+ball joint).  Time:
+CPU seconds of the model choice and of one plain fit of the chosen model.
+
+    python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca [--mukca-train front_center]
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.evaluate.apply import evaluate
+from pipeline.evaluate.calibrated import Calibrated, from_urdf
+from pipeline.identify.complexity import fixed_for, select
+from pipeline.identify.least_squares import FitOptions, fit
+from pipeline.identify.shrinkage import shrunk_fit
+from pipeline.recording.reader import read_recording
+from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
+from pipeline.systems.registry import detect
+
+SESSIONS = ("2021-11-30", "2021-11-26", "2021-11-30-1403", "2021-11-30-1504")
+FIGAROH = {"registration only (9)": (4.87, 4.58, 4.22), "joint offsets (14)": (4.23, 4.09, 3.83),
+           "full (31)": (3.07, 2.83, 2.44)}
+PLACEMENTS = ("front_center", "back_left", "back_right", "front_left", "front_right", "high", "mid-high",
+              "mid_left", "mid_right")
+
+
+def _robocal(*args: str) -> None:
+    subprocess.run([str(Path(sys.executable).parent / "robocal"), *map(str, args)], check=True, capture_output=True)
+
+
+def tiago_recordings(real: Path, tmp: Path) -> list[Path]:
+    out = []
+    for s in SESSIONS:
+        p = tmp / f"tiago_{s}.mcap"
+        _robocal("import", "csv", real / "figaroh_tiago_sessions" / f"qualisys_{s}_static_postures.csv", "--urdf",
+                 real / "figaroh_tiago_mocap" / "tiago_48_schunk.urdf", "--root", "base_footprint", "--tip",
+                 "wrist_ft_tool_link", "--measure", "point", "--position-cols", "x1,y1,z1", "--out", p)
+        out.append(p)
+    return out
+
+
+def panda_recording(real: Path, tmp: Path, place: str, robot: str = "panda_2") -> Path:
+    d = real / "mukca_panda"
+    p = tmp / f"{robot}_{place}.mcap"
+    _robocal("import", "csv", *[d / "data" / robot / place / f"hole_{k}.csv" for k in (0, 1)], "--urdf",
+             d / "urdf" / "panda.urdf", "--root", "panda_link0", "--tip", "ball_link", "--measure", "coincidence",
+             "--group-from", "parent/file", "--columns", ",".join(f"panda_joint{i}" for i in range(1, 8)),
+             "--distance", f"{place}/hole_0:{place}/hole_1:0.05", "--out", p)
+    return p
+
+
+def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
+    """{choice: (Calibrated, choice CPU s, one plain fit CPU s, note)} fitted on `train_path` only."""
+    from pipeline.accuracy.prior import prior_sigma
+
+    import dataclasses
+
+    rec = read_recording(train_path)
+    base_model, data = detect(rec).load(rec)
+    out = {}
+    for c in choices:
+        # "+tool": the tool point (Panda: the ball centre) estimated too, as MUKCa does (its config frees ball_joint)
+        model = dataclasses.replace(base_model, fit_tool=True) if c.endswith("+tool") else base_model
+        prior = prior_sigma(model)[0]
+        groups = [g for g in model.groups() if not g.startswith("_")]
+        t0 = time.process_time()
+        note = ""
+        if c == "registration only":
+            fixed = fixed_for(model, ["registration"])
+        elif c == "groups":
+            sel = select(model, data, k=folds, options=FitOptions(prior_sigma=prior))
+            fixed, note = sel.fixed, "+".join(sel.kept[1:]) or "—"
+        elif c.startswith("all"):
+            fixed = fixed_for(model, groups)
+        if c.startswith("shrinkage"):
+            f, s, _ = shrunk_fit(model, data, FitOptions(prior_sigma=prior), k=2)
+            x, t_choice = f.x, time.process_time() - t0
+            note = f"μ {s.mu_m * 1e3:.3g} mm, {s.dof:.1f} eff. parameters, {len(s.implausible)} beyond 3σ"
+            t1 = time.process_time()
+            fit(model, data, FitOptions(fixed=fixed_for(model, groups), before=False, prior_sigma=prior))
+        else:
+            t_choice = time.process_time() - t0
+            t1 = time.process_time()
+            x = fit(model, data, FitOptions(fixed=fixed, before=False, prior_sigma=prior)).x
+        t_fit = time.process_time() - t1
+        cal = Calibrated(train_path, model.parameter_names(), x, np.ones(x.size, bool), dict(rec.metadata[META_URDF]),
+                         dict(rec.metadata[META_CAMPAIGN]), str(train_path))
+        out[c] = (cal, t_choice, t_fit, note)
+        print(f"  {c}: choice {t_choice:.1f} s CPU, one plain fit {t_fit:.1f} s CPU {note}", file=sys.stderr)
+    return out
+
+
+def tiago(real: Path, tmp: Path, choices: tuple[str, ...]) -> None:
+    paths = tiago_recordings(real, tmp)
+    recs = [read_recording(p) for p in paths]
+    print("\n### FIGAROH's frozen TIAGo protocol: fit on 2021-11-30, evaluate on the others without refitting\n")
+    print("| model | fit session | 11-26 | 11-30 14:03 | 11-30 15:04 | choice s CPU | one fit s CPU | note |")
+    print("|---|---|---|---|---|---|---|---|")
+    for c, (cal, tc, tf, note) in models(paths[0], choices).items():
+        r = [d["rms_3d_m"] * 1e3 for d in evaluate(cal, recs)]
+        print(f"| robocal {c} | " + " | ".join(f"{v:.2f}" for v in r) + f" | {tc:.1f} | {tf:.1f} | {note} |")
+    for k, v in FIGAROH.items():
+        print(f"| FIGAROH {k} (published) | — | " + " | ".join(f"{x:.2f}" for x in v) + " | | | |")
+    print("\nmm: norm of the 3-D error, RMS over postures (target: ≤ FIGAROH full)")
+
+
+def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str) -> None:
+    paths = [panda_recording(real, tmp, p) for p in PLACEMENTS]
+    recs = [read_recording(p) for p in paths]
+    i = PLACEMENTS.index(train)
+    others = [r for j, r in enumerate(recs) if j != i]
+    print(f"\n### MUKCa's protocol, panda_2: fit on placement {train}, evaluate on the other {len(others)}\n")
+    print("| model | fit placement: mean / RMS | other placements: mean of per-placement mean 3-D | RMS 3-D over "
+          "all their rows | worst placement RMS | RMS socket-distance error | choice s CPU | one fit s CPU |")
+    print("|---|---|---|---|---|---|---|---|")
+    mk = from_urdf(real / "mukca_panda" / "calibrated_urdf" / "panda_2" / "panda_calibrated.urdf", "panda_link0",
+                   "ball_link", "coincidence")
+    rows = [(f"robocal {c}", cal, tc, tf) for c, (cal, tc, tf, _) in models(paths[i], choices).items()]
+    for name, cal, tc, tf in rows + [("MUKCa calibrated URDF (published)", mk, None, None)]:
+        own, *rest = evaluate(cal, [recs[i], *others])
+        n = np.array([d["n"] for d in rest])
+        rms_all = np.sqrt(np.sum(n * np.array([d["rms_3d_m"] for d in rest]) ** 2) / n.sum())
+        dist = np.sqrt(np.mean([d["rms_distance_error_m"] ** 2 for d in rest]))
+        t = f"{tc:.1f} | {tf:.1f}" if tc is not None else "— | —"
+        print(f"| {name} | {own['mean_3d_m'] * 1e3:.3f} / {own['rms_3d_m'] * 1e3:.3f} | "
+              f"{np.mean([d['mean_3d_m'] for d in rest]) * 1e3:.3f} | {rms_all * 1e3:.3f} | "
+              f"{max(d['rms_3d_m'] for d in rest) * 1e3:.3f} | {dist * 1e3:.3f} | {t} |")
+    print("\nmm: ball centres about their socket's mean (MUKCa's figure: the mean), socket distance against 50 mm")

@@ -1,0 +1,92 @@
+"""`robocal evaluate RUN_DIR REC.mcap … --out DIR`: a calibrated model on recordings it was not fitted to."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.table import Table
+
+from pipeline.cli import CALIBRATE, app, console, err
+
+MARKER = ".robocal-evaluation"
+
+
+def _claim(out: Path) -> None:
+    """Create `out`, or reuse one robocal's evaluate wrote; refuse a non-empty folder of the user's."""
+    from pipeline.errors import RobocalError
+
+    if out.exists() and not out.is_dir():
+        raise RobocalError(f"{out}: --out is a file, not a folder")
+    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
+        raise RobocalError(f"{out}: a non-empty folder robocal evaluate did not write (choose a new --out)")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / MARKER).write_text("robocal evaluate output: evaluate may replace evaluation.json and errors.parquet\n")
+
+
+def _mm(v) -> str:
+    return "—" if v is None else f"{v * 1e3:.3f}"
+
+
+def _table(results: list[dict], title: str) -> Table:
+    measure = results[0]["measure"] if results else "point"
+    t = Table(title=title)
+    plane = measure == "plane"
+    heads = (["recording / group", "n", "RMS along normal mm", "mean |d| mm", "max |d| mm"] if plane else
+             ["recording / group", "n", "RMS of the 3-D error mm", "mean 3-D mm", "max 3-D mm", "RMS per axis mm"])
+    if measure == "coincidence":
+        heads.append("socket distance error mm")
+    for h in heads:
+        t.add_column(h, justify="left" if h.startswith("recording") else "right")
+
+    def row(name: str, d: dict, dist: str | None = None) -> list[str]:
+        if plane:
+            return [name, str(d.get("n", 0)), _mm(d.get("rms_normal_m")), _mm(d.get("mean_abs_normal_m")),
+                    _mm(d.get("max_abs_normal_m"))]
+        cells = [name, str(d.get("n", 0)), _mm(d.get("rms_3d_m")), _mm(d.get("mean_3d_m")), _mm(d.get("max_3d_m")),
+                 _mm(d.get("rms_axis_m"))]
+        return cells + ([dist or ""] if measure == "coincidence" else [])
+
+    for r in results:
+        dist = ", ".join(f"{v * 1e3:+.3f}" for v in r.get("distances", {}).values()) or None
+        t.add_row(*row(Path(r["path"]).name, r, dist))
+        if len(r.get("groups", {})) > 1:
+            for g, d in r["groups"].items():
+                t.add_row(*row(f"  {g}", d))
+    return t
+
+
+@app.command("evaluate", rich_help_panel=CALIBRATE)
+def evaluate_cmd(
+    run_dir: Path = typer.Argument(..., help="Run folder of `robocal run` (or output folder of `robocal calibrate`)."),
+    recordings: list[Path] = typer.Argument(..., help="Recording(s) (MCAP) of the same robot to evaluate it on."),
+    out: Path = typer.Option(..., "--out", help="Folder for evaluation.json and errors.parquet."),
+    refit: str = typer.Option("none", "--refit", help="none (apply as calibrated) or registration (re-estimate "
+                                                      "only the instrument frame)."),
+    registration: str = typer.Option("shared", "--registration",
+                                      help="With --refit registration: shared (one frame for all) or per-recording."),
+) -> None:
+    """Apply a calibrated model to other recordings without refitting it: the error of every measurement."""
+    from pipeline.evaluate.apply import error_table, evaluate
+    from pipeline.evaluate.calibrated import read_calibrated
+    from pipeline.recording.reader import read_recording
+    from pipeline.stages.artefacts import sha256_file, write_json, write_table
+
+    cal = read_calibrated(run_dir)
+    recs = [read_recording(p) for p in recordings]
+    with err.status(f"evaluating {run_dir} on {len(recs)} recording(s)…"):
+        results = evaluate(cal, recs, refit=refit, registration=registration)
+    _claim(out)
+    docs = [{k: v for k, v in r.items() if k not in ("rows", "record")} | {"sha256": sha256_file(r["path"])}
+            for r in results]
+    write_json(out / "evaluation.json", {
+        "run": str(run_dir), "calibrated_on": cal.recording, "refit": refit,
+        "registration": registration if refit == "registration" else "as calibrated",
+        "note": ("rms_3d_m: RMS over measurements of the norm of the 3-D position error (points, poses, ball "
+                 "centres about their socket's mean); rms_axis_m: RMS over the x, y, z components (= rms_3d_m/√3 "
+                 "when isotropic); planes: distance along the normal"),
+        "recordings": docs})
+    write_table(out / "errors.parquet", error_table(results))
+    console().print(_table(results, f"robocal evaluate — {run_dir} (calibrated on {Path(cal.recording).name}), "
+                                    f"not refitted{'' if refit == 'none' else ' except the registration'}"))
+    print(f"evaluation: {out / 'evaluation.json'}\nerrors:     {out / 'errors.parquet'}")

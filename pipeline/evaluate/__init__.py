@@ -1,0 +1,1 @@
+"""Apply a calibrated model to recordings it was not fitted to: errors per measurement and per recording."""

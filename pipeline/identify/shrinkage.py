@@ -1,0 +1,237 @@
+"""Shrinkage toward the nominal robot instead of choosing which groups to fix (MAP, scale by GCV).
+
+Every grouped parameter is estimated, each pulled toward its nominal value by its prior 1σ
+(`pipeline.accuracy.prior`): the solver minimises
+
+    Σ r(x)²  +  μ² Σ_i ((x_i − x_nominal,i) / σ_prior,i)²
+
+over all parameters, the registration group (instrument frame, tool, targets, sockets, planes)
+unpenalised.  μ (m) is the measurement noise divided by the prior's scale; it is chosen from the
+data by generalised cross-validation, GCV(μ) = m·RSS / (m − dof)², dof = tr of the linearised hat
+matrix, over a grid of μ, each solve warm-started from the previous one (a few cheap fits instead of
+one per fold and candidate).  A parameter whose estimate is further from nominal than `PLAUSIBLE`
+prior σ is named in `implausible`: the caller warns of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from pipeline.identify.plausibility import PLAUSIBLE
+
+GRID = (0.03, 0.1, 0.3, 1.0, 3.0)  # μ as multiples of the registration-only RMS residual (per axis)
+
+
+@dataclass(frozen=True)
+class Shrunk:
+    x: np.ndarray  # (P,) SI
+    mu_m: float  # chosen μ (m)
+    gcv: dict[float, float]  # μ → GCV score (m²)
+    dof: float  # effective number of parameters at μ
+    implausible: list[dict]  # [{name, estimate, nominal, prior_sigma, z}, …]
+    fits: int  # solves done
+    per_group: dict = field(default_factory=dict)  # μ → {group: held-out RMS m} (choice by left-out groups)
+    holdout: np.ndarray | None = None  # (n, residual_dim) held-out residuals at the chosen μ (left-out groups)
+
+
+def _anchor(model, prior_sigma: np.ndarray, fixed: tuple[str, ...]) -> np.ndarray:
+    """1/σ of the registration group's free parameters (0 elsewhere): a weak pull toward the registration-only
+    estimate (not toward nominal: an instrument stands anywhere), so a frame the data cannot pin down (a
+    ball-in-socket tool's base rotation) stays put instead of wandering."""
+    names = model.parameter_names()
+    groups = model.groups() if hasattr(model, "groups") else {}
+    reg = set(groups.get("registration", [])) - set(fixed)
+    return np.array([1.0 / max(float(s), 1e-12) if n in reg else 0.0 for n, s in zip(names, prior_sigma)])
+
+
+def _penalty(model, prior_sigma: np.ndarray, fixed: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(free mask, weight 1/σ per parameter; 0 for the registration group)."""
+    names = model.parameter_names()
+    groups = model.groups() if hasattr(model, "groups") else {}
+    reg = set(groups.get("registration", []))
+    never = {n for g, v in groups.items() if g.startswith("_") for n in v} | set(fixed)
+    free = np.array([n not in never for n in names])
+    w = np.array([0.0 if (n in reg) else 1.0 / max(float(s), 1e-12) for n, s in zip(names, prior_sigma)])
+    return free, np.where(free, w, 0.0)
+
+
+def map_solve(model, data, x: np.ndarray, idx: np.ndarray, lam: np.ndarray, nominal: np.ndarray) -> np.ndarray:
+    """Minimise Σ r² + Σ (lam·(x − nominal))² over x[idx] from `x` (the others held); returns x."""
+    x = np.asarray(x, float).copy()
+    m = np.asarray(model.residuals(x, data)).size
+
+    def full(z):
+        xx = x.copy()
+        xx[idx] = z
+        return xx
+
+    def fun(z):
+        return np.r_[np.asarray(model.residuals(full(z), data), float).ravel(), lam * (z - nominal[idx])]
+
+    def jac(z):
+        J = np.asarray(model.jacobian(full(z), data), float).reshape(m, -1)[:, idx]
+        return np.vstack([J, np.diag(lam)])
+
+    sol = least_squares(fun, x[idx], jac=jac, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10, gtol=1e-10)
+    return full(sol.x)
+
+
+def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[str, ...] = (),
+           scale_m: float | None = None, grid=GRID, progress=None) -> Shrunk:
+    """MAP estimate with μ chosen by GCV (module docstring).  `x0`: start (e.g. the registration-only
+    fit); `scale_m`: the registration-only RMS residual per axis (default: at x0)."""
+    nominal = np.asarray(model.nominal(), float)
+    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed)
+    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed)
+    centre = np.where(w > 0, nominal, np.asarray(x0, float))
+    idx = np.flatnonzero(free)
+    r0 = np.asarray(model.residuals(x0, data), float).ravel()
+    m = r0.size
+    scale = float(scale_m if scale_m is not None else np.sqrt(np.mean(r0**2)))
+    x = np.asarray(x0, float).copy()
+    scores: dict[float, float] = {}
+    best = None
+    for i, g in enumerate(sorted(grid, reverse=True)):  # strong shrinkage first: each solve starts near the last
+        mu = g * scale
+        lam = mu * wa[idx]
+        x = map_solve(model, data, x, idx, lam, centre)
+        r = np.asarray(model.residuals(x, data), float).ravel()
+        J = np.asarray(model.jacobian(x, data), float).reshape(m, -1)[:, idx]
+        A = J.T @ J + np.diag(lam**2)
+        dof = float(np.trace(np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ (J.T @ J)))  # unpenalised may be rank-deficient
+        rss = float(r @ r)
+        scores[mu] = m * rss / max(m - dof, 1e-9) ** 2
+        if progress is not None:
+            progress(f"shrinkage μ = {mu * 1e3:.4g} mm ({i + 1}/{len(grid)}): GCV RMS "
+                     f"{np.sqrt(scores[mu]) * 1e3:.4g} mm, {dof:.1f} effective parameters")
+        if best is None or scores[mu] < best[1]:
+            best = (mu, scores[mu], x.copy(), dof)
+    mu, _, xb, dof = best
+    return Shrunk(xb, mu, scores, dof, _implausible(model, xb, idx, w, nominal), len(grid))
+
+
+def _implausible(model, x, idx, w, nominal) -> list[dict]:
+    names = model.parameter_names()
+    return [{"name": names[i], "estimate": float(x[i]), "nominal": float(nominal[i]), "prior_sigma": float(1 / w[i]),
+             "z": float((x[i] - nominal[i]) * w[i])} for i in idx if w[i] > 0 and abs(x[i] - nominal[i]) * w[i] > PLAUSIBLE]
+
+
+def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, groups: np.ndarray,
+                     fixed: tuple[str, ...] = (), grid=GRID, progress=None) -> Shrunk:
+    """MAP estimate with μ chosen by leaving out whole groups (`group_holdout`): the candidates are the
+    grid and μ = ∞ (registration only, the nominal robot); a μ is eligible only if no left-out group is
+    predicted worse than by registration only, and the eligible μ of least held-out RMS is chosen."""
+    from pipeline.identify.group_holdout import held_out, per_group_rms
+
+    nominal = np.asarray(model.nominal(), float)
+    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed)
+    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed)
+    centre = np.where(w > 0, nominal, np.asarray(x0, float))
+    idx = np.flatnonzero(free)
+    reg = idx[w[idx] == 0]
+    scale = float(np.sqrt(np.mean(np.asarray(model.residuals(x0, data), float) ** 2)))
+    cands = [np.inf] + [g * scale for g in sorted(grid, reverse=True)]
+    x = np.asarray(x0, float).copy()
+    per, total, full, outs = {}, {}, {}, {}
+    for i, mu in enumerate(cands):
+        if np.isinf(mu):
+            def solve(d, xs):
+                return map_solve(model, d, xs, reg, np.zeros(reg.size), nominal)
+        else:
+            def solve(d, xs, lam=mu * wa[idx]):
+                return map_solve(model, d, xs, idx, lam, centre)
+        r = held_out(model, data, groups, solve, x)
+        per[mu], total[mu], outs[mu] = per_group_rms(r, groups), float(np.sqrt(np.nanmean(r**2))), r
+        x = full[mu] = solve(data, x)
+        if progress is not None:
+            progress(f"model choice {i + 1}/{len(cands)}: μ = {mu * 1e3:.4g} mm, held-out (whole groups left out) "
+                     f"RMS {total[mu] * 1e3:.4g} mm")
+    ok = [mu for mu in cands if all(per[mu][g] <= per[np.inf][g] for g in per[np.inf])]
+    mu = min(ok, key=lambda m: total[m])
+    xb = full[mu]
+    J = np.asarray(model.jacobian(xb, data), float).reshape(-1, xb.size)[:, idx]
+    lam = (0.0 if np.isinf(mu) else mu) * wa[idx]
+    dof = float(np.trace(np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True) @ (J.T @ J)))
+    return Shrunk(xb, float(mu), {float(m): total[m] ** 2 for m in cands}, dof,
+                  [] if np.isinf(mu) else _implausible(model, xb, idx, w, nominal), len(cands),
+                  per_group={float(m): per[m] for m in cands}, holdout=outs[mu])
+
+
+def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
+    """(`Fit` of the MAP estimate, `Shrunk`, k-fold held-out residuals (n, residual_dim)).
+
+    Start: the registration-only fit.  The fit's covariance is the posterior σ̂²(JᵀJ + Λ²)⁻¹ over the
+    estimated parameters (registration ones the data cannot separate are held by the rank test);
+    each fold re-solves at the chosen μ, warm-started from the whole-data estimate."""
+    import time
+    from dataclasses import replace
+
+    from pipeline.identify.complexity import fixed_for
+    from pipeline.identify.identifiability import analyse
+    from pipeline.identify.least_squares import Fit, fit, kfold_indices
+    from pipeline.identify.model import n_rows, take
+
+    t0 = time.perf_counter()
+    prior = options.prior_sigma
+    if prior is None:
+        from pipeline.accuracy.prior import prior_sigma
+
+        prior = prior_sigma(model)[0]
+    reg_fixed = tuple(set(options.fixed) | set(fixed_for(model, ["registration"])))
+    f0 = fit(model, data, replace(options, fixed=reg_fixed))
+    groups = [g for g in model.groups() if not g.startswith("_")]
+    fixed = tuple(set(options.fixed) | set(fixed_for(model, groups)))
+    # registration parameters the data cannot tell apart stay at their registration-only values
+    names = model.parameter_names()
+    held = tuple(n for i, n in enumerate(names) if not f0.free[i] and n in set(model.groups().get("registration", [])))
+    from pipeline.identify.group_holdout import row_groups
+
+    n, kd = n_rows(data), model.residual_dim
+    groups_of_rows = row_groups(model, data)
+    if groups_of_rows is not None:  # whole groups left out: what carries over to a new session / placement
+        s = shrink_by_groups(model, data, prior, f0.x, groups_of_rows, fixed=fixed + held, progress=progress)
+        holdout = s.holdout
+    else:
+        s = shrink(model, data, prior, f0.x, fixed=fixed + held, progress=progress)
+        holdout = np.full((n, kd), np.nan)
+        for test in kfold_indices(n, k, seed):
+            train = np.setdiff1d(np.arange(n), test)
+            sf = shrink(model, take(data, train), prior, s.x, fixed=fixed + held, grid=(s.mu_m,), scale_m=1.0)
+            holdout[test] = np.asarray(model.residuals(sf.x, take(data, test)), float).reshape(len(test), kd)
+    free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held)
+    wa = w + _anchor(model, np.asarray(prior, float), fixed + held)
+    J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
+    mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
+    est = free_mask & ~((w > 0) & np.isinf(s.mu_m))  # μ = ∞: the robot stays nominal
+    ident = analyse(np.vstack([J, np.diag(mu_eff * wa)]), names, ~est, getattr(model, "priority", lambda: None)())
+    r1 = np.asarray(model.residuals(s.x, data), float).reshape(n, kd)
+    m, fr = r1.size, ident.free
+    sigma = float(np.sqrt(np.sum(r1**2) / max(m - s.dof, 1)))
+    A = J[:, fr].T @ J[:, fr] + np.diag((mu_eff * wa[fr]) ** 2)
+    cov = sigma**2 * np.linalg.pinv(A, rcond=1e-12, hermitian=True)
+    std = np.zeros(s.x.size)
+    std[fr] = np.sqrt(np.clip(np.diag(cov), 0, None))
+    for i in np.flatnonzero(free_mask & ~fr):
+        ident.reasons[int(i)] = ("not fitted: registration only predicted the left-out groups best"
+                                 if not est[i] else "not separable from the rest even with its prior")
+    out = Fit(names=names, units=model.parameter_units(), nominal=f0.nominal, x=s.x, identifiability=ident, std=std,
+              cov=cov, residuals_before=f0.residuals_before, residuals_after=r1, sigma=sigma,
+              nfev=f0.nfev, elapsed_s=time.perf_counter() - t0)
+    return out, s, holdout
+
+
+def shrinkage_document(s: Shrunk) -> dict:
+    """results.json → model_selection of a shrinkage fit (SI; μ = null: registration only chosen)."""
+    mu = None if np.isinf(s.mu_m) else s.mu_m
+    key = lambda m: "registration only" if np.isinf(m) else f"{m:.6g}"  # noqa: E731
+    doc = {"method": "shrinkage toward nominal (MAP), scale chosen by "
+                     + ("leaving out whole groups" if s.per_group else "GCV"),
+           "mu_m": mu, "effective_parameters": s.dof, "implausible": s.implausible,
+           "score_m2": {key(m): v for m, v in s.gcv.items()}}
+    if s.per_group:
+        doc["holdout_per_group_m"] = {key(m): v for m, v in s.per_group.items()}
+    return doc
+

@@ -1,0 +1,132 @@
+"""Gross misfit screen: do the measurements fit the robot at all?  (functional core)
+
+Residuals orders of magnitude above the instrument's declared σ after a short fit are not a
+calibration result but wrong input: lengths in the wrong unit, angles in degrees read as
+radians, swapped position columns, or the wrong chain (root/tip, robot).  The screen fits the
+model with a small evaluation budget (seconds, never the open-ended solve a hopeless problem
+makes), and when the RMS exceeds GROSS_FACTOR × σ it refits each likely mistake undone — joint
+angles ×π/180 or ×180/π, each pair of position columns swapped — and names the one that brings
+the residuals near the instrument, or says none does (then the chain or the robot description is
+the likely cause).  Length units it judges before any fit: the measured points' spread against the
+robot's (`spread_ratio`).
+
+σ: the campaign's ``sigma_m`` (`robocal import csv --sigma-m`) or ``tracker_sigma_m``; without a
+declared one, DEFAULT_SIGMA_M (a loose ceiling: no calibration instrument leaves 30 mm after a fit).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+GROSS_FACTOR = 30.0
+EXPLAINED_FACTOR = 5.0  # a mistake undone explains the misfit when the RMS falls within this × σ
+DEFAULT_SIGMA_M = 1e-3
+SCREEN_NFEV = 40  # function evaluations per solve of the short fit
+SCREEN_ROWS = 40  # measurements the short fits use (evenly spaced)
+UNIT_BAND = (300.0, 3000.0)  # measured / predicted spread of the points in this band (or its inverse): mm vs m
+LENGTH_COLUMNS = ("position", "point", "coordinate")
+
+
+def declared_sigma(campaign: dict) -> float | None:
+    """The instrument's 1σ (m) the campaign declares, or None."""
+    for k in ("sigma_m", "tracker_sigma_m", "instrument_sigma_m"):
+        v = (campaign or {}).get(k)
+        if isinstance(v, (int, float)) and np.isfinite(v) and v > 0:
+            return float(v)
+    return None
+
+
+def quick_rms(model, table: dict, options=None) -> float:
+    """RMS residual (m) after a fit with SCREEN_NFEV evaluations per solve (inf if the fit fails)."""
+    from pipeline.identify.least_squares import FitOptions, fit
+
+    opts = replace(options or FitOptions(), max_nfev=SCREEN_NFEV, before=False)
+    try:
+        with np.errstate(all="ignore"):
+            f = fit(model, table, opts)
+    except (ValueError, np.linalg.LinAlgError, FloatingPointError):
+        return float("inf")
+    r = float(f.rms_after)
+    return r if np.isfinite(r) else float("inf")
+
+
+def _variants(table: dict) -> list[tuple[str, dict]]:
+    """The likely mistakes undone: (description, corrected table).  Length units are judged by
+    `spread_ratio` instead: scaling the data scales its residuals, so a refit cannot tell."""
+    out = []
+    lengths = [c for c in LENGTH_COLUMNS if c in table and np.asarray(table[c]).dtype.kind == "f"]
+    if "joint_positions" in table:
+        q = np.asarray(table["joint_positions"], float)
+        out.append(("joint angles are in degrees but were read as radians", {**table, "joint_positions": np.radians(q)}))
+        out.append(("joint angles are in radians but were read as degrees", {**table, "joint_positions": np.degrees(q)}))
+    for c in lengths:  # any two columns swapped (or one sign flipped) is a mirror image: one refit tells them all,
+        v = np.asarray(table[c], float)  # since the registration's rotation turns one mirror into another
+        if v.ndim == 2 and v.shape[1] == 3:
+            out.append((f"the {c} columns are mirrored: two of x, y, z swapped (or one sign flipped)",
+                        {**table, c: v[:, [1, 0, 2]]}))
+    return out
+
+
+def spread_ratio(model, table: dict) -> float | None:
+    """Spread (RMS distance from the centroid) of the measured positions over that of the nominal
+    model's points at the same joints: a registration moves and turns, it does not scale, so a ratio
+    near 1000 or 1/1000 is a length unit.  None without a 3-D position column."""
+    c = next((c for c in ("position", "point") if c in table and np.ndim(table[c]) == 2), None)
+    if c is None:
+        return None
+    meas = np.asarray(table[c], float)
+    try:
+        pred, _ = model.points(model.nominal(), table)
+    except Exception:  # noqa: BLE001 — a model whose points need more than the table has: no ratio
+        return None
+    sp = lambda p: float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1))))  # noqa: E731
+    a, b = sp(meas), sp(np.asarray(pred, float))
+    return a / b if b > 0 else None
+
+
+def _subset(table: dict) -> dict:
+    from pipeline.identify.model import n_rows, take
+
+    n = n_rows(table)
+    return dict(table) if n <= SCREEN_ROWS else take(table, np.unique(np.linspace(0, n - 1, SCREEN_ROWS).astype(int)))
+
+
+def screen(model, table: dict, campaign: dict | None, options=None) -> dict:
+    """{status pass|fail, rms_m, sigma_m, declared, cause, message}: the screen of the module docstring."""
+    sigma = declared_sigma(campaign or {})
+    ref = sigma if sigma is not None else DEFAULT_SIGMA_M
+    ratio = spread_ratio(model, table)
+    lo, hi = UNIT_BAND
+    if ratio is not None and (lo < ratio < hi or 1 / hi < ratio < 1 / lo):
+        unit = "lengths are in mm but were read as m" if ratio > 1 else "lengths are in m but were read as mm"
+        return {"status": "fail", "rms_m": None, "sigma_m": ref, "declared": sigma is not None, "cause": unit,
+                "message": f"the measured points spread {ratio:.3g}× as far as the robot's points at the same joints "
+                           f"(a registration does not scale): likely cause: {unit}"}
+    table = _subset(table)
+    rms = quick_rms(model, table, options)
+    out = {"rms_m": rms, "sigma_m": ref, "declared": sigma is not None, "cause": None}
+    if rms <= GROSS_FACTOR * ref:
+        out |= {"status": "pass", "message": f"residual RMS after a short fit {rms * 1e3:.3g} mm, within "
+                                             f"{GROSS_FACTOR:g}× the instrument's σ {ref * 1e3:.3g} mm"}
+        return out
+    tried = []
+    for what, t in _variants(table):  # stop at the first that explains the misfit
+        tried.append((what, quick_rms(model, t, options)))
+        if tried[-1][1] <= min(EXPLAINED_FACTOR * ref, rms / 10):
+            break
+    best = min(tried, key=lambda t: t[1]) if tried else None
+    what = ("declared" if sigma is not None else "assumed (none declared; --sigma-m)")
+    head = (f"residual RMS after the fit {rms * 1e3:.4g} mm is {rms / ref:.3g}× the instrument's {what} σ "
+            f"{ref * 1e3:.3g} mm: the measurements do not fit the robot")
+    if best is not None and best[1] < rms / 10 and best[1] <= EXPLAINED_FACTOR * ref:
+        out["cause"] = best[0]
+        out["message"] = f"{head}; likely cause: {best[0]} (undone, the RMS is {best[1] * 1e3:.3g} mm)"
+    else:
+        out["cause"] = "chain"
+        out["message"] = (f"{head}; no unit or column mix-up explains it (best: "
+                          f"{best[0] if best else 'none'}, {best[1] * 1e3 if best else float('nan'):.3g} mm): likely "
+                          f"the wrong chain (root/tip), the wrong robot description, or an understated σ")
+    out["status"] = "fail"
+    return out

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 
-
 from pipeline.errors import RobocalError
 from pipeline.identify.least_squares import FitOptions, cross_validate, fit, holdout_warning, point_accuracy
 from pipeline.identify.results import results_document
@@ -107,6 +106,12 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
+    if solver == "lm":
+        from pipeline.physics.summary import summarise
+
+        physics_doc = summarise(model, f, table, options, k_folds, seed, float(np.sqrt(np.nanmean(holdout**2))))
+        if physics_doc is not None:  # geometry-only vs with-physics held-out, each kept term's reading
+            doc["physics"] = physics_doc
     if solver == "lm" and model_choice == "shrinkage" and selection is None and "shrunk" in locals():
         from pipeline.identify.shrinkage import shrinkage_document
 

@@ -33,7 +33,7 @@ DEFAULTS: dict[str, float] = {
     "frame_rotation": 2.0 * DEG,  # rad
     "pixel": 10.0,  # px: principal point
     "target_offset": 1e-5,  # m: a measurement target's certified offset (a tracker SMR centred in its nest)
-    "compliance": 1e-4,  # rad/(N·m): a joint's compliance under load (stiffness ≈ 10⁴ N·m/rad, a light arm's joint)
+    "compliance": 2e-5,  # rad/(N·m): a joint held rigid may have a stiffness down to ≈ 5·10⁴ N·m/rad
 }
 RELATIVE_DEFAULT = 0.1  # any other unit: 10 % of |nominal| (1 where the nominal is 0)
 FRAME_PREFIXES = ("base.", "tool.", "tracker.", "registration.", "hand_eye.")
@@ -54,7 +54,7 @@ def kind_of(name: str, unit: str) -> str:
         return "frame_rotation" if frame else "angle"
     if unit == "px":
         return "pixel"
-    if unit == "rad/(N·m)":
+    if unit.startswith("rad/(N"):
         return "compliance"
     return "relative"
 

@@ -56,6 +56,11 @@ def calibrate_cmd(
     for k, v in summary_rows(doc):
         t.add_row(k, v)
     console().print(t)
+    if doc.get("physics"):
+        from pipeline.physics.summary import lines
+
+        for line in lines(doc["physics"]):
+            err.print(line, highlight=False)
     if doc.get("status_reason"):
         err.print(f"[red]{doc['status']}:[/] {doc['status_reason']}", highlight=False)
         err.print(f"advice: {doc['status_advice']}", highlight=False)

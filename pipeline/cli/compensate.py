@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import typer
 
@@ -16,6 +17,13 @@ def compensate_cmd(
                                  "[, q_<joint> nominal joints to keep the branch] [, name]."),
     out: Path = typer.Option(..., "--out", help="Program CSV to write: calibrated joints, corrected targets for a "
                              "nominal controller, status and predicted σ per row."),
+    payload: Optional[list[str]] = typer.Option(None, "--payload", help="A mass the program carries, KG@LINK or "
+                                                "KG@LINK:X,Y,Z (centre of mass in the link frame, m); repeatable. "
+                                                "Needs a calibration with physics terms."),
+    physics: str = typer.Option("auto", "--physics", help="auto: the calibrated physics terms deflect the robot "
+                                "under its gravity (and --payload); none: the rigid calibrated robot."),
+    tip: Optional[str] = typer.Option(None, "--tip", help="A URDF tree's tip link the targets are for (default: "
+                                      "the recording's first tip)."),
 ) -> None:
     """Inverse kinematics of the calibrated model for a program of Cartesian targets (see docs/guide/compensate.md)."""
     import time
@@ -31,8 +39,14 @@ def compensate_cmd(
     run = pg.load_run(run_dir)
     names = pg.joint_names(run["model"])
     tg = pg.read_targets(targets, names)
+    from pipeline.physics.compliance import parse_payload
+
+    if physics not in ("auto", "none"):
+        raise RobocalError(f"--physics {physics!r}: expected auto or none")
+    load = parse_payload(payload)
+    pg.check_payload(run, load)
     t0 = time.perf_counter()
-    c = pg.compensate_run(run, tg)
+    c = pg.compensate_run(run, tg, load, physics == "auto", tip)
     sigma = pg.predicted_sigma(run["model"], run["x"], run["free"], run["cov"], c.q)
     elapsed = time.perf_counter() - t0
     pg.write_program(out, c, tg, names, sigma)

@@ -149,28 +149,7 @@ def _tips(items: list[str], measure: str, target: list[str]) -> list[tuple[str, 
 
 
 def _tree_desc(urdf: Path, root: str, tips: list, coupled: list[str]):
-    """A description whose movable joints are the tree's read joints (every joint of the chains root →
-    tips but the coupled ones), for the CSV reader and the recording's joint order."""
-    from dataclasses import replace
+    """A description whose movable joints are the tree's read joints (`importers.tree_description`)."""
+    from pipeline.importers.tree_description import tree_description
 
-    from pipeline.errors import RobocalError
-    from pipeline.models import urdf as urdf_mod
-    from pipeline.models.urdf_tree import UrdfTree, parse_coupling
-    from pipeline.systems.urdf_robot import check_coupling
-
-    try:
-        text = urdf.read_text()
-    except (OSError, UnicodeDecodeError) as e:
-        raise RobocalError(f"{urdf}: cannot read URDF ({e.__class__.__name__}: {e})") from None
-    descs = tuple(urdf_mod.parse(text, root, t, source=str(urdf), allow_mimic=True) for t, _ in tips)
-    movable = {j.name for d in descs for j in d.movable}
-    cp = {c: v for c, v in urdf_mod.mimic_couplings(text, str(urdf)).items() if c in movable}
-    for c, t, o in map(parse_coupling, coupled):
-        if c not in movable:
-            raise RobocalError(f"--coupled {c!r}: not a movable joint of the chains {root} → "
-                               f"{', '.join(t for t, _ in tips)}")
-        cp[c] = (t, o)
-    check_coupling(cp, movable, "--coupled")
-    tree = UrdfTree(descs, coupled=tuple((c, tuple(sorted(t.items())), o) for c, (t, o) in sorted(cp.items())))
-    read = {n for n in tree.joint_names}
-    return replace(descs[0], joints=tuple(j for j in tree.all_joints if j.name in read))
+    return tree_description(urdf, root, [t for t, _ in tips], coupled)[0]

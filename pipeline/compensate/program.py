@@ -99,6 +99,10 @@ def load_run(run_dir: Path) -> dict:
 def point_jacobian(model, x: np.ndarray, free: np.ndarray, q: np.ndarray) -> np.ndarray:
     """d tool point / d free parameters of the calibrated model at joints q, (N, 3, p) m per unit."""
     q = np.nan_to_num(q)
+    from pipeline.compensate.tree import TreeKinematics, is_tree_model
+
+    if is_tree_model(model):
+        return TreeKinematics.of(model, getattr(model, "payload", ())).point_jacobian(x, q)[:, :, free]
     if _chain_kin(model) is not None:
         J = serial.ChainKinematics.of(model.kin).point_jacobian(x, q)
         Jp = np.zeros((q.shape[0], 3, x.size))
@@ -126,9 +130,25 @@ def rms_bound95(run: dict, c: serial.Compensated) -> float | None:
     return rms_bound(point_jacobian(run["model"], run["x"], run["free"], c.q[ok]), run["cov"], 0.95, run["dof"])
 
 
-def compensate_run(run: dict, targets: dict) -> serial.Compensated:
-    """Dispatch on the run's model: serial arm (LM IK) or Delta (closed form; damped Newton for the extended model)."""
+def compensate_run(run: dict, targets: dict, payload: tuple = (), physics: bool = True,
+                   tip: str | None = None) -> serial.Compensated:
+    """Dispatch on the run's model: a URDF tree or a model with physics terms (LM IK of the deflected
+    robot under its gravity and `payload`: `pipeline.compensate.tree`), serial arm (LM IK) or Delta
+    (closed form; damped Newton for the extended model)."""
+    from pipeline.compensate.tree import TreeKinematics, is_tree_model
+
     model = run["model"]
+    if is_tree_model(model):
+        kin = TreeKinematics.of(model, payload, tip, physics)
+        # the nominal controller: nominal geometry, rigid, placed in the work frame by the calibrated
+        # registration (instrument → root, tip → tool point), which no URDF carries
+        x_nom = np.asarray(run["x_nominal"], float).copy()
+        reg = [i for i, n in enumerate(model.parameter_names()) if n.startswith(("base.", "tool."))]
+        x_nom[reg] = np.asarray(run["x"], float)[reg]
+        return serial.compensate(kin, x_nom, run["x"], targets["p"], targets["R"],
+                                 np.zeros((1, kin.n_joints)), targets["hint"])
+    if payload or tip:
+        raise RobocalError(f"--payload / --tip: the {run['system']} model of this run has no physics terms or tips")
     if _chain_kin(model) is not None:  # seed 000's arm, a URDF robot: any measurement model over a Chain
         from pipeline.simulate.arc_welder import IK_SEEDS
 
@@ -143,6 +163,24 @@ def compensate_run(run: dict, targets: dict) -> serial.Compensated:
         except ValueError as e:
             raise RobocalError(str(e)) from None
     raise RobocalError(f"compensation is not available for system {run['system']} yet")
+
+
+def check_payload(run: dict, payload: tuple) -> None:
+    """A payload needs a calibrated physics term and a link of the URDF (one-line errors)."""
+    if not payload:
+        return
+    from pipeline.compensate.tree import is_tree_model
+
+    model = run["model"]
+    if not is_tree_model(model) or not model.extra_names():
+        raise RobocalError(f"--payload: the {run['system']} model of this run has no physics terms (calibrate with "
+                           "--physics auto or a list, from a URDF with inertials)")
+    import xml.etree.ElementTree as ET
+
+    links = {e.get("name") for e in ET.fromstring(model.kin.urdf).iter("link")}
+    for _, link, _ in payload:
+        if link not in links:
+            raise RobocalError(f"--payload: link {link!r} is not in the run's URDF")
 
 
 def _chain_kin(model):

@@ -31,9 +31,13 @@ def settings_of(params: dict) -> Settings:
 
 
 def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | None = None,
-                       drop_records: list[int] | None = None, stream=None) -> dict:
+                       drop_records: list[int] | None = None, stream=None, physics: dict | None = None,
+                       held: tuple[str, ...] | None = None) -> dict:
     """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker, SCORBOT scanner);
-    `stream`: its encoder stream when already decoded (the ingest stage's `encoder.parquet`)."""
+    `stream`: its encoder stream when already decoded (the ingest stage's `encoder.parquet`); `physics`:
+    the run's gravity-term choice ({physics, payload}, ingest's recording.json) and `held`: the parameters
+    identify's model selection held, for a URDF tree or a model with physics terms (the same model as
+    identify's, not selected again)."""
     from pipeline.diagnose.adapters import touch_table as dtable
     from pipeline.diagnose.method import diagnose
     from pipeline.identify.model import take
@@ -53,12 +57,14 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
     if detect(rec).SYSTEM == "urdf":
         from pipeline.diagnose.adapters import urdf_robot as durdf
 
-        model, tab, _ = durdf.from_recording(rec, stream)
+        model, tab, _ = durdf.from_recording(rec, stream, physics)
         if drop_records:
             tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
         if x0 is not None and len(x0) != len(model.parameter_names()):
             x0 = None
-        doc = diagnose(model, tab, x0=x0, settings=settings, adapter=durdf.adapter(model, tab))
+        tree = hasattr(model, "deflected")  # a TreePointModel: identify's selection stands (it is costly)
+        doc = diagnose(model, tab, x0=x0, settings=settings,
+                       adapter=durdf.adapter(model, tab, held if tree and x0 is not None else None))
         doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
         return doc
     if detect(rec).SYSTEM == "delta-tracker":
@@ -100,12 +106,16 @@ def run(run_dir: Path, params: dict) -> dict:
                "holdout_rms_after_m": None, "message": f"no effect library for {system.SYSTEM} yet"}
     else:
         fit_path = run_dir / "identify" / "fit.json"
-        x0, drop = None, None
+        from pipeline.stages.ingest import recording_info
+
+        x0, drop, held = None, None, None
         if fit_path.is_file():
             fj = read_json(fit_path)
             x0 = np.asarray(fj["x"], float)
             drop = fj.get("rejected_records") or None
-        doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=stream)
+            held = tuple(n for n, r in (fj.get("reasons") or {}).items() if "model_selection" in str(r))
+        doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=stream,
+                                 physics=recording_info(run_dir).get("physics"), held=held)
         doc["supported"] = True
     write_json(out / "diagnosis.json", doc)
     return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],

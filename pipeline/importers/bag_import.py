@@ -34,28 +34,39 @@ class BagImport:
 
 def import_bag(bag: Path, urdf: Path, root: str, tip: str, out: Path, spec: BagSpec = BagSpec(),
                sigma_m: float = 1e-3, sigma_rad: float = 1e-3, robot_id: str = "",
-               on_read: Callable[[Path, dict], None] | None = None) -> BagImport:
+               on_read: Callable[[Path, dict], None] | None = None, coupled: tuple[str, ...] = ()) -> BagImport:
     """Read `bag` (the chain `root` → `tip` of `urdf`), pair each measurement with the joint state
     where the robot stood still around it, and write the recording `out`.  `on_read(bag, extras)`
     sees the read's extras (warnings, the ``ros2`` record) before anything is written.  Pose
-    measurements carry `sigma_m` (m) and `sigma_rad` (rad)."""
+    measurements carry `sigma_m` (m) and `sigma_rad` (rad).  A tree (`spec.tips`: (link, topic) pairs, or
+    `coupled`: ``J=EXPR`` texts): the chains root → each tip, the coupled joints driven by the others."""
     from pipeline.importers.recording import write_urdf_recording
     from pipeline.importers.ros2 import read_bag
     from pipeline.models import urdf as urdf_mod
 
     if out.exists() and out.resolve() == bag.resolve():
         raise RobocalError(f"{out}: --out is the bag itself")
-    desc = urdf_mod.read(urdf, root, tip)
+    tips = [link for link, _ in spec.tips] or None
+    cp: dict = {}
+    if tips or coupled:
+        from pipeline.importers.tree_description import tree_description
+
+        desc, cp = tree_description(urdf, root, tips or [tip], list(coupled))
+    else:
+        desc = urdf_mod.read(urdf, root, tip)
     table, extras = read_bag(bag, desc, spec)
     kind = "pose" if "orientation" in table else "point"
-    campaign = {**extras, "robot_id": robot_id or desc.name}
+    if cp and kind != "point":
+        raise RobocalError(f"{bag}: --coupled needs point measurements (the topic gives {kind})")
+    campaign = {**extras, "robot_id": robot_id or desc.name, **({"coupled": cp} if cp else {})}
     if kind == "pose":
         campaign |= {"sigma_m": sigma_m, "sigma_rad": sigma_rad}
     if on_read is not None:
         on_read(bag, extras)
     stream = table.pop("stream", None)
-    n = write_urdf_recording(out, desc, kind, campaign, table, stream=stream)
-    return BagImport(out=out, n=n, kind=kind, n_joints=len(desc.joint_names), root=desc.root, tip=desc.tip,
+    n = write_urdf_recording(out, desc, kind, campaign, table, stream=stream, tips=tips)
+    return BagImport(out=out, n=n, kind=kind, n_joints=len(desc.joint_names), root=desc.root,
+                     tip=", ".join(tips) if tips else desc.tip,
                      ros2=extras["ros2"], n_stream=None if stream is None else len(stream["t_ns"]))
 
 

@@ -22,12 +22,19 @@ import numpy as np
 
 from pipeline.errors import RobocalError
 from pipeline.importers import standstill
+from pipeline.importers.ros2_messages import (  # noqa: F401 — the names other importers use from here
+    JOINT_STATE,
+    MEASURE_TYPES,
+    POINT,
+    POSE,
+    _decoder,
+    _stamp,
+    _times,
+    at,
+    read_measurements,
+)
 from pipeline.models.urdf import RobotDescription
 
-JOINT_STATE = "sensor_msgs/msg/JointState"
-POINT = "geometry_msgs/msg/PointStamped"
-POSE = "geometry_msgs/msg/PoseStamped"
-MEASURE_TYPES = {POINT: "point", POSE: "pose"}
 
 
 @dataclass(frozen=True)
@@ -40,11 +47,7 @@ class BagSpec:
     window_s: float = standstill.DEFAULT_WINDOW_S
     max_speed: float = standstill.DEFAULT_MAX_SPEED
     time: str = "header"  # header (header.stamp, falling back to receive time) | log (receive time)
-
-
-def at(path: Path, topic: str, record: int | None = None) -> str:
-    """'file: topic /x: record 12' — the prefix of every bag input error."""
-    return f"{path}: topic {topic}" + ("" if record is None else f": record {record}")
+    tips: tuple = ()  # ((link, PointStamped topic), …): a tree measured on several tips, one topic each
 
 
 class _Damaged(RobocalError):
@@ -101,11 +104,14 @@ def choose_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> tuple[st
     return jt, mt, measure
 
 
-def _stream(path: Path, reader, joint_topic: str, measure_topic: str, side: list):
+def _stream(path: Path, reader, joint_topic: str, measure_topic, side: list):
     """Yield (receive time ns, CDR bytes) of the joint topic in bag order, one message at a time (the
-    long topic is never held whole); the measurement topic's go to `side`.  A storage failure is one
-    line saying how far the bag was read."""
-    conns = [c for c in reader.connections if c.topic in (joint_topic, measure_topic)]
+    long topic is never held whole); the measurement topics' (`measure_topic`: one or a list) go to
+    `side` as (receive time, bytes) or, for a list, (topic, receive time, bytes).  A storage failure is
+    one line saying how far the bag was read."""
+    several = isinstance(measure_topic, (list, tuple))
+    wanted = {joint_topic, *(measure_topic if several else (measure_topic,))}
+    conns = [c for c in reader.connections if c.topic in wanted]
     it = reader.messages(connections=conns)
     n = 0
     while True:
@@ -120,25 +126,7 @@ def _stream(path: Path, reader, joint_topic: str, measure_topic: str, side: list
         if conn.topic == joint_topic:
             yield t, data
         else:
-            side.append((t, bytes(data)))
-
-
-def _decoder(path: Path, topic: str, typename: str):
-    from rosbags.typesys import Stores, get_typestore
-
-    store = get_typestore(Stores.LATEST)
-
-    def decode(i: int, data: bytes):
-        try:
-            return store.deserialize_cdr(data, typename)
-        except Exception as e:  # noqa: BLE001 — the library's errors (SerdeError, struct, …) are the data's
-            raise RobocalError(f"{at(path, topic, i)}: CDR does not decode as {typename} "
-                               f"({type(e).__name__}: {e})") from None
-    return decode
-
-
-def _stamp(msg) -> int:
-    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+            side.append((conn.topic, t, bytes(data)) if several else (t, bytes(data)))
 
 
 class _Rows:
@@ -243,46 +231,6 @@ def read_joint_states(path: Path, topic: str, messages, joints: list[str]):
     return t[:, 0], t[:, 1], q, report, effort
 
 
-def read_measurements(path: Path, topic: str, typename: str, datas: list[bytes]):
-    """(header stamps ns (m,), positions (m, 3) m, orientations (m, 4) x,y,z,w or None, frame id)."""
-    decode = _decoder(path, topic, typename)
-    m = len(datas)
-    P = np.empty((m, 3))
-    O = np.empty((m, 4)) if typename == POSE else None
-    stamps = np.empty(m, np.int64)
-    frame = None
-    for i, data in enumerate(datas):
-        msg = decode(i, data)
-        if frame is None:
-            frame = msg.header.frame_id
-        elif msg.header.frame_id != frame:
-            raise RobocalError(f"{at(path, topic, i)}: frame {msg.header.frame_id!r}, but earlier measurements "
-                               f"are in {frame!r} (one instrument frame per campaign)")
-        stamps[i] = _stamp(msg)
-        if O is None:
-            P[i] = (msg.point.x, msg.point.y, msg.point.z)
-        else:
-            p, o = msg.pose.position, msg.pose.orientation
-            P[i] = (p.x, p.y, p.z)
-            O[i] = (o.x, o.y, o.z, o.w)
-    bad = np.flatnonzero(~np.isfinite(P).all(1) | (False if O is None else ~np.isfinite(O).all(1)))
-    if len(bad):
-        raise RobocalError(f"{at(path, topic, int(bad[0]))}: position or orientation is NaN or inf")
-    if O is not None:
-        norm = np.linalg.norm(O, axis=1)
-        zero = np.flatnonzero(norm < 1e-9)
-        if len(zero):
-            raise RobocalError(f"{at(path, topic, int(zero[0]))}: orientation quaternion is zero")
-        O = O / norm[:, None]
-    return stamps, P, O, frame or ""
-
-
-def _times(stamps: np.ndarray, log, use_header: bool) -> tuple[np.ndarray, str]:
-    if use_header and np.all(stamps > 0):
-        return stamps, "header.stamp"
-    return np.asarray(log, np.int64), "receive time"
-
-
 def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()) -> tuple[dict, dict]:
     """(table for `write_urdf_recording`, campaign extras) of a ROS 2 bag: the paired measurements
     (joint positions in the chain's order, rad / m; positions m; orientations x,y,z,w); where the joint
@@ -291,16 +239,27 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     path = Path(path)
     if spec.time not in ("header", "log"):
         raise RobocalError(f"--time {spec.time!r}: expected header or log")
-    side: list[tuple[int, bytes]] = []
+    side: list = []
     joints = desc.joint_names
     warnings: list[str] = []
     data_lost: list[str] = []  # the bag's damage: ingest's status is then warn, never pass
+
+    from pipeline.importers.ros2_tips import tip_measurements, tip_topics
+
+    def topics_of(topics):
+        if spec.tips:
+            mts = tip_topics(path, topics, spec)
+            return choose_topics(path, topics, BagSpec(joint_topic=spec.joint_topic, measure_topic=mts[0]))[0], \
+                mts, "point"
+        jt, mt, measure = choose_topics(path, topics, spec)
+        return jt, mt, measure
+
     try:
         reader = _open(path)
         try:
             topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
-            jt, mt, measure = choose_topics(path, topics, spec)
-            js, jlog, Q, jreport, effort = read_joint_states(path, jt, _stream(path, reader, jt, mt, side), joints)
+            jt, mts, measure = topics_of(topics)
+            js, jlog, Q, jreport, effort = read_joint_states(path, jt, _stream(path, reader, jt, mts, side), joints)
         finally:
             reader.close()
     except _Damaged as e:  # a bag cut short: calibrate from what can be read, saying what was lost
@@ -308,16 +267,24 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
 
         sal = salvage(path, e.why, str(e))
         topics = sal.topics
-        jt, mt, measure = choose_topics(path, topics, spec)
-        side = sal.messages.get(mt, [])
+        jt, mts, measure = topics_of(topics)
+        if spec.tips:
+            side = [(tp, t, d) for tp in mts for t, d in sal.messages.get(tp, [])]
+        else:
+            side = sal.messages.get(mts, [])
         js, jlog, Q, jreport, effort = read_joint_states(path, jt, iter(sal.messages.get(jt, [])), joints)
         warnings += sal.warnings
         data_lost = sal.warnings
-    if not side:
-        raise RobocalError(f"{at(path, mt)}: no messages")
+    mt = ", ".join(mts) if spec.tips else mts
     tj, jsrc = _times(js, jlog, spec.time == "header")
-    ms, P, O, frame = read_measurements(path, mt, topics[mt], [d for _, d in side])
-    tm, msrc = _times(ms, [t for t, _ in side], spec.time == "header")
+    if spec.tips:
+        ms, P, O, frame, tm, msrc, target = tip_measurements(path, topics, mts, side, spec.time == "header")
+    else:
+        if not side:
+            raise RobocalError(f"{at(path, mt)}: no messages")
+        ms, P, O, frame = read_measurements(path, mt, topics[mt], [d for _, d in side])
+        tm, msrc = _times(ms, [t for t, _ in side], spec.time == "header")
+        target = np.zeros(len(tm), int)
     if jsrc != msrc:
         warnings.append(f"{path}: joint states timed by {jsrc}, measurements by {msrc} (a topic without "
                         "header stamps): the pairing assumes one clock")
@@ -338,15 +305,18 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     if measure == "pose":
         table["orientation"] = O[keep]
     else:
-        table["target"] = np.zeros(len(keep), int)
+        table["target"] = target[keep]
     extras = {
         "source_files": [str(path)],
-        "ros2": {"joint_topic": jt, "measure_topic": mt, "measure_type": topics[mt], "frame_id": frame,
+        "ros2": {"joint_topic": jt, "measure_topic": mt, "measure_type": POINT if spec.tips else topics[mt],
+                 "frame_id": frame,
                  "time_joint_states": jsrc, "time_measurements": msrc, "t0_ns": t0, "joint_states": jreport,
                  "pairing": summ, "measurement_records": keep.tolist()},
     }
     if measure == "point":
         extras["n_targets"] = 1
+    if spec.tips:
+        extras["ros2"]["tip_topics"] = {link: topic for link, topic in spec.tips}
     if warnings:
         extras["import_warnings"] = warnings
     if data_lost:
@@ -354,3 +324,4 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     if effort is not None:  # the joint states with their efforts, as the recording's encoder stream
         table["stream"] = {"t_ns": tj, "q": Q, "effort": effort}
     return table, extras
+

@@ -140,6 +140,11 @@ def run(run_dir: Path, params: dict) -> dict:
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
                                   "explanation": explain(selection)}
+    from pipeline.physics.summary import summarise
+
+    physics = summarise(model, f, kept_data, opts, folds, int(params.get("seed", 0)), rms(holdout_kept))
+    if physics is not None:  # geometry-only vs with-physics held-out, each kept term's reading
+        doc["physics"] = physics
     if shrunk is not None:
         doc["model_selection"] = shrinkage_document(shrunk)
         if shrunk.per_group:
@@ -160,7 +165,7 @@ def run(run_dir: Path, params: dict) -> dict:
             doc["warnings"] += warnings_of(doc["implausible"])
             doc["status"] = "warn"
     keys += tuple(k_ for k_ in ("status", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
-    return {k_: doc[k_] for k_ in keys} | ({"extra": doc["extra"]} if "extra" in doc else {})
+    return {k_: doc[k_] for k_ in keys} | {k_: doc[k_] for k_ in ("extra", "physics") if k_ in doc}
 
 
 def read_fit(run_dir: Path) -> dict:

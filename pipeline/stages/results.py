@@ -61,11 +61,13 @@ def gather(run_dir: Path) -> dict:
     for c in docs.get("validate", {}).get("summary", {}).get("checks", []):
         if c["status"] != "pass":
             warnings.append(f"validate {c['name']} ({c['status']}): {c['message']}")
+    physics = docs.get("identify", {}).get("summary", {}).get("physics")
     return {
         "robocal_version": __version__,
         "source": ingest.get("source", {}),
         "summary": summary,
         "warnings": warnings,
+        **({"physics": physics} if physics else {}),
         "stages": {n: {"key": d["key"], "params": d.get("params", {}), "summary": d.get("summary", {})}
                    for n, d in docs.items()},
     }

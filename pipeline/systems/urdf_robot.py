@@ -284,7 +284,7 @@ def joint_limits(rec):
     nominal limits; far past them is a unit mistake and fails."""
     from pipeline.importers.csv_table import LIMIT_SLACK
 
-    arm = arm_of(rec)
+    arm = tree_of(rec) if is_tree(rec) else arm_of(rec)
     lo, hi = arm.lower, arm.upper
     span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
     return lo - LIMIT_SLACK * span, hi + LIMIT_SLACK * span, arm.joint_names

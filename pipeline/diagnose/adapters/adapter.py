@@ -53,3 +53,6 @@ class Adapter:
     refit: Callable[[tuple], Callable | None] | None = None
     # floor_variance(x) (n·residual_dim,) m²: the noise floor the campaign supports (`verdict.checks.floor_check`)
     floor_variance: Callable[[np.ndarray], np.ndarray] | None = None
+    # advice(variable): what to do about structure located along a variable when the campaign knows
+    # better than the variable's name (a joint reading that tracks the joint's gravity load), or None
+    advice: Callable[[str], str | None] | None = None

@@ -171,6 +171,47 @@ def variables(model, x: np.ndarray, table) -> list:
     return out
 
 
+LOAD_R2 = 0.5  # a joint reading "tracks" its load when a smooth function of it explains this share of the load
+
+
+def load_tracking(q: np.ndarray, tau: np.ndarray) -> float:
+    """R² of the load τ (n,) on a smooth function of the joint reading q (n,) (cubic + first harmonic):
+    how far structure along q cannot be told from structure along the load; 0 for a constant load."""
+    if np.ptp(tau) <= 1e-9 * max(1.0, float(np.abs(tau).max())) or q.size < 8:
+        return 0.0
+    u = (q - q.mean()) / (np.ptp(q) or 1.0)
+    B = np.column_stack([np.ones_like(q), u, u**2, u**3, np.sin(q), np.cos(q)])
+    coef, *_ = np.linalg.lstsq(B, tau, rcond=None)
+    r = tau - B @ coef
+    return float(1.0 - (r @ r) / float(((tau - tau.mean()) ** 2).sum()))
+
+
+def load_advice(model, table):
+    """`Adapter.advice`: structure located along a joint reading that tracks that joint's load (gravity
+    torque from the URDF inertials, or the measured torque) is load-dependent, not a transmission error."""
+    kind = _torque_kind(model, table)
+    if kind is None:
+        return None
+    q = np.asarray(table["joint_positions"], float)
+    names = [j.name for j in read_joints(model)]
+    cache: dict[str, str | None] = {}
+
+    def advice(variable: str) -> str | None:
+        if not variable.startswith("q_") or "→" in variable or variable[2:] not in names:
+            return None
+        if variable not in cache:
+            j = names.index(variable[2:])
+            r2 = load_tracking(q[:, j], load_torques(model, table)[:, j])
+            cache[variable] = None if r2 < LOAD_R2 else (
+                f"load-dependent (compliance/backlash under gravity): the structure along {variable[2:]} tracks its "
+                f"{kind[0]} (R² {r2:.2f}); measure the same points with the load changed at the same angle (a "
+                "payload, the other joints moved) and approach each posture from both directions; calibrate with "
+                "--physics auto to let a compliance term take it")
+        return cache[variable]
+
+    return advice
+
+
 def adapter(model, table, held: tuple[str, ...] | None = None):
     """`diagnose.Adapter`; the geometric baseline holds what the held-out model selection did not
     keep (`pipeline.identify.complexity`; run here unless `held` is given), so the diagnosis starts
@@ -180,14 +221,14 @@ def adapter(model, table, held: tuple[str, ...] | None = None):
 
     if held is None:
         held = select(model, table).fixed if model.groups() else ()
-    return Adapter(library=library(model, table), held=tuple(held),
+    return Adapter(library=library(model, table), held=tuple(held), advice=load_advice(model, table),
                    signatures=lambda x, data, effects: signatures(model, x, data, effects),
                    variables=lambda x: variables(model, x, table),
                    time_s=np.asarray(table["time_since_start_s"], float),
                    located=lambda e: e.data.get("located"))
 
 
-def from_recording(rec, stream=None):
+def from_recording(rec, stream=None, physics: dict | None = None):
     """(model, diagnosis table, info) of a URDF recording: its measurements with the time since
     the first one (the measurement order where a table came without times) and, where the encoder
     stream carries drive state, ``joint_efforts`` (N·m) and ``commanded_positions`` (rad) at each
@@ -196,7 +237,12 @@ def from_recording(rec, stream=None):
     from pipeline.recording.schemas import META_CAMPAIGN
     from pipeline.systems import urdf_robot
 
-    model, table = urdf_robot.load(rec)
+    if physics:  # the run's gravity-term choice: the same model as identify's
+        from pipeline.physics.compliance import parse_payload
+
+        model, table = urdf_robot.load(rec, physics.get("physics"), parse_payload(physics.get("payload")))
+    else:
+        model, table = urdf_robot.load(rec)
     t = np.asarray(table["timestamp_ns"], np.int64)
     tab = dict(table)
     tab["time_since_start_s"] = (t - t.min()) * 1e-9 if t.size else np.zeros(0)

@@ -42,7 +42,7 @@ def locate(ad, xg: np.ndarray, r_final: np.ndarray, A: np.ndarray, W, nk: int, a
                                    original=(r_final, A, variables), cluster=cl, seed=seed)
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
               "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m,
-              "advice": checks.advice_for(t.variable)}
+              "advice": (ad.advice and ad.advice(t.variable)) or checks.advice_for(t.variable)}
              for t in sorted(lof, key=_extremeness)
              if t.significant]
     return variables, lof, where

@@ -1,0 +1,91 @@
+"""Whole robots with their physics: the independent humanoid generator (tests/independent_humanoid.py,
+no robocal code: dual arm, coupled torso, whole-tree gravity, joint + lateral compliance at static
+equilibrium) calibrated by the command line, per seed:
+
+* the recovered joint stiffnesses against the truth (z = (ĉ − c)/σ̂ of the compliance c = 1/k);
+* held-out RMS (per residual component, as robocal reports it): geometry only (physics held at 0, same
+  folds), with the physics the model selection kept, `--physics none`, and the noise floor (σ per axis);
+* the time of `robocal calibrate` with `--physics auto` (the default) and `--physics none`.
+
+    python benchmarks/bench_physics.py --seeds 0 1 2 --n 150         # the documented figures
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+import independent_humanoid as hu  # noqa: E402
+
+ROBOCAL = str(Path(sys.executable).with_name("robocal"))
+
+
+def cli(*args) -> float:
+    t0 = time.perf_counter()
+    r = subprocess.run([ROBOCAL, *map(str, args)], capture_output=True, text=True)
+    if r.returncode != 0:
+        raise SystemExit(f"robocal {' '.join(map(str, args[:2]))} failed:\n{r.stderr[-2000:]}")
+    return time.perf_counter() - t0
+
+
+def one(seed: int, n: int, noise: float, tmp: Path) -> dict:
+    d = hu.write(tmp / f"s{seed}", seed=seed, n=n, noise_m=noise)
+    rec = tmp / f"s{seed}.mcap"
+    cli("import", "csv", d / "postures.csv", "--urdf", d / "humanoid.urdf", "--root", "base",
+        "--tip", "left_hand=lx,ly,lz", "--tip", "right_hand=rx,ry,rz", "--coupled", "torso_j3=-torso_j1-torso_j2",
+        "--measure", "point", "--out", rec)
+    t_auto = cli("calibrate", rec, "--out", tmp / f"auto{seed}")
+    t_none = cli("calibrate", rec, "--out", tmp / f"none{seed}", "--physics", "none")
+    auto = json.loads((tmp / f"auto{seed}" / "results.json").read_text())
+    none = json.loads((tmp / f"none{seed}" / "results.json").read_text())
+    truth = json.loads((d / "truth.json").read_text())
+    terms = {t["joint"]: t for t in auto["physics"]["terms"] if t["family"] == "joint-compliance"}
+    z = {}
+    for j, k in truth["stiffness_Nm_per_rad"].items():
+        t = terms.get(j)
+        if t and t["compliance_std_rad_per_Nm"]:
+            z[j] = ((t["compliance_rad_per_Nm"] - 1 / k) / t["compliance_std_rad_per_Nm"], t["stiffness_Nm_per_rad"], k)
+    return {"seed": seed, "z": z, "geometry_m": auto["physics"]["holdout_geometry_only_m"],
+            "physics_m": auto["physics"]["holdout_with_physics_m"], "none_m": none["holdout_rms_m"],
+            "floor_m": noise, "t_auto": t_auto, "t_none": t_none,
+            "kept": [t["parameter"] for t in auto["physics"]["terms"]]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--n", type=int, default=150, help="postures per campaign (two hand markers each)")
+    ap.add_argument("--noise-m", type=float, default=2e-4)
+    a = ap.parse_args()
+    print(f"humanoid, {a.n} postures × 2 hands, noise {a.noise_m * 1e3:.2f} mm per axis")
+    print("seed | held-out mm: geometry only | with physics | --physics none | floor | calibrate s: auto | none",
+          flush=True)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for s in a.seeds:  # one line per seed as it finishes
+            r = one(s, a.n, a.noise_m, Path(tmp))
+            rows.append(r)
+            print(f"{r['seed']:4d} | {r['geometry_m'] * 1e3:26.3f} | {r['physics_m'] * 1e3:12.3f} | "
+                  f"{r['none_m'] * 1e3:14.3f} | {r['floor_m'] * 1e3:5.3f} | {r['t_auto']:17.1f} | {r['t_none']:4.1f}",
+                  flush=True)
+    print("\nrecovered stiffness (N·m/rad) vs truth, z = (ĉ − c)/σ̂ of the compliance")
+    for r in rows:
+        cells = [f"{j} {k_hat:.3g}/{k:.3g} z={zz:+.1f}" for j, (zz, k_hat, k) in r["z"].items()]
+        print(f"seed {r['seed']}: " + "; ".join(cells))
+    zs = [zz for r in rows for zz, _, _ in r["z"].values()]
+    if zs:
+        print(f"\n|z| ≤ 2 for {sum(abs(v) <= 2 for v in zs)}/{len(zs)} recovered stiffnesses; "
+              f"RMS z {(sum(v * v for v in zs) / len(zs)) ** 0.5:.2f}")
+    for r in rows:
+        print(f"seed {r['seed']} kept physics terms: {', '.join(r['kept']) or 'none'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 import typer
@@ -20,11 +21,18 @@ def urdf_cmd(
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
     truth: Path = typer.Option(None, "--truth", help="Where to write TRUTH.json (the true parameter vector)."),
     poses: int = typer.Option(60, "--poses", min=4, help="Measurements (configurations tried, for plane/coincidence)."),
-    error_mm: float = typer.Option(1.0, "--error-mm", min=0.0, help="1σ error of every joint-origin translation, mm."),
-    error_deg: float = typer.Option(0.2, "--error-deg", min=0.0, help="1σ error of every origin rotation and offset, deg."),
-    noise_mm: float = typer.Option(0.02, "--noise-mm", min=0.0, help="Measurement noise, 1σ per axis, mm."),
-    noise_deg: float = typer.Option(0.01, "--noise-deg", min=0.0,
-                                    help="Pose: orientation noise; plane/coincidence: joint reading noise, deg."),
+    error_m: Optional[float] = typer.Option(None, "--error-m", min=0.0, help="1σ error of every joint-origin translation, "
+                                            "m (default 1e-3)."),
+    error_rad: Optional[float] = typer.Option(None, "--error-rad", min=0.0, help="1σ error of every origin rotation and "
+                                              "offset, rad (default 0.2° = 3.49e-3)."),
+    noise_m: Optional[float] = typer.Option(None, "--noise-m", min=0.0, help="Measurement noise, 1σ per axis, m "
+                                            "(default 2e-5)."),
+    noise_rad: Optional[float] = typer.Option(None, "--noise-rad", min=0.0, help="Pose: orientation noise; "
+                                              "plane/coincidence: joint reading noise, rad (default 0.01° = 1.75e-4)."),
+    error_mm: float = typer.Option(1.0, "--error-mm", min=0.0, hidden=True, help="Alias of --error-m, in mm."),
+    error_deg: float = typer.Option(0.2, "--error-deg", min=0.0, hidden=True, help="Alias of --error-rad, in deg."),
+    noise_mm: float = typer.Option(0.02, "--noise-mm", min=0.0, hidden=True, help="Alias of --noise-m, in mm."),
+    noise_deg: float = typer.Option(0.01, "--noise-deg", min=0.0, hidden=True, help="Alias of --noise-rad, in deg."),
     groups: int = typer.Option(4, "--groups", min=1, help="Coincidence: fixed points (sockets)."),
     seed: int = typer.Option(0, "--seed", help="Random seed (truth, configurations, noise)."),
     campaign_file: Path = typer.Option(None, "--campaign",
@@ -43,6 +51,11 @@ def urdf_cmd(
     CAMPAIGN.json executed on the true robot), written as a URDF recording."""
     from pipeline.errors import at_most
 
+    # options are SI with the unit in the name (m, rad, s); the mm / deg spellings stay as hidden aliases
+    error_mm = error_mm if error_m is None else error_m * 1e3
+    error_deg = error_deg if error_rad is None else float(np.degrees(error_rad))
+    noise_mm = noise_mm if noise_m is None else noise_m * 1e3
+    noise_deg = noise_deg if noise_rad is None else float(np.degrees(noise_rad))
     for option, value in (("--poses", poses), ("--groups", groups),):
         at_most(option, value)
     from pipeline.errors import RobocalError

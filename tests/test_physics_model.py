@@ -157,3 +157,40 @@ def test_evaluate_carries_the_physics_to_a_new_session(humanoid, calibrations, t
     floor = np.sqrt(3) * truth["noise_m"]
     assert figures["phys"] < 1.3 * floor, figures
     assert figures["geo"] > 3 * figures["phys"], figures
+
+
+def test_tree_recording_carries_tf_for_every_tip(humanoid):
+    """The imported tree recording's /tf (read with the mcap library, not robocal's reader) composes, root →
+    each hand, to yourdfpy's forward kinematics of the URDF in the same recording, the coupled joint included."""
+    yourdfpy = pytest.importorskip("yourdfpy")
+    from mcap.reader import make_reader
+    from scipy.spatial.transform import Rotation
+
+    rec, _ = humanoid
+    with open(rec, "rb") as f:
+        reader = make_reader(f)
+        urdf_text = next(json.loads(m.data)["data"] for _, _, m in reader.iter_messages(topics=["/robot_description"]))
+        first = next(json.loads(m.data) for _, _, m in reader.iter_messages(topics=["/tf"]))
+    import io
+
+    urdf = yourdfpy.URDF.load(io.StringIO(urdf_text), load_meshes=False)
+    parent = {t["child_frame_id"]: t for t in first["transforms"]}
+    assert {"robocal_tool_left_hand", "robocal_tool_right_hand"} <= set(parent)
+
+    def pose(frame):
+        T = np.eye(4)
+        while frame in parent and parent[frame]["parent_frame_id"] != "robocal_instrument":
+            t = parent[frame]
+            M = np.eye(4)
+            M[:3, :3] = Rotation.from_quat([t["rotation"][k] for k in "xyzw"]).as_matrix()
+            M[:3, 3] = [t["translation"][k] for k in "xyz"]
+            T = M @ T
+            frame = t["parent_frame_id"]
+        return T
+
+    model, table = _model(rec, "none")
+    cfg = dict(zip(model.kin.joint_names, table["joint_positions"][0]))
+    cfg["torso_j3"] = -cfg["torso_j1"] - cfg["torso_j2"]
+    urdf.update_cfg(cfg)
+    for tip in ("left_hand", "right_hand"):
+        np.testing.assert_allclose(pose(tip), urdf.get_transform(tip, "base"), atol=1e-9)

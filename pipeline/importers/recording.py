@@ -37,7 +37,7 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
     meta_urdf = {"urdf": desc.urdf, "root": desc.root, "tip": desc.tip, "source": desc.source,
                  **({"tips": list(tips)} if tips else {})}
     st = None if stream is None else (np.asarray(stream["t_ns"], np.int64), np.asarray(stream["q"], float))
-    scene = sorted(scene_events({META_URDF: meta_urdf}, st, (t, q)), key=lambda e: e[0])
+    scene = sorted(scene_events({META_URDF: meta_urdf, META_CAMPAIGN: camp}, st, (t, q)), key=lambda e: e[0])
     with RecordingWriter(out) as w:
         w.metadata(META_URDF, meta_urdf)
         w.metadata(META_CAMPAIGN, camp)

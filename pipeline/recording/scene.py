@@ -118,11 +118,57 @@ def postures(stream: tuple[np.ndarray, np.ndarray] | None, measured: tuple[np.nd
     return t[order], q[order]
 
 
+def tree_description(metadata: dict):
+    """The `UrdfTree` of a recording measured at several tips or with coupled joints, or None."""
+    from pipeline.models import urdf
+    from pipeline.models.urdf_tree import UrdfTree
+    from pipeline.recording.schemas import META_CAMPAIGN
+
+    meta, camp = metadata.get(META_URDF), metadata.get(META_CAMPAIGN) or {}
+    if not (isinstance(meta, dict) and all(isinstance(meta.get(k), str) for k in ("urdf", "root", "tip"))):
+        return None
+    tips = meta.get("tips") or [meta["tip"]]
+    coupled = camp.get("coupled") or {}
+    if len(tips) < 2 and not coupled and not urdf.mimic_couplings(meta["urdf"]):
+        return None
+    descs = tuple(urdf.parse(meta["urdf"], meta["root"], t, allow_mimic=True) for t in tips)
+    movable = {j.name for d in descs for j in d.movable}
+    cp = {c: v for c, v in urdf.mimic_couplings(meta["urdf"]).items() if c in movable}
+    cp |= {c: (dict(v["terms"]), float(v.get("offset", 0.0))) for c, v in coupled.items()}
+    return UrdfTree(descs, coupled=tuple((c, tuple(sorted(t.items())), o) for c, (t, o) in sorted(cp.items())))
+
+
+def tree_messages(tree, q: np.ndarray, t_ns: np.ndarray) -> list[dict]:
+    """`frame_messages` of a tree: every tip's chain from the full joint matrix, each link once, one
+    tool frame per tip (``robocal_tool_<tip>``, as in the calibrated URDF)."""
+    from pipeline.models.urdf_arm import UrdfArm
+
+    qf = tree.expand(q)
+    col = {j.name: i for i, j in enumerate(tree.all_joints)}
+    per_tip = [frame_messages(UrdfArm(d), qf[:, [col[j.name] for j in d.movable]], t_ns) for d in tree.descs]
+    out = []
+    for i in range(len(np.atleast_1d(t_ns))):
+        seen, transforms = set(), []
+        for d, msgs in zip(tree.descs, per_tip):
+            for tr in msgs[i]["transforms"]:
+                if tr["child_frame_id"] == TOOL_FRAME:
+                    tr = {**tr, "child_frame_id": f"{TOOL_FRAME}_{d.tip}"}
+                if tr["child_frame_id"] not in seen:
+                    seen.add(tr["child_frame_id"])
+                    transforms.append(tr)
+        out.append({"transforms": transforms})
+    return out
+
+
 def scene_events(metadata: dict, stream=None, measured=None) -> list[tuple[int, str, dict]]:
     """(log time ns, topic, message) of the scene channels for a recording with this metadata,
     encoder stream (t_ns, q) and measurement postures (t_ns, q); [] for robots without a chain."""
-    found = description(metadata)
     t, q = postures(stream, measured)
+    tree = tree_description(metadata)
+    if tree is not None and t.size and q.shape[1] == tree.n_joints:
+        events = [(int(t[0]), DESCRIPTION_TOPIC, {"data": tree.urdf})]
+        return events + [(int(ti), TF_TOPIC, m) for ti, m in zip(t, tree_messages(tree, q, t))]
+    found = description(metadata) if tree is None else None
     if found is None or t.size == 0:
         return []
     arm, text = found

@@ -8,6 +8,7 @@ import pytest
 
 from conftest import run_cli
 from pipeline.recording.reader import read_recording
+from pipeline.recording.scene import SCENE_CHANNELS
 from pipeline.recording.schemas import META_CAMPAIGN, META_FIXTURE, META_ROBOT
 from pipeline.recording.writer import RecordingWriter
 
@@ -27,7 +28,7 @@ def rewrite(src, dst, edit) -> None:
     with RecordingWriter(dst) as w:
         for name in (META_ROBOT, META_FIXTURE, META_CAMPAIGN):
             w.metadata(name, rec.metadata[name])
-        msgs = [(t, m) for t in rec.messages for m in rec.messages[t]]
+        msgs = [(t, m) for t in rec.messages if t not in SCENE_CHANNELS for m in rec.messages[t]]  # /tf: not copied
         msgs.sort(key=lambda tm: tm[1]["timestamp_ns"])
         counters: dict[str, int] = {}
         for topic, body in msgs:

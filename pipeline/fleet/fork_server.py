@@ -22,7 +22,9 @@ SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM
 # first task, they made it ≈ 0.1 s longer than the next ones on every worker.
 TASK_IMPORTS = ("pipeline.stages.reprocess", "pipeline.stages.results", "pipeline.accuracy.prior",
                 "pipeline.models.jig", "pipeline.models.dh_export", "pipeline.importers.bagkind",
-                "pyarrow.dataset", "dateutil.relativedelta")
+                "pyarrow.dataset", "dateutil.relativedelta", "pipeline.physics.compliance",
+                "pipeline.physics.gravity", "pipeline.physics.summary", "pipeline.validate.plausibility",
+                "threadpoolctl")
 _started = False  # this module started the forkserver running now
 _lock = threading.Lock()
 

@@ -39,16 +39,27 @@ def declared_sigma(campaign: dict) -> float | None:
 
 
 def quick_rms(model, table: dict, options=None) -> float:
-    """RMS residual (m) after a fit with SCREEN_NFEV evaluations per solve (inf if the fit fails)."""
+    """Robust RMS residual (m) after a fit with SCREEN_NFEV evaluations per solve: the median absolute
+    residual / 0.6745 (the RMS of Gaussian residuals), so that a few gross records — which the outlier
+    checks name — do not make good data look like a unit mistake; rows the model cannot evaluate at
+    the start (an unreachable configuration) are left to those checks.  NaN if the fit itself cannot be
+    evaluated (a singular configuration among the rows): the screen then does not judge."""
     from pipeline.identify.least_squares import FitOptions, fit
+    from pipeline.identify.model import n_rows, take
 
     opts = replace(options or FitOptions(), max_nfev=SCREEN_NFEV, before=False)
     try:
         with np.errstate(all="ignore"):
-            f = fit(model, table, opts)
+            r0 = np.asarray(model.residuals(model.initial_guess(table) if hasattr(model, "initial_guess")
+                                            else model.nominal(), table), float).reshape(n_rows(table), -1)
+            finite = np.all(np.isfinite(r0), axis=1)
+            if finite.sum() < max(3, finite.size // 2):
+                return float("inf")
+            f = fit(model, table if finite.all() else take(table, finite), opts)
     except (ValueError, np.linalg.LinAlgError, FloatingPointError):
-        return float("inf")
-    r = float(f.rms_after)
+        return float("nan")
+    r = np.abs(np.asarray(f.residuals_after, float))
+    r = float(np.median(r) / 0.6745) if r.size and np.all(np.isfinite(r)) else float("inf")
     return r if np.isfinite(r) else float("inf")
 
 
@@ -107,18 +118,22 @@ def screen(model, table: dict, campaign: dict | None, options=None) -> dict:
     table = _subset(table)
     rms = quick_rms(model, table, options)
     out = {"rms_m": rms, "sigma_m": ref, "declared": sigma is not None, "cause": None}
+    if np.isnan(rms):  # the short fit could not be evaluated: the other checks name the rows
+        return out | {"rms_m": None, "status": "pass",
+                      "message": "not judged: the short fit could not be evaluated (a singular configuration)"}
     if rms <= GROSS_FACTOR * ref:
-        out |= {"status": "pass", "message": f"residual RMS after a short fit {rms * 1e3:.3g} mm, within "
+        out |= {"status": "pass", "message": f"robust residual RMS after a short fit {rms * 1e3:.3g} mm, within "
                                              f"{GROSS_FACTOR:g}× the instrument's σ {ref * 1e3:.3g} mm"}
         return out
     tried = []
     for what, t in _variants(table):  # stop at the first that explains the misfit
-        tried.append((what, quick_rms(model, t, options)))
+        v = quick_rms(model, t, options)
+        tried.append((what, float("inf") if np.isnan(v) else v))
         if tried[-1][1] <= min(EXPLAINED_FACTOR * ref, rms / 10):
             break
     best = min(tried, key=lambda t: t[1]) if tried else None
     what = ("declared" if sigma is not None else "assumed (none declared; --sigma-m)")
-    head = (f"residual RMS after the fit {rms * 1e3:.4g} mm is {rms / ref:.3g}× the instrument's {what} σ "
+    head = (f"robust residual RMS after the fit {rms * 1e3:.4g} mm is {rms / ref:.3g}× the instrument's {what} σ "
             f"{ref * 1e3:.3g} mm: the measurements do not fit the robot")
     if best is not None and best[1] < rms / 10 and best[1] <= EXPLAINED_FACTOR * ref:
         out["cause"] = best[0]

@@ -41,7 +41,7 @@ def read_targets(path: Path, joint_names: list[str]) -> dict:
     def numbers(names: list[str]) -> np.ndarray:
         out = np.empty((n_rows, len(names)))
         for k, c in enumerate(names):
-            v = parse_numbers(path, c, t[c], first_line=1)
+            v = parse_numbers(path, c, t[c], first_line=1, where=lambda i, c=c: f"row {i + 1} (line {i + 2}), column {c}")
             bad = np.flatnonzero(~np.isfinite(v))
             if bad.size:
                 raise RobocalError(f"{path}: row {bad[0] + 1} (line {bad[0] + 2}), column {c}: missing or not finite")

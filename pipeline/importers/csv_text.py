@@ -83,14 +83,16 @@ def read_columns(path: Path, keep: Iterable[str] | None = None,
     return header, out, n
 
 
-def numbers(path: Path, column: str, texts: list[str], first_line: int = 2) -> np.ndarray:
+def numbers(path: Path, column: str, texts: list[str], first_line: int = 2, where=None) -> np.ndarray:
     """The column's values as floats; one line naming file, row (line) and column for a field that
-    is not a decimal number.  Empty fields, NaN and inf are returned as NaN / inf for the caller."""
+    is not a decimal number (`where(i)`: the caller's own words for data row i, 0-based).  Empty
+    fields, NaN and inf are returned as NaN / inf for the caller."""
     try:
         return np.array([float(s) if _NUMBER.fullmatch(s) else _bad(s) for s in texts], float)
     except _NotANumber as e:
         i = texts.index(e.text)
-        raise RobocalError(f"{path}: row {i + first_line}: column {column!r}: {e.text!r} is not a number") from None
+        at = where(i) if where is not None else f"row {i + first_line}: column {column!r}"
+        raise RobocalError(f"{path}: {at}: {e.text!r} is not a number") from None
 
 
 class _NotANumber(Exception):

@@ -215,6 +215,17 @@ class UrdfTree:
         _CHAINS[key] = (self.descs, c)
         return c
 
+    def link_frames(self, x: np.ndarray, q: np.ndarray, k: int = 0) -> tuple[list[str], np.ndarray]:
+        """Every frame of the chain root → tip k at readings q (N, n_joints), in the instrument frame (rigid,
+        as `UrdfArm.link_frames`): names [root, each joint's child link, "tool"] and poses (N, F, 4, 4), m."""
+        names, marks, s = [self.root], [5], 5  # the 6 base steps end at index 5
+        for j in self.descs[k].joints:
+            s += (8 + 2 * (j.name in self.lateral)) if j.movable else 1
+            names.append(j.child)
+            marks.append(s)
+        c = self.chain(k)
+        return names + ["tool"], ch.frames(c, np.asarray(x, float)[:c.n_params], self.expand(q), marks + [c.n_steps - 1])
+
     def forward(self, x: np.ndarray, q: np.ndarray, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Tool frame k: rotations (N,3,3) and positions (N,3) m in the instrument frame, from readings."""
         return ch.forward(self.chain(k), x, self.expand(q))

@@ -12,7 +12,7 @@ ARC_WELDER = System(
     name="arc-welder", measurement_channel="/touch/contact",
     loader="pipeline.systems.arc_welder", model="pipeline.systems.arc_welder:TouchModel",
     measurement="pipeline.measurements.plane:PlaneModel", kinematics="pipeline.models.serial_arm:SerialArm",
-    fixture="pipeline.models.jig", physics="pipeline.diagnose.touch:touch_adapter",
+    fixture="pipeline.models.jig", physics="pipeline.diagnose.adapters.touch:touch_adapter",
     simulator="pipeline.simulate.arc_welder", visualizer="pipeline.visualize.arc_welder",
     planner="pipeline.plan.arc_welder", compensator="pipeline.compensate.serial")
 
@@ -21,7 +21,7 @@ DELTA_TRACKER = System(
     loader="pipeline.systems.delta_tracker", model="pipeline.systems.delta_tracker:TrackerModel",
     measurement="pipeline.measurements.registered_point:RegisteredPointModel",
     kinematics="pipeline.models.delta_arm:DeltaKinematics",
-    physics="pipeline.diagnose.delta:adapter", simulator="pipeline.simulate.delta_tracker",
+    physics="pipeline.diagnose.adapters.delta:adapter", simulator="pipeline.simulate.delta_tracker",
     visualizer="pipeline.visualize.delta_tracker", planner="pipeline.plan.delta_tracker",
     compensator="pipeline.compensate.delta")
 
@@ -30,7 +30,7 @@ SCORBOT_SCANNER = System(
     loader="pipeline.systems.scorbot_scanner", model="pipeline.systems.scorbot_scanner:ScannerModel",
     measurement="pipeline.measurements.sensed_point:SensedPointModel", kinematics="pipeline.models.serial_arm:SerialArm",
     instrument="pipeline.models.stripe_sensor:StripeSensor",
-    physics="pipeline.diagnose.scanner:adapter", simulator="pipeline.simulate.scorbot_scanner",
+    physics="pipeline.diagnose.adapters.scanner:adapter", simulator="pipeline.simulate.scorbot_scanner",
     visualizer="pipeline.visualize.scorbot_scanner", planner="pipeline.plan.scorbot_scanner",
     compensator="pipeline.compensate.serial")
 
@@ -38,7 +38,7 @@ URDF = System(
     name="urdf", measurement_channel="/measure/point",
     loader="pipeline.systems.urdf_robot", model="pipeline.systems.urdf_robot:model_for",
     measurement="pipeline.measurements.point:PointModel",  # or pose, plane, coincidence: the campaign's measure
-    kinematics="pipeline.models.urdf_arm:UrdfArm", physics="pipeline.diagnose.urdf_robot:adapter",
+    kinematics="pipeline.models.urdf_arm:UrdfArm", physics="pipeline.diagnose.adapters.urdf_robot:adapter",
     simulator="pipeline.simulate.urdf_robot", planner="pipeline.plan.urdf_robot",
     compensator="pipeline.compensate.serial")
 

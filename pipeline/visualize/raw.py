@@ -82,9 +82,7 @@ def write_raw_rrd(path: str | Path, out: str | Path | None = None) -> Path:
     if k is not None and n:
         kin, xk = k
         if stream is None:
-            units = ["m" if getattr(j, "type", "") == "prismatic" else "rad"
-                     for j in getattr(getattr(kin, "desc", None), "movable", getattr(kin, "joints", []))]
-            robot.log_postures(rs, table, robot.joint_names_of(kin), units)
+            robot.log_postures(rs, table, robot.joint_names_of(kin), robot.joint_units(kin))
         q, t = robot.postures(table, stream, robot.joint_names_of(kin))
         robot.log_robot(rs, kin, {"nominal": xk}, q, t)
     if hasattr(model, "points") and n:

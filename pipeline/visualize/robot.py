@@ -44,7 +44,8 @@ def skeleton(kin, x: np.ndarray, q: np.ndarray) -> tuple[list[str], list[str], n
     q = np.atleast_2d(np.asarray(q, float))
     if hasattr(kin, "link_frames"):
         names, F = kin.link_frames(x, q)
-        moving = {j.child: j.name for j in kin.desc.movable}
+        desc = kin.desc if hasattr(kin, "desc") else kin.descs[0]  # a tree: its first tip's chain
+        moving = {j.child: j.name for j in desc.movable}
         return names, [moving.get(n, "") for n in names], F
     F = serial_arm.frames(np.asarray(x, float), q)
     joints = [j.name for j in kin.joints]
@@ -170,6 +171,16 @@ def kinematics(model, x: np.ndarray):
     return None
 
 
+def joint_units(kin) -> list[str]:
+    """Unit of each read joint: m (prismatic) or rad (a chain's movable joints, a tree's read joints)."""
+    if hasattr(kin, "all_joints"):
+        read = set(kin.joint_names)
+        joints = [j for j in kin.all_joints if j.name in read]
+    else:
+        joints = getattr(getattr(kin, "desc", None), "movable", getattr(kin, "joints", []))
+    return ["m" if getattr(j, "type", "") == "prismatic" else "rad" for j in joints]
+
+
 def joint_names_of(kin) -> list[str]:
     return list(getattr(kin, "joint_names", None) or [j.name for j in kin.joints])
 
@@ -214,9 +225,7 @@ def log_robots(rec: rr.RecordingStream, model, table: dict, x_before: np.ndarray
     kin = k1[0]
     paths = []
     if encoder is None:
-        units = ["m" if getattr(j, "type", "") == "prismatic" else "rad"
-                 for j in getattr(getattr(kin, "desc", None), "movable", getattr(kin, "joints", []))]
-        paths += log_postures(rec, table, joint_names_of(kin), units)
+        paths += log_postures(rec, table, joint_names_of(kin), joint_units(kin))
     try:
         q, t = postures(table, encoder, joint_names_of(kin), rate_hz)
         return paths + log_robot(rec, kin, {"nominal": k0[1], "calibrated": k1[1]}, q, t)

@@ -66,10 +66,6 @@ class PointModel(Composed):
 def registered_start(model: Composed, data: Table, measured: np.ndarray) -> np.ndarray:
     """The nominal vector with the base frame set by the best rigid fit of the nominal tool
     points onto `measured` (needs ≥ 3 non-collinear points; otherwise the nominal)."""
-    from scipy.spatial.transform import Rotation
-
-    from pipeline.models.urdf import rpy_of
-
     x = model.nominal()
     names = model.parameter_names()
     if not all(f"base.{k}" in names for k in ("x", "roll")):
@@ -78,11 +74,22 @@ def registered_start(model: Composed, data: Table, measured: np.ndarray) -> np.n
     x0 = x.copy()
     x0[ib:ib + 6] = 0.0
     p, *_ = model.tool(x0, data["joint_positions"])
+    return with_registration(names, x, p, measured)
+
+
+def with_registration(names: list[str], x: np.ndarray, p: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """`x` with ``base.*`` set by the best rigid fit (scipy, Kabsch) of points `p` (N, 3) predicted with
+    an identity base onto `measured` (N, 3) m; `x` unchanged for fewer than 3 non-collinear points."""
+    from scipy.spatial.transform import Rotation
+
+    from pipeline.models.urdf import rpy_of
+
     if len(p) < 3 or np.linalg.matrix_rank(p - p.mean(0), tol=1e-6) < 2:
         return x
     rot, _ = Rotation.align_vectors(measured - measured.mean(0), p - p.mean(0))
     R = rot.as_matrix()
-    t = measured.mean(0) - R @ p.mean(0)
-    x[ib:ib + 3] = t
+    ib = names.index("base.x")
+    x = x.copy()
+    x[ib:ib + 3] = measured.mean(0) - R @ p.mean(0)
     x[ib + 3:ib + 6] = rpy_of(R)
     return x

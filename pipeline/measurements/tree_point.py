@@ -26,6 +26,7 @@ import numpy as np
 
 from pipeline.identify.model import Table
 from pipeline.measurements.composed import Composed
+from pipeline.measurements.point import with_registration
 from pipeline.models import chain as ch
 
 COMPLIANCE_UNIT = "rad/(N·m)"
@@ -155,7 +156,7 @@ class TreePointModel(Composed):
         x = self.nominal()
         p = self._predict(np.where(np.char.startswith(np.array(self.parameter_names()), "base."), 0.0, x), data,
                           False)[0]
-        return _registered(self, x, p, np.asarray(data["position"], float))
+        return with_registration(self.parameter_names(), x, p, np.asarray(data["position"], float))
 
     def exports(self, x: np.ndarray) -> dict[str, str]:
         """model.urdf (geometry) and, with physics terms, model.physics.yaml (what URDF cannot carry)."""
@@ -173,23 +174,6 @@ class TreePointModel(Composed):
 
             d["physics"] = document(self, x)
         return d
-
-
-def _registered(model: TreePointModel, x: np.ndarray, p: np.ndarray, measured: np.ndarray) -> np.ndarray:
-    """`x` with base.* set by the best rigid fit (scipy) of predicted points `p` onto `measured`."""
-    from scipy.spatial.transform import Rotation
-
-    from pipeline.models.urdf import rpy_of
-
-    if len(p) < 3 or np.linalg.matrix_rank(p - p.mean(0), tol=1e-6) < 2:
-        return x
-    rot, _ = Rotation.align_vectors(measured - measured.mean(0), p - p.mean(0))
-    R = rot.as_matrix()
-    ib = model.parameter_names().index("base.x")
-    x = x.copy()
-    x[ib:ib + 3] = measured.mean(0) - R @ p.mean(0)
-    x[ib + 3:ib + 6] = rpy_of(R)
-    return x
 
 
 __all__ = ["TreePointModel", "COMPLIANCE_UNIT"]

@@ -120,9 +120,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
             doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
     from pipeline.accuracy.stage import guarded_document
 
-    from pipeline.identify.least_squares import kfold_indices
+    from pipeline.identify.folds import design_folds
 
-    folds = kfold_indices(len(holdout), k_folds, seed)
+    folds = design_folds(len(holdout), k_folds, seed, None, table)
     acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {}, (holdout, folds))
     if (accuracy or {}).get("previous"):
         from pipeline.accuracy.previous import compare, read_parameters

@@ -6,13 +6,15 @@
    minimum detectable size vs plausible size, confounding → `not_identifiable` with advice;
 3. forward selection by grouped F with Holm's correction (family α);
 4. joint nonlinear refit of geometry + accepted effects (parameters with 1σ);
-5. evidence: grouped cross-validation on time blocks (same folds before/after), ΔBIC,
-   bootstrap selection frequency;
+5. evidence: grouped cross-validation on time blocks (same folds before/after; folds repaired so every
+   training set keeps every face, placement, joint range and parameter direction, `identify.folds`),
+   ΔBIC, bootstrap selection frequency;
 6. lack-of-fit of the final residuals against smooth functions of each joint angle, time,
    approach speed (and, for touch campaigns, `adapters.touch_variables`) → `unexplained` and where;
 7. the verdict (`verdict.arbiter`, `verdict.checks`): the held-out arbiter, findings carried by one or
    two records (`verdict.outliers` runs the diagnosis again without them), misspecification along
-   each finding's own variable, twins, back to the declared noise floor → `status`.
+   each finding's own variable, twins, back to the declared noise floor, a held-out error many times
+   the in-sample σ (`resampling.holdout_over_insample`: never `clean`/`explained` beside it) → `status`.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from pipeline.diagnose.inference.stepwise import look_alikes
 from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.touch_probe import tip_speed_vector
 from pipeline.diagnose.verdict import arbiter, grading, outliers
-from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
+from pipeline.identify.least_squares import Fit, FitOptions, fit
 
 
 @dataclass(frozen=True)
@@ -85,7 +87,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     # 3. gate and selection (iterated with the noise model), each finding's form by held-out error
     sel = screen.select(p, nz, s)
     groups = np.repeat(resampling.time_blocks(ad.time_s, s.block), p.k)
-    folds = kfold_indices(p.n * p.k, s.folds, s.seed, groups)
+    folds, moved, alone = resampling.design_folds(p.n, p.k, s, ad.time_s, table, p.Jf)
     form_cv = _choose_forms(p, nz, sel, folds)
     # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
     alikes = (look_alikes(sel.r_w, sel.Sp, p.dof, [sel.testable.index(i) for i in sel.accepted], sel.tols)
@@ -118,8 +120,9 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     effects = [p.lib[i] for i in fin.accepted]
     misfit = grading.grade(fin.findings, effects, fin.contributions, [fin.col_of[i] for i in fin.accepted], fin.A,
                            fin.r_final, variables, where, sel.gates, W, s.alpha)
+    design = resampling.holdout_over_insample(before_cv, fin.after_cv, p.sigma, rf.sigma_after)
     floor, st_name, st_reason = grading.floor_and_status(ad, rf.z[:ng], fin.r_final, fin.A, fin.after_cv, folds,
-                                                         fin.findings, where, worse, misfit, s.alpha)
+                                                         fin.findings, where, worse, misfit, s.alpha, design)
     # 7. visual proof (added-variable plots, the re-simulated campaign: pure arrays) and the document
     resim = add_plots(ad, fin.findings, effects, fin.contributions, where, variables, p.r, fin.r_final, fin.A, p.Jf,
                       p.n, p.k)
@@ -128,7 +131,8 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         clustered=None if W is None else clustered_summary(W, nz.nm, s, ad, p.lib, sel.dropped),
         status=(st_name, st_reason), floor=floor, findings=fin.findings, rejected=rejected,
         carried=carried if influence else None, gates=sel.gates, where=where, lof=lof, before_cv=before_cv,
-        after_cv=fin.after_cv, all_cv=all_cv, names=f.names, z=rf.z, free=f.free, resim=resim)
+        after_cv=fin.after_cv, all_cv=all_cv, names=f.names, z=rf.z, free=f.free, resim=resim, moved=moved,
+        alone=alone, design=design)
 
 
 def _geometry(model, table, ad: Adapter, x0: np.ndarray | None, geometry_fit: Fit | None) -> Fit:

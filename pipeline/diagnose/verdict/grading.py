@@ -97,8 +97,9 @@ def grade(findings: list[dict], effects: list, contributions: list, col_of_list:
 
 def floor_and_status(ad, xg: np.ndarray, r_final: np.ndarray, A: np.ndarray, after_cv: np.ndarray, folds: list,
                      findings: list[dict], where: list[dict], worse: bool, misfit: list[str],
-                     alpha: float) -> tuple[dict | None, str, str]:
-    """(noise-floor check or None, status, reason); downgrades `high` findings of a partial diagnosis."""
+                     alpha: float, design: dict | None = None) -> tuple[dict | None, str, str]:
+    """(noise-floor check or None, status, reason); downgrades `high` findings of a partial diagnosis.
+    `design`: `resampling.holdout_over_insample` (flagged: never `clean`/`explained`)."""
     nk = r_final.size
     floor = None
     if ad.floor_variance is not None:
@@ -109,7 +110,7 @@ def floor_and_status(ad, xg: np.ndarray, r_final: np.ndarray, A: np.ndarray, aft
         floor = checks.floor_check(r_final, nk - A.shape[1], vf, alpha)
         floor.update(checks.holdout_floor_check(A, after_cv, folds, vf, alpha))
         floor["holdout_rms_over_floor"] = resampling.rms(after_cv) / floor["holdout_rms_expected_at_floor_m"]
-    st_name, st_reason = checks.status(len(findings), bool(where), floor, worse, misfit)
+    st_name, st_reason = checks.status(len(findings), bool(where), floor, worse, misfit, design)
     if st_name == "partially_explained":
         for fd in findings:
             if fd["confidence"] == "high":

@@ -16,7 +16,10 @@ outside the diagnosis's library:
 - ``glitch``:      J1's encoder stream reads `size` rad off over the 30 ms before one latch (the latch
                    itself is right; the approach speed derived from the stream is not);
 - in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` every D-H a, d
-  grows by α·L·t.
+  grows by α·L·t, ``backlash`` δq_j = −(b/2)·s_j (s_j the sign of joint j's velocity along the search:
+  the load lags the motor), ``compliance`` δq_j = c·τ_j (τ_j the gravity torque about joint j of the
+  arm's lumped masses and the payload, computed here with this file's own kinematics).
+`run(..., payload_kg=6.0)` makes a single-payload campaign (every contact with that payload).
 A second campaign layout, `two_stations`: the stepped block and a copy of it shifted along x and down (J2 over a
 wider range), the campaign change the diagnosis advises for a coupling it cannot tell from an eccentricity
 (default offset: of the eight tried, the one whose J2→J3 coupling and J2 eccentricity signatures ⊥ the
@@ -71,6 +74,7 @@ class Arm:
     tool: tuple
     lower: tuple
     upper: tuple
+    masses: tuple = ()  # ((joint index, kg, (x, y, z) in that joint's link frame), ...)
 
     @staticmethod
     def of(arm) -> "Arm":
@@ -78,7 +82,8 @@ class Arm:
         return Arm((b["x"], b["y"], b["z"], b["rz"], b["rx"], b["ry"]),
                    tuple((j.theta_offset, j.d, j.a, j.alpha, j.beta) for j in arm.joints),
                    (t["x"], t["y"], t["z"], t["rz"], t["ry"], t["rx"]),
-                   tuple(j.lower for j in arm.joints), tuple(j.upper for j in arm.joints))
+                   tuple(j.lower for j in arm.joints), tuple(j.upper for j in arm.joints),
+                   tuple((m.joint, m.mass, tuple(m.com)) for m in getattr(arm, "masses", ())))
 
 
 def pose(arm: Arm, q: np.ndarray, link_scale: np.ndarray | None = None) -> np.ndarray:
@@ -104,6 +109,33 @@ def pose(arm: Arm, q: np.ndarray, link_scale: np.ndarray | None = None) -> np.nd
 
 def tip(arm: Arm, q: np.ndarray, link_scale: np.ndarray | None = None) -> np.ndarray:
     return pose(arm, q, link_scale)[:, :3, 3]
+
+
+def gravity_torque(arm: Arm, q: np.ndarray, payload_kg: np.ndarray) -> np.ndarray:
+    """(n, 6) N·m: torque of gravity (−z of the jig frame, 9.80665 m/s²) about each joint's axis, from the
+    lumped link masses and the payload at the tool point (this file's own 4×4 chain)."""
+    q = np.atleast_2d(q)
+    n = q.shape[0]
+    x, y, z, rz, rx, ry = arm.base
+    T = (_trans(x, y, z) @ _rot("z", rz) @ _rot("x", rx) @ _rot("y", ry))[None].repeat(n, 0)
+    axes, origins, links = [], [], []
+    for i, (th, d, a, al, be) in enumerate(arm.joints):
+        axes.append(T[:, :3, 2].copy())
+        origins.append(T[:, :3, 3].copy())
+        T = T @ _rot("z", q[:, i] + th) @ _trans(np.full(n, a), np.zeros(n), np.full(n, d), (n,)) @ _rot("x", al) \
+            @ _rot("y", be)
+        links.append(T.copy())
+    tx, ty, tz, *_ = arm.tool
+    loads = [(j, np.full(n, m), np.einsum("nij,j->ni", links[j][:, :3, :3], np.asarray(c)) + links[j][:, :3, 3])
+             for j, m, c in arm.masses]
+    loads.append((5, np.broadcast_to(np.asarray(payload_kg, float), (n,)),
+                  np.einsum("nij,j->ni", T[:, :3, :3], np.array([tx, ty, tz])) + T[:, :3, 3]))
+    tau = np.zeros((n, 6))
+    for j, m, p in loads:
+        f = m[:, None] * np.array([0.0, 0.0, -9.80665])
+        for k in range(j + 1):
+            tau[:, k] += np.einsum("ni,ni->n", axes[k], np.cross(p - origins[k], f))
+    return tau
 
 
 # ----- targets: own IK --------------------------------------------------------------------
@@ -179,13 +211,23 @@ def plan(nominal: Arm, jig: Jig, m: int = 160, seed: int = 0, offset: float = 0.
 @dataclass(frozen=True)
 class Effect:
     kind: str  # bump | dent | quad_coupling | thermal_growth | warm_up_all | wild | glitch | coupling | linear_growth
+    # | backlash | compliance
     size: float
     where: dict = field(default_factory=dict)
 
 
-def _joint_error(effects, q: np.ndarray, qbar: np.ndarray) -> np.ndarray:
+def _joint_error(effects, q: np.ndarray, qbar: np.ndarray, motion: np.ndarray | None = None,
+                 torque=None) -> np.ndarray:
+    """δq (n, 6) rad: `motion` (n, 6) the joints' velocity along the search, `torque(q)` the gravity torques."""
     dq = np.zeros_like(q)
     for e in effects:
+        if e.kind == "backlash":  # the load lags the motor by half the play
+            j = e.where.get("joint", 0)
+            s = np.sign(motion[:, j]) if motion is not None else np.ones(q.shape[0])
+            dq[:, j] += -0.5 * e.size * np.where(s == 0, 1.0, s)
+        elif e.kind == "compliance":
+            j = e.where.get("joint", 1)
+            dq[:, j] += e.size * torque(q)[:, j]
         if e.kind == "bump":
             j = e.where.get("joint", 1)
             dq[:, j] += e.size * np.exp(-0.5 * ((q[:, j] - e.where["centre"]) / e.where.get("width", 0.1)) ** 2)
@@ -240,11 +282,11 @@ class Campaign:
 
 def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n: int = 100,
         jig: Jig | None = None, repeatability_3sigma_m: float = 1e-4, jig_error_m: float = 2e-5,
-        noise: float = 1.0, payload_late: int = 0) -> Campaign:
-    """One campaign of n contacts on the first touching targets: payload 0/6 kg in blocks of 10,
-    search speeds 5/10/20 mm/s, the true robot with `effects` (its own forms).  `payload_late`: the
-    operator changes the payload this many contacts after the programmed block boundary (the
-    table then follows the changes as they happened)."""
+        noise: float = 1.0, payload_late: int = 0, payload_kg: float | None = None) -> Campaign:
+    """One campaign of n contacts on the first touching targets: payload 0/6 kg in blocks of 10
+    (`payload_kg`: that payload for every contact), search speeds 5/10/20 mm/s, the true robot with
+    `effects` (its own forms).  `payload_late`: the operator changes the payload this many contacts
+    after the programmed block boundary (the table then follows the changes as they happened)."""
     jig = jig or stepped_block()
     rng = np.random.default_rng(seed)
     idx = np.arange(n)
@@ -259,6 +301,9 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
     speed = rng.choice([0.005, 0.01, 0.02], n)
     qbar = np.mean(q_a, axis=0)
     rows = np.arange(n)
+    planned = np.where((rows // 10) % 2 == 1, 6.0, 0.0) if payload_kg is None else np.full(n, float(payload_kg))
+    payload = (np.where((np.maximum(rows - payload_late, 0) // 10) % 2 == 1, 6.0, 0.0) if payload_kg is None
+               else planned.copy())
     extra = np.zeros(n)  # a late latch: travel past the contact (m)
     wild = None
     for e in effects:
@@ -272,7 +317,7 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
 
     def gap(s, ls):
         q = q_a + s[:, None] * dq
-        p = tip(truth, q + _joint_error(effects, q, qbar), ls) + eps
+        p = tip(truth, q + _joint_error(effects, q, qbar, dq, lambda qq: gravity_torque(truth, qq, payload)), ls) + eps
         uv = p[rows[:, None], other]
         c_true = coord + ferr[face] + _face_shift(effects, face, uv, jig)
         return sg * (p[rows, ax] - c_true)
@@ -324,8 +369,6 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
         q_stream = np.round(q_stream / COUNT) * COUNT
     t_ns = EPOCH_NS + np.round(t_stream * 1e9).astype(np.int64)
     tc_ns = EPOCH_NS + np.round(t_contact * 1e9).astype(np.int64)
-    planned = np.where((rows // 10) % 2 == 1, 6.0, 0.0)
-    payload = np.where((np.maximum(rows - payload_late, 0) // 10) % 2 == 1, 6.0, 0.0)
     change = np.flatnonzero(np.r_[True, np.diff(payload) != 0])
     schedule = [{"t_ns": int(tc_ns[i] - 3e9), "payload_kg": float(payload[i])} for i in change]
     schedule[0]["t_ns"] = int(t_ns[0])
@@ -361,12 +404,13 @@ def geometric_jacobian(arm: Arm, q: np.ndarray, ax: np.ndarray) -> np.ndarray:
 
 
 def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
-        jig: Jig | None = None) -> float:
-    """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable."""
+        jig: Jig | None = None, **campaign) -> float:
+    """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable (`campaign`: `run`'s
+    options, e.g. payload_kg)."""
     jig = jig or stepped_block()
-    c0 = run(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0)
+    c0 = run(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0, **campaign)
     unit = Effect(effect.kind, 1e-3 * (effect.size or 1.0), effect.where)
-    c1 = run(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0)
+    c1 = run(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0, **campaign)
     ax = c0.table["axis"]
     rows = np.arange(ax.size)
     # residual change: the same coordinates, the model tip at the latched q moves

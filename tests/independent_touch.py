@@ -16,8 +16,10 @@ outside the diagnosis's library:
 - ``glitch``:      J1's encoder stream reads `size` rad off over the 30 ms before one latch (the latch
                    itself is right; the approach speed derived from the stream is not);
 - in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` every D-H a, d
-  grows by α·L·t, ``backlash`` δq_j = −(b/2)·s_j (s_j the sign of joint j's velocity along the search:
-  the load lags the motor), ``compliance`` δq_j = c·τ_j (τ_j the gravity torque about joint j of the
+  grows by α·L·t, ``backlash`` a dead band of b rad between motor (encoder) and link in joint j, run
+  through the campaign's motor path (approach, search, retract: `play`; the link lags by b/2 behind the
+  last motion that took up the play, a search shorter than the play leaves it where the approach did),
+  ``compliance`` δq_j = c·τ_j (τ_j the gravity torque about joint j of the
   arm's lumped masses and the payload, computed here with this file's own kinematics).
 `run(..., payload_kg=6.0)` makes a single-payload campaign (every contact with that payload).
 A second campaign layout, `two_stations`: the stepped block and a copy of it shifted along x and down (J2 over a
@@ -216,15 +218,34 @@ class Effect:
     where: dict = field(default_factory=dict)
 
 
-def _joint_error(effects, q: np.ndarray, qbar: np.ndarray, motion: np.ndarray | None = None,
-                 torque=None) -> np.ndarray:
-    """δq (n, 6) rad: `motion` (n, 6) the joints' velocity along the search, `torque(q)` the gravity torques."""
+def play(motor: np.ndarray, width: float, link0: float) -> np.ndarray:
+    """The link angle behind a gear with `width` rad of play (the hysteresis of a dead band): the link stays
+    put until the motor, on its way `motor` (m,), takes up the play on one side, then follows it at half the
+    play behind; `link0` its start.  Returns the link angle at each sample."""
+    out = np.empty(motor.size)
+    link = link0
+    for i, m in enumerate(motor):
+        link = min(max(link, m - width / 2), m + width / 2)
+        out[i] = link
+    return out
+
+
+def _backlash_error(q_a: np.ndarray, dq: np.ndarray, s: np.ndarray, width: float, j: int) -> np.ndarray:
+    """δq_j (n,) = link − motor at each latch: the motor path of joint j through the campaign (each approach
+    from the previous retract pose to q_a, then the search to the latch, then back to q_a) through `play`."""
+    n = q_a.shape[0]
+    path = np.stack([q_a[:, j], q_a[:, j] + s * dq[:, j], q_a[:, j]], axis=1).ravel()  # approach, latch, retract
+    link = play(path, width, q_a[0, j] - width / 2)
+    return link.reshape(n, 3)[:, 1] - path.reshape(n, 3)[:, 1]
+
+
+def _joint_error(effects, q: np.ndarray, qbar: np.ndarray, torque=None, backlash=None) -> np.ndarray:
+    """δq (n, 6) rad: `torque(q)` the gravity torques, `backlash(width, j)` joint j's play at each latch."""
     dq = np.zeros_like(q)
     for e in effects:
-        if e.kind == "backlash":  # the load lags the motor by half the play
+        if e.kind == "backlash":  # the load lags the motor through the play
             j = e.where.get("joint", 0)
-            s = np.sign(motion[:, j]) if motion is not None else np.ones(q.shape[0])
-            dq[:, j] += -0.5 * e.size * np.where(s == 0, 1.0, s)
+            dq[:, j] += backlash(e.size, j)
         elif e.kind == "compliance":
             j = e.where.get("joint", 1)
             dq[:, j] += e.size * torque(q)[:, j]
@@ -317,7 +338,9 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
 
     def gap(s, ls):
         q = q_a + s[:, None] * dq
-        p = tip(truth, q + _joint_error(effects, q, qbar, dq, lambda qq: gravity_torque(truth, qq, payload)), ls) + eps
+        dj = _joint_error(effects, q, qbar, lambda qq: gravity_torque(truth, qq, payload),
+                          lambda width, j: _backlash_error(q_a, dq, s, width, j))
+        p = tip(truth, q + dj, ls) + eps
         uv = p[rows[:, None], other]
         c_true = coord + ferr[face] + _face_shift(effects, face, uv, jig)
         return sg * (p[rows, ax] - c_true)

@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,8 +72,13 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
 
         speed = ((lambda x, t: np.linalg.norm(tip_speed_vector(x, t), axis=1))
                  if "approach_joint_velocity" in table else None)
+        ad = touch_adapter(model, table, jig_tolerance_m, library, settings.repeatability_3sigma_m)
+
+        def candidates(x):  # every candidate's signature (n, k_c) at the geometric solution
+            return [S.reshape(S.shape[0], -1) for S in ad.signatures(x, table, tuple(ad.library))]
+
         return outliers.screened(run, model, table, x0=x0, geometry_fit=geometry_fit, alpha=settings.alpha,
-                                 speed=speed)
+                                 speed=speed, library=candidates)
 
 
 def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, settings: Settings,
@@ -105,6 +111,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     for fd, i in zip(findings, sel.accepted):
         if i in form_cv:
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
+    _runner_ups(findings, sel, p)
     # 6. the held-out arbiter and the records that carry a finding (`verdict.arbiter`); pose-clustered
     # campaigns: the unweighted CV ignores the shared pose errors, so there the findings rest on the
     # pose sign-flip check instead and a finding without CV improvement is graded `low`
@@ -146,6 +153,23 @@ def _geometry(model, table, ad: Adapter, x0: np.ndarray | None, geometry_fit: Fi
         x0[idx] = model.nominal()[idx]
         geometry_fit = fit(model, table, FitOptions(x0=x0, fixed=tuple(ad.held)))
     return geometry_fit or fit(model, table, FitOptions(x0=x0))
+
+
+def _runner_ups(findings: list, sel: screen.Selection, p: screen.Problem) -> None:
+    """A finding acting through a joint lists its runner-up: the candidate whose swap for it fits best
+    (`stepwise.look_alikes` at level 1: every candidate with no more directions, closest first), Δχ² how
+    much worse — a reader sees how far the next name is even when it is beyond the look-alike bound."""
+    joint = [j for j, i in enumerate(sel.accepted) if re.match(r"J\d", str(p.lib[i].location))]
+    if not joint:
+        return
+    pos = [sel.testable.index(i) for i in sel.accepted]
+    every = look_alikes(sel.r_w, sel.Sp, p.dof, pos, sel.tols, level=1.0)
+    for j in joint:
+        near = every.get(pos[j], [])
+        if near:
+            c, dl = near[0]
+            e = p.lib[sel.testable[c]]
+            findings[j]["runner_up"] = {"effect": e.name, "location": str(e.location), "delta_chi2": dl}
 
 
 def _choose_forms(p: screen.Problem, nz: screen.Noise, sel: screen.Selection, folds: list) -> dict:

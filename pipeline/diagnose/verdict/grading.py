@@ -6,7 +6,8 @@
 - `grade`: a finding is `low` when it is re-selected in few bootstrap resamples, has no
   held-out improvement, leaves structure along its own variable, is misspecified there
   (`arbiter.misspecification`), or is a likely proxy of located structure or of a narrow bump
-  along its own variable; `medium` with a twin the campaign cannot tell from it (`arbiter.twins`);
+  along its own variable; `medium` with a twin the campaign cannot tell from it (`arbiter.twins`) or a
+  look-alike the data can hardly tell from it (`arbiter.look_alike_cap`);
 - `floor_and_status`: back to the declared noise floor (`checks.floor_check`), the status, and
   `high` findings of a partial diagnosis downgraded to `medium`.
 """
@@ -66,6 +67,7 @@ def grade(findings: list[dict], effects: list, contributions: list, col_of_list:
     # misspecification along each finding's own variable, and names the campaign cannot make unique
     misfit = arbiter.misspecification(findings, effects, r_final, A, variables, alpha) if W is None else []
     arbiter.twins(findings, gates)
+    arbiter.look_alike_cap(findings)
     # a likely proxy: a finding that is no longer significant once the located unexplained structure, or
     # a narrow bump along the finding's own variable (a localised error there), is in the design, while
     # that structure stays significant beside the finding (a real effect explains the bump away instead)

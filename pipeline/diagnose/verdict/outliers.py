@@ -3,11 +3,13 @@
 Before the diagnosis: a record whose derived approach speed is beyond any touch search
 (`checks.implausible_speed`) or, when the recording has each contact's search command, off the
 commanded search speed (`checks.speed_mismatch`), or whose residual is far off the geometric fit (externally
-studentized, Bonferroni at the family α: `checks.studentized_outliers`), is set aside and
-named.  After it: a finding that is no longer significant with one or two records left out
+studentized, Bonferroni at the family α: `checks.studentized_outliers`) unless a library candidate,
+significant with it, explains it (`checks.explained_by_library`), is set aside and named.  After it: a finding that is no longer significant with one or two records left out
 (`checks.carried_by`, computed inside the diagnosis) is reported as an outlier of those records
 and the diagnosis is run again without them (once; a finding still carried by a few records
-after that is rejected).  Every record set aside is listed in `outlier_records` with the reason.
+after that is rejected); the status is then never `clean` or `explained` (the effect is not shown to be
+absent, only to rest on those records).  Every record set aside is listed in `outlier_records` with the
+reason.
 """
 
 from __future__ import annotations
@@ -30,9 +32,12 @@ def _entry(table, i: int, r: np.ndarray, reason: str) -> dict:
 
 def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, table: dict, *,
              x0: np.ndarray | None, geometry_fit: Fit | None, alpha: float,
-             speed: Callable[[np.ndarray, dict], np.ndarray] | None = None, passes: int = 2) -> dict:
+             speed: Callable[[np.ndarray, dict], np.ndarray] | None = None, passes: int = 2,
+             library: Callable[[np.ndarray], list[np.ndarray]] | None = None) -> dict:
     """`run(table, geometry_fit, x0)` → diagnosis document (with its `_carried` map), around the
-    screen of the module docstring; adds `outlier_records` [{record, face, residual_m, reason}]."""
+    screen of the module docstring; adds `outlier_records` [{record, face, residual_m, reason}].
+    `library(x)`: the candidates' signatures (n, k_c) at x — a record off the geometric fit that one of
+    them explains (`checks.explained_by_library`) is left to the diagnosis instead of set aside."""
     f = geometry_fit or fit(model, table, FitOptions(x0=x0))
     n = f.residuals_after.shape[0]
     r = f.residuals_after[:, 0]
@@ -58,6 +63,9 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
         tip = model.points(f.x, table)[0]
         flagged = [(i, t) for i, t in flagged
                    if not checks.has_like_neighbours(i, tip, np.asarray(table["face"]).astype(str), t_all)]
+    if flagged and library is not None:
+        S = library(f.x)
+        flagged = [(i, t) for i, t in flagged if not checks.explained_by_library(Jf, r, S, i, alpha)]
     for i, t in flagged:
         if i not in bad:
             bad.append(i)
@@ -82,6 +90,20 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
                 if i not in bad:
                     bad.append(i)
                     out.append(_entry(table, i, r, f"the finding {label} rests on this record (not significant "
-                                                   f"without it): an outlier of the record, not physics"))
+                                                   f"without it): set aside, the finding is not reported"))
     doc["outlier_records"] = out
+    rest = sorted({label for label, rows in carried_labels(out)})
+    if rest and doc["status"] in ("clean", "explained"):  # a library effect the campaign shows in one or two records
+        recs = sorted({rows for _, rows in carried_labels(out)})
+        doc["status"] = "unexplained" if doc["status"] == "clean" else "partially_explained"
+        doc["status_reason"] = (f"{', '.join(rest)} rests on record(s) {', '.join(map(str, recs))} alone (not significant "
+                                "without them): set aside, but not shown to be a bad record; remeasure those poses "
+                                "and add poses that load the effect elsewhere")
     return doc
+
+
+def carried_labels(out: list[dict]) -> list[tuple[str, int]]:
+    """(finding label, record) of the records set aside because a finding rested on them."""
+    pre, post = "the finding ", " rests on this record"
+    return [(o["reason"][len(pre):o["reason"].index(post)], o["record"]) for o in out
+            if o["reason"].startswith(pre) and post in o["reason"]]

@@ -7,8 +7,8 @@ studentized, Bonferroni at the family α: `checks.studentized_outliers`) unless 
 significant with it, explains it (`checks.explained_by_library`), is set aside and named.  After it: a finding that is no longer significant with one or two records left out
 (`checks.carried_by`, computed inside the diagnosis) is reported as an outlier of those records
 and the diagnosis is run again without them (once; a finding still carried by a few records
-after that is rejected); the status is then never `clean` or `explained` (the effect is not shown to be
-absent, only to rest on those records).  Every record set aside is listed in `outlier_records` with the
+after that is rejected); the status reason says so (the effect is not shown to be absent, only to rest on
+those records: as often noise as physics, so the status itself is not changed).  Every record set aside is listed in `outlier_records` with the
 reason.
 """
 
@@ -92,13 +92,11 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
                     out.append(_entry(table, i, r, f"the finding {label} rests on this record (not significant "
                                                    f"without it): set aside, the finding is not reported"))
     doc["outlier_records"] = out
-    rest = sorted({label for label, rows in carried_labels(out)})
-    if rest and doc["status"] in ("clean", "explained"):  # a library effect the campaign shows in one or two records
-        recs = sorted({rows for _, rows in carried_labels(out)})
-        doc["status"] = "unexplained" if doc["status"] == "clean" else "partially_explained"
-        doc["status_reason"] = (f"{', '.join(rest)} rests on record(s) {', '.join(map(str, recs))} alone (not significant "
-                                "without them): set aside, but not shown to be a bad record; remeasure those poses "
-                                "and add poses that load the effect elsewhere")
+    rest = sorted({label for label, _ in carried_labels(out)})
+    if rest:  # said beside the status (a finding of one or two records is as often noise as physics)
+        recs = sorted({rec for _, rec in carried_labels(out)})
+        doc["status_reason"] += (f"; {', '.join(rest)} rested on record(s) {', '.join(map(str, recs))} alone and is "
+                                 "not reported (remeasure those poses to tell a bad record from an effect)")
     return doc
 
 

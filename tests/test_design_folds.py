@@ -81,8 +81,8 @@ def test_the_arbiter_keeps_a_correct_thermal_growth_when_naive_folds_lose_a_face
     assert any(set(two) <= set(f) for f in naive)  # the naive split loses the face in one fold
     s = Settings(n_boot=10, repeatability_3sigma_m=1e-4)
     d = diagnose(aw.TouchModel(aw.nominal_arm()), tab, settings=s)
-    assert [(f["effect"], f["location"], f["confidence"]) for f in d["findings"]] == [
-        ("thermal_growth", "links", "high")]
+    assert [(f["effect"], f["location"].split(" (")[0], f["confidence"]) for f in d["findings"]] == [
+        ("thermal_growth", "links", "high")]  # the linear form or a warm-up with τ = T: the held-out error chooses
     assert d["status"] == "explained" and not d["rejected_findings"]
     assert "repaired" in d["cross_validation"]
     monkeypatch.setattr(F, "design_folds", lambda n, k, seed=0, groups=None, *a, **kw: kfold_indices(n, k, seed, groups))

@@ -72,13 +72,8 @@ def diagnose(model, table, *, jig_tolerance_m: float = 2e-5, x0: np.ndarray | No
 
         speed = ((lambda x, t: np.linalg.norm(tip_speed_vector(x, t), axis=1))
                  if "approach_joint_velocity" in table else None)
-        ad = touch_adapter(model, table, jig_tolerance_m, library, settings.repeatability_3sigma_m)
-
-        def candidates(x):  # every candidate's signature (n, k_c) at the geometric solution
-            return [S.reshape(S.shape[0], -1) for S in ad.signatures(x, table, tuple(ad.library))]
-
         return outliers.screened(run, model, table, x0=x0, geometry_fit=geometry_fit, alpha=settings.alpha,
-                                 speed=speed, library=candidates)
+                                 speed=speed)
 
 
 def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, settings: Settings,

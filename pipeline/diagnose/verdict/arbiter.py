@@ -108,9 +108,12 @@ def twins(findings: list, gates: list) -> None:
 
 
 def look_alike_cap(findings: list) -> None:
-    """A `high` finding with look-alikes (names the campaign can hardly tell from it) becomes `medium`."""
+    """A `high` finding with look-alikes (names the campaign can hardly tell from it) becomes `medium`; the
+    other forms of its own family at its own place (`inference.forms`: chosen by held-out error) do not count."""
     for fd in findings:
-        al = fd.get("look_alikes") or []
+        base = fd["location"].split(" (")[0]  # forms of one family at one place are alike by construction
+        al = [a for a in fd.get("look_alikes") or []
+              if not (a["effect"] == fd["effect"] and a["location"].split(" (")[0] == base)]
         if fd["confidence"] == "high" and al:
             names = ", ".join(f"{a['effect']}@{a['location']} (Δχ² {a['delta_chi2']:.2g})" for a in al)
             fd["confidence"] = "medium"

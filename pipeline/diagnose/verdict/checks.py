@@ -103,32 +103,6 @@ def studentized_outliers(J: np.ndarray, r: np.ndarray, alpha: float, max_out: in
     return out
 
 
-def explained_by_library(J: np.ndarray, r: np.ndarray, S: list[np.ndarray], i: int, alpha: float) -> bool:
-    """Whether row i, beyond the outlier bound of the geometric fit (design J), is physics rather than a bad
-    record: some library candidate S_c (n, k_c) is significant beside J at the family level (F test,
-    Bonferroni over the candidates) and, fitted, brings row i back within the Bonferroni bound of
-    `studentized_outliers`.  The diagnosis then decides (its `carried` check names a finding that rests
-    on one or two records)."""
-    n = r.size
-    m = max(len(S), 1)
-    for Sc in S:
-        D = np.hstack([J, Sc])
-        Q0, Q1 = orthonormal(J), orthonormal(D)
-        k = Q1.shape[1] - Q0.shape[1]
-        dof = n - Q1.shape[1]
-        if k <= 0 or dof < 3:
-            continue
-        e0 = project_out(np.asarray(r, float)[:, None], Q0)[:, 0]
-        e1 = project_out(np.asarray(r, float)[:, None], Q1)[:, 0]
-        F = (float(e0 @ e0 - e1 @ e1) / k) / (float(e1 @ e1) / dof)
-        if scipy.stats.f.sf(F, k, dof) * m >= alpha:
-            continue
-        t = studentized(D, r)
-        if 2 * scipy.stats.t.sf(abs(t[i]), dof - 1) * n >= alpha:
-            return True
-    return False
-
-
 def studentized(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Externally studentized residuals (n,) of r against design J."""
     Q = orthonormal(J)

@@ -3,8 +3,8 @@
 Before the diagnosis: a record whose derived approach speed is beyond any touch search
 (`checks.implausible_speed`) or, when the recording has each contact's search command, off the
 commanded search speed (`checks.speed_mismatch`), or whose residual is far off the geometric fit (externally
-studentized, Bonferroni at the family α: `checks.studentized_outliers`) unless a library candidate,
-significant with it, explains it (`checks.explained_by_library`), is set aside and named.  After it: a finding that is no longer significant with one or two records left out
+studentized, Bonferroni at the family α: `checks.studentized_outliers`), is set aside and
+named.  After it: a finding that is no longer significant with one or two records left out
 (`checks.carried_by`, computed inside the diagnosis) is reported as an outlier of those records
 and the diagnosis is run again without them (once; a finding still carried by a few records
 after that is rejected); the status reason says so (the effect is not shown to be absent, only to rest on
@@ -32,12 +32,9 @@ def _entry(table, i: int, r: np.ndarray, reason: str) -> dict:
 
 def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, table: dict, *,
              x0: np.ndarray | None, geometry_fit: Fit | None, alpha: float,
-             speed: Callable[[np.ndarray, dict], np.ndarray] | None = None, passes: int = 2,
-             library: Callable[[np.ndarray], list[np.ndarray]] | None = None) -> dict:
+             speed: Callable[[np.ndarray, dict], np.ndarray] | None = None, passes: int = 2) -> dict:
     """`run(table, geometry_fit, x0)` → diagnosis document (with its `_carried` map), around the
-    screen of the module docstring; adds `outlier_records` [{record, face, residual_m, reason}].
-    `library(x)`: the candidates' signatures (n, k_c) at x — a record off the geometric fit that one of
-    them explains (`checks.explained_by_library`) is left to the diagnosis instead of set aside."""
+    screen of the module docstring; adds `outlier_records` [{record, face, residual_m, reason}]."""
     f = geometry_fit or fit(model, table, FitOptions(x0=x0))
     n = f.residuals_after.shape[0]
     r = f.residuals_after[:, 0]
@@ -63,9 +60,6 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
         tip = model.points(f.x, table)[0]
         flagged = [(i, t) for i, t in flagged
                    if not checks.has_like_neighbours(i, tip, np.asarray(table["face"]).astype(str), t_all)]
-    if flagged and library is not None:
-        S = library(f.x)
-        flagged = [(i, t) for i, t in flagged if not checks.explained_by_library(Jf, r, S, i, alpha)]
     for i, t in flagged:
         if i not in bad:
             bad.append(i)

@@ -23,14 +23,35 @@ def test_every_training_set_keeps_every_stratum(n, k, seed, n_faces):
     rng = np.random.default_rng(seed)
     face = rng.integers(0, n_faces, n)
     face[rng.integers(0, n)] = n_faces  # a face with one contact: nothing can keep it in two places
-    groups = np.arange(n) // 5
-    folds = F.design_folds(n, k, seed, groups, {"face": face.astype(str)})
+    folds = F.design_folds(n, k, seed, None, {"face": face.astype(str)})
     assert np.array_equal(np.sort(np.concatenate(folds)), np.arange(n))  # a partition
     for f in folds:
         train = np.setdiff1d(np.arange(n), f)
         for u in np.unique(face):
             if np.sum(face == u) >= 2:
                 assert np.any(face[train] == u), (u, f)
+
+
+def test_groups_move_whole_and_a_stratum_inside_one_group_is_left():
+    """Time blocks of 5: face `b` spans blocks 2 and 7, both in one seeded fold → one block moves (whole);
+    face `c` is block 4 alone (one pose's corners) → it cannot be split without splitting the block."""
+    n, k, seed = 50, 5, 0
+    groups = np.arange(n) // 5
+    base = kfold_indices(n, k, seed, groups)
+    fold = np.empty(n, int)
+    for i, f in enumerate(base):
+        fold[f] = i
+    same = [(a, b) for a in range(10) for b in range(a + 1, 10) if fold[5 * a] == fold[5 * b]][0]
+    face = np.full(n, "a", object)
+    face[groups == same[0]] = face[groups == same[1]] = "b"
+    lone = next(g for g in range(10) if g not in same)
+    face[groups == lone] = "c"
+    folds = F.design_folds(n, k, seed, groups, {"face": face.astype(str)})
+    new = np.empty(n, int)
+    for i, f in enumerate(folds):
+        new[f] = i
+    assert all(np.unique(new[groups == g]).size == 1 for g in range(10))  # blocks stay whole
+    assert np.unique(new[face == "b"]).size == 2 and np.unique(new[face == "c"]).size == 1
 
 
 def test_a_split_that_keeps_everything_is_unchanged():

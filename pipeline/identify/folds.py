@@ -12,13 +12,14 @@ design, so a split that already keeps everything represented is returned unchang
 1. strata (`design_strata`): each categorical column of the table that names a part of the design
    (`face`, `session`, `placement`, `payload_kg`) and, per joint, the disjoint ranges of its angle
    (sorted angles split where the gap exceeds a tenth of the joint's span and 0.05 rad); a stratum
-   of ≥ 2 measurements whose members all fall in one fold has every other member moved to the
-   other folds (round robin, seeded), so every training set holds part of every stratum;
+   of ≥ 2 groups (time blocks, poses) whose members all fall in one fold has every other group moved to
+   the other folds (round robin, seeded), so every training set holds part of every stratum (a stratum
+   inside one group — one pose's corners — cannot be split without splitting the group, and is left);
 2. leverage (with the linearised design J, rows measurement-major): a fold F whose removal leaves
    a direction of the parameters with less than `LEVERAGE_SHARE` of its information outside F
    (largest eigenvalue of H_FF = U_F U_Fᵀ above 1 − `LEVERAGE_SHARE`, U an orthonormal basis of J's
-   columns) gives up the measurement that carries most of that direction to the fold where it
-   weighs least (unless that measurement alone carries it: leverage h_ii ≈ 1, no split can help).
+   columns) gives up the group of the measurement that carries most of that direction to the fold where
+   it weighs least (unless that group alone carries it: no split of the groups can help).
 
 Both repairs are bounded (a few passes); folds are returned as sorted measurement indices.  With
 `design`, a measurement that alone carries a direction (its own leverage — the largest eigenvalue of its
@@ -83,10 +84,11 @@ def design_folds(n: int, k: int, seed: int = 0, groups: np.ndarray | None = None
         fold[f] = i
     rng = np.random.default_rng(seed + 7919)
     strata = design_strata(data, n) if data is not None else []
+    g = np.arange(n) if groups is None else np.unique(np.asarray(groups), return_inverse=True)[1].ravel()
     for _ in range(MAX_PASSES):
-        moved = _spread_strata(fold, strata, k, rng)
+        moved = _spread_strata(fold, strata, g, k, rng)
         if design is not None:
-            moved |= _spread_leverage(fold, np.asarray(design, float), k, rows_per)
+            moved |= _spread_leverage(fold, np.asarray(design, float), g, k, rows_per)
         if not moved:
             break
     if design is not None:
@@ -117,22 +119,28 @@ def expand(folds: list[np.ndarray], rows_per: int) -> list[np.ndarray]:
     return [(np.asarray(f, int)[:, None] * rows_per + np.arange(rows_per)[None, :]).ravel() for f in folds]
 
 
-def _spread_strata(fold: np.ndarray, strata: list[np.ndarray], k: int, rng) -> bool:
+def _spread_strata(fold: np.ndarray, strata: list[np.ndarray], g: np.ndarray, k: int, rng) -> bool:
+    """Move every other group of a stratum held whole by one fold to the other folds (whole groups: a
+    stratum inside one group — one pose's corners — cannot be split and is left as it is)."""
     moved = False
     for lab in strata:
         for u in np.unique(lab):
             members = np.flatnonzero(lab == u)
-            if members.size < 2 or np.unique(fold[members]).size > 1:
+            own = np.unique(g[members])
+            if own.size < 2 or np.unique(fold[members]).size > 1:
                 continue
             others = np.array([f for f in range(k) if f != fold[members[0]]])
-            go = members[1::2]
-            fold[go] = others[(rng.integers(others.size) + np.arange(go.size)) % others.size]
+            go = own[1::2]
+            dest = others[(rng.integers(others.size) + np.arange(go.size)) % others.size]
+            for grp, f in zip(go, dest):
+                fold[g == grp] = f
             moved = True
     return moved
 
 
-def _spread_leverage(fold: np.ndarray, J: np.ndarray, k: int, rows_per: int) -> bool:
-    """Move, per offending fold, the measurement carrying most of the direction it takes whole."""
+def _spread_leverage(fold: np.ndarray, J: np.ndarray, g: np.ndarray, k: int, rows_per: int) -> bool:
+    """Move, per offending fold, the group of the measurement carrying most of the direction it takes whole
+    (unless that group alone carries it)."""
     U = _basis(J)
     if not U.shape[1]:
         return False
@@ -147,10 +155,11 @@ def _spread_leverage(fold: np.ndarray, J: np.ndarray, k: int, rows_per: int) -> 
         if w[-1] <= 1 - LEVERAGE_SHARE:
             continue
         carry = np.sum((Um[rows] @ V[:, -1]) ** 2, axis=1)
-        m = rows[int(np.argmax(carry))]
-        if _own_leverage(Um[m][None])[0] > 1 - LEVERAGE_SHARE:  # one measurement alone carries it: no split helps
+        grp = g == g[rows[int(np.argmax(carry))]]
+        Ug = Um[grp].reshape(-1, U.shape[1])
+        if np.linalg.eigvalsh(Ug.T @ Ug)[-1] > 1 - LEVERAGE_SHARE:  # that group alone carries it: no split helps
             continue
-        weigh = [np.inf if g == f else float(np.sum((Um[fold == g] @ V[:, -1]) ** 2)) for g in range(k)]
-        fold[m] = int(np.argmin(weigh))
+        weigh = [np.inf if h == f else float(np.sum((Um[fold == h] @ V[:, -1]) ** 2)) for h in range(k)]
+        fold[grp] = int(np.argmin(weigh))
         moved = True
     return moved

@@ -152,15 +152,16 @@ def _geometry(model, table, ad: Adapter, x0: np.ndarray | None, geometry_fit: Fi
 
 def _runner_ups(findings: list, sel: screen.Selection, p: screen.Problem) -> None:
     """A finding acting through a joint lists its runner-up: the candidate whose swap for it fits best
-    (`stepwise.look_alikes` at level 1: every candidate with no more directions, closest first), Δχ² how
-    much worse — a reader sees how far the next name is even when it is beyond the look-alike bound."""
+    (`stepwise.look_alikes` at level 1: every candidate with no more directions, closest first, outside its
+    own family of forms), Δχ² how much worse — a reader sees how far the next name is even when it is beyond the look-alike bound."""
     joint = [j for j, i in enumerate(sel.accepted) if re.match(r"J\d", str(p.lib[i].location))]
     if not joint:
         return
     pos = [sel.testable.index(i) for i in sel.accepted]
     every = look_alikes(sel.r_w, sel.Sp, p.dof, pos, sel.tols, level=1.0)
-    for j in joint:
-        near = every.get(pos[j], [])
+    for j in joint:  # another form of its own family is not a rival name (`inference.forms` chose among them)
+        near = [(c, dl) for c, dl in every.get(pos[j], [])
+                if p.lib[sel.testable[c]].family != p.lib[sel.accepted[j]].family]
         if near:
             c, dl = near[0]
             e = p.lib[sel.testable[c]]

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.diagnose.library.joint import PLAY_RAD, play_column
 from pipeline.ingest.context import ENCODER_COUNT_RAD, last_motion_sign  # noqa: F401  (re-exported)
 from pipeline.ingest.temperature import TemperatureStream, rise_at
 
@@ -59,14 +60,6 @@ def add_temperature(table: dict, temperature: TemperatureStream, path: object = 
     out["temperature_rise_K"] = rise_at(temperature, t_ns, path, channel, table.get("record"))
     out["temperature_sensor"] = np.full(t_ns.size, temperature.sensor, object)
     return out
-
-
-PLAY_RAD = (1e-3, 2e-3)  # plays (rad) of the backlash forms: a search shorter than the play leaves the link where it was
-
-
-def play_column(play_rad: float) -> str:
-    """The table column of the sign of each joint's last motion longer than `play_rad` (rad)."""
-    return f"last_motion_sign_beyond_{play_rad * 1e3:g}mrad"
 
 
 def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray, *, normal_sign_of: dict[str, int],

@@ -49,6 +49,14 @@ ADVICE = {
     "joint_coupling": "move the driving joint alone over its range while the driven one stays put",
     "coupling_difference": "vary the two joints' relative angle independently of each one",
 }
+PLAY_RAD = (1e-3, 2e-3)  # plays (rad) of the backlash forms: a search shorter than the play leaves the link where it was
+
+
+def play_column(play_rad: float) -> str:
+    """The diagnosis table's column of the sign of each joint's last motion longer than `play_rad` (rad)."""
+    return f"last_motion_sign_beyond_{play_rad * 1e3:g}mrad"
+
+
 WRIST_PAIRS = ((3, 4), (3, 5), (4, 5))  # (driving, driven) joint indices of `wrist_coupling`
 NEIGHBOURS = ((0, 1), (1, 0), (1, 2), (2, 1), (2, 3), (3, 2))  # (driving, driven) of `joint_coupling`
 DIFFERENCE_PAIRS = ((1, 2), (2, 1))  # (other, driven) of `coupling_difference`

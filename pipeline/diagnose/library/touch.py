@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.diagnose.library import jig, joint, thermal, touch_probe, wire
-from pipeline.diagnose.adapters.touch_table import PLAY_RAD, play_column
 from pipeline.diagnose.library.term import Effect, Table, pick
 from pipeline.models.serial_arm import SerialArm
 
@@ -27,7 +26,8 @@ def touch_library(arm: SerialArm, table: Table, jig_tolerance_m: float = 2e-5) -
     lib: list[Effect] = []
     for family in (joint.compliance, joint.backlash, joint.scale, joint.eccentricity, joint.transmission_error):
         lib += [family(arm, j) for j in range(nj)]
-    lib += [joint.backlash_play(arm, j, play, play_column(play)) for play in PLAY_RAD if play_column(play) in table
+    lib += [joint.backlash_play(arm, j, play, joint.play_column(play)) for play in joint.PLAY_RAD
+            if joint.play_column(play) in table
             for j in range(nj)]
     if nj >= 6:
         lib += [joint.wrist_coupling(arm, src, dst) for src, dst in joint.WRIST_PAIRS]

@@ -1,0 +1,106 @@
+"""Does a planned camera campaign beat random ones?  A simulated cell with known truth (the
+planning cell plus errors), corner detections at the truth projected by OpenCV
+(`cv2.projectPoints`, not robocal's projection) with Gaussian pixel noise, and the joint fit of
+the planned images against the fits of random sets of as many candidate images.
+
+Figures per set: each free parameter's stated σ (the fit's independent-corner σ, honest here:
+the simulated corners' noise is independent) and its true error, and two summaries over the
+parameters all fits free — the geometric mean of σ relative to the median random set's σ, and the
+RMS of the true errors in units of that median σ; plus the hand-eye translation error (mm) and
+the focal length's error (px).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.camera import projection as pj
+from pipeline.identify.least_squares import FitOptions, fit
+
+
+def true_cell(model, x: np.ndarray, rng: np.random.Generator, held: tuple[str, ...] = (), offset_rad: float = 2e-3,
+              frame_m: float = 5e-3, frame_rad: float = 0.02,
+              distortion: tuple = (-0.2, 0.05, 1e-3, -5e-4, 0.0)) -> np.ndarray:
+    """The planning vector x plus errors: joint offsets N(0, offset_rad) (but those `held`: a
+    held offset's error would be absorbed by the board's or the hand-eye's frame and make their
+    truth ambiguous), hand-eye and board frames N(0, frame_m / frame_rad), focal lengths
+    ×N(1, 0.02), principal point N(0, 5 px), and the lens's distortion `distortion` (k1, k2, p1,
+    p2, k3, … as the model's terms)."""
+    t = np.array(x, float)
+    names = model.parameter_names()
+    for i, n in enumerate(names):
+        if n.endswith(".offset") and n not in held:
+            t[i] += rng.normal(0, offset_rad)
+        elif n.startswith(("base.", "tool.")):
+            t[i] += rng.normal(0, frame_m if n.split(".")[1] in ("x", "y", "z") else frame_rad)
+    k = model.n_kin
+    t[k:k + 2] *= rng.normal(1, 0.02, 2)
+    t[k + 2:k + 4] += rng.normal(0, 5.0, 2)
+    nd = model.n_dist
+    t[k + 4:] = np.r_[distortion, np.zeros(8)][:nd]
+    return t
+
+
+def detections(model, truth: np.ndarray, q: np.ndarray, target, noise_px: float, rng: np.random.Generator) -> dict:
+    """Camera table of images at q: every corner projected at the truth by `cv2.projectPoints`
+    plus N(0, noise_px) per axis; images with a corner outside the image are dropped."""
+    import cv2
+
+    from pipeline.simulate.camera_images import board_in_camera
+
+    k = model.split(truth)[1]
+    T = board_in_camera(model, truth, q)
+    w, h = model.image_size
+    cols = {c: [] for c in ("joint_positions", "image", "corner", "point", "pixel")}
+    for i in range(len(q)):
+        rv = cv2.Rodrigues(T[i, :3, :3])[0]
+        if model.lens == pj.FISHEYE:
+            px = cv2.fisheye.projectPoints(target.points[:, None, :], rv, T[i, :3, 3], pj.camera_matrix(k), k[4:])[0]
+        else:
+            px = cv2.projectPoints(target.points, rv, T[i, :3, 3], pj.camera_matrix(k), k[4:])[0]
+        px = px.reshape(-1, 2) + rng.normal(0, noise_px, (target.n_corners, 2))
+        if np.any(px < 0) or np.any(px > np.array([w - 1, h - 1])):
+            continue
+        n = target.n_corners
+        cols["joint_positions"].append(np.repeat(q[i][None], n, 0))
+        cols["image"].append(np.full(n, i))
+        cols["corner"].append(np.arange(n))
+        cols["point"].append(target.points)
+        cols["pixel"].append(px)
+    t = {c: np.concatenate(v) for c, v in cols.items()}
+    t["record"] = np.arange(len(t["image"]))
+    return t
+
+
+def fitted(model, table: dict, fixed: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, σ, free) of the joint fit (OpenCV's start, `fixed` held)."""
+    f = fit(model, table, FitOptions(fixed=fixed, before=False))
+    return f.x, f.std, f.free
+
+
+def compare(model, truth: np.ndarray, q: np.ndarray, planned: np.ndarray, target, fixed: tuple[str, ...],
+            n_random: int = 10, noise_px: float = 0.1, seed: int = 0) -> dict:
+    """Planned images (indices into q) against `n_random` random sets of as many of q (module docstring)."""
+    rng = np.random.default_rng(seed)
+    m = len(planned)
+    sets = [np.asarray(planned)] + [np.sort(rng.choice(len(q), m, replace=False)) for _ in range(n_random)]
+    names = np.array(model.parameter_names())
+    it, ifx = list(names).index("tool.x"), list(names).index("camera.fx")
+    X, S, F, he, fx = [], [], [], [], []
+    for s in sets:
+        x, std, free = fitted(model, detections(model, truth, q[s], target, noise_px, rng), fixed)
+        X.append(x), S.append(std), F.append(free)
+        he.append(float(np.linalg.norm(x[it:it + 3] - truth[it:it + 3])) * 1e3)
+        fx.append(float(abs(x[ifx] - truth[ifx])))
+    common = np.logical_and.reduce(F)
+    S, E = np.array(S)[:, common], np.abs(np.array(X) - truth)[:, common]
+    ref = np.median(S[1:], axis=0)
+    sig = np.exp(np.mean(np.log(S / ref), axis=1))
+    err = np.sqrt(np.mean((E / ref) ** 2, axis=1))
+    return {"images": m, "random_sets": n_random, "noise_px": noise_px, "parameters": names[common].tolist(),
+            "planned_sigma": S[0].tolist(), "random_median_sigma": ref.tolist(),
+            "planned_error": E[0].tolist(),
+            "sigma_ratio_planned": float(sig[0]), "sigma_ratio_random": sig[1:].tolist(),
+            "error_planned": float(err[0]), "error_random": err[1:].tolist(),
+            "hand_eye_error_mm_planned": he[0], "hand_eye_error_mm_random": he[1:],
+            "fx_error_px_planned": fx[0], "fx_error_px_random": fx[1:]}

@@ -21,15 +21,17 @@ from pipeline.identify.least_squares import FitOptions, fit
 def true_cell(model, x: np.ndarray, rng: np.random.Generator, held: tuple[str, ...] = (), offset_rad: float = 2e-3,
               frame_m: float = 5e-3, frame_rad: float = 0.02,
               distortion: tuple = (-0.2, 0.05, 1e-3, -5e-4, 0.0)) -> np.ndarray:
-    """The planning vector x plus errors: joint offsets N(0, offset_rad) (but those `held`: a
-    held offset's error would be absorbed by the board's or the hand-eye's frame and make their
-    truth ambiguous), hand-eye and board frames N(0, frame_m / frame_rad), focal lengths
+    """The planning vector x plus errors (none on the parameters `held`: e.g. those the rank test
+    does not free, whose error a free partner would absorb — j1's offset into the board's yaw —
+    and make the truth ambiguous): joint offsets N(0, offset_rad), hand-eye and board frames N(0, frame_m / frame_rad), focal lengths
     ×N(1, 0.02), principal point N(0, 5 px), and the lens's distortion `distortion` (k1, k2, p1,
     p2, k3, … as the model's terms)."""
     t = np.array(x, float)
     names = model.parameter_names()
     for i, n in enumerate(names):
-        if n.endswith(".offset") and n not in held:
+        if n in held:
+            continue
+        if n.endswith(".offset"):
             t[i] += rng.normal(0, offset_rad)
         elif n.startswith(("base.", "tool.")):
             t[i] += rng.normal(0, frame_m if n.split(".")[1] in ("x", "y", "z") else frame_rad)
@@ -72,15 +74,20 @@ def detections(model, truth: np.ndarray, q: np.ndarray, target, noise_px: float,
     return t
 
 
-def fitted(model, table: dict, fixed: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(x, σ, free) of the joint fit (OpenCV's start, `fixed` held)."""
-    f = fit(model, table, FitOptions(fixed=fixed, before=False))
+def fitted(model, table: dict, held: np.ndarray, x_held: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, σ, free) of the joint fit from OpenCV's start, the parameters `held` (mask) at `x_held`
+    (OpenCV's start would put a held hand-eye yaw where it absorbs a joint offset's error)."""
+    x0 = np.asarray(model.initial_guess(table), float)
+    x0[held] = x_held[held]
+    names = np.array(model.parameter_names())
+    f = fit(model, table, FitOptions(x0=x0, fixed=tuple(names[held]), before=False))
     return f.x, f.std, f.free
 
 
-def compare(model, truth: np.ndarray, q: np.ndarray, planned: np.ndarray, target, fixed: tuple[str, ...],
+def compare(model, truth: np.ndarray, q: np.ndarray, planned: np.ndarray, target, free: np.ndarray,
             n_random: int = 10, noise_px: float = 0.1, seed: int = 0) -> dict:
-    """Planned images (indices into q) against `n_random` random sets of as many of q (module docstring)."""
+    """Planned images (indices into q) against `n_random` random sets of as many of q (module
+    docstring); the parameters not `free` (the plan's mask) held at the truth's values."""
     rng = np.random.default_rng(seed)
     m = len(planned)
     sets = [np.asarray(planned)] + [np.sort(rng.choice(len(q), m, replace=False)) for _ in range(n_random)]
@@ -88,8 +95,8 @@ def compare(model, truth: np.ndarray, q: np.ndarray, planned: np.ndarray, target
     it, ifx = list(names).index("tool.x"), list(names).index("camera.fx")
     X, S, F, he, fx = [], [], [], [], []
     for s in sets:
-        x, std, free = fitted(model, detections(model, truth, q[s], target, noise_px, rng), fixed)
-        X.append(x), S.append(std), F.append(free)
+        x, std, f = fitted(model, detections(model, truth, q[s], target, noise_px, rng), ~free, truth)
+        X.append(x), S.append(std), F.append(f)
         he.append(float(np.linalg.norm(x[it:it + 3] - truth[it:it + 3])) * 1e3)
         fx.append(float(abs(x[ifx] - truth[ifx])))
     common = np.logical_and.reduce(F)

@@ -43,15 +43,15 @@ def test_planned_images_beat_random_ones_on_a_simulated_truth(mount, seed):
     assert "tool.yaw" in names[free] or "j6.offset" in names[free]  # one of the two (same rotation)
     assert np.all(cand.border_px[sel.index] >= 30)  # every corner inside the nominal image by the margin
     truth = cc.true_cell(model, x, np.random.default_rng(seed + 10), tuple(names[~free]))
-    r = cc.compare(model, truth, cand.q, sel.index, tgt, free, n_random=8, noise_px=0.1, seed=seed)
+    r = cc.compare(model, truth, cand.q, sel.index, tgt, free, n_random=8, noise_px=0.1, seed=seed, draws=3)
     assert len(r["parameters"]) >= 20
     # stated σ: geometric mean over the parameters relative to the median random set's σ
     assert r["sigma_ratio_planned"] < 0.9 * np.median(r["sigma_ratio_random"]), r
     # true error (in the median random σ): planned below the median random set
     assert r["error_planned"] < np.median(r["error_random"]), r
-    # the planned fit is honest: its true errors within 4 of its own stated σ
+    # the planned fits are honest: their RMS true errors within 3 of their stated σ
     z = np.array(r["planned_error"]) / np.array(r["planned_sigma"])
-    assert np.all(z < 4), dict(zip(r["parameters"], z.round(1)))
+    assert np.all(z < 3), dict(zip(r["parameters"], z.round(1)))
 
 
 def test_the_planned_campaign_sees_the_whole_board_on_the_true_robot(tmp_path):

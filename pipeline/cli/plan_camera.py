@@ -100,7 +100,7 @@ def plan_camera(urdf: Path | None, root: str | None, tip: str | None, o: CameraO
         held = tuple(n for n, f in zip(model.parameter_names(), free) if not f)
         truth = cc.true_cell(model, x, np.random.default_rng(seed + 1), held)
         with err.status(f"checking against {check} random sets on a simulated truth…"):
-            doc["check"] = cc.compare(model, truth, cand.q, sel.index, target, free, n_random=check, seed=seed + 2)
+            doc["check"] = cc.compare(model, truth, cand.q, sel.index, target, free, n_random=check, seed=seed + 2, draws=3)
     write_plan(out, doc)
     tilt = np.degrees(cand.tilt[sel.index])
     err.print(f"{desc.name} ({root} → {tip}), camera on {o.camera_on}: selected {select_m} of {candidates} reachable "
@@ -109,7 +109,7 @@ def plan_camera(urdf: Path | None, root: str | None, tip: str | None, o: CameraO
               f"≥ {cand.border_px[sel.index].min():.0f} px inside the image", highlight=False)
     if "check" in doc:
         c = doc["check"]
-        err.print(f"simulated truth, {c['noise_px']} px noise: stated σ {c['sigma_ratio_planned']:.2f}× the median "
+        err.print(f"simulated truth, {c['noise_px']} px noise, {c['draws']} draws: stated σ {c['sigma_ratio_planned']:.2f}× the median "
                   f"random set's (random median {np.median(c['sigma_ratio_random']):.2f}×); true error "
                   f"{c['error_planned']:.2f} (random median {np.median(c['error_random']):.2f}) in those σ; hand-eye "
                   f"{c['hand_eye_error_mm_planned']:.3f} mm (random median "

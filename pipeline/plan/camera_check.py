@@ -4,7 +4,7 @@ planning cell plus errors), corner detections at the truth projected by OpenCV
 the planned images against the fits of random sets of as many candidate images.
 
 Figures per set: each free parameter's stated σ (the fit's independent-corner σ, honest here:
-the simulated corners' noise is independent) and its true error, and two summaries over the
+the simulated corners' noise is independent) and its true error (RMS over noise draws), and two summaries over the
 parameters all fits free — the geometric mean of σ relative to the median random set's σ, and the
 RMS of the true errors in units of that median σ; plus the hand-eye translation error (mm) and
 the focal length's error (px).
@@ -85,27 +85,30 @@ def fitted(model, table: dict, held: np.ndarray, x_held: np.ndarray) -> tuple[np
 
 
 def compare(model, truth: np.ndarray, q: np.ndarray, planned: np.ndarray, target, free: np.ndarray,
-            n_random: int = 10, noise_px: float = 0.1, seed: int = 0) -> dict:
+            n_random: int = 10, noise_px: float = 0.1, seed: int = 0, draws: int = 1) -> dict:
     """Planned images (indices into q) against `n_random` random sets of as many of q (module
-    docstring); the parameters not `free` (the plan's mask) held at the truth's values."""
+    docstring); the parameters not `free` (the plan's mask) held at the truth's values.  Each set
+    is fitted on `draws` noise draws: true errors are the RMS over them, σ the first draw's."""
     rng = np.random.default_rng(seed)
     m = len(planned)
     sets = [np.asarray(planned)] + [np.sort(rng.choice(len(q), m, replace=False)) for _ in range(n_random)]
     names = np.array(model.parameter_names())
     it, ifx = list(names).index("tool.x"), list(names).index("camera.fx")
-    X, S, F, he, fx = [], [], [], [], []
+    E, S, F, he, fx = [], [], [], [], []
     for s in sets:
-        x, std, f = fitted(model, detections(model, truth, q[s], target, noise_px, rng), ~free, truth)
-        X.append(x), S.append(std), F.append(f)
-        he.append(float(np.linalg.norm(x[it:it + 3] - truth[it:it + 3])) * 1e3)
-        fx.append(float(abs(x[ifx] - truth[ifx])))
+        fits = [fitted(model, detections(model, truth, q[s], target, noise_px, rng), ~free, truth) for _ in range(draws)]
+        e = np.array([x - truth for x, _, _ in fits])
+        E.append(np.sqrt(np.mean(e ** 2, axis=0))), S.append(fits[0][1])
+        F.append(np.logical_and.reduce([f for _, _, f in fits]))
+        he.append(float(np.sqrt(np.mean(np.sum(e[:, it:it + 3] ** 2, axis=1)))) * 1e3)
+        fx.append(float(np.sqrt(np.mean(e[:, ifx] ** 2))))
     common = np.logical_and.reduce(F)
-    S, E = np.array(S)[:, common], np.abs(np.array(X) - truth)[:, common]
+    S, E = np.array(S)[:, common], np.array(E)[:, common]
     ref = np.median(S[1:], axis=0)
     sig = np.exp(np.mean(np.log(S / ref), axis=1))
     err = np.sqrt(np.mean((E / ref) ** 2, axis=1))
-    return {"images": m, "random_sets": n_random, "noise_px": noise_px, "parameters": names[common].tolist(),
-            "planned_sigma": S[0].tolist(), "random_median_sigma": ref.tolist(),
+    return {"images": m, "random_sets": n_random, "noise_px": noise_px, "draws": draws,
+            "parameters": names[common].tolist(), "planned_sigma": S[0].tolist(), "random_median_sigma": ref.tolist(),
             "planned_error": E[0].tolist(),
             "sigma_ratio_planned": float(sig[0]), "sigma_ratio_random": sig[1:].tolist(),
             "error_planned": float(err[0]), "error_random": err[1:].tolist(),

@@ -307,11 +307,14 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
 
     from pipeline.report.physics import section_html as physics_section
 
+    from pipeline.report.camera import section as camera_section
+
     acc_html = accuracy_section(art)
     tick("accuracy section")
     phys_html = physics_section(art.fit)
+    cam_html = camera_section(art)
     sections = [summary_section(s, warnings), acc_html]
-    for name, make in (("residuals", lambda: residual_section(art, series)), ("physics", lambda: phys_html),
+    for name, make in (("residuals", lambda: residual_section(art, series) + cam_html), ("physics", lambda: phys_html),
                        ("parameters", lambda: parameter_section(art.fit)), ("observability", lambda: observability_section(art)),
                        ("solver", lambda: solver_section(art.history)), ("validation", lambda: validation_section(art.validate)),
                        ("diagnosis", lambda: diagnosis_section(art))):
@@ -320,7 +323,8 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     comp = compensation.section(art.run_dir)
     sections += [comp or "", provenance_section(prov, rrd_name)]
     titles = [("summary", "Summary")] + ([("accuracy", "Accuracy")] if acc_html else []) + [
-              ("residuals", "Residuals")] + ([("physics", "Physics")] if phys_html else []) + [("parameters", "Parameters"),
+              ("residuals", "Residuals")] + ([("camera", "Camera images")] if cam_html else []) + (
+              [("physics", "Physics")] if phys_html else []) + [("parameters", "Parameters"),
               ("observability", "Observability"), ("solver", "Solver"), ("validation", "Validation")]
     if art.diagnosis is not None:
         titles.append(("diagnosis", "Diagnosis"))

@@ -319,6 +319,10 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
                 warnings.append("the model's parameters do not start with its arm's: arm drawn from the hook only")
             else:
                 entities += log_arm(rec, arm, x_arm, table, art.encoder)
+        if getattr(model, "residual_unit", "") == "px" and hasattr(model, "image_size"):  # a camera: frusta, images
+            from pipeline.visualize.camera import log_run
+
+            entities += log_run(rec, art, model, table, x_after, params or {}, warnings)
         try:
             hook = call_system_hook(rec, art.system, model, table, x_before, x_after, art)
         except Exception as e:  # a drawing hook must not lose the rest of the recording

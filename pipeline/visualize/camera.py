@@ -31,7 +31,7 @@ from pipeline.camera.start import inverse
 DETECTED_RGB = (250, 200, 0)
 REPROJECTED_RGB = (40, 160, 90)
 RESIDUAL_RGB = (214, 39, 40)
-BOARD_RGB = (30, 30, 30)
+BOARD_RGB = (235, 235, 235)
 
 
 def line_scale(residuals_px: np.ndarray, drawn_px: float = 10.0) -> int:
@@ -102,7 +102,7 @@ def log_camera(rec: rr.RecordingStream, model, table: dict, x: np.ndarray, recor
         else:
             cid = np.arange(len(board))
         P = board @ T_board[0, :3, :3].T + T_board[0, :3, 3]
-        rec.log("world/base/board/corners", rr.Points3D(P, colors=[BOARD_RGB], radii=[0.002],
+        rec.log("world/base/board/corners", rr.Points3D(P, colors=[BOARD_RGB], radii=[0.003],
                                                         labels=[str(c) for c in cid], show_labels=False), static=True)
         paths.append("world/base/board/corners")
     for j, (i, f) in enumerate(zip(ids, first)):
@@ -126,7 +126,7 @@ def log_camera(rec: rr.RecordingStream, model, table: dict, x: np.ndarray, recor
         if model.mount == "world":
             Tb = T_board[j]
             Pb = pts[m] @ Tb[:3, :3].T + Tb[:3, 3]
-            rec.log(f"world/base/boards/{name}", rr.Points3D(Pb, colors=[BOARD_RGB], radii=[0.002]), static=True)
+            rec.log(f"world/base/boards/{name}", rr.Points3D(Pb, colors=[BOARD_RGB], radii=[0.003]), static=True)
             paths.append(f"world/base/boards/{name}")
     return paths
 

@@ -249,14 +249,17 @@ def diagnosis_markdown(doc: dict) -> str:
     return "\n".join(lines)
 
 
-def blueprint(has_scene: bool) -> rrb.Blueprint:
-    """Layout: 3-D scene left; encoder, residuals and solver/summary right; time panel on `time`."""
+def blueprint(has_scene: bool, image_view: str | None = None) -> rrb.Blueprint:
+    """Layout: 3-D scene left; encoder, residuals and solver/summary right; time panel on `time`;
+    `image_view` (a camera run): the entity of one image shown in 2-D first among the bottom tabs."""
+    first = [rrb.Spatial2DView(origin=image_view, name="Image: detected (yellow), reprojected (green) corners, "
+                               "residuals (red, magnified) px")] if image_view else []
     right = rrb.Vertical(
         rrb.TimeSeriesView(origin="/encoder", name="Joint readings (rad; prismatic m)"),
         rrb.Tabs(rrb.TimeSeriesView(origin="/residuals/after_mm", name="Residuals after (mm)"),
                  rrb.TimeSeriesView(origin="/residuals/before_mm", name="Residuals before (mm)"),
                  rrb.TimeSeriesView(origin="/residuals/holdout_mm", name="Residuals held out (mm)")),
-        rrb.Tabs(rrb.TextDocumentView(origin="/summary", name="Summary"),
+        rrb.Tabs(*first, rrb.TextDocumentView(origin="/summary", name="Summary"),
                  rrb.TextDocumentView(origin="/accuracy", name="Accuracy"),
                  rrb.TextDocumentView(origin="/diagnosis", name="Diagnosis"),
                  rrb.TimeSeriesView(origin="/diagnosis/plots", name="Diagnosis plots (timeline: diagnosis x <nn>)"),
@@ -334,7 +337,8 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
             entities += log_accuracy(rec, art.accuracy)
         except Exception as e:  # a drawing error must not lose the rest of the recording
             warnings.append(f"accuracy map not logged: {type(e).__name__}: {e}")
-    rec.send_blueprint(blueprint(built is not None))
+    cams = [e for e in entities if e.startswith("world/base/cameras/") and e.count("/") == 3]
+    rec.send_blueprint(blueprint(built is not None, "/" + cams[0] if cams else None))
     rec.flush()
     rec.disconnect()
     return {"path": str(path), "entities": entities, "system_hook": hook, "warnings": warnings}

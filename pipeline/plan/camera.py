@@ -52,25 +52,6 @@ class Setup:
     hand_eye: np.ndarray | None = None
 
 
-def place_board(model, x: np.ndarray, q_home: np.ndarray, target: Target, distance_m: float) -> np.ndarray:
-    """x with the chain's base frame (board → robot base, eye-in-hand; camera → robot base,
-    eye-to-hand) set so that at q_home the board's centre is `distance_m` in front of the camera,
-    the board's axes along the camera's."""
-    from pipeline.models import chain as ch
-    from pipeline.models.urdf import rpy_of
-
-    x = np.array(x, float)
-    ib = model.parameter_names().index("base.x")
-    x[ib:ib + 6] = 0.0
-    R, p = ch.forward(model.kin.chain(), model.split(x)[0], np.asarray(q_home, float)[None])
-    T_base_tool = homogeneous(R[0], p[0])
-    T_cam_board = homogeneous(np.eye(3), np.array([0.0, 0.0, distance_m]) - target.points.mean(0))
-    B = inverse(T_base_tool @ T_cam_board) if model.mount == "tip" else T_cam_board @ inverse(T_base_tool)
-    x[ib:ib + 3] = B[:3, 3]
-    x[ib + 3:ib + 6] = rpy_of(B[:3, :3])
-    return x
-
-
 def nominal(model, setup: Setup) -> np.ndarray:
     """The planning parameter vector: the nominal robot, `setup`'s hand-eye and intrinsics, the board placed."""
     x = model.nominal().copy()
@@ -80,6 +61,8 @@ def nominal(model, setup: Setup) -> np.ndarray:
         he = np.zeros(6) if model.mount == "tip" else np.array([0.0, 0.0, 0.0, np.pi, 0.0, 0.0])
     x[it:it + 6] = he
     x[model.n_kin:] = setup.k
+    from pipeline.simulate.camera_images import place_board
+
     return place_board(model, x, setup.q_home, setup.target, setup.distance_m)
 
 

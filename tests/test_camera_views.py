@@ -200,3 +200,46 @@ def test_chromium_renders_the_camera_section(cam_run, tmp_path):
     sec = dom.stdout[dom.stdout.index('<section id="camera">'):]
     sec = sec[:sec.index("</section>")]
     assert "Camera images" in sec and "RMS after (px)" in sec and sec.count("<svg") == 3
+
+
+def test_eye_to_hand_rrd_draws_the_fixed_camera_and_the_moving_board(tmp_path):
+    """Eye-to-hand (board on the flange): one camera pose for every image, the board's corners
+    per image where the robot carried them; OpenCV's projection of them through the logged
+    camera lands on the logged reprojected corners."""
+    import rerun as rr
+
+    from pipeline.visualize.camera import log_camera
+
+    model = CameraModel(UrdfArm(parse(WRIST_URDF, "base", "tool")), mount="world", n_dist=5, image_size=(640, 480))
+    tgt = parse_target(TARGET)
+    setup = pc.Setup(tgt, np.array([520.0, 520, 319.5, 239.5, -0.2, 0.05, 0, 0, 0]),
+                     np.array([0.0, 0.3, -0.5, 0.0, 0.8, 0.0]), 0.5)
+    x = pc.nominal(model, setup)
+    cand = pc.candidate_views(model, x, setup, 4, np.random.default_rng(3))
+    table = pc.image_table(model, x, cand.q, tgt)
+    table["pixel"] = table["pixel"] + np.random.default_rng(4).normal(0, 0.05, table["pixel"].shape)
+    table["label"] = np.repeat([f"v{i}" for i in range(4)], tgt.n_corners)
+    rec = rr.RecordingStream("robocal-test", recording_id="eye-to-hand")
+    rec.save(tmp_path / "e2h.rrd")
+    paths = log_camera(rec, model, table, x, None, tgt.points)
+    rec.flush()
+    rec.disconnect()
+    rrd = _read(tmp_path / "e2h.rrd")
+    assert set(paths) <= set(rrd) and "world/base/board/corners" not in rrd
+    B = _transform(rrd["world/base"]["static"])
+    cams = [_transform(rrd[f"world/base/cameras/v{i}"]["static"]) for i in range(4)]
+    assert all(np.allclose(c, cams[0], atol=1e-6) for c in cams)  # the camera does not move
+    assert np.allclose(B @ cams[0], np.eye(4), atol=1e-5)  # eye-to-hand: the world is the camera frame
+    k = x[model.n_kin:]
+    for i in range(4):
+        P = np.array(rrd[f"world/base/boards/v{i}"]["static"]["Points3D:positions"], float)
+        rep = np.array(rrd[f"world/base/cameras/v{i}/reprojected"]["static"]["Points2D:positions"], float)
+        ocv = _project(pc_camera_matrix(k), k[4:], np.linalg.inv(cams[i]), P)
+        assert np.abs(ocv - rep).max() < 2e-3
+        det = np.array(rrd[f"world/base/cameras/v{i}/detected"]["static"]["Points2D:positions"], float)
+        assert np.allclose(det, table["pixel"][table["image"] == i], atol=1e-4)
+    assert not any(p.endswith("/image") for p in rrd)  # no image kept: none drawn
+
+
+def pc_camera_matrix(k: np.ndarray) -> np.ndarray:
+    return np.array([[k[0], 0, k[2]], [0, k[1], k[3]], [0, 0, 1.0]])

@@ -10,7 +10,7 @@ eye-to-hand); ``world/base`` is the robot's base frame placed there by the calib
 - ``world/base/cameras/<image>`` the calibrated camera pose at that image (Transform3D, OpenCV's
   x right, y down, z forward) with ``rr.Pinhole`` of the calibrated intrinsics (the frustum), and
   in its image plane (px): ``…/image`` the image itself when the recording kept it
-  (``--keep-images``), ``…/detected`` and ``…/reprojected`` corners (Points2D) and
+  (``--keep-images``; PNG and JPEG as kept, other formats re-encoded as PNG for the viewer), ``…/detected`` and ``…/reprojected`` corners (Points2D) and
   ``…/residuals_x<k>`` lines from each detected corner along its residual, magnified k×
   (k in 1, 10, 100, 1000: the 95th percentile drawn ≈ 10 px long).
 
@@ -57,6 +57,22 @@ def camera_poses(model, x: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.nd
     T_base_tool = inverse(B) @ homogeneous(R, p)
     fixed = np.broadcast_to(inverse(B), T_base_tool.shape)
     return (T_base_tool, fixed) if model.mount == "tip" else (fixed, T_base_tool)
+
+
+SHOWN_AS_IS = ("image/png", "image/jpeg")
+
+
+def for_viewer(data: bytes, media: str) -> tuple[bytes, str]:
+    """An image as the viewer decodes it: PNG and JPEG unchanged, any other format OpenCV reads
+    (BMP, TIFF, …) re-encoded as PNG (lossless)."""
+    if media in SHOWN_AS_IS:
+        return data, media
+    import cv2
+
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise ValueError(f"a kept image ({media}) OpenCV cannot decode")
+    return cv2.imencode(".png", img)[1].tobytes(), "image/png"
 
 
 def kept_images(recording: Path | None) -> dict[str, tuple[bytes, str]]:
@@ -120,7 +136,7 @@ def log_camera(rec: rr.RecordingStream, model, table: dict, x: np.ndarray, recor
             np.stack([px[m], px[m] + scale * (uv[m] - px[m])], axis=1), colors=[RESIDUAL_RGB], radii=[0.6]), static=True)
         paths += [base, f"{base}/detected", f"{base}/reprojected", f"{base}/residuals_x{scale}"]
         if labels[f] in images:
-            data, media = images[labels[f]]
+            data, media = for_viewer(*images[labels[f]])
             rec.log(f"{base}/image", rr.EncodedImage(contents=data, media_type=media), static=True)
             paths.append(f"{base}/image")
         if model.mount == "world":

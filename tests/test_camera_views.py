@@ -243,3 +243,21 @@ def test_eye_to_hand_rrd_draws_the_fixed_camera_and_the_moving_board(tmp_path):
 
 def pc_camera_matrix(k: np.ndarray) -> np.ndarray:
     return np.array([[k[0], 0, k[2]], [0, k[1], k[3]], [0, 0, 1.0]])
+
+
+def test_dense_residual_field_is_drawn_as_cell_means():
+    """More corners than arrows a reader can tell apart: the quiver draws each ≈ 40 px cell's mean
+    residual — a radial field keeps its direction and size there."""
+    from pipeline.report.camera import MAX_ARROWS, field
+
+    rng = np.random.default_rng(1)
+    n = MAX_ARROWS + 1000
+    px = rng.uniform(0, [640, 480], (n, 2))
+    after = 2e-3 * (px - [320, 240])  # a radial residual field, px
+    f = CameraFigures(np.zeros(n, int), np.full(n, "a"), np.arange(n), px, after, after, np.ones(n, bool), (640, 480))
+    at, vec, what = field(f)
+    assert len(at) <= 16 * 12 and "cell" in what
+    assert np.allclose(vec, 2e-3 * (at - [320, 240]), atol=1e-12)  # the mean of a linear field at the cell's mean position
+    few = CameraFigures(np.zeros(50, int), np.full(50, "a"), np.arange(50), px[:50], after[:50], after[:50],
+                        np.ones(50, bool), (640, 480))
+    assert np.array_equal(field(few)[1], after[:50])  # every corner drawn

@@ -21,6 +21,7 @@ from pipeline.report.markup import figure, section as _section, table
 from pipeline.report.plots import RC, _fig, _svg
 
 OUTLIER_SIGMAS = 5.0
+MAX_ARROWS = 2000  # more used corners than this: the quiver draws cell means (`field`)
 GRID = (8, 6)  # coverage cells across the width and the height of the image
 
 
@@ -67,6 +68,10 @@ class CameraFigures:
                  "norm_px": float(norm[j]), "why": "rejected by the fit" if not self.used[j] else
                  f"> {OUTLIER_SIGMAS:g} robust σ ({s:.3g} px)"} for j in np.flatnonzero(big)]
         return sorted(rows, key=lambda d: -d["norm_px"])
+
+
+def _px(v: float) -> str:
+    return f"{v:.4f}" if np.isfinite(v) else "–"
 
 
 def _rms(r: np.ndarray) -> float:
@@ -123,24 +128,44 @@ def _rect(w: float, h: float):
     return Rectangle((0, 0), w, h, fill=False, lw=0.8, color="k")
 
 
-def quiver(f: CameraFigures) -> tuple[str, float]:
-    """Residual vectors (after calibration) at the detected corners over the image; (svg, the
-    magnification: px drawn per px of residual)."""
-    norm = np.linalg.norm(f.after, axis=1)
-    ref = float(np.percentile(norm[f.used], 95)) if f.used.any() else 0.0
+def field(f: CameraFigures) -> tuple[np.ndarray, np.ndarray, str]:
+    """The vectors the quiver draws: every used corner's residual (at most `MAX_ARROWS` corners),
+    else the mean residual of the used corners in each cell of a grid of ≈ 40 px cells; (positions
+    (m,2) px, vectors (m,2) px, what they are)."""
+    u = f.used
+    if u.sum() <= MAX_ARROWS:
+        return f.pixel[u], f.after[u], "each corner's residual"
+    w, h = f.size
+    nx, ny = max(int(round(w / 40)), 1), max(int(round(h / 40)), 1)
+    ix = np.clip((f.pixel[u, 0] / w * nx).astype(int), 0, nx - 1)
+    iy = np.clip((f.pixel[u, 1] / h * ny).astype(int), 0, ny - 1)
+    cell = iy * nx + ix
+    n = np.bincount(cell, minlength=nx * ny)
+    keep = np.flatnonzero(n)
+    mean = np.stack([np.bincount(cell, f.after[u, c], nx * ny) for c in (0, 1)], 1)[keep] / n[keep, None]
+    at = np.stack([np.bincount(cell, f.pixel[u, c], nx * ny) for c in (0, 1)], 1)[keep] / n[keep, None]
+    return at, mean, f"the mean residual of the corners in each {w / nx:.0f}×{h / ny:.0f} px cell"
+
+
+def quiver(f: CameraFigures) -> tuple[str, float, str]:
+    """Residual vectors (after calibration) over the image (`field`); (svg, the magnification: px
+    drawn per px of residual, what the arrows are)."""
+    at, vec, what = field(f)
+    norm = np.linalg.norm(vec, axis=1)
+    ref = float(np.percentile(norm, 95)) if norm.size else 0.0
     gain = 0.04 * f.size[0] / ref if ref > 0 else 1.0  # the 95th percentile drawn 4 % of the width long
     with rc_context(RC):
         fig, ax = _fig(7.0, 7.0 * f.size[1] / f.size[0] + 0.6)
         a = ax[0, 0]
         u = f.used
-        a.quiver(f.pixel[u, 0], f.pixel[u, 1], f.after[u, 0] * gain, f.after[u, 1] * gain, angles="xy",
+        a.quiver(at[:, 0], at[:, 1], vec[:, 0] * gain, vec[:, 1] * gain, angles="xy",
                  scale_units="xy", scale=1, width=0.0025, color="#1f77b4")
         if (~u).any():
             a.scatter(f.pixel[~u, 0], f.pixel[~u, 1], marker="x", color="#d62728", s=25, label="rejected corner")
             a.legend(loc="upper right")
         _image_axes(a, f.size)
         a.set_title(f"residual after calibration, drawn ×{gain:.3g}")
-    return _svg(fig), gain
+    return _svg(fig), gain, what
 
 
 def coverage_plot(f: CameraFigures) -> str:
@@ -166,13 +191,13 @@ def section(art) -> str:
     html = ('<p class="note">Reprojection residual = projected − detected corner, in px (u right, v down). '
             "Held out: predicted by a fit that did not see the image.</p>")
     html += table(["image", "corners", "used", "RMS after (px)", "RMS held out (px)", "max |r| after (px)"],
-                  [[escape(r["label"]), str(r["corners"]), str(r["used"]), f"{r['rms_after_px']:.4f}",
-                    f"{r['rms_holdout_px']:.4f}", f"{r['max_after_px']:.4f}"] for r in rows], {1, 2, 3, 4, 5})
+                  [[escape(r["label"]), str(r["corners"]), str(r["used"]), _px(r["rms_after_px"]),
+                    _px(r["rms_holdout_px"]), _px(r["max_after_px"])] for r in rows], {1, 2, 3, 4, 5})
     html += figure(per_image_bars(rows), "Reprojection RMS per image after calibration and held out (px).",
                    "fig-camera-images")
-    svg, gain = quiver(f)
-    html += figure(svg, f"Residual vectors over the image plane after calibration (px), drawn {gain:.3g}× longer "
-                   "than they are: a pattern (radial, a swirl, one side) means a lens or hand-eye effect the model "
+    svg, gain, what = quiver(f)
+    html += figure(svg, f"Residual vectors over the image plane after calibration (px; {what}), drawn {gain:.3g}× "
+                   "longer than they are: a pattern (radial, a swirl, one side) means a lens or hand-eye effect the model "
                    "leaves out.", "fig-camera-quiver")
     cov = f.coverage()
     html += figure(coverage_plot(f), f"Coverage of the image: every detected corner (px, a colour per image) over "

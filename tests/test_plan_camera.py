@@ -57,7 +57,6 @@ def test_planned_images_beat_random_ones_on_a_simulated_truth(mount, seed):
 def test_the_planned_campaign_sees_the_whole_board_on_the_true_robot(tmp_path):
     from pipeline.plan.campaign import read_pose
     from pipeline.recording.reader import read_recording
-    from pipeline.simulate import camera_images as ci
     from pipeline.systems import urdf_robot
 
     urdf = tmp_path / "six.urdf"
@@ -72,11 +71,17 @@ def test_the_planned_campaign_sees_the_whole_board_on_the_true_robot(tmp_path):
     assert len(doc["measurements"]) == 8 and len(set(m["candidate"] for m in doc["measurements"])) == 8
     model, tgt = _model(), parse_target(TARGET)
     q = read_pose(plan, "urdf", model.kin.joint_names)  # the campaign as a robot runs it: joints per image
-    x = pc.nominal(model, pc.Setup(tgt, np.array([520.0, 520, 319.5, 239.5, 0, 0, 0, 0, 0]), HOME, 0.5))
     assert np.allclose(q, np.array([m["joints_rad"] for m in doc["measurements"]]))
-    truth = cc.true_cell(model, x, np.random.default_rng(3), fixed_for(model, ["registration", "joint offsets"]))
-    rng = np.random.default_rng(4)
-    ci.write_campaign(tmp_path / "images", model, truth, q, tgt, rng)
+    res = run_cli("simulate", "camera", "--campaign", plan, "--out", tmp_path / "images", "--truth", tmp_path / "T.json",
+                  "--seed", "3")
+    assert res.returncode == 0, res.stderr
+    csv = (tmp_path / "images" / "joints.csv").read_text().splitlines()
+    assert len(csv) == 9 and np.allclose(np.array([r.split(",")[1:] for r in csv[1:]], float), q)  # at the planned joints
+    truth = json.loads((tmp_path / "T.json").read_text())["parameters"]
+    x = pc.nominal(model, pc.Setup(tgt, np.array([520.0, 520, 319.5, 239.5, 0, 0, 0, 0, 0]), HOME, 0.5))
+    held = [n for n in model.parameter_names() if n not in doc["free_parameters"]]
+    assert held and all(truth[n] == x[model.parameter_names().index(n)] for n in held)  # errors only where planned for
+    assert abs(truth["camera.k1"] + 0.2) < 1e-12  # a real lens
     res = run_cli("import", "images", tmp_path / "images", "--target", TARGET, "--joints",
                   tmp_path / "images" / "joints.csv", "--urdf", urdf, "--root", "base", "--tip", "tool",
                   "--distortion-terms", "5", "--workers", "1", "--out", tmp_path / "rec.mcap")
@@ -93,3 +98,13 @@ def test_bad_home_is_one_line(tmp_path):
                   "--home", "0,0.3,-0.5", "--out", tmp_path / "P.json")
     assert res.returncode == 2 and "--home" in res.stderr and "6 joint positions" in res.stderr
     assert "Traceback" not in res.stderr and not (tmp_path / "P.json").exists()
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "mine.png").write_bytes(b"x")
+    plan = tmp_path / "urdf_plan.json"  # a campaign that is not a camera's cannot be rendered
+    plan.write_text(json.dumps({"kind": "robocal.campaign", "version": 1, "system": "urdf", "measurement": "pose",
+                                "joint_names": ["j1"], "stage": 1, "stages": 1, "measurements": [{"index": 0}]}))
+    res = run_cli("simulate", "camera", "--campaign", plan, "--out", tmp_path / "imgs")
+    assert res.returncode == 2 and "not a camera campaign" in res.stderr and "Traceback" not in res.stderr
+    res = run_cli("simulate", "camera", "--campaign", plan, "--out", tmp_path / "full")
+    assert res.returncode == 2 and "not an empty folder" in res.stderr
+    assert [p.name for p in (tmp_path / "full").iterdir()] == ["mine.png"]  # never over files robocal did not create

@@ -23,14 +23,10 @@ def candidate_module(system: str):
 
 
 def write_plan(out: Path, doc: dict) -> None:
-    """The plan / campaign JSON, robocal's generator its first key (`recording.output`: robocal may
-    replace it later; it never replaces a file it did not create)."""
-    from pipeline.recording.output import check_output, generated
-    from pipeline.stages.artefacts import write_json
+    """The plan / campaign JSON (`pipeline.plan.campaign.write_document`)."""
+    from pipeline.plan.campaign import write_document
 
-    check_output(out, "plan")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json(out, generated(doc))
+    write_document(out, doc)
 
 
 @app.command("plan", rich_help_panel=PLAN)

@@ -45,7 +45,7 @@ def plan_camera(urdf: Path | None, root: str | None, tip: str | None, o: CameraO
                 select_m: int, out: Path, seed: int, check: int) -> None:
     from pipeline.camera import projection as pj
     from pipeline.camera.targets import parse as parse_target
-    from pipeline.cli.plan import write_plan
+    from pipeline.plan.campaign import write_document as write_plan
     from pipeline.identify.complexity import fixed_for
     from pipeline.measurements.camera import CameraModel
     from pipeline.models import urdf as urdf_mod

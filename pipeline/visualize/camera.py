@@ -93,7 +93,7 @@ def log_camera(rec: rr.RecordingStream, model, table: dict, x: np.ndarray, recor
     """Log the entities of the module docstring for the calibrated x; `board` (k,3) m: every
     corner of the target in its frame (default: the corners the images saw); returns the paths."""
     from pipeline.models.urdf_arm import frame_matrix
-    from pipeline.visualize.rrd import entity_part
+    from pipeline.visualize.scene import entity_part
 
     img = np.asarray(table["image"])
     ids, first = np.unique(img, return_index=True)

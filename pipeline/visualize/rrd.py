@@ -20,7 +20,6 @@ Per-system hooks: module ``pipeline.visualize.<system>`` (``-`` → ``_``) with
 from __future__ import annotations
 
 import importlib
-import re
 import inspect
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ import rerun.blueprint as rrb
 
 from pipeline.report.artefacts import RunArtefacts, residual_matrix
 from pipeline.visualize import robot, scene
+from pipeline.visualize.scene import entity_part
 from pipeline.visualize.source import align, model_and_table
 
 TIMELINE = "time"
@@ -53,13 +53,6 @@ def _component_colors(rgb: tuple[int, int, int], k: int) -> list[tuple[int, int,
     """Distinct colours for the k components of one group: red / green / blue tinted by the group."""
     base = [(214, 39, 40), (44, 160, 44), (31, 119, 180)] + _palette(max(k - 3, 1))
     return [tuple(int(0.75 * b + 0.25 * g) for b, g in zip(base[i], rgb)) for i in range(k)]
-
-
-def entity_part(label: str) -> str:
-    """A group label as one entity-path part (a channel name such as /tracker/point → tracker_point,
-    "target 0" → target_0: rerun's entity paths take no unescaped whitespace)."""
-    part = "_".join(p for p in re.split(r"[/\s]+", str(label)) if p)
-    return part or "all"
 
 
 def _times(ns: np.ndarray) -> rr.TimeColumn:

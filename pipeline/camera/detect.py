@@ -122,14 +122,21 @@ def detect_image(path: str | Path, target: Target | str, max_edge_px: float = MA
     import cv2
 
     cv2.setNumThreads(1)
-    target = parse(target) if isinstance(target, str) else target
     path = Path(path)
     img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if img is None:
         return Detection(path.name, "unreadable", "not an image OpenCV can decode (damaged or unknown format)")
+    return detect_array(img, path.name, target, max_edge_px, size)
+
+
+def detect_array(img: np.ndarray, name: str, target: Target | str, max_edge_px: float = MAX_EDGE_PX,
+                 size: tuple[int, int] | None = None) -> Detection:
+    """Detect `target` in a decoded 8-bit grey image (height, width) called `name`; `size`
+    (width, height) px: the size every image must have (else status ``wrong size``)."""
+    target = parse(target) if isinstance(target, str) else target
     wh = (int(img.shape[1]), int(img.shape[0]))
     if size is not None and wh != tuple(size):
-        return Detection(path.name, "wrong size", f"{wh[0]}x{wh[1]} px, the others are {size[0]}x{size[1]} px", wh)
+        return Detection(name, "wrong size", f"{wh[0]}x{wh[1]} px, the others are {size[0]}x{size[1]} px", wh)
     if target.kind == "chessboard":
         status, reason, ids, px, sharp = _chessboard(img, target, max_edge_px)
     elif target.kind == "charuco":
@@ -137,8 +144,8 @@ def detect_image(path: str | Path, target: Target | str, max_edge_px: float = MA
     else:
         status, reason, ids, px, sharp = _grid(img, target)
     if ids is None:
-        return Detection(path.name, status, reason, wh)
-    return Detection(path.name, status, reason, wh, np.asarray(ids, np.int64), np.asarray(px, float), sharp)
+        return Detection(name, status, reason, wh)
+    return Detection(name, status, reason, wh, np.asarray(ids, np.int64), np.asarray(px, float), sharp)
 
 
 def _one(args) -> Detection:

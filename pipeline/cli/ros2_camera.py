@@ -23,13 +23,12 @@ def _print_pairing(bag: Path, extras: dict) -> None:
     _say(f"standstill pairing (window {p['standstill_window_s']:g} s ± clock-offset bound {c['bound_s']:g} s, max speed "
          f"{p['max_speed_rad_s_or_m_s'] * p['window_s'] / p['standstill_window_s']:g} rad/s): {p['n_paired']} paired, "
          f"{p['n_moving']} taken while moving, {p['n_not_covered']} outside the joint states — excluded")
-    cons, best = c.get("consistent_s"), c.get("best_s")
+    cons = c.get("consistent_s")
     line = "clock offset (camera − joints): "
     line += (f"every paired image stands still for offsets {cons[0]:+.2f} … {cons[1]:+.2f} s" if cons else
              "no offset keeps every paired image still")
-    if best:
-        line += (f"; most images ({c['n_still_best']}) stand still for {best[0]:+.2f} … {best[1]:+.2f} s, "
-                 f"estimate {c['estimate_s']:+.2f} s if they were taken mid-stop")
+    if c.get("estimate_s") is not None:
+        line += f", estimate {c['estimate_s']:+.2f} s if they were taken mid-stop"
     _say(line + (f" (applied offset {c['applied_offset_s']:+g} s)" if c["applied_offset_s"] else ""))
     for e in p["moving"]:
         _say(f"[yellow]excluded:[/] {r['image_topic']} record {e['index']} at {e['t_s']:.3f} s: moving "
@@ -76,6 +75,13 @@ def import_camera(bag: Path, urdf: Path, root: str, tip: str, out: Path, spec, c
         more = f" (+{len(problems) - 1} more problem(s))" if len(problems) > 1 else ""
         hint = "; --skip-bad leaves the bad images out" if bad and len(fatal) == len(bad) else ""
         raise RobocalError(f"{fatal[0]}{more}; {usable}{hint}")
+    pr = extras["ros2"]["pairing"]
+    if not dets:
+        raise RobocalError(f"{bag}: topic {extras['ros2']['image_topic']}: none of the {pr['n_measurements']} images was "
+                           f"taken while the robot stood still ({pr['n_moving']} moving, {pr['n_not_covered']} outside "
+                           f"the joint states; window {pr['standstill_window_s']:g} s ± clock-offset bound "
+                           f"{extras['ros2']['clock_offset']['bound_s']:g} s; see --clock-offset, --clock-offset-bound, "
+                           "--still-window, --still-speed)")
     if len(used) < 3:
         listed = "; ".join(f"{d.name}: {d.status}" for d in dets[:6]) + (" …" if len(dets) > 6 else "")
         raise RobocalError(f"{bag}: the target {tgt.spec} was usable in {len(used)} of {len(dets)} paired images "

@@ -14,9 +14,9 @@ stamp t is paired with the joint states only when the robot stood still over
 [t − B − w/2, t + B + w/2]: B the clock-offset bound (`clock_bound_s`, s), w the standstill window
 (`pipeline.importers.standstill`); so any offset up to ±B pairs the image with the same still pose.
 The offsets the data allow are reported too: over a grid of offsets δ (camera clock − joint clock),
-the images that stand still at t − δ; the range of δ over which every paired image still does, and
-the middle of the widest range where the most images do (the offset estimate when the images were
-taken in the middle of the stops).  Images taken while moving, or outside the joint states, are
+whether every paired image stands still at t − δ: the range of δ around 0 where they all do is
+what the data allow, its middle the offset estimate when the images were taken in the middle of
+the stops.  Images taken while moving, or outside the joint states, are
 listed and left out; images whose board is not found, partly found or blurred are listed with the
 reason (`pipeline.camera.detect`).
 """
@@ -128,29 +128,24 @@ def _info(path: Path, topic: str, msgs: list[tuple[int, bytes]], warnings: list[
 def clock_offsets(tj_s: np.ndarray, q: np.ndarray, tm_s: np.ndarray, paired: np.ndarray, window_s: float,
                   max_speed: float, reach_s: float, step_s: float = 0.01) -> dict:
     """What the stillness says of the camera clock's offset δ (camera − joints, s; module
-    docstring): over δ in [−reach, reach], the images still at t − δ.  Returns the range of δ where
-    every `paired` image is still (``consistent_s``), the widest range where the most images are
-    (``best_s``, its middle ``estimate_s``), and that count."""
+    docstring): over δ in [−reach, reach] (step `step_s`), the `paired` images still at t − δ.
+    Returns ``consistent_s``, the range of δ around 0 where every paired image is still, and
+    ``estimate_s``, its middle (the offset when the images were taken mid-stop; None where the range
+    reaches the grid's end)."""
     d = np.round(np.arange(-reach_s, reach_s + step_s / 2, step_s), 9)
-    p = standstill.pair(tj_s, q, (tm_s[None, :] - d[:, None]).ravel(), window_s, max_speed)
-    still = p.still.reshape(len(d), len(tm_s))
-    out: dict = {"grid_s": [float(d[0]), float(d[-1]), step_s]}
-
-    def run_around(mask: np.ndarray, centre: int | None = None):
-        idx = np.flatnonzero(mask)
-        if not len(idx):
-            return None
-        runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
-        r = next((r for r in runs if r[0] <= centre <= r[-1]), None) if centre is not None else max(runs, key=len)
-        return None if r is None else [float(d[r[0]]), float(d[r[-1]])]
-
-    if paired.any():
-        out["consistent_s"] = run_around(still[:, paired].all(1), int(np.argmin(np.abs(d))))
-    n = still.sum(1)
-    best = run_around(n == n.max())
-    out["n_still_best"] = int(n.max())
-    out["best_s"] = best
-    out["estimate_s"] = None if best is None else round((best[0] + best[1]) / 2, 6)
+    out: dict = {"grid_s": [float(d[0]), float(d[-1]), step_s], "consistent_s": None, "estimate_s": None}
+    if not paired.any():
+        return out
+    p = standstill.pair(tj_s, q, (tm_s[paired][None, :] - d[:, None]).ravel(), window_s, max_speed)
+    ok = p.still.reshape(len(d), int(paired.sum())).all(1)
+    idx = np.flatnonzero(ok)
+    centre = int(np.argmin(np.abs(d)))
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1) if len(idx) else []
+    r = next((r for r in runs if r[0] <= centre <= r[-1]), None)
+    if r is not None:
+        out["consistent_s"] = [float(d[r[0]]), float(d[r[-1]])]
+        if r[0] > 0 and r[-1] < len(d) - 1:
+            out["estimate_s"] = round(float(d[r[0]] + d[r[-1]]) / 2, 6)
     return out
 
 
@@ -249,7 +244,7 @@ def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: Cam
     summ["clock_offset_bound_s"] = cam.clock_bound_s
     summ["standstill_window_s"] = spec.window_s
     clock = clock_offsets(tj_s, Q, tm_s, pairing.still, spec.window_s, spec.max_speed,
-                          reach_s=max(2.0, 4 * cam.clock_bound_s))
+                          reach_s=max(3.0, 4 * cam.clock_bound_s))
     clock |= {"bound_s": cam.clock_bound_s, "applied_offset_s": cam.clock_offset_s,
               "rule": "an image is paired only where the robot stood still for ±bound around its stamp "
                       "(the standstill window widened by 2·bound, the same peak-to-peak motion allowed)"}

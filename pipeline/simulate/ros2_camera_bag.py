@@ -79,10 +79,12 @@ def _info_msg(store, hdr, k: np.ndarray, size: tuple[int, int]):
 
 
 def write_camera_bag(out: str | Path, model, x: np.ndarray, q_stops: np.ndarray, target, rng: np.random.Generator,
-                     layout: CameraBagLayout = CameraBagLayout(), storage: str = "mcap") -> dict:
+                     layout: CameraBagLayout = CameraBagLayout(), storage: str = "mcap",
+                     images: list[np.ndarray] | None = None) -> dict:
     """Render and write the bag folder `out` for the camera measurement model `model` at truth `x`,
     stops `q_stops` (m, J); returns the truth of the timing: ``t_image_s`` (camera clock, s from the
-    bag start), ``q_image`` (true joint positions at each image), the storage file."""
+    bag start), ``q_image`` (true joint positions at each image), the storage file, and ``images``
+    (the rendered grey images, to pass back as `images` for another bag of the same stops and timing)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     from pipeline.importers.ros2_images import typestore
@@ -94,11 +96,11 @@ def write_camera_bag(out: str | Path, model, x: np.ndarray, q_stops: np.ndarray,
     ti = t_dwell.copy()
     mv = np.array(layout.moving, int)
     ti[mv] = t_move[mv]
-    qi = np.array([q[np.argmin(np.abs(t - s))] for s in ti])
-    qi[mv] = [q[np.searchsorted(t, s)] for s in ti[mv]]
+    qi = q[np.abs(t[None, :] - ti[:, None]).argmin(1)]  # the robot's true pose at each image (the nearest sample)
     k_true = model.split(x)[1]
     T = ci.board_in_camera(model, x, qi)
-    rays = ci.rays(k_true, model.lens, model.image_size)
+    rays = ci.rays(k_true, model.lens, model.image_size) if images is None else None
+    rendered: list[np.ndarray] = []
     tj = T0_NS + np.round(t * 1e9).astype(np.int64)
     tc = T0_NS + np.round((ti + layout.clock_offset_s) * 1e9).astype(np.int64)
     events = sorted([(int(s), 0, i) for i, s in enumerate(tj)] + [(int(s), 1, i) for i, s in enumerate(tc)])
@@ -119,12 +121,13 @@ def write_camera_bag(out: str | Path, model, x: np.ndarray, q_stops: np.ndarray,
                 w.write(cj, s, bytes(store.serialize_cdr(msg, JOINT_STATE)))
                 continue
             hdr = _header(store, s, "camera_optical_frame")
-            img = ci.render(k_true, model.lens, T[i], target, model.image_size, layout.blur_px, layout.noise, rng,
-                            ray_table=rays)
+            img = images[i] if images is not None else ci.render(k_true, model.lens, T[i], target, model.image_size,
+                                                                 layout.blur_px, layout.noise, rng, ray_table=rays)
+            rendered.append(img)
             msg, typ = _image_msg(store, hdr, img, layout.encoding, layout.bad.get(i))
             w.write(ci_, s, bytes(store.serialize_cdr(msg, typ)))
             if cinfo is not None:
                 w.write(cinfo, s, bytes(store.serialize_cdr(_info_msg(store, hdr, info_k, model.image_size),
                                                             CAMERA_INFO)))
-    return {"t_image_s": ti + layout.clock_offset_s, "q_image": qi, "topic": topic,
+    return {"t_image_s": ti + layout.clock_offset_s, "q_image": qi, "topic": topic, "images": rendered,
             "storage": Path(out) / f"{Path(out).name}.{'mcap' if storage == 'mcap' else 'db3'}"}

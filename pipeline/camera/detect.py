@@ -148,6 +148,15 @@ def detect_array(img: np.ndarray, name: str, target: Target | str, max_edge_px: 
     return Detection(name, status, reason, wh, np.asarray(ids, np.int64), np.asarray(px, float), sharp)
 
 
+def pool(workers: int) -> ProcessPoolExecutor:
+    """A process pool for detection whose workers are forked from a fresh forkserver, not from this
+    process: a process that has run OpenCV's own thread pool (rendering, resizing) deadlocks the
+    children it forks in their first OpenCV call."""
+    import multiprocessing
+
+    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"))
+
+
 def _one(args) -> Detection:
     return detect_image(*args)
 
@@ -174,8 +183,8 @@ def detect_folder(files: list[Path], target: Target, max_edge_px: float = MAX_ED
             if progress:
                 progress(i + 1, len(jobs))
         return out
-    with ProcessPoolExecutor(workers) as pool:
-        for i, d in enumerate(pool.map(_one, jobs, chunksize=max(1, len(jobs) // (8 * workers)))):
+    with pool(workers) as ex:
+        for i, d in enumerate(ex.map(_one, jobs, chunksize=max(1, len(jobs) // (8 * workers)))):
             out.append(d)
             if progress:
                 progress(i + 1, len(jobs))

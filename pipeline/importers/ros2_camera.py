@@ -24,13 +24,12 @@ reason (`pipeline.camera.detect`).
 from __future__ import annotations
 
 import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from pipeline.camera.detect import MAX_EDGE_PX, Detection, detect_array
+from pipeline.camera.detect import MAX_EDGE_PX, Detection, detect_array, pool
 from pipeline.errors import RobocalError
 from pipeline.importers import standstill
 from pipeline.importers.ros2 import BagSpec, _open, _stream, _topics_line, choose_joint_topic, read_joint_states
@@ -177,10 +176,10 @@ def _detect(path: Path, topic: str, typename: str, wanted: dict[int, str], cam: 
                 if progress:
                     progress(len(out), len(wanted))
         else:
-            with ProcessPoolExecutor(workers) as pool:
+            with pool(workers) as ex:
                 pending: list = []
                 for i, job in jobs:
-                    pending.append((i, pool.submit(_detect_message, job)))
+                    pending.append((i, ex.submit(_detect_message, job)))
                     while len(pending) >= 4 * workers or (pending and pending[0][1].done()):
                         j, f = pending.pop(0)
                         out[j] = f.result()

@@ -23,6 +23,7 @@ def _log(line: str) -> None:
 def _summary(run_dir: Path, failed: bool = False) -> None:
     """The run's figures from DIR/results.json (a folder robocal wrote); `failed`: the run stopped,
     so whatever the file says, the status is fail."""
+    from pipeline.report.labels import residual_text
     from pipeline.stages.artefacts import read_json
     from pipeline.stages.runfolder import is_run_folder
 
@@ -37,13 +38,14 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
     if failed:
         s["status"] = "fail"
     mm = lambda v: "—" if v is None else f"{v * 1e3:.4f} mm"  # noqa: E731
+    res = lambda v: residual_text(v, s.get("residual_unit"), none="—")  # noqa: E731 — px for a camera
     t = Table(title=f"robocal run — {run_dir}")
     t.add_column("figure")
     t.add_column("value", justify="right")
     rows = [("system", s.get("system", "—")), ("status", s.get("status", "—")),
             ("measurements used / recorded", f"{s.get('n_used', '—')} / {s.get('n_measurements', '—')}"),
-            ("RMS before", mm(s.get("rms_before_m"))), ("RMS after", mm(s.get("rms_after_m"))),
-            ("held-out RMS", mm(s.get("holdout_rms_m"))),
+            ("RMS before", res(s.get("rms_before_m"))), ("RMS after", res(s.get("rms_after_m"))),
+            ("held-out RMS", res(s.get("holdout_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
     if s.get("rms_3d_after_m") is not None:  # the figure other tools publish: norm of each 3-D error, RMS
         rows[3:3] = [("RMS of the 3-D error before / after", f"{mm(s.get('rms_3d_before_m'))} / {mm(s['rms_3d_after_m'])}"),

@@ -195,3 +195,50 @@ def test_header_stamp_read_from_cdr_bytes_is_the_decoded_stamp(sec, nsec, frame)
     back = store.deserialize_cdr(data, "sensor_msgs/msg/CompressedImage").header.stamp
     assert header_stamp(data) == back.sec * 1_000_000_000 + back.nanosec
     assert header_stamp(data[:8]) is None
+
+
+KUKA = Path("/work/shared/real-data/handeye_rwhe_kuka2")
+
+
+@pytest.mark.skipif(not KUKA.is_dir(), reason=f"real KUKA eye-in-hand images not found at {KUKA} (shared/real-data)")
+def test_real_kuka_images_through_a_bag_give_the_images_import(tmp_path):
+    """The 16 real KUKA images (1920×1200, 24×17-corner board; shared/real-data, see its SOURCE.md) and the
+    controller's flange poses as the joints of `import images`' pose chain, written into a bag (PNG
+    CompressedImage of the images' grey levels, an uncalibrated CameraInfo: K all zero) → the same corners,
+    pixels and poses as `robocal import images --poses` on the folder."""
+    import cv2
+    from scipy.spatial.transform import Rotation
+
+    from pipeline.importers.images import pose_chain
+    from pipeline.simulate.ros2_camera_bag import write_images_bag
+
+    target = "chessboard:24x17:0.015"
+    files = sorted(KUKA.glob("im_*.bmp"))
+    rows = np.loadtxt(KUKA / "RobotPosesVec.txt")
+    T = np.array([rows[int(f.stem[3:]) - 1].reshape(4, 4) for f in files])
+    q = np.c_[T[:, :3, 3], Rotation.from_matrix(T[:, :3, :3]).as_euler("ZYX")]  # x, y, z, yaw, pitch, roll
+    grey = [cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) for f in files]
+    size = (grey[0].shape[1], grey[0].shape[0])
+    desc = pose_chain()
+    (tmp_path / "pose.urdf").write_text(desc.urdf)
+    write_images_bag(tmp_path / "bag", desc.joint_names, q, lambda i, _: grey[i], size, np.zeros(9),
+                     CameraBagLayout(encoding="png", dwell_s=2.0))
+    r = subprocess.run([ROBOCAL, "import", "ros2", str(tmp_path / "bag"), "--urdf", str(tmp_path / "pose.urdf"),
+                        "--root", "base", "--tip", "flange", "--target", target, "--distortion-terms", "5",
+                        "--kinematics-known", "--out", str(tmp_path / "bag.mcap")], capture_output=True, text=True,
+                       timeout=900)
+    assert r.returncode == 0, r.stderr
+    assert "K is all zero" in r.stderr and f"imported {len(files)} of {len(files)} paired images" in r.stderr
+    csv = ["image,x,y,z,qx,qy,qz,qw"] + [f"{f.name}," + ",".join(repr(float(v)) for v in (
+        *t[:3, 3], *Rotation.from_matrix(t[:3, :3]).as_quat())) for f, t in zip(files, T)]
+    (tmp_path / "poses.csv").write_text("\n".join(csv) + "\n")
+    r = subprocess.run([ROBOCAL, "import", "images", str(KUKA), "--target", target, "--poses", str(tmp_path / "poses.csv"),
+                        "--distortion-terms", "5", "--out", str(tmp_path / "img.mcap")], capture_output=True, text=True,
+                       timeout=900)
+    assert r.returncode == 0, r.stderr
+    (mb, b), (mi, i) = (urdf_robot.load(read_recording(tmp_path / n)) for n in ("bag.mcap", "img.mcap"))
+    assert mb.kinematics_known and mi.kinematics_known and mb.image_size == mi.image_size == size
+    assert mb.k_start is None  # an uncalibrated CameraInfo gives the size only
+    assert np.array_equal(b["image"], i["image"]) and np.array_equal(b["corner"], i["corner"])
+    assert np.array_equal(b["pixel"], i["pixel"])  # PNG is lossless: the very grey levels, the very corners
+    assert np.allclose(b["joint_positions"], i["joint_positions"], atol=1e-9)

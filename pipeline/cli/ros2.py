@@ -54,6 +54,9 @@ def import_ros2(
     clock_offset: float = typer.Option(0.0, "--clock-offset", rich_help_panel=CAM, help="A known offset, camera clock "
                                        "− joint clock (s), taken off the image stamps."),
     workers: int = typer.Option(0, "--workers", min=0, rich_help_panel=CAM, help="Detection processes (0: the CPU count)."),
+    kinematics_known: bool = typer.Option(False, "--kinematics-known", rich_help_panel=CAM, help="The joint states "
+                                          "are exact (e.g. a measured flange pose as the joints of `robocal import "
+                                          "images`' pose chain): only camera, hand-eye and board are fitted."),
     skip_bad: bool = typer.Option(False, "--skip-bad", rich_help_panel=CAM, help="Leave out images that cannot be "
                                   "read, of an unsupported encoding or of another size than CameraInfo (listed)."),
 ) -> None:
@@ -74,7 +77,8 @@ def import_ros2(
         spec = BagSpec(joint_topic=joint_topic, window_s=window_s, max_speed=max_speed, time=time)
         cam = CameraSpec(target=target, image_topic=image_topic, info_topic=info_topic, mount=camera_on, lens=lens,
                          n_dist=n_dist or (8 if lens == "pinhole" else 4), max_edge_px=max_edge_px,
-                         clock_bound_s=clock_bound, clock_offset_s=clock_offset, workers=workers, skip_bad=skip_bad)
+                         clock_bound_s=clock_bound, clock_offset_s=clock_offset, workers=workers, skip_bad=skip_bad,
+                         kinematics_known=kinematics_known)
         import_camera(bag, urdf, root, tip, out, spec, cam, robot_id)
         return
     topics = list(measure_topic or [])

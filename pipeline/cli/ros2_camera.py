@@ -92,7 +92,7 @@ def import_camera(bag: Path, urdf: Path, root: str, tip: str, out: Path, spec, c
         _say(f"[yellow]warning:[/] CameraInfo distortion model {info.distortion_model!r} is not the {cam.lens} lens: "
              "its K is the start, its D is not")
     campaign = {"mount": cam.mount, "lens": cam.lens, "n_dist": cam.n_dist, "image_size": list(info.size),
-                "kinematics_known": False, "robot_id": robot_id or desc.name, **extras}
+                "kinematics_known": cam.kinematics_known, "robot_id": robot_id or desc.name, **extras}
     if k0 is not None:
         campaign["start_intrinsics"] = k0
     n = write_camera_recording(out, desc, tgt, dets, campaign)

@@ -57,6 +57,7 @@ class CameraSpec:
     clock_offset_s: float = 0.0
     workers: int = 0
     skip_bad: bool = False
+    kinematics_known: bool = False  # the joint states are exact (a measured flange pose's pose chain)
 
 
 class _Stamps:

@@ -69,7 +69,7 @@ def _image_msg(store, hdr, img: np.ndarray, encoding: str, damage: str | None):
 def _info_msg(store, hdr, k: np.ndarray, size: tuple[int, int]):
     T = store.types
     K = np.array([[k[0], 0, k[2]], [0, k[1], k[3]], [0, 0, 1.0]])
-    d = np.asarray(k[4:], float)
+    d = np.asarray(k[4:], float)  # K all zero: an uncalibrated camera (its D empty)
     P = np.c_[K, np.zeros(3)]
     return T[CAMERA_INFO](header=hdr, height=size[1], width=size[0],
                           distortion_model="rational_polynomial" if len(d) == 8 else "plumb_bob",
@@ -85,10 +85,33 @@ def write_camera_bag(out: str | Path, model, x: np.ndarray, q_stops: np.ndarray,
     stops `q_stops` (m, J); returns the truth of the timing: ``t_image_s`` (camera clock, s from the
     bag start), ``q_image`` (true joint positions at each image), the storage file, and ``images``
     (the rendered grey images, to pass back as `images` for another bag of the same stops and timing)."""
+    from pipeline.simulate import camera_images as ci
+
+    k_true = model.split(x)[1]
+    rays = ci.rays(k_true, model.lens, model.image_size) if images is None else None
+
+    def image_of(i: int, q_image: np.ndarray) -> np.ndarray:
+        if images is not None:
+            return images[i]
+        T = ci.board_in_camera(model, x, q_image[None])[0]
+        return ci.render(k_true, model.lens, T, target, model.image_size, layout.blur_px, layout.noise, rng,
+                         ray_table=rays)
+
+    info_k = None if layout.info_k is None else (np.asarray(k_true) if layout.info_k == () else np.asarray(layout.info_k))
+    return write_images_bag(out, list(model.kin.joint_names), q_stops, image_of, model.image_size, info_k, layout,
+                            storage)
+
+
+def write_images_bag(out: str | Path, joint_names: list[str], q_stops: np.ndarray, image_of, size: tuple[int, int],
+                     info_k: np.ndarray | None, layout: CameraBagLayout = CameraBagLayout(),
+                     storage: str = "mcap") -> dict:
+    """Write the bag folder `out`: the robot moving between `q_stops` (m, J; joints `joint_names`),
+    one image a stop, `image_of(i, q)` the grey image (h, w) at stop i seen from joint positions q;
+    CameraInfo of `size` (width, height px) with intrinsics `info_k` (zeros: an uncalibrated camera;
+    None: no CameraInfo).  Returns the timing as `write_camera_bag`."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     from pipeline.importers.ros2_images import typestore
-    from pipeline.simulate import camera_images as ci
 
     store = typestore()
     bl = BagLayout(rate_hz=layout.rate_hz, move_s=layout.move_s, dwell_s=layout.dwell_s)
@@ -97,18 +120,13 @@ def write_camera_bag(out: str | Path, model, x: np.ndarray, q_stops: np.ndarray,
     mv = np.array(layout.moving, int)
     ti[mv] = t_move[mv]
     qi = q[np.abs(t[None, :] - ti[:, None]).argmin(1)]  # the robot's true pose at each image (the nearest sample)
-    k_true = model.split(x)[1]
-    T = ci.board_in_camera(model, x, qi)
-    rays = ci.rays(k_true, model.lens, model.image_size) if images is None else None
     rendered: list[np.ndarray] = []
     tj = T0_NS + np.round(t * 1e9).astype(np.int64)
     tc = T0_NS + np.round((ti + layout.clock_offset_s) * 1e9).astype(np.int64)
     events = sorted([(int(s), 0, i) for i, s in enumerate(tj)] + [(int(s), 1, i) for i, s in enumerate(tc)])
     compressed = layout.encoding in ("jpeg", "png")
     topic = layout.image_topic + ("/compressed" if compressed and not layout.image_topic.endswith("compressed") else "")
-    info_k = None if layout.info_k is None else (np.asarray(k_true) if layout.info_k == () else np.asarray(layout.info_k))
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
-    names = list(model.kin.joint_names)
     empty = np.zeros(0)
     with Writer(Path(out), version=9, storage_plugin=plugin) as w:
         cj = w.add_connection("/joint_states", JOINT_STATE, typestore=store)
@@ -116,18 +134,16 @@ def write_camera_bag(out: str | Path, model, x: np.ndarray, q_stops: np.ndarray,
         cinfo = w.add_connection(layout.info_topic, CAMERA_INFO, typestore=store) if info_k is not None else None
         for s, kind, i in events:
             if kind == 0:
-                msg = store.types[JOINT_STATE](header=_header(store, s), name=names, position=q[i], velocity=empty,
-                                               effort=empty)
+                msg = store.types[JOINT_STATE](header=_header(store, s), name=list(joint_names), position=q[i],
+                                               velocity=empty, effort=empty)
                 w.write(cj, s, bytes(store.serialize_cdr(msg, JOINT_STATE)))
                 continue
             hdr = _header(store, s, "camera_optical_frame")
-            img = images[i] if images is not None else ci.render(k_true, model.lens, T[i], target, model.image_size,
-                                                                 layout.blur_px, layout.noise, rng, ray_table=rays)
+            img = image_of(i, qi[i])
             rendered.append(img)
             msg, typ = _image_msg(store, hdr, img, layout.encoding, layout.bad.get(i))
             w.write(ci_, s, bytes(store.serialize_cdr(msg, typ)))
             if cinfo is not None:
-                w.write(cinfo, s, bytes(store.serialize_cdr(_info_msg(store, hdr, info_k, model.image_size),
-                                                            CAMERA_INFO)))
+                w.write(cinfo, s, bytes(store.serialize_cdr(_info_msg(store, hdr, info_k, size), CAMERA_INFO)))
     return {"t_image_s": ti + layout.clock_offset_s, "q_image": qi, "topic": topic, "images": rendered,
             "storage": Path(out) / f"{Path(out).name}.{'mcap' if storage == 'mcap' else 'db3'}"}

@@ -242,3 +242,19 @@ def test_real_kuka_images_through_a_bag_give_the_images_import(tmp_path):
     assert np.array_equal(b["image"], i["image"]) and np.array_equal(b["corner"], i["corner"])
     assert np.array_equal(b["pixel"], i["pixel"])  # PNG is lossless: the very grey levels, the very corners
     assert np.allclose(b["joint_positions"], i["joint_positions"], atol=1e-9)
+
+
+def test_images_without_the_board_or_blurred_are_listed_with_the_reason(small, tmp_path):
+    """Not bad input: a blank image (no board) and an out-of-focus one are listed with their reason and
+    left out (the campaign's ``skipped``); the other three are imported."""
+    tmp = small["tmp"]
+    sim = write_camera_bag(tmp_path / "bag", small["model"], small["x"], small["q"], small["tgt"], small["rng"],
+                           CameraBagLayout(bad={1: "blank", 3: "blur"}), images=small["images"])
+    r = _cli(tmp_path / "bag", tmp / "r6.urdf", tmp_path / "rec.mcap")
+    assert r.exit_code == 0, r.output
+    topic = sim["topic"]
+    assert f"{topic}#1: not found: no 9x6-corner chessboard found — not used" in r.output
+    assert f"{topic}#3: blurred: edges " in r.output
+    camp = read_recording(tmp_path / "rec.mcap").metadata["robocal.campaign"]
+    assert {s["image"]: s["status"] for s in camp["skipped"]} == {f"{topic}#1": "not found", f"{topic}#3": "blurred"}
+    assert camp["images"] == [f"{topic}#{i}" for i in (0, 2, 4)]

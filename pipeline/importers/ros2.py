@@ -93,8 +93,12 @@ def choose_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> tuple[st
     cands = sorted(t for t, ty in topics.items() if ty in MEASURE_TYPES)
     if mt is None:
         if len(cands) != 1:
+            camera = not cands and any(ty.startswith(("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"))
+                                       for ty in topics.values())
             raise RobocalError(f"{path}: {'several' if cands else 'no'} PointStamped / PoseStamped topics "
-                               f"({', '.join(cands) or _topics_line(topics)}): name one with --measure-topic")
+                               f"({', '.join(cands) or _topics_line(topics)}): name one with --measure-topic"
+                               + ("; a camera bag: `robocal import ros2 BAG --target BOARD …` (docs/guide/import-ros2.md)"
+                                  if camera else ""))
         mt = cands[0]
     if mt not in topics:
         raise RobocalError(f"{at(path, mt)}: not in the bag; measurement topics: {', '.join(cands) or 'none'} "

@@ -7,7 +7,8 @@ from the robot's true pose then (`pipeline.simulate.camera_images.render`).  The
 `clock_offset_s` ahead of the controller's (its header stamps and receive times).  Every message is
 serialised by rosbags' CDR serialiser and written with its rosbag2 `Writer`.  Damage on purpose:
 `bad` maps an image record to ``corrupt`` (compressed bytes that are not an image), ``encoding``
-(an encoding robocal does not read) or ``size`` (half the size CameraInfo says).
+(an encoding robocal does not read) or ``size`` (half the size CameraInfo says); and images that are
+fine input but useless: ``blank`` (no board in it), ``blur`` (out of focus).
 """
 
 from __future__ import annotations
@@ -47,6 +48,10 @@ def _image_msg(store, hdr, img: np.ndarray, encoding: str, damage: str | None):
     T = store.types
     if damage == "size":
         img = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    elif damage == "blank":  # the lens cap on: no board
+        img = np.full_like(img, 128)
+    elif damage == "blur":  # out of focus: edges ≈ 2.56 σ wide (10–90 %)
+        img = cv2.GaussianBlur(img, (0, 0), 2.5)
     if encoding in ("jpeg", "png"):
         ok, buf = cv2.imencode("." + ("jpg" if encoding == "jpeg" else "png"), img)
         data = np.frombuffer(buf, np.uint8).copy()

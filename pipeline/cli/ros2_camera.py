@@ -61,8 +61,8 @@ def import_camera(bag: Path, urdf: Path, root: str, tip: str, out: Path, spec, c
         if done == total or done % 10 == 0:
             _say(f"detected {done}/{total} images")
 
-    dets, extras, problems, info = read_camera_bag(bag, desc.joint_names, spec, cam, progress)
-    _print_pairing(bag, extras)
+    dets, extras, problems, info = read_camera_bag(bag, desc.joint_names, spec, cam, progress,
+                                                   on_paired=lambda ex: _print_pairing(bag, ex))
     for d in dets:
         if d.status != "ok":
             _say(f"[yellow]{d.name}:[/] {d.status}: {d.reason}" + ("" if d.used else " — not used"))

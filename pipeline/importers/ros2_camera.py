@@ -195,9 +195,11 @@ def _detect(path: Path, topic: str, typename: str, wanted: dict[int, str], cam: 
     return out
 
 
-def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: CameraSpec, progress=None):
+def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: CameraSpec, progress=None,
+                    on_paired=None):
     """(detections (each paired image, `q` its joint positions and `t_ns` its stamp attached),
-    campaign extras, the problems that make the bag bad input (one line each; empty if none)).
+    campaign extras, the problems that make the bag bad input (one line each; empty if none), the
+    `CameraInfo` or None).  `on_paired(extras)` sees the pairing before the detection starts.
     Bad images (unreadable, unsupported encoding, wrong size) are among the detections with their
     status; the caller decides (`skip_bad`)."""
     path = Path(path)
@@ -249,6 +251,19 @@ def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: Cam
               "rule": "an image is paired only where the robot stood still for ±bound around its stamp "
                       "(the standstill window widened by 2·bound, the same peak-to-peak motion allowed)"}
     keep = np.flatnonzero(pairing.still)
+    extras = {
+        "source_files": [str(path)],
+        "ros2": {"joint_topic": jt, "image_topic": it, "image_type": topics[it], "camera_info_topic": ct,
+                 "time_joint_states": jsrc, "time_images": msrc, "t0_ns": t0, "joint_states": jreport,
+                 "pairing": summ, "clock_offset": clock, "image_records": [int(i) for i in keep]},
+    }
+    if info is not None and info.k is None:
+        warnings.append(f"{at(path, ct)}: CameraInfo K is all zero (an uncalibrated camera): the calibration "
+                        "starts from OpenCV's calibrateCamera alone")
+    if warnings:
+        extras["import_warnings"] = warnings
+    if on_paired is not None:
+        on_paired(extras)
     names = {int(i): f"{it}#{i}" for i in keep}
     size = info.size if info is not None else None
     dets = _detect(path, it, topics[it], names, cam, size, progress)
@@ -260,19 +275,8 @@ def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: Cam
     for d in out:
         if d.status in BAD:
             problems.append(f"{at(path, it, d.record)}: {d.status}: {d.reason}")  # type: ignore[attr-defined]
-    extras = {
-        "source_files": [str(path)],
-        "ros2": {"joint_topic": jt, "image_topic": it, "image_type": topics[it], "camera_info_topic": ct,
-                 "time_joint_states": jsrc, "time_images": msrc, "t0_ns": t0, "joint_states": jreport,
-                 "pairing": summ, "clock_offset": clock, "image_records": [int(i) for i in keep]},
-    }
     if info is not None:
         extras["camera_info"] = {"width": info.width, "height": info.height,
                                  "distortion_model": info.distortion_model,
                                  "k": None if info.k is None else [float(v) for v in info.k]}
-        if info.k is None:
-            warnings.append(f"{at(path, ct)}: CameraInfo K is all zero (an uncalibrated camera): the calibration "
-                            "starts from OpenCV's calibrateCamera alone")
-    if warnings:
-        extras["import_warnings"] = warnings
     return out, extras, problems, info

@@ -177,22 +177,35 @@ def _detect(path: Path, topic: str, typename: str, wanted: dict[int, str], cam: 
                 if progress:
                     progress(len(out), len(wanted))
         else:
-            with pool(workers) as ex:
-                pending: list = []
-                for i, job in jobs:
-                    pending.append((i, ex.submit(_detect_message, job)))
-                    while len(pending) >= 4 * workers or (pending and pending[0][1].done()):
-                        j, f = pending.pop(0)
-                        out[j] = f.result()
-                        if progress:
-                            progress(len(out), len(wanted))
-                for j, f in pending:
-                    out[j] = f.result()
-                    if progress:
-                        progress(len(out), len(wanted))
+            from concurrent.futures.process import BrokenProcessPool
+
+            try:
+                _pooled(jobs, workers, wanted, out, progress)
+            except BrokenProcessPool as e:
+                raise RobocalError(f"{at(path, topic)}: a detection process died ({e}); --workers 1 detects in this "
+                                   "process") from None
     finally:
         reader.close()
     return out
+
+
+def _pooled(jobs, workers: int, wanted: dict, out: dict, progress) -> None:
+    """`_detect_message` over `jobs` ((record, args), …) in a pool, at most 4 per worker in flight."""
+    with pool(workers) as ex:
+        pending: list = []
+
+        def collect() -> None:
+            j, f = pending.pop(0)
+            out[j] = f.result()
+            if progress:
+                progress(len(out), len(wanted))
+
+        for i, job in jobs:
+            pending.append((i, ex.submit(_detect_message, job)))
+            while len(pending) >= 4 * workers or (pending and pending[0][1].done()):
+                collect()
+        while pending:
+            collect()
 
 
 def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: CameraSpec, progress=None,

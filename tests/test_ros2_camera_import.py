@@ -141,13 +141,14 @@ def _pixels(path):
     return data["pixel"], data["corner"]
 
 
-@pytest.mark.parametrize("encoding", ["bgr8", "rgb8", "png", "jpeg"])
-def test_encodings_give_the_mono8_corners(small, encoding, tmp_path):
+@pytest.mark.parametrize("encoding,storage", [("bgr8", "mcap"), ("rgb8", "mcap"), ("png", "mcap"), ("jpeg", "mcap"),
+                                              ("mono8", "sqlite3")])
+def test_encodings_give_the_mono8_corners(small, encoding, storage, tmp_path):
     tmp = small["tmp"]
     if not (tmp / "mono8.mcap").exists():
         assert _cli(tmp / "mono8", tmp / "r6.urdf", tmp / "mono8.mcap").exit_code == 0
     write_camera_bag(tmp_path / "bag", small["model"], small["x"], small["q"], small["tgt"], small["rng"],
-                     CameraBagLayout(encoding=encoding), images=small["images"])
+                     CameraBagLayout(encoding=encoding), storage=storage, images=small["images"])
     r = _cli(tmp_path / "bag", tmp / "r6.urdf", tmp_path / "rec.mcap")
     assert r.exit_code == 0, r.output
     px, ids = _pixels(tmp_path / "rec.mcap")

@@ -259,3 +259,20 @@ def test_images_without_the_board_or_blurred_are_listed_with_the_reason(small, t
     camp = read_recording(tmp_path / "rec.mcap").metadata["robocal.campaign"]
     assert {s["image"]: s["status"] for s in camp["skipped"]} == {f"{topic}#1": "not found", f"{topic}#3": "blurred"}
     assert camp["images"] == [f"{topic}#{i}" for i in (0, 2, 4)]
+
+
+def test_robocal_run_on_a_camera_bag_imports_then_calibrates(small, tmp_path):
+    """`robocal run BAG --target …`: the bag imported into DIR/import/recording.mcap, then ingest →
+    identify; the figures in px."""
+    import json
+
+    tmp = small["tmp"]
+    run = subprocess.run([ROBOCAL, "run", str(tmp / "mono8"), "--urdf", str(tmp / "r6.urdf"), "--root", "b", "--tip",
+                          "l6", "--target", TARGET, "--out", str(tmp_path / "run"), "--stages",
+                          "ingest,validate,identify", "--folds", "3"], capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr
+    assert "imported 5 of 5 paired images" in run.stderr
+    camp = read_recording(tmp_path / "run" / "import" / "recording.mcap").metadata["robocal.campaign"]
+    assert camp["measure"] == "camera" and camp["ros2"]["image_topic"] == "/camera/image_raw"
+    summary = json.loads((tmp_path / "run" / "results.json").read_text())["summary"]
+    assert summary["residual_unit"] == "px" and summary["rms_after_m"] < 0.2  # px

@@ -192,6 +192,13 @@ def run_cmd(
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
+    target: Optional[str] = typer.Option(None, "--target", rich_help_panel=bag_options.RUN_PANEL,
+                                         help="ROS 2 camera bag: the board its images show (as `robocal import "
+                                              "ros2 --target`; more camera options there)."),
+    camera_on: str = typer.Option("tip", "--camera-on", rich_help_panel=bag_options.RUN_PANEL,
+                                  help="ROS 2 camera bag: tip (eye-in-hand) or world (eye-to-hand)."),
+    clock_bound: float = typer.Option(0.1, "--clock-offset-bound", min=0.0, rich_help_panel=bag_options.RUN_PANEL,
+                                      help="ROS 2 camera bag: how far the camera's clock may be off the joints' (s)."),
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached.  A ROS 2 bag is
@@ -209,8 +216,15 @@ def run_cmd(
 
     spec = BagSpec(joint_topic=joint_topic, measure_topic=measure_topic, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time_source)
+    importer = None
+    if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
+        from pipeline.cli.ros2_camera import import_camera
+        from pipeline.importers.ros2_camera import CameraSpec
+
+        cam = CameraSpec(target=target, mount=camera_on, clock_bound_s=clock_bound)
+        importer = lambda rec: import_camera(recording, urdf, root, tip, rec, spec, cam)  # noqa: E731
     recording = run_input(recording, out, urdf, root, tip, spec, sigma_m, sigma_rad,
-                          on_read=bag_options.print_read, on_written=bag_options.print_written)
+                          on_read=bag_options.print_read, on_written=bag_options.print_written, importer=importer)
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)

@@ -210,7 +210,10 @@ def call_system_hook(rec: rr.RecordingStream, system: str, model, table: dict, x
 
 def summary_markdown(art: RunArtefacts, figures: dict[str, Any]) -> str:
     """Headline figures as markdown for the `summary` text view."""
-    mm = lambda v: "n/a" if v is None else f"{v * 1e3:.4f} mm"  # noqa: E731
+    from pipeline.report.labels import residual_text
+
+    unit = figures.get("residual_unit") or (art.fit or {}).get("residual_unit")  # px for a camera
+    mm = lambda v: residual_text(v, unit, none="n/a")  # noqa: E731
     name = art.robot_name()
     return "\n".join([
         f"# robocal run — {name}" + (f" ({art.system})" if name != art.system else ""), "",

@@ -37,3 +37,25 @@ def test_model_selection_explained_in_the_residuals_unit():
     assert explain(sel, "px") == ["registration only: held-out RMS 0.940 px",
                                   "+ lens k3: held-out 0.900 px against 0.940 px → kept"]
     assert explain(sel)[0] == "registration only: held-out RMS 940.000 mm"
+
+
+def test_reprocess_table_shows_a_camera_row_in_px(tmp_path, capsys):
+    """`robocal reprocess`'s table reads each run's fit.json: a camera run's figures say px, a length
+    run's stay mm."""
+    import json
+
+    from pipeline.cli.reprocess import _print_table
+
+    cam, arm = tmp_path / "cam", tmp_path / "arm"
+    for d, unit in ((cam, "px"), (arm, None)):
+        (d / "identify").mkdir(parents=True)
+        (d / "identify" / "fit.json").write_text(json.dumps({"residual_unit": unit} if unit else {}))
+    base = {"robot_id": "r", "system": "s", "n_measurements": 10, "n_identifiable": 3, "status": "pass",
+            "expected": None, "regressions": [], "ok": True}
+    rows = [base | {"recording": "cam.mcap", "run_dir": str(cam), "rms_before_m": 3.5, "rms_after_m": 0.94,
+                    "holdout_rms_m": 1.02},
+            base | {"recording": "arm.mcap", "run_dir": str(arm), "rms_before_m": 0.018, "rms_after_m": 3.5e-5,
+                    "holdout_rms_m": 4.8e-5}]
+    _print_table(tmp_path, rows)
+    out = capsys.readouterr().out
+    assert "0.9400 px" in out and "1.0200 px" in out and "0.0350" in out and "0.0350 px" not in out

@@ -14,8 +14,19 @@ thermal_growth@links, any form), `named_high` (and with high confidence), `locat
 partially_explained / unexplained), `misnamed_high` (a high-confidence finding that is not the injected
 effect), `worse` (the final model's held-out RMS above geometry alone's), and the gate's own minimum
 detectable size on that campaign (Bonferroni over the library and 80 % power: stricter than the
-generator's 3σ).  Targets: named ≥ 95 % in library, located ≥ 80 % out of library, misnamed with high
-confidence ≤ 10 %, worse 0.
+generator's 3σ), and the generator's figure at the injected size without the one contact that carries most
+of the signature (`mds_generator_without_top_contact`: a finding resting on one record is not reported).
+Targets: named ≥ 95 % in library, located ≥ 80 % out of library, misnamed with high confidence ≤ 10 %,
+worse 0.
+
+Backlash at J2 in this plan is below that target by the campaign, not by the diagnosis: J2 turns the same
+way during the search on almost every face, so the geometry (J2's offset) absorbs the signature but on a few
+contacts, and one contact carries a third of the rest.  That contact is >9σ off the geometric fit and set
+aside; without it the detectable play is 2.5× larger (1.33 vs 0.53 mrad at the injected 2.1 mrad); the
+gate's is 1.4–1.6 mrad for the forms it can test, which fit about half of a 2.1 mrad play (the form that
+matches it, play ≥ 2 mrad, needs 2.6 mrad: over the plausible 2 mrad, not testable).  Keeping the contact
+only moves the finding to "rests on one record" (not reported).  The remedy is the campaign's: reverse J2
+before the search (the backlash advice).
 
 Usage: ``python benchmarks/bench_diagnose_power.py [--seeds 20] [--mult 4] [--cases a,b] [--out f.json]``.
 (CI runs a bounded version: tests/test_diagnose_power.py.)
@@ -91,7 +102,12 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
         rows.append({"seed": s, **score(d, key)})
         gm = gm if gm is not None else gate_mds(d, key)
     rate = lambda k: float(np.mean([r[k] for r in rows]))  # noqa: E731
+    # the same figure at the injected size with the one contact that carries most of the signature left out:
+    # a finding resting on one record is not reported (`verdict.outliers`), so this is the size the diagnosis
+    # can show robustly (J2 backlash in this plan: J2 reverses before the search at few contacts)
+    robust = it.mds(nom, tru, targets, eff, sigma, at_size=True, drop_top=1, **campaign) if key else None
     out = {"mds_generator": mds, "size": mult * mds, "mds_gate": gm, "runs": len(rows),
+           "mds_generator_without_top_contact": robust,
            "in_library": key is not None, "misnamed_high": rate("misnamed_high"), "worse": int(sum(r["worse"] for r in rows)),
            "statuses": {k: int(sum(r["status"] == k for r in rows)) for k in sorted({r["status"] for r in rows})}}
     out.update({"named": rate("named"), "named_high": rate("named_high")} if key else {"located": rate("located")})

@@ -325,12 +325,15 @@ def geometric_jacobian(arm: Arm, q: np.ndarray, ax: np.ndarray) -> np.ndarray:
 
 
 def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
-        jig: Jig | None = None, **campaign) -> float:
+        jig: Jig | None = None, *, at_size: bool = False, drop_top: int = 0, **campaign) -> float:
     """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable (`campaign`: `run`'s
-    options, e.g. payload_kg)."""
+    options, e.g. payload_kg).  The signature is the tangent at 10⁻³ × the effect's size, or (`at_size`) the
+    secant at its size (a dead band's shape changes with its play: a search shorter than the play does not
+    turn the link).  `drop_top` contacts carrying the largest shares of the ⊥ signature are left out, one at
+    a time and re-projected: the figure for a test that must not rest on those few contacts."""
     jig = jig or stepped_block()
     c0 = run(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0, **campaign)
-    unit = Effect(effect.kind, 1e-3 * (effect.size or 1.0), effect.where)
+    unit = effect if at_size else Effect(effect.kind, 1e-3 * (effect.size or 1.0), effect.where)
     c1 = run(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0, **campaign)
     ax = c0.table["axis"]
     rows = np.arange(ax.size)
@@ -339,9 +342,13 @@ def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float
     r1 = tip(truth, c1.truth_joint_q)[rows, ax]
     S = (r1 - r0) / unit.size
     J = geometric_jacobian(truth, c0.truth_joint_q, ax)
-    U, sv, _ = np.linalg.svd(J, full_matrices=False)
-    U = U[:, sv > sv[0] * 1e-9]
-    Sp = S - U @ (U.T @ S)
+    keep = np.ones(S.size, bool)
+    for k in range(drop_top + 1):
+        U, sv, _ = np.linalg.svd(J[keep], full_matrices=False)
+        U = U[:, sv > sv[0] * 1e-9]
+        Sp = S[keep] - U @ (U.T @ S[keep])
+        if k < drop_top:
+            keep[np.flatnonzero(keep)[np.argmax(Sp**2)]] = False
     return 3 * sigma / max(np.linalg.norm(Sp), 1e-300)
 
 

@@ -117,3 +117,18 @@ def test_a_backlash_the_campaign_shows_in_one_contact_is_never_a_confident_wrong
     for d in docs:
         if d["status"] == "clean":
             assert d["outlier_records"], d["status_reason"]  # the contact that shows it is named
+
+
+def test_leaving_out_the_contacts_that_carry_a_signature_never_lowers_its_detectable_size(world):
+    """The generator's `mds` with its top contacts left out (a least-squares residual over fewer rows is never
+    larger), and the plan's property the benchmark states: J2's backlash rests on one contact (left out, its
+    detectable play more than doubles), J1's and J3's do not."""
+    nom, tru, targets, sigma = world
+    grow = {}
+    for case in ("backlash_J1", "backlash_J2", "backlash_J3"):
+        form, campaign, _ = bp.cases(targets)[case]
+        eff = it.Effect(form.kind, 4 * it.mds(nom, tru, targets, form, sigma), form.where)
+        m = [it.mds(nom, tru, targets, eff, sigma, at_size=True, drop_top=k) for k in (0, 1, 2)]
+        assert m[0] <= m[1] * (1 + 1e-9) and m[1] <= m[2] * (1 + 1e-9), (case, m)
+        grow[case] = m[1] / m[0]
+    assert grow["backlash_J2"] > 2.0 and max(grow["backlash_J1"], grow["backlash_J3"]) < 1.5, grow

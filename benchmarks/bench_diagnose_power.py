@@ -14,7 +14,7 @@ thermal_growth@links, any form), `named_high` (and with high confidence), `locat
 partially_explained / unexplained), `misnamed_high` (a high-confidence finding that is not the injected
 effect), `worse` (the final model's held-out RMS above geometry alone's), and the gate's own minimum
 detectable size on that campaign (Bonferroni over the library and 80 % power: stricter than the
-generator's 3σ), and the generator's figure at the injected size without the one contact that carries most
+generator's 3σ), and for backlash the generator's figure at the injected size without the one contact that carries most
 of the signature (`mds_generator_without_top_contact`: a finding resting on one record is not reported).
 Targets: named ≥ 95 % in library, located ≥ 80 % out of library, misnamed with high confidence ≤ 10 %,
 worse 0.
@@ -105,7 +105,8 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
     # the same figure at the injected size with the one contact that carries most of the signature left out:
     # a finding resting on one record is not reported (`verdict.outliers`), so this is the size the diagnosis
     # can show robustly (J2 backlash in this plan: J2 reverses before the search at few contacts)
-    robust = it.mds(nom, tru, targets, eff, sigma, at_size=True, drop_top=1, **campaign) if key else None
+    robust = (it.mds(nom, tru, targets, eff, sigma, at_size=True, drop_top=1, **campaign)
+              if key and key[0] == "backlash" else None)
     out = {"mds_generator": mds, "size": mult * mds, "mds_gate": gm, "runs": len(rows),
            "mds_generator_without_top_contact": robust,
            "in_library": key is not None, "misnamed_high": rate("misnamed_high"), "worse": int(sum(r["worse"] for r in rows)),

@@ -35,23 +35,31 @@ class Shrunk:
     fits: int  # solves done
     per_group: dict = field(default_factory=dict)  # μ → {group: held-out RMS m} (choice by left-out groups)
     holdout: np.ndarray | None = None  # (n, residual_dim) held-out residuals at the chosen μ (left-out groups)
+    physics: dict = field(default_factory=dict)  # {chosen, candidates: {label: {admissible, score_m2, …}}}
 
 
-def _anchor(model, prior_sigma: np.ndarray, fixed: tuple[str, ...]) -> np.ndarray:
+def _registration(model, extra: tuple[str, ...] = ()) -> set[str]:
+    """Names estimated with the registration (unpenalised, anchored at the registration-stage estimate): the
+    registration group and `extra` (the physics terms chosen by `pipeline.identify.physics_choice`)."""
+    groups = model.groups() if hasattr(model, "groups") else {}
+    return set(groups.get("registration", [])) | set(extra)
+
+
+def _anchor(model, prior_sigma: np.ndarray, fixed: tuple[str, ...], extra: tuple[str, ...] = ()) -> np.ndarray:
     """1/σ of the registration group's free parameters (0 elsewhere): a weak pull toward the registration-only
     estimate (not toward nominal: an instrument stands anywhere), so a frame the data cannot pin down (a
     ball-in-socket tool's base rotation) stays put instead of wandering."""
     names = model.parameter_names()
-    groups = model.groups() if hasattr(model, "groups") else {}
-    reg = set(groups.get("registration", [])) - set(fixed)
+    reg = _registration(model, extra) - set(fixed)
     return np.array([1.0 / max(float(s), 1e-12) if n in reg else 0.0 for n, s in zip(names, prior_sigma)])
 
 
-def _penalty(model, prior_sigma: np.ndarray, fixed: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """(free mask, weight 1/σ per parameter; 0 for the registration group)."""
+def _penalty(model, prior_sigma: np.ndarray, fixed: tuple[str, ...], extra: tuple[str, ...] = ()
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(free mask, weight 1/σ per parameter; 0 for the registration group and `extra`)."""
     names = model.parameter_names()
     groups = model.groups() if hasattr(model, "groups") else {}
-    reg = set(groups.get("registration", []))
+    reg = _registration(model, extra)
     never = {n for g, v in groups.items() if g.startswith("_") for n in v} | set(fixed)
     free = np.array([n not in never for n in names])
     w = np.array([0.0 if (n in reg) else 1.0 / max(float(s), 1e-12) for n, s in zip(names, prior_sigma)])
@@ -80,12 +88,13 @@ def map_solve(model, data, x: np.ndarray, idx: np.ndarray, lam: np.ndarray, nomi
 
 
 def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[str, ...] = (),
-           scale_m: float | None = None, grid=GRID, progress=None) -> Shrunk:
+           scale_m: float | None = None, grid=GRID, progress=None, extra: tuple[str, ...] = ()) -> Shrunk:
     """MAP estimate with μ chosen by GCV (module docstring).  `x0`: start (e.g. the registration-only
-    fit); `scale_m`: the registration-only RMS residual per axis (default: at x0)."""
+    fit); `scale_m`: the registration-only RMS residual per axis (default: at x0); `extra`: names
+    estimated with the registration (anchored at x0, not pulled toward nominal)."""
     nominal = np.asarray(model.nominal(), float)
-    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed)
-    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed)
+    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
+    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
     centre = np.where(w > 0, nominal, np.asarray(x0, float))
     idx = np.flatnonzero(free)
     r0 = np.asarray(model.residuals(x0, data), float).ravel()
@@ -120,15 +129,15 @@ def _implausible(model, x, idx, w, nominal) -> list[dict]:
 
 
 def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, groups: np.ndarray,
-                     fixed: tuple[str, ...] = (), grid=GRID, progress=None) -> Shrunk:
+                     fixed: tuple[str, ...] = (), grid=GRID, progress=None, extra: tuple[str, ...] = ()) -> Shrunk:
     """MAP estimate with μ chosen by leaving out whole groups (`group_holdout`): the candidates are the
     grid and μ = ∞ (registration only, the nominal robot); a μ is eligible only if no left-out group is
     predicted worse than by registration only, and the eligible μ of least held-out RMS is chosen."""
     from pipeline.identify.group_holdout import held_out, per_group_rms
 
     nominal = np.asarray(model.nominal(), float)
-    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed)
-    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed)
+    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
+    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
     centre = np.where(w > 0, nominal, np.asarray(x0, float))
     idx = np.flatnonzero(free)
     reg = idx[w[idx] == 0]
@@ -180,29 +189,57 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
         from pipeline.accuracy.prior import prior_sigma
 
         prior = prior_sigma(model)[0]
-    reg_fixed = tuple(set(options.fixed) | set(fixed_for(model, ["registration"])))
-    f0 = fit(model, data, replace(options, fixed=reg_fixed))
-    groups = [g for g in model.groups() if not g.startswith("_")]
-    fixed = tuple(set(options.fixed) | set(fixed_for(model, groups)))
-    # registration parameters the data cannot tell apart stay at their registration-only values
-    names = model.parameter_names()
-    held = tuple(n for i, n in enumerate(names) if not f0.free[i] and n in set(model.groups().get("registration", [])))
+    from pipeline.identify import physics_choice as pc
     from pipeline.identify.group_holdout import row_groups
 
+    names = model.parameter_names()
+    groups = [g for g in model.groups() if not g.startswith("_")]
+    registration = set(model.groups().get("registration", []))
     n, kd = n_rows(data), model.residual_dim
     groups_of_rows = row_groups(model, data)
-    if groups_of_rows is not None:  # whole groups left out: what carries over to a new session / placement
-        s = shrink_by_groups(model, data, prior, f0.x, groups_of_rows, fixed=fixed + held, progress=progress)
+    best, tried = None, {}
+    for chosen in pc.candidates(model):  # gravity-compliance families: none, each, all (physics_choice)
+        on, off = pc.names_of(model, chosen)
+        label = "+".join(chosen) or "rigid"
+        reg_fixed = tuple((set(options.fixed) | set(fixed_for(model, ["registration", *on]))) | set(off))
+        f0 = fit(model, data, replace(options, fixed=reg_fixed))
+        bad = pc.inadmissible(f0, on) if not getattr(model, "forced", False) else []
+        if bad:
+            tried[label] = {"admissible": False, "negative": bad}
+            if progress is not None:
+                progress(f"physics {label}: not admissible (negative compliance {', '.join(bad)})")
+            continue
+        fixed = tuple(set(options.fixed) | set(fixed_for(model, groups)) | set(off))
+        # registration parameters the data cannot tell apart stay at their registration-only values
+        held = tuple(nm for i, nm in enumerate(names) if not f0.free[i] and nm in registration | set(on))
+        if groups_of_rows is not None:  # whole groups left out: what carries over to a new session / placement
+            s = shrink_by_groups(model, data, prior, f0.x, groups_of_rows, fixed=fixed + held, progress=progress,
+                                 extra=on)
+            score = s.gcv[s.mu_m]
+        else:
+            s = shrink(model, data, prior, f0.x, fixed=fixed + held, progress=progress, extra=on)
+            m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
+            rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
+            score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
+        tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m)}
+        if progress is not None and len(pc.candidates(model)) > 1:
+            progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")
+        if best is None or score < best[0]:
+            best = (score, s, f0, fixed, held, on, label)
+    _, s, f0, fixed, held, on, label = best
+    if len(tried) > 1 or on:
+        s = replace(s, physics={"chosen": label, "candidates": tried})
+    if groups_of_rows is not None:
         holdout = s.holdout
     else:
-        s = shrink(model, data, prior, f0.x, fixed=fixed + held, progress=progress)
         holdout = np.full((n, kd), np.nan)
         for test in kfold_indices(n, k, seed):
             train = np.setdiff1d(np.arange(n), test)
-            sf = shrink(model, take(data, train), prior, s.x, fixed=fixed + held, grid=(s.mu_m,), scale_m=1.0)
+            sf = shrink(model, take(data, train), prior, s.x, fixed=fixed + held, grid=(s.mu_m,), scale_m=1.0,
+                        extra=on)
             holdout[test] = np.asarray(model.residuals(sf.x, take(data, test)), float).reshape(len(test), kd)
-    free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held)
-    wa = w + _anchor(model, np.asarray(prior, float), fixed + held)
+    free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held, on)
+    wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
     J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
     mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
     est = free_mask & ~((w > 0) & np.isinf(s.mu_m))  # μ = ∞: the robot stays nominal
@@ -231,6 +268,8 @@ def shrinkage_document(s: Shrunk) -> dict:
                      + ("leaving out whole groups" if s.per_group else "GCV"),
            "mu_m": mu, "effective_parameters": s.dof, "implausible": s.implausible,
            "score_m2": {key(m): v for m, v in s.gcv.items()}}
+    if s.physics:
+        doc["physics_families"] = s.physics
     if s.per_group:
         doc["holdout_per_group_m"] = {key(m): v for m, v in s.per_group.items()}
     return doc

@@ -228,7 +228,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
             best = (score, s, f0, fixed, held, on, label)
     _, s, f0, fixed, held, on, label = best
     if len(tried) > 1 or on:
-        s = replace(s, physics={"chosen": label, "candidates": tried})
+        s = replace(s, physics={"chosen": label, "terms": list(on), "candidates": tried})
     if groups_of_rows is not None:
         holdout = s.holdout
     else:

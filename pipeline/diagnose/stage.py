@@ -18,6 +18,7 @@ import numpy as np
 from pipeline.diagnose.method import Settings
 
 NAME = "diagnose"
+PHYSICS_SUFFIXES = (".compliance", ".lateral1", ".lateral2")
 SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner", "urdf")
 
 
@@ -114,8 +115,11 @@ def run(run_dir: Path, params: dict) -> dict:
             x0 = np.asarray(fj["x"], float)
             drop = fj.get("rejected_records") or None
             held = tuple(n for n, r in (fj.get("reasons") or {}).items() if "model_selection" in str(r))
+        physics = recording_info(run_dir).get("physics")
+        if physics is None and x0 is not None and any(n.endswith(PHYSICS_SUFFIXES) for n in fj.get("names", [])):
+            physics = {"physics": "auto"}  # identify's default gravity terms: the same model, not selected again
         doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=stream,
-                                 physics=recording_info(run_dir).get("physics"), held=held)
+                                 physics=physics, held=held)
         doc["supported"] = True
     write_json(out / "diagnosis.json", doc)
     return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],

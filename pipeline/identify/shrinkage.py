@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
+from pipeline.blas import single_threaded
 from pipeline.identify.plausibility import PLAUSIBLE
 
 GRID = (0.03, 0.1, 0.3, 1.0, 3.0)  # μ as multiples of the registration-only RMS residual (per axis)
@@ -169,6 +170,7 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
                   per_group={float(m): per[m] for m in cands}, holdout=outs[mu])
 
 
+@single_threaded
 def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     """(`Fit` of the MAP estimate, `Shrunk`, k-fold held-out residuals (n, residual_dim)).
 

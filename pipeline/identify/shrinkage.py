@@ -15,7 +15,7 @@ prior σ is named in `implausible`: the caller warns of it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -170,6 +170,24 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
                   per_group={float(m): per[m] for m in cands}, holdout=outs[mu])
 
 
+def _downhill(at, first: Shrunk) -> Shrunk:
+    """The `at(grid)` shrink of least GCV found by walking the GRID from the point `first` chose, each way
+    while the score falls (a few solves instead of the whole grid); its `gcv` holds every point tried."""
+    g = sorted(GRID, reverse=True)
+    i0 = list(first.gcv).index(first.mu_m)
+    seen = {i0: at((g[i0],))}
+    score = lambda s: s.gcv[s.mu_m]  # noqa: E731
+    for step in (-1, 1):
+        j = i0
+        while 0 <= j + step < len(g):
+            j += step
+            seen[j] = at((g[j],))
+            if score(seen[j]) >= score(seen[j - step]):
+                break
+    best = min(seen.values(), key=score)
+    return replace(best, gcv={s.mu_m: score(s) for _, s in sorted(seen.items())}, fits=len(seen))
+
+
 @single_threaded
 def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     """(`Fit` of the MAP estimate, `Shrunk`, k-fold held-out residuals (n, residual_dim)).
@@ -178,7 +196,6 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     estimated parameters (registration ones the data cannot separate are held by the rank test);
     each fold re-solves at the chosen μ, warm-started from the whole-data estimate."""
     import time
-    from dataclasses import replace
 
     from pipeline.identify.complexity import fixed_for
     from pipeline.identify.identifiability import analyse
@@ -199,7 +216,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     registration = set(model.groups().get("registration", []))
     n, kd = n_rows(data), model.residual_dim
     groups_of_rows = row_groups(model, data)
-    best, tried = None, {}
+    best, tried, first = None, {}, None
     for chosen in pc.candidates(model):  # gravity-compliance families: none, each, all (physics_choice)
         on, off = pc.names_of(model, chosen)
         label = "+".join(chosen) or "rigid"
@@ -219,10 +236,15 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
                                  extra=on)
             score = s.gcv[s.mu_m]
         else:
-            s = shrink(model, data, prior, f0.x, fixed=fixed + held, progress=progress, extra=on)
+            def at(grid, x0=f0.x, fixed=fixed + held, on=on):
+                return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid)
+
+            # later candidates: from the first one's chosen grid point, downhill along the grid only
+            s = at(GRID) if first is None else _downhill(at, first)
             m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
             rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
             score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
+        first = s if first is None and groups_of_rows is None else first
         tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m)}
         if progress is not None and len(pc.candidates(model)) > 1:
             progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")

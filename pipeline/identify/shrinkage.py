@@ -133,7 +133,8 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
                      fixed: tuple[str, ...] = (), grid=GRID, progress=None, extra: tuple[str, ...] = ()) -> Shrunk:
     """MAP estimate with μ chosen by leaving out whole groups (`group_holdout`): the candidates are the
     grid and μ = ∞ (registration only, the nominal robot); a μ is eligible only if no left-out group is
-    predicted worse than by registration only, and the eligible μ of least held-out RMS is chosen."""
+    predicted worse than by registration only, and the eligible μ of least held-out RMS is chosen, then
+    refined once by the same rule over the geometric midpoints either side of it (half a grid step)."""
     from pipeline.identify.group_holdout import held_out, per_group_rms
 
     nominal = np.asarray(model.nominal(), float)
@@ -144,9 +145,9 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
     reg = idx[w[idx] == 0]
     scale = float(np.sqrt(np.mean(np.asarray(model.residuals(x0, data), float) ** 2)))
     cands = [np.inf] + [g * scale for g in sorted(grid, reverse=True)]
-    x = np.asarray(x0, float).copy()
     per, total, full, outs = {}, {}, {}, {}
-    for i, mu in enumerate(cands):
+
+    def judge(mu, x, label):
         if np.isinf(mu):
             def solve(d, xs):
                 return map_solve(model, d, xs, reg, np.zeros(reg.size), nominal)
@@ -155,12 +156,26 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
                 return map_solve(model, d, xs, idx, lam, centre)
         r = held_out(model, data, groups, solve, x)
         per[mu], total[mu], outs[mu] = per_group_rms(r, groups), float(np.sqrt(np.nanmean(r**2))), r
-        x = full[mu] = solve(data, x)
+        full[mu] = solve(data, x)
         if progress is not None:
-            progress(f"model choice {i + 1}/{len(cands)}: μ = {mu * 1e3:.4g} mm, held-out (whole groups left out) "
+            progress(f"model choice {label}: μ = {mu * 1e3:.4g} mm, held-out (whole groups left out) "
                      f"RMS {total[mu] * 1e3:.4g} mm")
-    ok = [mu for mu in cands if all(per[mu][g] <= per[np.inf][g] for g in per[np.inf])]
-    mu = min(ok, key=lambda m: total[m])
+        return full[mu]
+
+    def best():
+        ok = [m for m in per if all(per[m][g] <= per[np.inf][g] for g in per[np.inf])]
+        return min(ok, key=lambda m: total[m])
+
+    x = np.asarray(x0, float).copy()
+    for i, mu in enumerate(cands):
+        x = judge(mu, x, f"{i + 1}/{len(cands)}")
+    mu = best()
+    if not np.isinf(mu) and len(grid) > 1:  # refine: the geometric midpoints either side of the chosen grid point
+        step = np.sqrt(max(grid) / min(grid)) ** (1 / max(len(grid) - 1, 1))
+        for k, m in enumerate((mu * step, mu / step)):
+            judge(m, full[mu], f"refined {k + 1}/2")
+        mu = best()
+    cands = sorted(per, reverse=True)
     xb = full[mu]
     J = np.asarray(model.jacobian(xb, data), float).reshape(-1, xb.size)[:, idx]
     lam = (0.0 if np.isinf(mu) else mu) * wa[idx]

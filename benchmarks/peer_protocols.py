@@ -86,6 +86,8 @@ def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
         rigid = "rigid" in c or not c.startswith(("shrinkage", "groups"))
         base_model, data = (rigid_model, rigid_data) if rigid else (auto_model, auto_data)
         # "+tool": the tool point (Panda: the ball centre) estimated too, as MUKCa does (its config frees ball_joint)
+        if c.endswith("+tool") and not hasattr(base_model, "fit_tool"):
+            continue  # no tool point to free (point data estimate it anyway)
         model = dataclasses.replace(base_model, fit_tool=True) if c.endswith("+tool") else base_model
         prior = prior_sigma(model)[0]
         groups = [g for g in model.groups() if not g.startswith("_")]
@@ -155,20 +157,28 @@ def tiago(real: Path, tmp: Path, choices: tuple[str, ...], timing: bool = False)
             print(f"whole `robocal run` {label} on the training session: {wall:.1f} s wall, {cpu:.1f} s CPU")
 
 
-def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str) -> None:
-    paths = [panda_recording(real, tmp, p) for p in PLACEMENTS]
+def placements(real: Path, robot: str) -> tuple[str, ...]:
+    """The placements of a MUKCa unit (panda_2: `PLACEMENTS`' order; others: their folders, sorted)."""
+    if robot == "panda_2":
+        return PLACEMENTS
+    return tuple(sorted(p.name for p in (real / "mukca_panda" / "data" / robot).iterdir() if p.is_dir()))
+
+
+def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str, robot: str = "panda_2") -> None:
+    places = placements(real, robot)
+    paths = [panda_recording(real, tmp, p, robot) for p in places]
     recs = [read_recording(p) for p in paths]
-    i = PLACEMENTS.index(train)
+    i = places.index(train)
     others = [r for j, r in enumerate(recs) if j != i]
-    print(f"\n### MUKCa's protocol, panda_2: fit on placement {train}, evaluate on the other {len(others)}\n")
+    print(f"\n### MUKCa's protocol, {robot}: fit on placement {train}, evaluate on the other {len(others)}\n")
     print("| model | fit placement: mean / RMS | other placements: mean of per-placement mean 3-D | RMS 3-D over "
           "all their rows | worst placement RMS | RMS socket-distance error | choice s CPU | one fit s CPU |")
     print("|---|---|---|---|---|---|---|---|")
-    mk = from_urdf(real / "mukca_panda" / "calibrated_urdf" / "panda_2" / "panda_calibrated.urdf", "panda_link0",
-                   "ball_link", "coincidence")
+    published = real / "mukca_panda" / "calibrated_urdf" / robot / "panda_calibrated.urdf"
+    mk = from_urdf(published, "panda_link0", "ball_link", "coincidence") if published.is_file() else None
     rows = [(f"robocal {c}", cal, tc, tf) for c, (cal, tc, tf, _) in models(paths[i], choices).items()]
     per = {}
-    for name, cal, tc, tf in rows + [("MUKCa calibrated URDF (published)", mk, None, None)]:
+    for name, cal, tc, tf in rows + ([("MUKCa calibrated URDF (published)", mk, None, None)] if mk else []):
         own, *rest = evaluate(cal, [recs[i], *others])
         per[name] = [d["mean_3d_m"] for d in rest]
         n = np.array([d["n"] for d in rest])
@@ -179,7 +189,7 @@ def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str) -> None:
               f"{np.mean([d['mean_3d_m'] for d in rest]) * 1e3:.3f} | {rms_all * 1e3:.3f} | "
               f"{max(d['rms_3d_m'] for d in rest) * 1e3:.3f} | {dist * 1e3:.3f} | {t} |")
     print("\nmm: ball centres about their socket's mean (MUKCa's figure: the mean), socket distance against 50 mm")
-    names = [p for j, p in enumerate(PLACEMENTS) if j != i]
+    names = [p for j, p in enumerate(places) if j != i]
     print("\nPer placement, mean 3-D (mm):\n\n| model | " + " | ".join(names) + " |\n|---|" + "---|" * len(names))
     for name, v in per.items():
         print(f"| {name} | " + " | ".join(f"{x * 1e3:.3f}" for x in v) + " |")

@@ -10,8 +10,10 @@ Each subset of the offered families (none, each alone, all) is a candidate; a ca
 *admissible* only when every compliance it estimates is physical, i.e. not negative beyond
 `NEGATIVE_SIGMA` of its standard error (a stiffness is positive: a negative compliance absorbs
 something else).  Among admissible candidates the one of least model-choice score wins (GCV counting
-the physics terms as estimated parameters, or the held-out error of left-out groups).  A model whose
-terms were asked for explicitly (``--physics joint-compliance``: ``forced``) keeps all of them.
+the physics terms as estimated parameters, or the held-out error of left-out groups — there each fold
+re-estimates the compliances from its training groups, anchored at the all-groups registration-stage
+values, so the left-out group's rows weigh a little on its own prediction).  A model whose terms were
+asked for explicitly (``--physics joint-compliance``: ``forced``) keeps all of them.
 """
 
 from __future__ import annotations

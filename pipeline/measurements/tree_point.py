@@ -103,6 +103,8 @@ class TreePointModel(Composed):
         J = np.zeros((n, 3, P)) if jac else None
         col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
         nj, nc = len(self.kin.all_joints), len(self.compliant)
+        extra = jac and bool(self.extra_names())
+        load, n_kin = (self.load(data), self.n_kin) if extra else (None, 0)
         for k in range(len(self.kin.descs)):
             rows = np.flatnonzero(tip == k)
             if rows.size == 0:
@@ -112,16 +114,15 @@ class TreePointModel(Composed):
                 p[rows] = ch.forward(c, xk, qf[rows])[1]
                 continue
             p[rows], J[rows] = ch.jacobian(c, xk, qf[rows], width=P)
-            if self.extra_names():
+            if extra:
                 _, Jq = ch.joint_jacobian(c, xk, qf[rows])
-                load = self.load(data)
                 ax = load.axial[rows]
                 for i, j in enumerate(self.compliant):
-                    J[rows, :, self.n_kin + i] = Jq[:, :, col[j]] * ax[:, col[j], None]
+                    J[rows, :, n_kin + i] = Jq[:, :, col[j]] * ax[:, col[j], None]
                 lat = load.lateral[rows]
                 for i, j in enumerate(self.kin.lateral):
                     for a in range(2):
-                        J[rows, :, self.n_kin + nc + 2 * i + a] = Jq[:, :, nj + 2 * i + a] * lat[:, col[j], a, None]
+                        J[rows, :, n_kin + nc + 2 * i + a] = Jq[:, :, nj + 2 * i + a] * lat[:, col[j], a, None]
         return p, J
 
     @property

@@ -129,12 +129,15 @@ class UrdfTree:
         return "tool" if len(self.descs) == 1 else f"tool.{self.descs[k].tip}"
 
     def parameter_names(self) -> list[str]:
-        names = [f"base.{k}" for k in FRAME_KEYS]
-        for j in self.all_joints:
-            names += [f"{j.name}.{k}" for k in self._joint_keys(j)]
-        for k in range(len(self.descs)):
-            names += [f"{self.tool_prefix(k)}.{a}" for a in FRAME_KEYS]
-        return names
+        names = self.__dict__.get("_names")  # built once per tree (a solver asks at every evaluation)
+        if names is None:
+            names = [f"base.{k}" for k in FRAME_KEYS]
+            for j in self.all_joints:
+                names += [f"{j.name}.{k}" for k in self._joint_keys(j)]
+            for k in range(len(self.descs)):
+                names += [f"{self.tool_prefix(k)}.{a}" for a in FRAME_KEYS]
+            object.__setattr__(self, "_names", names)
+        return list(names)
 
     def parameter_units(self) -> list[str]:
         return ["rad" if n.rsplit(".", 1)[1] in _ANGLES else "m" for n in self.parameter_names()]

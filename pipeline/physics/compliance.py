@@ -33,7 +33,7 @@ MIN_LOAD_NM = 1.0
 EQUILIBRIUM = "first order: gravity loads evaluated at the joint readings (nominal geometry)"
 SCHEMA_VERSION = 1
 
-_CACHE: dict[str, Load] = {}
+_CACHE: dict[tuple, Load] = {}
 
 
 def parse_spec(text: str | None) -> tuple[str, tuple[str, ...]]:
@@ -68,7 +68,7 @@ def parse_payload(items) -> tuple:
 def loads(tree, q: np.ndarray, payload: tuple = ()) -> Load:
     """Gravity load on every movable joint of `tree` (`UrdfTree.all_joints` order) at readings q (n, n_joints)."""
     q = np.ascontiguousarray(q, float)
-    h = hashlib.sha256(tree.urdf.encode() + repr((tree.coupled, payload, q.shape)).encode() + q.tobytes()).hexdigest()
+    h = (tree.urdf, repr((tree.coupled, payload, q.shape)), hashlib.sha256(q.tobytes()).hexdigest())
     hit = _CACHE.get(h)
     if hit is None:
         names = [j.name for j in tree.all_joints]

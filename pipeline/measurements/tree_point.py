@@ -11,7 +11,10 @@ Physics terms (parameters appended after the kinematics', rad/(N·m), nominal 0 
 * ``J.compliance``: joint J turns by c_J · τ_J (its axial gravity moment) — a joint's torsional
   compliance (the inverse of its stiffness, N·m/rad);
 * ``J.lateral1``, ``J.lateral2``: joint J's child frame tilts by c · τ about each axis normal to
-  J's axis (bearing and link bending), through the tree's lateral virtual joints.
+  J's axis (bearing and link bending), through the tree's lateral virtual joints;
+* errors of the readings (`pipeline.physics.encoder`, after the compliance terms): ``J.ecc_sin``,
+  ``J.ecc_cos`` (rad), ``J.scale``, ``J.coupling`` (rad/rad) — the read joint J turns by
+  a·sin q + b·cos q + s·q + κ·q_driver more than read, before the couplings are expanded.
 
 The deflections enter the chain exactly (as joint values); the loads are evaluated at the
 configuration given in the table (the readings to first order; `pipeline.physics.compliance`
@@ -39,15 +42,23 @@ class TreePointModel(Composed):
     compliant: tuple[str, ...] = ()  # joints with a torsional compliance parameter
     payload: tuple = ()  # ((mass kg, link, (x, y, z) m in the link frame), …) carried besides the URDF's links
     forced: bool = False  # True: the physics terms are always fitted (not left to the model selection)
+    encoder: tuple[str, ...] = ()  # reading-error terms (`pipeline.physics.encoder`): J.ecc_sin, J.scale, …
+    absent: tuple[str, ...] = ()  # families asked for that the data cannot carry (backlash: no motion direction)
     residual_dim = 3
 
     # ----- physics parameters ---------------------------------------------------------------
-    def extra_names(self) -> list[str]:
+    def gravity_names(self) -> list[str]:
+        """The compliance terms (rad/(N·m)), before the encoder terms in the parameter vector."""
         return [f"{j}.compliance" for j in self.compliant] + \
                [f"{j}.lateral{a}" for j in self.kin.lateral for a in (1, 2)]
 
+    def extra_names(self) -> list[str]:
+        return self.gravity_names() + list(self.encoder)
+
     def extra_units(self) -> list[str]:
-        return [COMPLIANCE_UNIT] * len(self.extra_names())
+        from pipeline.physics.encoder import UNITS
+
+        return [COMPLIANCE_UNIT] * len(self.gravity_names()) + [UNITS[n.rsplit(".", 1)[1]] for n in self.encoder]
 
     def extra_nominal(self) -> np.ndarray:
         return np.zeros(len(self.extra_names()))
@@ -62,6 +73,11 @@ class TreePointModel(Composed):
             phys["joint compliance"] = [f"{j}.compliance" for j in self.compliant]
         if self.kin.lateral:
             phys["lateral compliance"] = [f"{j}.lateral{a}" for j in self.kin.lateral for a in (1, 2)]
+        if self.encoder:
+            from pipeline.physics.encoder import GROUPS, family
+
+            for n in self.encoder:
+                phys.setdefault(GROUPS[family(n)], []).append(n)
         if self.forced:
             g["registration"] = g["registration"] + [n for v in phys.values() for n in v]
             return g
@@ -69,10 +85,15 @@ class TreePointModel(Composed):
 
     # ----- evaluation ------------------------------------------------------------------------
     def deflected(self, x: np.ndarray, data: Table) -> np.ndarray:
-        """Full joint matrix (n, J_all + 2·L) with the compliant deflections added (rad)."""
-        qf = self.kin.expand(data["joint_positions"])
+        """Full joint matrix (n, J_all + 2·L) with the reading errors and compliant deflections added (rad)."""
         _, xe = self.split(x)
-        if not self.extra_names():
+        q = data["joint_positions"]
+        if self.encoder:
+            from pipeline.physics.encoder import corrected
+
+            q = corrected(self.kin, self.encoder, xe[len(self.gravity_names()):], q)
+        qf = self.kin.expand(q)
+        if not self.gravity_names():
             return qf
         col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
         nc = len(self.compliant)
@@ -103,6 +124,10 @@ class TreePointModel(Composed):
         J = np.zeros((n, 3, P)) if jac else None
         col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
         nj, nc = len(self.kin.all_joints), len(self.compliant)
+        if jac and self.encoder:
+            from pipeline.physics.encoder import basis
+
+            enc_B, enc_col = basis(self.kin, self.encoder, data["joint_positions"])
         for k in range(len(self.kin.descs)):
             rows = np.flatnonzero(tip == k)
             if rows.size == 0:
@@ -114,6 +139,10 @@ class TreePointModel(Composed):
             p[rows], J[rows] = ch.jacobian(c, xk, qf[rows], width=P)
             if self.extra_names():
                 _, Jq = ch.joint_jacobian(c, xk, qf[rows])
+            if self.encoder:  # d p / d reading through the couplings, times each term's basis
+                Jr = Jq[:, :, :nj] @ self.kin.coupling_matrix()
+                J[rows, :, self.n_kin + len(self.gravity_names()):] = Jr[:, :, enc_col] * enc_B[rows, None, :]
+            if self.gravity_names():
                 load = self.load(data)
                 ax = load.axial[rows]
                 for i, j in enumerate(self.compliant):
@@ -158,22 +187,29 @@ class TreePointModel(Composed):
                           False)[0]
         return with_registration(self.parameter_names(), x, p, np.asarray(data["position"], float))
 
-    def exports(self, x: np.ndarray) -> dict[str, str]:
-        """model.urdf (geometry) and, with physics terms, model.physics.yaml (what URDF cannot carry)."""
+    def exports(self, x: np.ndarray, std: np.ndarray | None = None, free: np.ndarray | None = None) -> dict[str, str]:
+        """model.urdf (geometry) and, with physics terms, model.physics.yaml (what URDF cannot carry), each
+        term with its 1σ when `std` (per parameter) is given."""
         out = {"model.urdf": self.kin.urdf_text(self.split(x)[0])}
-        if self.extra_names():
-            from pipeline.physics.compliance import document, to_yaml
+        if self.extra_names() or self.absent:
+            from pipeline.physics.compliance import to_yaml
 
-            out["model.physics.yaml"] = to_yaml(document(self, x))
+            out["model.physics.yaml"] = to_yaml(self._physics(x, std, free))
         return out
 
-    def describe(self, x: np.ndarray) -> dict:
+    def describe(self, x: np.ndarray, std: np.ndarray | None = None, free: np.ndarray | None = None) -> dict:
         d = super().describe(x)
-        if self.extra_names():
-            from pipeline.physics.compliance import document
-
-            d["physics"] = document(self, x)
+        if self.extra_names() or self.absent:
+            d["physics"] = self._physics(x, std, free)
         return d
+
+    def _physics(self, x, std, free) -> dict:
+        from pipeline.physics.compliance import document
+
+        P = len(self.parameter_names())
+        ok = lambda a: a is not None and np.size(a) == P  # noqa: E731
+        return document(self, x, np.asarray(std, float) if ok(std) else None,
+                        np.asarray(free, bool) if ok(free) else None)
 
 
 __all__ = ["TreePointModel", "COMPLIANCE_UNIT"]

@@ -184,9 +184,11 @@ def run_cmd(
                                         help="ROS 2 bag: the robot's URDF (docs/guide/import-ros2.md)."),
     root: Optional[str] = typer.Option(None, "--root", help="ROS 2 bag: root link of the calibrated chain.",
                                        rich_help_panel=bag_options.RUN_PANEL),
-    tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain.",
+    tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain (not with "
+                                      "--measure-topic LINK=TOPIC, whose links are the tips).",
                                       rich_help_panel=bag_options.RUN_PANEL),
-    joint_topic: str = BAG["joint_topic"], measure_topic: Optional[str] = BAG["measure_topic"],
+    joint_topic: str = BAG["joint_topic"], measure_topic: Optional[list[str]] = BAG["measure_topic"],
+    coupled: Optional[list[str]] = BAG["coupled"],
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
@@ -205,10 +207,12 @@ def run_cmd(
     from pipeline.importers.bag_import import run_input
     from pipeline.importers.ros2 import BagSpec
 
-    spec = BagSpec(joint_topic=joint_topic, measure_topic=measure_topic, measure=measure, window_s=window_s,
-                   max_speed=max_speed, time=time_source)
+    mt, tips = bag_options.measure_topics(measure_topic, tip, bag=False)
+    spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
+                   max_speed=max_speed, time=time_source, tips=tips)
     recording = run_input(recording, out, urdf, root, tip, spec, sigma_m, sigma_rad,
-                          on_read=bag_options.print_read, on_written=bag_options.print_written)
+                          on_read=bag_options.print_read, on_written=bag_options.print_written,
+                          coupled=tuple(coupled or ()))
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)

@@ -24,6 +24,7 @@ re-evaluates them at the deflected configuration for static equilibrium).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -145,17 +146,24 @@ class TreePointModel(Composed):
             if self.gravity_names():
                 load = self.load(data)
                 ax = load.axial[rows]
-                for i, j in enumerate(self.compliant):
-                    J[rows, :, self.n_kin + i] = Jq[:, :, col[j]] * ax[:, col[j], None]
-                lat = load.lateral[rows]
-                for i, j in enumerate(self.kin.lateral):
-                    for a in range(2):
-                        J[rows, :, self.n_kin + nc + 2 * i + a] = Jq[:, :, nj + 2 * i + a] * lat[:, col[j], a, None]
+                ci = np.array([col[j] for j in self.compliant], int)  # every compliance column at once
+                J[rows, :, self.n_kin:self.n_kin + nc] = Jq[:, :, ci] * ax[:, None, ci]
+                li = np.array([col[j] for j in self.kin.lateral], int)
+                nl = 2 * len(li)  # lateral virtual joint 2i + a ↔ parameter 2i + a, load (joint i, normal a)
+                J[rows, :, self.n_kin + nc:self.n_kin + nc + nl] = \
+                    Jq[:, :, nj:nj + nl] * load.lateral[rows][:, li, :].reshape(len(rows), 1, nl)
         return p, J
 
-    @property
+    @cached_property
     def n_kin(self) -> int:
         return len(self.kin.parameter_names())
+
+    def parameter_names(self) -> list[str]:
+        return list(self._names)
+
+    @cached_property
+    def _names(self) -> tuple[str, ...]:
+        return tuple(self.kin.parameter_names() + self.extra_names())
 
     def tool(self, x: np.ndarray, q: np.ndarray, jac: bool = True, angular: bool = True):
         """Tip 0's tool frame from readings `q` (rigid): for callers that draw or plan one tool."""

@@ -78,24 +78,35 @@ def candidates(tree, q: np.ndarray, families: tuple[str, ...]) -> tuple[str, ...
     return tuple(sorted(out, key=lambda s: order[family(s)]))  # one family after the other (stable)
 
 
+_PLANS: dict = {}
+
+
+def _plan(tree, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(read-joint column of each term, the column its basis reads, kind code 0 sin 1 cos 2 q), cached."""
+    key = (id(tree.descs), tree.coupled, names)
+    hit = _PLANS.get(key)
+    if hit is not None and hit[0] is tree.descs:
+        return hit[1]
+    col = {n: i for i, n in enumerate(tree.joint_names)}
+    cols, src, code = [], [], []
+    for name in names:
+        joint, kind = name.rsplit(".", 1)
+        cols.append(col[joint])
+        src.append(col[driver(tree, joint)] if kind == "coupling" else col[joint])
+        code.append({"ecc_sin": 0, "ecc_cos": 1}.get(kind, 2))
+    plan = (np.array(cols, int), np.array(src, int), np.array(code, int))
+    if len(_PLANS) > 64:
+        _PLANS.clear()
+    _PLANS[key] = (tree.descs, plan)
+    return plan
+
+
 def basis(tree, names: tuple[str, ...], q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(B (n, T), col (T,)): term t adds x_t · B[:, t] to read joint col[t] (rad per unit parameter)."""
     q = np.atleast_2d(np.asarray(q, float))
-    col = {n: i for i, n in enumerate(tree.joint_names)}
-    B = np.empty((len(q), len(names)))
-    cols = np.empty(len(names), int)
-    for t, name in enumerate(names):
-        joint, kind = name.rsplit(".", 1)
-        c = col[joint]
-        cols[t] = c
-        if kind == "ecc_sin":
-            B[:, t] = np.sin(q[:, c])
-        elif kind == "ecc_cos":
-            B[:, t] = np.cos(q[:, c])
-        elif kind == "scale":
-            B[:, t] = q[:, c]
-        else:
-            B[:, t] = q[:, col[driver(tree, joint)]]
+    cols, src, code = _plan(tree, tuple(names))
+    v = q[:, src]
+    B = np.where(code == 0, np.sin(v), np.where(code == 1, np.cos(v), v))
     return B, cols
 
 

@@ -38,6 +38,7 @@ EQUILIBRIUM = "first order: gravity loads evaluated at the joint readings (nomin
 SCHEMA_VERSION = 2
 
 _CACHE: dict[str, Load] = {}
+_ROWS: dict[str, dict[bytes, tuple[np.ndarray, np.ndarray]]] = {}  # per robot and payload: posture → loads
 
 
 def parse_spec(text: str | None) -> tuple[str, tuple[str, ...]]:
@@ -70,16 +71,32 @@ def parse_payload(items) -> tuple:
 
 
 def loads(tree, q: np.ndarray, payload: tuple = ()) -> Load:
-    """Gravity load on every movable joint of `tree` (`UrdfTree.all_joints` order) at readings q (n, n_joints)."""
+    """Gravity load on every movable joint of `tree` (`UrdfTree.all_joints` order) at readings q (n, n_joints).
+
+    Cached per posture: the rows of a campaign's subsets (cross-validation folds, model-selection rounds)
+    are computed by Pinocchio once, whichever subset asks first."""
     q = np.ascontiguousarray(q, float)
     h = hashlib.sha256(tree.urdf.encode() + repr((tree.coupled, payload, q.shape)).encode() + q.tobytes()).hexdigest()
     hit = _CACHE.get(h)
     if hit is None:
         names = [j.name for j in tree.all_joints]
-        full = tree.expand(q)[:, :len(names)]
-        hit = gravity_load(tree.urdf, names, full, payload=[(m, ln, np.asarray(c)) for m, ln, c in payload])
+        key = hashlib.sha256(tree.urdf.encode() + repr((tree.coupled, payload, names)).encode()).hexdigest()
+        rows = _ROWS.setdefault(key, {})
+        keys = [r.tobytes() for r in q]
+        todo = sorted({k: i for i, k in enumerate(keys) if k not in rows}.values())
+        if todo:
+            full = tree.expand(q[todo])[:, :len(names)]
+            new = gravity_load(tree.urdf, names, full, payload=[(m, ln, np.asarray(c)) for m, ln, c in payload])
+            for r, i in enumerate(todo):
+                rows[keys[i]] = (new.axial[r], new.lateral[r])
+        nj = len(names)
+        hit = Load(np.array([rows[k][0] for k in keys]).reshape(len(q), nj),
+                   np.array([rows[k][1] for k in keys]).reshape(len(q), nj, 2))
         if len(_CACHE) > 32:
             _CACHE.clear()
+        if len(_ROWS) > 8:
+            _ROWS.clear()
+            _ROWS[key] = rows
         _CACHE[h] = hit
     return hit
 

@@ -188,7 +188,7 @@ def run_cmd(
                                       "--measure-topic LINK=TOPIC, whose links are the tips).",
                                       rich_help_panel=bag_options.RUN_PANEL),
     joint_topic: str = BAG["joint_topic"], measure_topic: Optional[list[str]] = BAG["measure_topic"],
-    coupled: Optional[list[str]] = BAG["coupled"],
+    coupled: Optional[list[str]] = bag_options.options()["coupled"],
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,

@@ -169,3 +169,54 @@ def test_a_recording_written_as_it_comes_gets_the_scene_at_close(tmp_path):
     assert _check_tf(doc, "jig", "tool", at, [j.name for j in arm.joints]) == 50
     rec = read_recording(out)
     assert rec.metadata[META_ROBOT] == json.loads(json.dumps(arm.to_dict())) and not rec.warnings
+
+
+def test_delta_simulation_carries_its_tree_and_closed_chain_transforms(tmp_path):
+    """A Delta (closed chain) gets a URDF tree a viewer can load (parsed here by yourdfpy) and /tf whose
+    transforms close the chain: yourdfpy's pose of each upper arm at the actuator angle equals /tf's,
+    the arm's end (l1 along it) is the forearm's origin, each forearm reaches the platform's ball joint
+    at l2, and the reflector hangs reflector_offset_m below the platform point."""
+    import io
+
+    import yourdfpy
+
+    from pipeline.models.delta import Delta
+
+    rec = tmp_path / "delta.mcap"
+    p = run_cli("simulate", "delta-tracker", "--out", rec, "--points", "6", "--grid", "2", "2", "2", "--seed", "4")
+    assert p.returncode == 0, p.stderr
+    doc = _read(rec)
+    (t0, desc), = doc["/robot_description"]["messages"]
+    assert doc["/robot_description"]["schema"][0] == "std_msgs/msg/String"
+    assert doc["attachments"]["robot_description.urdf"][1].decode() == desc["data"]
+    robot = yourdfpy.URDF.load(io.StringIO(desc["data"]), build_scene_graph=True, load_meshes=False)
+    assert {"actuator_1", "actuator_2", "actuator_3"} <= set(robot.actuated_joint_names)
+    with open(rec, "rb") as f:
+        meta = {m.name: json.loads(m.metadata["json"]) for m in make_reader(f).iter_metadata()}
+    d = Delta.from_dict(meta["robocal.robot_model"])
+    h = meta["robocal.fixture"]["reflector_offset_m"]
+    tf = doc["/tf"]["messages"]
+    assert len(tf) > 20
+    checked = 0
+    for _, m in tf[:: max(1, len(tf) // 25)]:
+        tr = m["transforms"]
+        plat = _compose(tr, "base", "platform")
+        assert np.allclose(plat[:3, :3], np.eye(3), atol=1e-9)  # the nominal platform stays parallel to the base
+        cfg = {}
+        for i, phi in enumerate(d.phi, start=1):
+            arm = _compose(tr, "base", f"upper_arm_{i}")
+            # the actuator angle: elbow height over l1, from the arm's x axis
+            cfg[f"actuator_{i}"] = float(np.arctan2(arm[2, 0], np.hypot(arm[0, 0], arm[1, 0])))
+        robot.update_cfg(cfg)
+        for i, phi in enumerate(d.phi, start=1):
+            arm = _compose(tr, "base", f"upper_arm_{i}")
+            assert np.allclose(robot.get_transform(f"upper_arm_{i}", "base"), arm, atol=1e-9)
+            fore = _compose(tr, "base", f"forearm_{i}")
+            assert np.allclose(arm[:3, :3] @ [d.l1, 0, 0] + arm[:3, 3], fore[:3, 3], atol=1e-9)
+            ball = plat[:3, 3] + d.b * np.array([np.cos(phi), np.sin(phi), 0.0])
+            assert np.allclose(fore[:3, :3] @ [d.l2, 0, 0] + fore[:3, 3], ball, atol=1e-6)
+        tool = _compose(tr, "platform", "robocal_tool")
+        assert tool[2, 3] == pytest.approx(-float(h)) and h > 0
+        assert _compose(tr, "robocal_instrument", "robocal_tool").shape == (4, 4)
+        checked += 1
+    assert checked > 10

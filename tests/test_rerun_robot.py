@@ -150,3 +150,18 @@ def test_arc_welder_robot_ends_at_the_tool_tips(report_run):  # noqa: F811
 
 
 from report_support import report_run  # noqa: E402,F401  (session fixture)
+
+
+def test_rerun_viewer_shows_the_arc_welder(report_run, tmp_path):  # noqa: F811
+    """The real viewer, headless (Xvfb + Mesa lavapipe), on the arc welder's run: the 3-D view holds
+    the calibrated arm (blue capsules) and the nominal one (red)."""
+    from viewer_support import viewer_screenshot
+
+    img = viewer_screenshot(report_run / "run.rrd", tmp_path / "viewer.png")
+    h, w = img.shape[:2]
+    R, G, B = img[..., 0], img[..., 1], img[..., 2]
+    scene = (slice(int(0.05 * h), int(0.75 * h)), slice(int(0.13 * w), int(0.53 * w)))
+    blue = (B > 0.45) & (B > R + 0.2) & (B > G + 0.1)
+    red = (R > 0.5) & (R > G + 0.25) & (R > B + 0.25)
+    assert blue[scene].mean() > 5e-3, "no calibrated arm in the 3-D view"
+    assert red[scene].mean() > 1e-3, "no nominal arm in the 3-D view"

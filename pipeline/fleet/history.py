@@ -10,11 +10,14 @@ steps of that parameter; the slope's standard error scaled by the Birge ratio �
 flagged when |slope/se| exceeds the t quantile at α/(2P) (P parameters tested for the robot).
 
 A change of the identified set (a parameter fitted in one calibration and held in the next, or the
-reverse) is reported on its own (`free_set_changes`: news about the campaign, not about the robot),
-and a step found across such a change carries it (`free_set_change`): the others may have absorbed
-what a held parameter no longer explains, so the reader weighs that step knowing it.  (Steps are not
-suppressed there: in a simulated fleet the rank test swaps dependent pairs such as J2.d / J3.d from
-one month to the next, and a real step coincides with such a swap.)
+reverse) is news about the campaign, not about the robot (`free_set_changes`).  Across such a change
+the other parameters may absorb what a held one no longer explains, so a move there is a step only
+when it is *confirmed on a common basis*: the first later calibration whose identified set also
+occurs before the change is compared with the latest earlier calibration of that same set, at the
+same threshold.  A confirmed step carries the change (`free_set_change`, `confirmed_by`); an
+unconfirmed move is listed with the change (`moved`), not as a step.  (In a simulated fleet the rank
+test swaps dependent pairs such as J2.d / J3.d from one month to the next and a real step coincides
+with such a swap: the sets recur, so the step is confirmed.)
 """
 
 from __future__ import annotations
@@ -125,34 +128,68 @@ def free_set_changes(rows: list[dict]) -> list[dict]:
     return out
 
 
+def _threshold(s1, n1, s2, n2, p: float) -> np.ndarray:
+    """c = max(3, t quantile at p with the Welch–Satterthwaite dof of √(s1² + s2²))."""
+    nu = welch_dof(s1, n1, s2, n2)
+    return np.maximum(3.0, np.where(np.isfinite(nu), stats.t.isf(p, np.where(np.isfinite(nu), nu, 1)),
+                                    stats.norm.isf(p)))
+
+
+def _confirm(s: Series, k: int, sets: dict[str, frozenset], p: float) -> dict | None:
+    """For a move between series entries k and k+1 across a change of the identified set: the first
+    entry l > k whose set also occurs at some entry j ≤ k (the latest such j), and whether x_l − x_j
+    exceeds the threshold — {from_recording, recording, delta, sigma, z, threshold, confirmed} — or
+    None when no set recurs on both sides."""
+    for li in range(k + 1, s.estimate.size):
+        same = [j for j in range(k + 1) if sets.get(s.recordings[j]) == sets.get(s.recordings[li])]
+        if not same:
+            continue
+        j = same[-1]
+        d = float(s.estimate[li] - s.estimate[j])
+        sd = float(np.hypot(s.std[li], s.std[j]))
+        crit = float(_threshold(s.std[li:li + 1], s.dof[li:li + 1], s.std[j:j + 1], s.dof[j:j + 1], p)[0])
+        return {"from_recording": s.recordings[j], "recording": s.recordings[li], "delta": d, "sigma": sd,
+                "z": d / sd, "threshold": crit, "confirmed": bool(abs(d / sd) > crit)}
+    return None
+
+
 def find_steps(series: dict[str, Series], alpha: float = 0.01,
-               changed: dict[tuple[str, str], dict] | None = None) -> list[dict]:
-    """Moves between consecutive calibrations beyond the threshold (module docstring); a step
-    between a pair of recordings in `changed` (the identified set differs) carries that change."""
-    changed = changed or {}
+               changed: dict[tuple[str, str], dict] | None = None,
+               sets: dict[str, frozenset] | None = None) -> tuple[list[dict], list[dict]]:
+    """(steps, moves): moves between consecutive calibrations of a parameter beyond the threshold
+    (module docstring).  A move between recordings whose identified sets differ (`sets`: recording →
+    identified set; `changed`: the consecutive pairs that differ) is a step only when confirmed on a
+    common basis (`_confirm`); otherwise it is returned in `moves` (news, not a step)."""
+    changed, sets = changed or {}, sets or {}
     m = sum(max(0, s.estimate.size - 1) for s in series.values())
     if m == 0:
-        return []
+        return [], []
     p = alpha / (2 * m)
-    steps = []
+    steps, moves = [], []
     for s in series.values():
         if s.estimate.size < 2:
             continue
         d = np.diff(s.estimate)
         sd = np.hypot(s.std[1:], s.std[:-1])
-        nu = welch_dof(s.std[1:], s.dof[1:], s.std[:-1], s.dof[:-1])
-        crit = np.maximum(3.0, np.where(np.isfinite(nu), stats.t.isf(p, np.where(np.isfinite(nu), nu, 1)),
-                                        stats.norm.isf(p)))
+        crit = _threshold(s.std[1:], s.dof[1:], s.std[:-1], s.dof[:-1], p)
         z = d / sd
         for k in np.flatnonzero(np.abs(z) > crit):
-            extra = {}
-            if (s.recordings[k], s.recordings[k + 1]) in changed:
-                c = changed[(s.recordings[k], s.recordings[k + 1])]
-                extra = {"free_set_change": {"freed": c["freed"], "held": c["held"]}}
-            steps.append({"param": s.name, "unit": s.unit, "index": int(k + 1), "t_ns": int(s.t_ns[k + 1]),
-                          "from_t_ns": int(s.t_ns[k]), "recording": s.recordings[k + 1], "delta": float(d[k]),
-                          "sigma": float(sd[k]), "z": float(z[k]), "threshold": float(crit[k]), **extra})
-    return steps
+            a, b = s.recordings[k], s.recordings[k + 1]
+            row = {"param": s.name, "unit": s.unit, "index": int(k + 1), "t_ns": int(s.t_ns[k + 1]),
+                   "from_t_ns": int(s.t_ns[k]), "recording": b, "delta": float(d[k]), "sigma": float(sd[k]),
+                   "z": float(z[k]), "threshold": float(crit[k])}
+            if sets.get(a, frozenset()) == sets.get(b, frozenset()) and (a, b) not in changed:
+                steps.append(row)
+                continue
+            fa, fb = sets.get(a, frozenset()), sets.get(b, frozenset())
+            c = changed.get((a, b)) or {"freed": sorted(fb - fa), "held": sorted(fa - fb)}
+            row["free_set_change"] = {"freed": c["freed"], "held": c["held"]}
+            check = _confirm(s, int(k), sets, p)
+            if check is not None and check["confirmed"]:
+                steps.append(row | {"confirmed_by": check})
+            else:
+                moves.append(row | ({"checked_by": check} if check else {}))
+    return steps, moves
 
 
 def fit_trend(s: Series, step_indices: list[int]) -> dict | None:
@@ -213,8 +250,15 @@ def robot_history(robot_id: str, rows: list[dict], tolerance_m: float | None, al
     h.series = build_series(h.usable)
     h.free_set_changes = free_set_changes(h.usable)
     changed = {(c["from_recording"], c["recording"]): c for c in h.free_set_changes}
-    h.steps = find_steps(h.series, alpha, changed)
-    h.trends = find_trends(h.series, h.steps, alpha)
+    h.steps, moves = find_steps(h.series, alpha, changed, {r["recording"]: identified_set(r) for r in h.usable})
+    for c in h.free_set_changes:
+        c["moved"] = []
+    for mv in moves:  # an unconfirmed move is listed with the (last) change it crossed
+        crossed = [c for c in h.free_set_changes if mv["from_t_ns"] < c["t_ns"] <= mv["t_ns"]]
+        if crossed:
+            crossed[-1]["moved"].append({k: mv[k] for k in ("param", "unit", "delta", "sigma", "z", "from_t_ns",
+                                                           "t_ns")} | {k: mv[k] for k in ("checked_by",) if k in mv})
+    h.trends = find_trends(h.series, h.steps + moves, alpha)  # a level per segment, unconfirmed moves included
     if tolerance_m is not None:
         h.tolerance = [{"recording": r["recording"], "t_ns": r["campaign_start_ns"], "holdout_rms_m": r["holdout_rms_m"]}
                        for r in h.usable if r.get("holdout_rms_m") is not None and r["holdout_rms_m"] > tolerance_m]

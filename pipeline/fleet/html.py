@@ -82,14 +82,18 @@ def robot_section(h: RobotHistory, tolerance_m: float | None) -> str:
         out.append("</table>")
     if h.free_set_changes:
         out.append('<h3>Identified parameters changed</h3><p class="note">The calibration fitted a different set of '
-                   "parameters than the one before (news about the campaign, not a step of the robot); a step across "
-                   "such a change is marked: the others may have absorbed what a held parameter no longer explains."
+                   "parameters than the one before (news about the campaign, not a step of the robot): the others may "
+                   "absorb what a held parameter no longer explains, so a move across the change is a step only when "
+                   "calibrations with the same identified set before and after it disagree; the moves that could not "
+                   "be confirmed are listed here."
                    '</p><table class="free-set"><tr>'
-                   "<th>from</th><th>to</th><th>newly fitted</th><th>no longer fitted</th><th>recording</th></tr>")
+                   "<th>from</th><th>to</th><th>newly fitted</th><th>no longer fitted</th><th>moved, not confirmed</th>"
+                   "<th>recording</th></tr>")
         for c in h.free_set_changes:
             out.append(f'<tr class="free-set-change" data-date="{day(c["t_ns"])}"><td>{day(c["from_t_ns"])}</td>'
                        f'<td>{day(c["t_ns"])}</td><td>{escape(", ".join(c["freed"]) or "—")}</td>'
-                       f'<td>{escape(", ".join(c["held"]) or "—")}</td><td><code>{escape(c["recording"])}</code></td></tr>')
+                       f'<td>{escape(", ".join(c["held"]) or "—")}</td><td>{_moved(c)}</td>'
+                       f'<td><code>{escape(c["recording"])}</code></td></tr>')
         out.append("</table>")
     if h.trends:
         out.append('<h3>Trends (drift)</h3><table class="trends"><tr><th>parameter</th><th>slope per year</th>'
@@ -139,7 +143,9 @@ def render(hs: list[RobotHistory], source: str, tolerance_m: float | None, alpha
     tol = f"{tolerance_m * 1e3:g} mm held-out RMS" if tolerance_m is not None else "none stated (--tolerance-m)"
     method = (f'<section id="method"><h2>Method</h2><p class="note">Steps: a parameter that moved more than '
               f'c·σ between consecutive calibrations, c = max(3, Student t at α/(2m)) — family α = {alpha:g} per robot '
-              f'over its m comparisons, t with the Welch–Satterthwaite degrees of freedom of the two σ. Trends: '
+              f'over its m comparisons, t with the Welch–Satterthwaite degrees of freedom of the two σ; across a '
+              f'change of the identified set, only when calibrations of one same set before and after confirm it. '
+              f'Trends: '
               f'weighted least squares on time (one level per segment between flagged steps), slope σ scaled by '
               f'√(χ²/dof) when above 1, t test at α/(2P) over the robot\'s P parameters. Tolerance: {escape(tol)}. '
               f'Source: <code>{escape(source)}</code> ({n} recordings); robocal {__version__}.</p></section>')
@@ -157,7 +163,7 @@ def counts(hs: list[RobotHistory]) -> dict:
 
     return {"generator": GENERATOR, "robots": {h.robot_id: {"calibrations": len(h.rows), "usable": len(h.usable),
                          "steps": [{k: s[k] for k in ("param", "t_ns", "recording", "delta", "sigma", "z", "threshold",
-                                                      "free_set_change") if k in s} for s in h.steps],
+                                                      "free_set_change", "confirmed_by") if k in s} for s in h.steps],
                          "trends": [{k: t[k] for k in ("param", "slope_per_year", "se_per_year", "z", "threshold")}
                                     for t in h.trends],
                          "tolerance": h.tolerance,
@@ -167,6 +173,11 @@ def counts(hs: list[RobotHistory]) -> dict:
                          "insufficient": [{"recording": r["recording"], "reason": r["reason"]}
                                           for r in h.insufficient]}
                                   for h in hs}}
+
+
+def _moved(change: dict) -> str:
+    """The unconfirmed moves across a change of the identified set: parameter (|z|)."""
+    return escape(", ".join(f'{m["param"]} (|z| {abs(m["z"]):.1f})' for m in change.get("moved") or [])) or "—"
 
 
 def _changed(step: dict) -> str:

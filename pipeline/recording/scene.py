@@ -17,7 +17,8 @@ Every recording robocal writes (simulations, CSV and ROS 2 imports, acquisitions
   "topic") and moves it with ``/tf``.
 
 Seed 000's D-H arm (metadata ``robocal.robot_model``) is written as a URDF by
-`pipeline.models.dh_export.to_urdf`; a Delta has no serial chain and gets neither channel.
+`pipeline.models.dh_export.to_urdf`; a Delta (a closed chain) gets the tree a viewer needs and its
+transforms from `pipeline.recording.delta_scene`.
 robocal's own reader ignores both channels (they are not robocal channels, see `CHANNELS`).
 """
 
@@ -168,6 +169,9 @@ def scene_events(metadata: dict, stream=None, measured=None) -> list[tuple[int, 
     if tree is not None and t.size and q.shape[1] == tree.n_joints:
         events = [(int(t[0]), DESCRIPTION_TOPIC, {"data": tree.urdf})]
         return events + [(int(ti), TF_TOPIC, m) for ti, m in zip(t, tree_messages(tree, q, t))]
+    robot = metadata.get(META_ROBOT)
+    if isinstance(robot, dict) and robot.get("kind") == "delta":
+        return _delta_events(metadata, t, q)
     found = description(metadata) if tree is None else None
     if found is None or t.size == 0:
         return []
@@ -176,6 +180,23 @@ def scene_events(metadata: dict, stream=None, measured=None) -> list[tuple[int, 
         return []
     events = [(int(t[0]), DESCRIPTION_TOPIC, {"data": text})]
     return events + [(int(ti), TF_TOPIC, m) for ti, m in zip(t, frame_messages(arm, q, t))]
+
+
+def _delta_events(metadata: dict, t: np.ndarray, q: np.ndarray) -> list[tuple[int, str, dict]]:
+    from pipeline.models.delta import Delta
+    from pipeline.recording import delta_scene
+    from pipeline.recording.schemas import META_FIXTURE
+
+    try:
+        delta = Delta.from_dict(metadata[META_ROBOT])
+    except (KeyError, TypeError, ValueError):
+        return []
+    if t.size == 0 or q.shape[1] != delta.n_legs:
+        return []
+    h = (metadata.get(META_FIXTURE) or {}).get("reflector_offset_m", 0.0)
+    h = float(h) if isinstance(h, (int, float)) and np.isfinite(h) else 0.0
+    events = [(int(t[0]), DESCRIPTION_TOPIC, {"data": delta_scene.urdf_text(delta, h)})]
+    return events + [(int(ti), TF_TOPIC, m) for ti, m in zip(t, delta_scene.frame_messages(delta, q, t, h))]
 
 
 def encode(msg: dict) -> bytes:

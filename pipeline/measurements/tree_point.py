@@ -84,6 +84,13 @@ class TreePointModel(Composed):
             return g
         return g | phys
 
+    def late_groups(self) -> tuple[str, ...]:
+        """The reading-error groups: offered to the model selection after the geometry and the compliance
+        (`pipeline.identify.complexity`), so a reading error never displaces a geometric group."""
+        from pipeline.physics.encoder import GROUPS
+
+        return () if self.forced else tuple(GROUPS.values())
+
     # ----- evaluation ------------------------------------------------------------------------
     def deflected(self, x: np.ndarray, data: Table) -> np.ndarray:
         """Full joint matrix (n, J_all + 2·L) with the reading errors and compliant deflections added (rad)."""

@@ -144,9 +144,10 @@ class TreePointModel(Composed):
             if not jac:
                 p[rows] = ch.forward(c, xk, qf[rows])[1]
                 continue
-            p[rows], J[rows] = ch.jacobian(c, xk, qf[rows], width=P)
-            if self.extra_names():
-                _, Jq = ch.joint_jacobian(c, xk, qf[rows])
+            if not self.extra_names():
+                p[rows], J[rows] = ch.jacobian(c, xk, qf[rows], width=P)
+                continue
+            p[rows], J[rows], Jq = ch.jacobians(c, xk, qf[rows], P, self._joint_columns)
             if self.encoder:  # d p / d reading through the couplings, times each term's basis
                 Jr = Jq[:, :, :nj] @ self.kin.coupling_matrix()
                 J[rows, :, self.n_kin + len(self.gravity_names()):] = Jr[:, :, enc_col] * enc_B[rows, None, :]
@@ -160,6 +161,17 @@ class TreePointModel(Composed):
                 J[rows, :, self.n_kin + nc:self.n_kin + nc + nl] = \
                     Jq[:, :, nj:nj + nl] * load.lateral[rows][:, li, :].reshape(len(rows), 1, nl)
         return p, J
+
+    @cached_property
+    def _joint_columns(self) -> np.ndarray:
+        """The full joint matrix's columns the physics terms act through (their d p / d q is needed)."""
+        col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
+        nj = len(col)
+        A = self.kin.coupling_matrix()
+        read = {n: i for i, n in enumerate(self.kin.joint_names)}
+        driven = {k for n in self.encoder for k in np.flatnonzero(A[:, read[n.rsplit(".", 1)[0]]])}
+        return np.array(sorted({col[j] for j in self.compliant} | set(range(nj, nj + 2 * len(self.kin.lateral)))
+                               | {int(k) for k in driven}), int)
 
     @cached_property
     def n_kin(self) -> int:

@@ -3,10 +3,13 @@ simulated 6R arm (eye-in-hand; `pipeline.simulate.camera_images`, not timed), th
 
 * detection: `robocal import images` (process pool, `--workers`, default the CPU count), which
   also writes the recording;
+  with ``--ros2``: the same images in a ROS 2 bag (mono8 Image + CameraInfo + JointState at 50 Hz,
+  written with rosbags' Writer, not timed) read by `robocal import ros2 --target` (two passes over
+  the bag, CDR decoding, standstill pairing, the same detection pool);
 * calibration: reading the recording and the joint fit (intrinsics with k3, hand-eye, board pose,
   joint offsets) as `robocal run`'s identify solves it (`pipeline.identify.least_squares.fit`).
 
-    .venv/bin/python benchmarks/bench_camera_speed.py [--images 100] [--workers 2]
+    .venv/bin/python benchmarks/bench_camera_speed.py [--images 100] [--workers 2] [--ros2]
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--images", type=int, default=100)
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--ros2", action="store_true", help="time `robocal import ros2 --target` on a bag of the images")
     a = ap.parse_args()
 
     from r6_robot import BARE_URDF
@@ -60,11 +64,27 @@ def main() -> None:
         (tmp / "r6.urdf").write_text(BARE_URDF)
         print(f"rendered {a.images} images in {time.perf_counter() - t0:.1f} s (not timed below)")
         load_commands(["import"])
+        if a.ros2:
+            import cv2
+
+            from pipeline.simulate.ros2_camera_bag import CameraBagLayout, write_images_bag
+
+            files = sorted((tmp / "img").glob("img_*.png"))
+            q = np.loadtxt(tmp / "img" / "joints.csv", delimiter=",", skiprows=1, usecols=range(1, 7))
+            write_images_bag(tmp / "bag", model.kin.joint_names, q,
+                             lambda i, _: cv2.imread(str(files[i]), cv2.IMREAD_GRAYSCALE), model.image_size,
+                             np.r_[k[:4] + [5.0, -4.0, 3.0, -2.0], np.zeros(5)], CameraBagLayout())  # a rough K
+            print(f"wrote the bag ({sum(f.stat().st_size for f in (tmp / 'bag').iterdir()) / 1e6:.1f} MB, not timed)")
         t1 = time.perf_counter()
-        res = CliRunner().invoke(app, ["import", "images", str(tmp / "img"), "--target", TARGET, "--joints",
-                                       str(tmp / "img" / "joints.csv"), "--urdf", str(tmp / "r6.urdf"), "--root", "b",
-                                       "--tip", "l6", "--distortion-terms", "5", "--workers", str(a.workers),
-                                       "--out", str(tmp / "rec.mcap")])
+        if a.ros2:
+            res = CliRunner().invoke(app, ["import", "ros2", str(tmp / "bag"), "--target", TARGET, "--urdf",
+                                           str(tmp / "r6.urdf"), "--root", "b", "--tip", "l6", "--distortion-terms",
+                                           "5", "--workers", str(a.workers), "--out", str(tmp / "rec.mcap")])
+        else:
+            res = CliRunner().invoke(app, ["import", "images", str(tmp / "img"), "--target", TARGET, "--joints",
+                                           str(tmp / "img" / "joints.csv"), "--urdf", str(tmp / "r6.urdf"), "--root",
+                                           "b", "--tip", "l6", "--distortion-terms", "5", "--workers", str(a.workers),
+                                           "--out", str(tmp / "rec.mcap")])
         if res.exit_code != 0:
             raise SystemExit(res.output)
         t2 = time.perf_counter()
@@ -73,7 +93,7 @@ def main() -> None:
                                     ("j1.offset", "j6.offset"), before=False))
         t3 = time.perf_counter()
     n_img = len(np.unique(data["image"]))
-    print(f"detection + recording: {t2 - t1:.1f} s ({a.workers} workers, {n_img} of {a.images} images used, "
+    print(f"detection + recording{' (from the ROS 2 bag)' if a.ros2 else ''}: {t2 - t1:.1f} s ({a.workers} workers, {n_img} of {a.images} images used, "
           f"{len(data['corner'])} corners)")
     print(f"calibration (read + joint fit, {int(f.free.sum())} parameters): {t3 - t2:.1f} s, "
           f"RMS {np.sqrt(np.mean(f.residuals_after ** 2)):.3f} px")

@@ -100,12 +100,14 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     doc["solver"] = solver
     from pipeline.identify.results import with_3d
 
+    if getattr(model, "residual_unit", "m") != "m":  # a camera's residuals are px: the *_m figures are px then
+        doc["residual_unit"] = model.residual_unit
     doc = with_3d(doc, model, table, f.residuals_before, f.residuals_after, holdout)
     if solver == "lm" and selection is not None:
         from pipeline.identify.complexity import explain
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
-                                  "explanation": explain(selection)}
+                                  "explanation": explain(selection, getattr(model, "residual_unit", "m"))}
     if solver == "lm":
         from pipeline.physics.summary import summarise
 
@@ -120,9 +122,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
             doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
     from pipeline.accuracy.stage import guarded_document
 
-    from pipeline.identify.least_squares import kfold_indices
+    from pipeline.identify.folds import design_folds
 
-    folds = kfold_indices(len(holdout), k_folds, seed)
+    folds = design_folds(len(holdout), k_folds, seed, None, table)
     acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {}, (holdout, folds))
     if (accuracy or {}).get("previous"):
         from pipeline.accuracy.previous import compare, read_parameters
@@ -176,19 +178,22 @@ def _joint_limits(path: Path, rec, system, table: dict) -> None:
 
 def summary_rows(doc: dict) -> list[tuple[str, str]]:
     """Display rows (mm for lengths) of a results document."""
+    from pipeline.report.labels import residual_text
+
     mm = lambda v: f"{v * 1e3:.4f} mm"  # noqa: E731
+    res = lambda v: residual_text(v, doc.get("residual_unit"))  # noqa: E731 — px for a camera
     axis = " (per axis)" if doc.get("rms_3d_after_m") is not None else ""
     return [
         ("system", doc["system"]),
         ("measurements", str(doc["n_measurements"])),
-        ("RMS before" + axis, mm(doc["rms_before_m"])),
-        ("RMS after" + axis, mm(doc["rms_after_m"])),
-        (f"held-out RMS ({doc['holdout_folds']}-fold CV){axis}", mm(doc["holdout_rms_m"])),
+        ("RMS before" + axis, res(doc["rms_before_m"])),
+        ("RMS after" + axis, res(doc["rms_after_m"])),
+        (f"held-out RMS ({doc['holdout_folds']}-fold CV){axis}", res(doc["holdout_rms_m"])),
         *([("RMS of the 3-D error before / after", f"{mm(doc['rms_3d_before_m'])} / {mm(doc['rms_3d_after_m'])}"),
            ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(doc.get("holdout_kind", "")).startswith(
                "whole") else f"{doc['holdout_folds']}-fold, within this recording") + ")",
             mm(doc["holdout_rms_3d_m"]))] if doc.get("rms_3d_after_m") is not None else []),
-        ("max |residual| after", mm(doc["max_abs_after_m"])),
+        ("max |residual| after", res(doc["max_abs_after_m"])),
         *([("predicted over the workspace (1σ RMS / worst 95 %)",
             f"{mm(doc['accuracy']['map_rms_1sigma_m'])} / {mm(doc['accuracy']['map_max_bound95_m'])}")]
           if "map_rms_1sigma_m" in doc.get("accuracy", {}) else []),

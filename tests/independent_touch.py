@@ -1,7 +1,8 @@
 """An independent generator of touch campaigns for testing the diagnosis on data it did not make.
 
 It shares NO code with the diagnosis's effect signatures nor with `pipeline.simulate`: its own
-forward kinematics (a product of 4×4 homogeneous matrices), its own inverse kinematics (damped
+forward kinematics (a product of 4×4 homogeneous matrices, with its gravity torques and gear play in
+`independent_arm`), its own inverse kinematics (damped
 least squares on a finite-difference Jacobian), its own contact search (Newton on the gap along
 a joint-space search line) and its own forms of every effect, several of them deliberately
 outside the diagnosis's library:
@@ -16,7 +17,12 @@ outside the diagnosis's library:
 - ``glitch``:      J1's encoder stream reads `size` rad off over the 30 ms before one latch (the latch
                    itself is right; the approach speed derived from the stream is not);
 - in-library forms: ``coupling`` δq_j = k·q_i (linear, default J2→J3), ``linear_growth`` every D-H a, d
-  grows by α·L·t.
+  grows by α·L·t, ``backlash`` a dead band of b rad between motor (encoder) and link in joint j, run
+  through the campaign's motor path (approach, search, retract: `play`; the link lags by b/2 behind the
+  last motion that took up the play, a search shorter than the play leaves it where the approach did),
+  ``compliance`` δq_j = c·τ_j (τ_j the gravity torque about joint j of the
+  arm's lumped masses and the payload, computed here with this file's own kinematics).
+`run(..., payload_kg=6.0)` makes a single-payload campaign (every contact with that payload).
 A second campaign layout, `two_stations`: the stepped block and a copy of it shifted along x and down (J2 over a
 wider range), the campaign change the diagnosis advises for a coupling it cannot tell from an eccentricity
 (default offset: of the eight tried, the one whose J2→J3 coupling and J2 eccentricity signatures ⊥ the
@@ -33,6 +39,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from independent_arm import (  # noqa: F401
+    Arm,
+    _rot,
+    _trans,
+    backlash_error,
+    gravity_torque,
+    play,
+    pose,
+    tip,
+)
 
 from pipeline.diagnose.adapters.touch_table import add_context
 from pipeline.models.jig import Face, Jig, stepped_block
@@ -41,69 +57,6 @@ from pipeline.systems import arc_welder as aw
 RATE_HZ = 250.0
 COUNT = 2 * np.pi / 2**17
 EPOCH_NS = 1_767_225_600_000_000_000
-
-
-# ----- 4×4 kinematics ----------------------------------------------------------------------
-def _rot(axis: str, a: np.ndarray) -> np.ndarray:
-    a = np.asarray(a, float)
-    c, s = np.cos(a), np.sin(a)
-    T = np.zeros(a.shape + (4, 4))
-    T[..., 3, 3] = 1
-    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
-    k = 3 - i - j
-    T[..., k, k] = 1
-    T[..., i, i], T[..., i, j], T[..., j, i], T[..., j, j] = c, -s, s, c
-    return T
-
-
-def _trans(x, y, z, shape=()) -> np.ndarray:
-    T = np.broadcast_to(np.eye(4), shape + (4, 4)).copy()
-    T[..., 0, 3], T[..., 1, 3], T[..., 2, 3] = x, y, z
-    return T
-
-
-@dataclass(frozen=True)
-class Arm:
-    """Plain numbers: base (x, y, z, rz, rx, ry), joints [(θ, d, a, α, β)], tool (x, y, z, rz, ry, rx)."""
-
-    base: tuple
-    joints: tuple
-    tool: tuple
-    lower: tuple
-    upper: tuple
-
-    @staticmethod
-    def of(arm) -> "Arm":
-        b, t = arm.base, arm.tool
-        return Arm((b["x"], b["y"], b["z"], b["rz"], b["rx"], b["ry"]),
-                   tuple((j.theta_offset, j.d, j.a, j.alpha, j.beta) for j in arm.joints),
-                   (t["x"], t["y"], t["z"], t["rz"], t["ry"], t["rx"]),
-                   tuple(j.lower for j in arm.joints), tuple(j.upper for j in arm.joints))
-
-
-def pose(arm: Arm, q: np.ndarray, link_scale: np.ndarray | None = None) -> np.ndarray:
-    """W_T_E (n, 4, 4) at joint angles q (n, 6); `link_scale` (n, 2) multiplies (a2, d4), or
-    (n, 6) every joint's a and d."""
-    q = np.atleast_2d(q)
-    n = q.shape[0]
-    x, y, z, rz, rx, ry = arm.base
-    T = (_trans(x, y, z) @ _rot("z", rz) @ _rot("x", rx) @ _rot("y", ry))[None].repeat(n, 0)
-    for i, (th, d, a, al, be) in enumerate(arm.joints):
-        a_i = np.full(n, a)
-        d_i = np.full(n, d)
-        if link_scale is not None and link_scale.shape[1] == 6:
-            a_i, d_i = a * link_scale[:, i], d * link_scale[:, i]
-        elif link_scale is not None and i == 1:
-            a_i = a * link_scale[:, 0]
-        elif link_scale is not None and i == 3:
-            d_i = d * link_scale[:, 1]
-        T = T @ _rot("z", q[:, i] + th) @ _trans(a_i, np.zeros(n), d_i, (n,)) @ _rot("x", al) @ _rot("y", be)
-    tx, ty, tz, trz, tr_y, trx = arm.tool
-    return T @ (_trans(tx, ty, tz) @ _rot("z", trz) @ _rot("y", tr_y) @ _rot("x", trx))
-
-
-def tip(arm: Arm, q: np.ndarray, link_scale: np.ndarray | None = None) -> np.ndarray:
-    return pose(arm, q, link_scale)[:, :3, 3]
 
 
 # ----- targets: own IK --------------------------------------------------------------------
@@ -179,13 +132,21 @@ def plan(nominal: Arm, jig: Jig, m: int = 160, seed: int = 0, offset: float = 0.
 @dataclass(frozen=True)
 class Effect:
     kind: str  # bump | dent | quad_coupling | thermal_growth | warm_up_all | wild | glitch | coupling | linear_growth
+    # | backlash | compliance
     size: float
     where: dict = field(default_factory=dict)
 
 
-def _joint_error(effects, q: np.ndarray, qbar: np.ndarray) -> np.ndarray:
+def _joint_error(effects, q: np.ndarray, qbar: np.ndarray, torque=None, backlash=None) -> np.ndarray:
+    """δq (n, 6) rad: `torque(q)` the gravity torques, `backlash(width, j)` joint j's play at each latch."""
     dq = np.zeros_like(q)
     for e in effects:
+        if e.kind == "backlash":  # the load lags the motor through the play
+            j = e.where.get("joint", 0)
+            dq[:, j] += backlash(e.size, j)
+        elif e.kind == "compliance":
+            j = e.where.get("joint", 1)
+            dq[:, j] += e.size * torque(q)[:, j]
         if e.kind == "bump":
             j = e.where.get("joint", 1)
             dq[:, j] += e.size * np.exp(-0.5 * ((q[:, j] - e.where["centre"]) / e.where.get("width", 0.1)) ** 2)
@@ -240,11 +201,11 @@ class Campaign:
 
 def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n: int = 100,
         jig: Jig | None = None, repeatability_3sigma_m: float = 1e-4, jig_error_m: float = 2e-5,
-        noise: float = 1.0, payload_late: int = 0) -> Campaign:
-    """One campaign of n contacts on the first touching targets: payload 0/6 kg in blocks of 10,
-    search speeds 5/10/20 mm/s, the true robot with `effects` (its own forms).  `payload_late`: the
-    operator changes the payload this many contacts after the programmed block boundary (the
-    table then follows the changes as they happened)."""
+        noise: float = 1.0, payload_late: int = 0, payload_kg: float | None = None) -> Campaign:
+    """One campaign of n contacts on the first touching targets: payload 0/6 kg in blocks of 10
+    (`payload_kg`: that payload for every contact), search speeds 5/10/20 mm/s, the true robot with
+    `effects` (its own forms).  `payload_late`: the operator changes the payload this many contacts
+    after the programmed block boundary (the table then follows the changes as they happened)."""
     jig = jig or stepped_block()
     rng = np.random.default_rng(seed)
     idx = np.arange(n)
@@ -259,6 +220,9 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
     speed = rng.choice([0.005, 0.01, 0.02], n)
     qbar = np.mean(q_a, axis=0)
     rows = np.arange(n)
+    planned = np.where((rows // 10) % 2 == 1, 6.0, 0.0) if payload_kg is None else np.full(n, float(payload_kg))
+    payload = (np.where((np.maximum(rows - payload_late, 0) // 10) % 2 == 1, 6.0, 0.0) if payload_kg is None
+               else planned.copy())
     extra = np.zeros(n)  # a late latch: travel past the contact (m)
     wild = None
     for e in effects:
@@ -272,7 +236,9 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
 
     def gap(s, ls):
         q = q_a + s[:, None] * dq
-        p = tip(truth, q + _joint_error(effects, q, qbar), ls) + eps
+        dj = _joint_error(effects, q, qbar, lambda qq: gravity_torque(truth, qq, payload),
+                          lambda width, j: backlash_error(q_a, dq, s, width, j))
+        p = tip(truth, q + dj, ls) + eps
         uv = p[rows[:, None], other]
         c_true = coord + ferr[face] + _face_shift(effects, face, uv, jig)
         return sg * (p[rows, ax] - c_true)
@@ -324,8 +290,6 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
         q_stream = np.round(q_stream / COUNT) * COUNT
     t_ns = EPOCH_NS + np.round(t_stream * 1e9).astype(np.int64)
     tc_ns = EPOCH_NS + np.round(t_contact * 1e9).astype(np.int64)
-    planned = np.where((rows // 10) % 2 == 1, 6.0, 0.0)
-    payload = np.where((np.maximum(rows - payload_late, 0) // 10) % 2 == 1, 6.0, 0.0)
     change = np.flatnonzero(np.r_[True, np.diff(payload) != 0])
     schedule = [{"t_ns": int(tc_ns[i] - 3e9), "payload_kg": float(payload[i])} for i in change]
     schedule[0]["t_ns"] = int(t_ns[0])
@@ -361,12 +325,13 @@ def geometric_jacobian(arm: Arm, q: np.ndarray, ax: np.ndarray) -> np.ndarray:
 
 
 def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
-        jig: Jig | None = None) -> float:
-    """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable."""
+        jig: Jig | None = None, **campaign) -> float:
+    """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable (`campaign`: `run`'s
+    options, e.g. payload_kg)."""
     jig = jig or stepped_block()
-    c0 = run(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0)
+    c0 = run(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0, **campaign)
     unit = Effect(effect.kind, 1e-3 * (effect.size or 1.0), effect.where)
-    c1 = run(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0)
+    c1 = run(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0, **campaign)
     ax = c0.table["axis"]
     rows = np.arange(ax.size)
     # residual change: the same coordinates, the model tip at the latched q moves

@@ -161,3 +161,9 @@ def test_robocal_run_calibrates_the_imported_recording(images, tmp_path):
     sig = fit["extra"]["jackknife_sigma"]
     assert {"camera.fx", "tool.x"} <= set(sig) and all(v > 0 for v in sig.values())
     assert fit["extra"]["images"] == 6
+    # every residual figure of a camera is px: fit.json, results.json and the run's summary table say so
+    assert fit["residual_unit"] == "px" and " px" in fit["model_selection"]["explanation"][0]
+    assert json.loads((tmp_path / "run" / "results.json").read_text())["summary"]["residual_unit"] == "px"
+    rows = {ln.split("│")[1].strip(): ln.split("│")[2].strip() for ln in run.stderr.splitlines() if ln.count("│") >= 3}
+    for k, v in (("RMS after", fit["rms_after_m"]), ("held-out RMS", fit["holdout_rms_m"])):
+        assert rows[k] == f"{v:.4f} px", (k, rows[k])

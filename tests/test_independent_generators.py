@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 TESTS = Path(__file__).resolve().parent
-INDEPENDENT = ("independent_drive", "independent_recording", "r6_robot", "stream_support")
+INDEPENDENT = ("independent_arm", "independent_drive", "independent_recording", "r6_robot", "stream_support")
 
 
 def test_independent_generators_import_no_robocal_code():

@@ -46,6 +46,7 @@ class Inputs:
     residual_dim: int
     holdout: dict | None = None  # `holdout.consistency` of the run's cross-validation, if any
     Jp_full: np.ndarray | None = None  # (N, 3, P) where a campaign could measure (default: the map)
+    residual_unit: str = "m"  # of the measurements' residuals (px for a camera; the map's points stay m)
 
 
 def _axis_name(v: np.ndarray) -> str:
@@ -119,8 +120,9 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
         f = float(ho["inflation"])
         sig, b95 = sig * f, b95 * f
         meas_scale = f
-        reasons.append(f"held-out error contradicts the stated accuracy: held-out RMS {ho['holdout_rms_m'] * 1e3:.3g} mm "
-                       f"where σ̂ and the design predict {ho['predicted_holdout_rms_m'] * 1e3:.3g} mm (ratio of mean "
+        k, u = (1.0, "px") if inp.residual_unit == "px" else (1e3, "mm")  # the residuals' unit
+        reasons.append(f"held-out error contradicts the stated accuracy: held-out RMS {ho['holdout_rms_m'] * k:.3g} {u} "
+                       f"where σ̂ and the design predict {ho['predicted_holdout_rms_m'] * k:.3g} {u} (ratio of mean "
                        f"squares {ho['ratio']:.2f}, p = {ho['p_value']:.2g}): the errors are not independent with one σ "
                        f"(noise that differs between measurements, errors shared between them) or the model misses an "
                        f"effect; stated accuracy inflated ×{f:.2f}")
@@ -199,7 +201,7 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
                  cov_free=cov_free,
                  prior_sigma=np.asarray(prior_sigma, float), Jm=J.reshape(-1, J.shape[-1]), Jp_meas=Jp_meas,
                  points_map=pts, Jp_map=Jp_map, Jp_map_uncal=Jp_uncal, residual_dim=model.residual_dim, holdout=ho,
-                 Jp_full=Jp_full)
+                 Jp_full=Jp_full, residual_unit=getattr(model, "residual_unit", "m"))
     doc = assess(inp, tolerance_m, direction_advice)
     if shared is not None:
         doc["shared_error"] = {"sigma_w_m": shared["sigma_w_m"], "tau_m": shared["tau_m"],

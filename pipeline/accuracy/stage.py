@@ -91,10 +91,10 @@ def guarded_document(model, rec, x, free, cov, data, params: dict, holdout=None)
                 "advice": "report this model to the robocal maintainers", "map": {}}
 
 
-def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict):
+def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict, data: dict | None = None):
     """(held-out residuals of the used rows, folds) of the identify stage's cross-validation (the
-    same seeded split, `kfold_indices`), or None when it has none."""
-    from pipeline.identify.least_squares import kfold_indices
+    same seeded split kept representative of the design `data`, `folds.design_folds`), or None when it has none."""
+    from pipeline.identify.folds import design_folds
     from pipeline.stages.artefacts import read_stage
 
     k = int(fit.get("residual_dim", 1))
@@ -104,7 +104,7 @@ def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict):
         return None
     seed = int(((read_stage(run_dir, IDENTIFY) or {}).get("params") or {}).get("seed", 0))
     h = np.stack([np.asarray(res[c], float) for c in cols], axis=1)[used]
-    return h, kfold_indices(int(used.sum()), folds, seed)
+    return h, design_folds(int(used.sum()), folds, seed, None, data)
 
 
 def run(run_dir: Path, params: dict) -> dict:
@@ -116,7 +116,7 @@ def run(run_dir: Path, params: dict) -> dict:
     used = res["used"].astype(bool)
     data = take(model_columns(table), used)
     x, free = np.asarray(fit["x"], float), np.asarray(fit["free"], bool)
-    doc = guarded_document(model, rec, x, free, fit["cov"], data, params, run_holdout(run_dir, res, used, fit))
+    doc = guarded_document(model, rec, x, free, fit["cov"], data, params, run_holdout(run_dir, res, used, fit, data))
     if params.get("previous"):
         doc["previous"] = {"run": str(params["previous"]),
                            **compare(fit["parameters"], read_parameters(Path(params["previous"])))}

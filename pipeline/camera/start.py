@@ -45,9 +45,10 @@ def views(data: Table) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray], 
             np.asarray(data["joint_positions"], float)[first])
 
 
-def calibrate_camera(obj: list[np.ndarray], px: list[np.ndarray], size: tuple[int, int], lens: str, n_dist: int):
+def calibrate_camera(obj: list[np.ndarray], px: list[np.ndarray], size: tuple[int, int], lens: str, n_dist: int,
+                     k0: np.ndarray | None = None):
     """OpenCV's intrinsics (k vector as `projection`) and each view's board pose in the camera,
-    T_cam_board (m,4,4); rms reprojection px."""
+    T_cam_board (m,4,4); rms reprojection px.  `k0`: intrinsics to start from (pinhole)."""
     import cv2
 
     o = [np.asarray(a, np.float32) for a in obj]
@@ -60,7 +61,13 @@ def calibrate_camera(obj: list[np.ndarray], px: list[np.ndarray], size: tuple[in
                                                   np.zeros(4), flags=flags | cv2.fisheye.CALIB_USE_INTRINSIC_GUESS)
     else:
         flags = {4: cv2.CALIB_FIX_K3, 5: 0, 8: cv2.CALIB_RATIONAL_MODEL}[n_dist]
-        rms, K, d, rv, tv = cv2.calibrateCamera(o, p, size, None, None, flags=flags)
+        if k0 is None:
+            rms, K, d, rv, tv = cv2.calibrateCamera(o, p, size, None, None, flags=flags)
+        else:
+            d0 = np.zeros(8)
+            d0[:min(n_dist, len(k0) - 4)] = np.asarray(k0, float)[4:4 + n_dist]
+            rms, K, d, rv, tv = cv2.calibrateCamera(o, p, size, pj.camera_matrix(k0), d0[:max(n_dist, 5)],
+                                                    flags=flags | cv2.CALIB_USE_INTRINSIC_GUESS)
     k = np.r_[K[0, 0], K[1, 1], K[0, 2], K[1, 2], np.asarray(d, float).ravel()[:n_dist]]
     R = np.stack([cv2.Rodrigues(np.asarray(r, float))[0] for r in rv])
     return k, homogeneous(R, np.asarray(tv, float).reshape(-1, 3)), float(rms)
@@ -129,7 +136,8 @@ def opencv_start(model, data: Table, method: str = "PARK") -> np.ndarray:
     others start at 0, where model selection frees them from)."""
     _, obj, px, q = views(data)
     nd = model.n_dist if model.lens == pj.FISHEYE else 4
-    k, T_cb, _ = calibrate_camera(obj, px, tuple(model.image_size), model.lens, nd)
+    k0 = None if model.k_start is None or model.lens == pj.FISHEYE else np.asarray(model.k_start, float)
+    k, T_cb, _ = calibrate_camera(obj, px, tuple(model.image_size), model.lens, nd, k0)
     x = model.nominal()
     X, Y = hand_eye(flange_poses(model, x, q), T_cb, model.mount, method)
     return set_frames(model, x, X, Y, np.r_[k, np.zeros(model.n_dist - nd)])

@@ -3,7 +3,9 @@
 Read by `pipeline.systems.urdf_robot.load` for campaigns with ``measure: camera``.  The campaign
 holds ``target`` (a `pipeline.camera.targets` declaration), ``mount`` (tip | world), ``lens``
 (pinhole | fisheye), ``n_dist`` and ``image_size`` [width, height] px, and
-``kinematics_known`` (the joint positions are a measured flange pose).
+``kinematics_known`` (the joint positions are a measured flange pose); optionally
+``start_intrinsics`` (fx, fy, cx, cy px, distortion terms: what the camera states, e.g. a ROS
+CameraInfo's K and D), the model's nominal intrinsics and the start of OpenCV's calibrateCamera.
 """
 
 from __future__ import annotations
@@ -19,7 +21,9 @@ def camera_model(arm, campaign: dict) -> CameraModel:
     size = campaign.get("image_size") or [640, 480]
     return CameraModel(arm, mount=str(campaign.get("mount", "tip")), lens=str(campaign.get("lens", "pinhole")),
                        n_dist=int(campaign.get("n_dist", 5)), image_size=(int(size[0]), int(size[1])),
-                       kinematics_known=bool(campaign.get("kinematics_known", False)))
+                       kinematics_known=bool(campaign.get("kinematics_known", False)),
+                       k_start=tuple(float(v) for v in campaign["start_intrinsics"]) if campaign.get("start_intrinsics")
+                       else None)
 
 
 def camera_table(rec, topic: str, msgs: list[dict], arm, campaign: dict) -> dict[str, np.ndarray]:

@@ -55,7 +55,9 @@ def diagnose_cmd(
                          for p in f["parameters"])
         alike = ", ".join(f"{a['effect']}@{a['location']}" for a in f.get("look_alikes", []))
         t.add_row(f["effect"] + ("" if f["confidence"] == "high" else f" ({f['confidence']} confidence)")
-                  + (f" (or {alike}: the campaign can hardly tell)" if alike else ""), f["location"], pars,
+                  + (f" (or {alike}: the campaign can hardly tell)" if alike else "")
+                  + (f" (runner-up {ru['effect']}@{ru['location']}, Δχ² {ru['delta_chi2']:.3g})"
+                     if (ru := f.get("runner_up")) and not alike else ""), f["location"], pars,
                   f"{ev['p_value']:.2g}", f"{mm(ev['cv_rms_before_m'])} → {mm(ev['cv_rms_after_m'])}",
                   f"{ev['bootstrap_frequency']:.2f}")
     con = console()

@@ -23,14 +23,10 @@ def candidate_module(system: str):
 
 
 def write_plan(out: Path, doc: dict) -> None:
-    """The plan / campaign JSON, robocal's generator its first key (`recording.output`: robocal may
-    replace it later; it never replaces a file it did not create)."""
-    from pipeline.recording.output import check_output, generated
-    from pipeline.stages.artefacts import write_json
+    """The plan / campaign JSON (`pipeline.plan.campaign.write_document`)."""
+    from pipeline.plan.campaign import write_document
 
-    check_output(out, "plan")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_json(out, generated(doc))
+    write_document(out, doc)
 
 
 @app.command("plan", rich_help_panel=PLAN)
@@ -56,6 +52,25 @@ def plan_cmd(
     tip: str = typer.Option(None, "--tip", help="System urdf: tip link of the chain."),
     measure: str = typer.Option("point", "--measure", help="System urdf: point | pose (what is measured at each "
                                 "configuration: a tracker target, or a 6-D pose)."),
+    target: str = typer.Option(None, "--target", help="System camera: the board (as robocal import images), "
+                               "e.g. chessboard:9x6:0.03."),
+    camera_on: str = typer.Option("tip", "--camera-on", help="System camera: tip (eye-in-hand) or world (eye-to-hand)."),
+    lens: str = typer.Option("pinhole", "--lens", help="System camera: pinhole or fisheye."),
+    n_dist: int = typer.Option(5, "--distortion-terms", help="System camera: distortion terms of the model (4, 5, 8)."),
+    image_size: str = typer.Option("640x480", "--image-size", help="System camera: WIDTHxHEIGHT, px."),
+    focal_px: float = typer.Option(None, "--focal-px", min=1.0, help="System camera: nominal focal length, px "
+                                   "(default: the image width)."),
+    home: str = typer.Option(None, "--home", help="System camera: q1,…,qn rad, where the camera sees the board's "
+                             "centre straight on at --distance."),
+    distance_m: float = typer.Option(0.5, "--distance-m", min=0.01, help="System camera: board distance at --home, m."),
+    hand_eye: str = typer.Option(None, "--hand-eye", help="System camera: the tool frame x,y,z (m),roll,pitch,yaw "
+                                 "(rad): flange → camera (tip), flange → board (world); default on the flange's z axis."),
+    fit_groups: str = typer.Option("joint offsets", "--fit", help="System camera: parameter groups planned for with the "
+                                   "registration (intrinsics, hand-eye, board), comma-separated; '' for none."),
+    max_tilt_rad: float = typer.Option(0.7, "--max-tilt-rad", min=0.0, max=1.2, help="System camera: largest angle "
+                                       "between the optical axis and the board's normal, rad."),
+    margin_px: float = typer.Option(30.0, "--margin-px", min=0.0, help="System camera: every corner at least this far "
+                                    "inside the image (nominal model), px."),
 ) -> None:
     """D-optimal pose selection: greedy + Fedorov exchange with rank-1 (Sherman–Morrison) updates.
     For the arc welder the output is an executable campaign (schemas/campaign.schema.json)."""
@@ -68,6 +83,14 @@ def plan_cmd(
     from pipeline.recording.output import check_output
 
     check_output(out, "plan")  # before any work: never over a file robocal did not create
+    if system == "camera":
+        from pipeline.cli.plan_camera import CameraOptions, plan_camera
+
+        w = image_size.lower().split("x")[0]
+        focal = focal_px if focal_px is not None else (float(w) if w.strip().isdigit() else 640.0)
+        opts = CameraOptions(target, camera_on, lens, n_dist, image_size, focal, home, distance_m, hand_eye,
+                             fit_groups, max_tilt_rad, margin_px)
+        return plan_camera(urdf, root, tip, opts, candidates, select_m, out, seed, check)
     if system == "urdf":
         return plan_urdf(urdf, root, tip, measure, candidates, select_m, out, seed, check)
     if hasattr(candidate_module(system), "touch_campaign"):

@@ -133,7 +133,20 @@ def reprocess_cmd(
 
 
 def _print_table(archive: Path, rows: list[dict]) -> None:
-    mm = lambda v: "—" if v is None else f"{v * 1e3:.4f}"  # noqa: E731
+    def unit_of(r: dict) -> str | None:
+        """px for a camera's run (fit.json's residual_unit), else None (metres, shown in mm)."""
+        from pipeline.stages.artefacts import read_json
+
+        fit = Path(r["run_dir"]) / "identify" / "fit.json" if r.get("run_dir") else None
+        try:
+            return read_json(fit).get("residual_unit") if fit is not None and fit.is_file() else None
+        except Exception:  # noqa: BLE001 — a damaged fit.json: the row's own status says so
+            return None
+
+    def mm(v, unit=None):
+        if v is None:
+            return "—"
+        return f"{v:.4f} px" if unit == "px" else f"{v * 1e3:.4f}"
     shown = rows if len(rows) <= MAX_TABLE_ROWS else [r for r in rows if not r["ok"]][:MAX_TABLE_ROWS]
     if not shown:
         return
@@ -144,10 +157,11 @@ def _print_table(archive: Path, rows: list[dict]) -> None:
               "identifiable", "status", "vs expected"):
         t.add_column(c)
     for r in shown:
+        u = unit_of(r)
         verdict = ("[green]ok[/]" if not r["regressions"] else "[red]" + "; ".join(r["regressions"]) + "[/]") \
             if r["expected"] else "[yellow]no expected figures[/]"
         status = str(r.get("status")) + (f": {r['error']}" if r.get("error") else "")
         t.add_row(r["recording"], str(r.get("robot_id") or "—"), str(r.get("system") or "—"),
-                  str(r.get("n_measurements") or "—"), mm(r.get("rms_before_m")), mm(r.get("rms_after_m")),
-                  mm(r.get("holdout_rms_m")), str(r.get("n_identifiable") or "—"), status, verdict)
+                  str(r.get("n_measurements") or "—"), mm(r.get("rms_before_m"), u), mm(r.get("rms_after_m"), u),
+                  mm(r.get("holdout_rms_m"), u), str(r.get("n_identifiable") or "—"), status, verdict)
     Console(width=None if sys.stdout.isatty() else 160).print(t)

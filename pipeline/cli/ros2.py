@@ -1,4 +1,5 @@
-"""`robocal import ros2`: a ROS 2 bag (JointState + PointStamped/PoseStamped) → a robocal recording."""
+"""`robocal import ros2`: a ROS 2 bag (JointState + PointStamped/PoseStamped, or with --target camera
+images: Image/CompressedImage + CameraInfo) → a robocal recording."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pipeline.cli import bag_options
 from pipeline.cli.importer import import_app
 
 BAG = bag_options.options()
+CAM = "Camera (a bag with images: --target)"
 
 
 @import_app.command("ros2")
@@ -26,12 +28,53 @@ def import_ros2(
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
+    target: Optional[str] = typer.Option(None, "--target", rich_help_panel=CAM, help="A camera bag: the board the "
+                                         "images show, as for `import images` (chessboard:COLSxROWS:SQUARE_M | "
+                                         "charuco:… | aprilgrid:…)."),
+    image_topic: Optional[str] = typer.Option(None, "--image-topic", rich_help_panel=CAM, help="sensor_msgs Image or "
+                                              "CompressedImage topic (default: the bag's only one)."),
+    info_topic: Optional[str] = typer.Option(None, "--camera-info-topic", rich_help_panel=CAM, help="CameraInfo topic "
+                                             "(default: the one beside the image topic, or the bag's only one)."),
+    camera_on: str = typer.Option("tip", "--camera-on", rich_help_panel=CAM, help="tip (eye-in-hand; board fixed) or "
+                                  "world (eye-to-hand; board on the tip)."),
+    lens: str = typer.Option("pinhole", "--lens", rich_help_panel=CAM, help="pinhole or fisheye."),
+    n_dist: int = typer.Option(0, "--distortion-terms", rich_help_panel=CAM, help="Pinhole: 4, 5 or 8 (default 8); "
+                               "fisheye: 4."),
+    max_edge_px: float = typer.Option(5.0, "--max-edge-px", rich_help_panel=CAM, help="A chessboard with edges wider "
+                                      "than this (px) is blurred."),
+    clock_bound: float = typer.Option(0.1, "--clock-offset-bound", rich_help_panel=CAM, min=0.0, help="How far the "
+                                      "camera's clock may be off the joint states' (s): an image is paired only where "
+                                      "the robot stood still for ± this around its stamp."),
+    clock_offset: float = typer.Option(0.0, "--clock-offset", rich_help_panel=CAM, help="A known offset, camera clock "
+                                       "− joint clock (s), taken off the image stamps."),
+    workers: int = typer.Option(0, "--workers", min=0, rich_help_panel=CAM, help="Detection processes (0: the CPU count)."),
+    kinematics_known: bool = typer.Option(False, "--kinematics-known", rich_help_panel=CAM, help="The joint states "
+                                          "are exact (e.g. a measured flange pose as the joints of `robocal import "
+                                          "images`' pose chain): only camera, hand-eye and board are fitted."),
+    skip_bad: bool = typer.Option(False, "--skip-bad", rich_help_panel=CAM, help="Leave out images that cannot be "
+                                  "read, of an unsupported encoding or of another size than CameraInfo (listed)."),
 ) -> None:
     """Pair each measurement with the joint state where the robot stood still around it and write a
     recording `robocal run` calibrates; measurements taken while moving are listed and left out."""
     from pipeline.importers.bag_import import import_bag
     from pipeline.importers.ros2 import BagSpec
 
+    from pipeline.errors import RobocalError
+
+    if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
+        from pipeline.cli.ros2_camera import import_camera
+        from pipeline.importers.ros2_camera import CameraSpec
+
+        if tip is None or measure_topic or coupled:
+            raise RobocalError("--target (a camera bag) needs --tip LINK (where the camera or board is) and takes no "
+                               "--measure-topic or --coupled")
+        spec = BagSpec(joint_topic=joint_topic, window_s=window_s, max_speed=max_speed, time=time)
+        cam = CameraSpec(target=target, image_topic=image_topic, info_topic=info_topic, mount=camera_on, lens=lens,
+                         n_dist=n_dist or (8 if lens == "pinhole" else 4), max_edge_px=max_edge_px,
+                         clock_bound_s=clock_bound, clock_offset_s=clock_offset, workers=workers, skip_bad=skip_bad,
+                         kinematics_known=kinematics_known)
+        import_camera(bag, urdf, root, tip, out, spec, cam, robot_id)
+        return
     mt, tips = bag_options.measure_topics(measure_topic, tip)
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time, tips=tips)

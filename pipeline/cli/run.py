@@ -23,6 +23,7 @@ def _log(line: str) -> None:
 def _summary(run_dir: Path, failed: bool = False) -> None:
     """The run's figures from DIR/results.json (a folder robocal wrote); `failed`: the run stopped,
     so whatever the file says, the status is fail."""
+    from pipeline.report.labels import residual_text
     from pipeline.stages.artefacts import read_json
     from pipeline.stages.runfolder import is_run_folder
 
@@ -37,13 +38,14 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
     if failed:
         s["status"] = "fail"
     mm = lambda v: "—" if v is None else f"{v * 1e3:.4f} mm"  # noqa: E731
+    res = lambda v: residual_text(v, s.get("residual_unit"), none="—")  # noqa: E731 — px for a camera
     t = Table(title=f"robocal run — {run_dir}")
     t.add_column("figure")
     t.add_column("value", justify="right")
     rows = [("system", s.get("system", "—")), ("status", s.get("status", "—")),
             ("measurements used / recorded", f"{s.get('n_used', '—')} / {s.get('n_measurements', '—')}"),
-            ("RMS before", mm(s.get("rms_before_m"))), ("RMS after", mm(s.get("rms_after_m"))),
-            ("held-out RMS", mm(s.get("holdout_rms_m"))),
+            ("RMS before", res(s.get("rms_before_m"))), ("RMS after", res(s.get("rms_after_m"))),
+            ("held-out RMS", res(s.get("holdout_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
     if s.get("rms_3d_after_m") is not None:  # the figure other tools publish: norm of each 3-D error, RMS
         rows[3:3] = [("RMS of the 3-D error before / after", f"{mm(s.get('rms_3d_before_m'))} / {mm(s['rms_3d_after_m'])}"),
@@ -193,6 +195,13 @@ def run_cmd(
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
+    target: Optional[str] = typer.Option(None, "--target", rich_help_panel=bag_options.RUN_PANEL,
+                                         help="ROS 2 camera bag: the board its images show (as `robocal import "
+                                              "ros2 --target`; more camera options there)."),
+    camera_on: str = typer.Option("tip", "--camera-on", rich_help_panel=bag_options.RUN_PANEL,
+                                  help="ROS 2 camera bag: tip (eye-in-hand) or world (eye-to-hand)."),
+    clock_bound: float = typer.Option(0.1, "--clock-offset-bound", min=0.0, rich_help_panel=bag_options.RUN_PANEL,
+                                      help="ROS 2 camera bag: how far the camera's clock may be off the joints' (s)."),
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached.  A ROS 2 bag is
@@ -211,8 +220,15 @@ def run_cmd(
     mt, tips = bag_options.measure_topics(measure_topic, tip, bag=False)
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time_source, tips=tips)
+    importer = None
+    if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
+        from pipeline.cli.ros2_camera import import_camera
+        from pipeline.importers.ros2_camera import CameraSpec
+
+        cam = CameraSpec(target=target, mount=camera_on, clock_bound_s=clock_bound)
+        importer = lambda rec: import_camera(recording, urdf, root, tip, rec, spec, cam)  # noqa: E731
     recording = run_input(recording, out, urdf, root, tip, spec, sigma_m, sigma_rad,
-                          on_read=bag_options.print_read, on_written=bag_options.print_written,
+                          on_read=bag_options.print_read, on_written=bag_options.print_written, importer=importer,
                           coupled=tuple(coupled or ()))
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)

@@ -6,17 +6,20 @@
    minimum detectable size vs plausible size, confounding → `not_identifiable` with advice;
 3. forward selection by grouped F with Holm's correction (family α);
 4. joint nonlinear refit of geometry + accepted effects (parameters with 1σ);
-5. evidence: grouped cross-validation on time blocks (same folds before/after), ΔBIC,
-   bootstrap selection frequency;
+5. evidence: grouped cross-validation on time blocks (same folds before/after; folds repaired so every
+   training set keeps every face, placement, joint range and parameter direction, `identify.folds`),
+   ΔBIC, bootstrap selection frequency;
 6. lack-of-fit of the final residuals against smooth functions of each joint angle, time,
    approach speed (and, for touch campaigns, `adapters.touch_variables`) → `unexplained` and where;
 7. the verdict (`verdict.arbiter`, `verdict.checks`): the held-out arbiter, findings carried by one or
    two records (`verdict.outliers` runs the diagnosis again without them), misspecification along
-   each finding's own variable, twins, back to the declared noise floor → `status`.
+   each finding's own variable, twins, back to the declared noise floor, a held-out error many times
+   the in-sample σ (`resampling.holdout_over_insample`: never `clean`/`explained` beside it) → `status`.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +33,7 @@ from pipeline.diagnose.inference.stepwise import look_alikes
 from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.touch_probe import tip_speed_vector
 from pipeline.diagnose.verdict import arbiter, grading, outliers
-from pipeline.identify.least_squares import Fit, FitOptions, fit, kfold_indices
+from pipeline.identify.least_squares import Fit, FitOptions, fit
 
 
 @dataclass(frozen=True)
@@ -85,7 +88,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     # 3. gate and selection (iterated with the noise model), each finding's form by held-out error
     sel = screen.select(p, nz, s)
     groups = np.repeat(resampling.time_blocks(ad.time_s, s.block), p.k)
-    folds = kfold_indices(p.n * p.k, s.folds, s.seed, groups)
+    folds, moved, alone = resampling.design_folds(p.n, p.k, s, ad.time_s, table, p.Jf)
     form_cv = _choose_forms(p, nz, sel, folds)
     # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
     alikes = (look_alikes(sel.r_w, sel.Sp, p.dof, [sel.testable.index(i) for i in sel.accepted], sel.tols)
@@ -103,6 +106,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     for fd, i in zip(findings, sel.accepted):
         if i in form_cv:
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
+    _runner_ups(findings, sel, p)
     # 6. the held-out arbiter and the records that carry a finding (`verdict.arbiter`); pose-clustered
     # campaigns: the unweighted CV ignores the shared pose errors, so there the findings rest on the
     # pose sign-flip check instead and a finding without CV improvement is graded `low`
@@ -118,8 +122,9 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     effects = [p.lib[i] for i in fin.accepted]
     misfit = grading.grade(fin.findings, effects, fin.contributions, [fin.col_of[i] for i in fin.accepted], fin.A,
                            fin.r_final, variables, where, sel.gates, W, s.alpha)
+    design = resampling.holdout_over_insample(before_cv, fin.after_cv, p.sigma, rf.sigma_after)
     floor, st_name, st_reason = grading.floor_and_status(ad, rf.z[:ng], fin.r_final, fin.A, fin.after_cv, folds,
-                                                         fin.findings, where, worse, misfit, s.alpha)
+                                                         fin.findings, where, worse, misfit, s.alpha, design)
     # 7. visual proof (added-variable plots, the re-simulated campaign: pure arrays) and the document
     resim = add_plots(ad, fin.findings, effects, fin.contributions, where, variables, p.r, fin.r_final, fin.A, p.Jf,
                       p.n, p.k)
@@ -128,7 +133,8 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         clustered=None if W is None else clustered_summary(W, nz.nm, s, ad, p.lib, sel.dropped),
         status=(st_name, st_reason), floor=floor, findings=fin.findings, rejected=rejected,
         carried=carried if influence else None, gates=sel.gates, where=where, lof=lof, before_cv=before_cv,
-        after_cv=fin.after_cv, all_cv=all_cv, names=f.names, z=rf.z, free=f.free, resim=resim)
+        after_cv=fin.after_cv, all_cv=all_cv, names=f.names, z=rf.z, free=f.free, resim=resim, moved=moved,
+        alone=alone, design=design)
 
 
 def _geometry(model, table, ad: Adapter, x0: np.ndarray | None, geometry_fit: Fit | None) -> Fit:
@@ -142,6 +148,24 @@ def _geometry(model, table, ad: Adapter, x0: np.ndarray | None, geometry_fit: Fi
         x0[idx] = model.nominal()[idx]
         geometry_fit = fit(model, table, FitOptions(x0=x0, fixed=tuple(ad.held)))
     return geometry_fit or fit(model, table, FitOptions(x0=x0))
+
+
+def _runner_ups(findings: list, sel: screen.Selection, p: screen.Problem) -> None:
+    """A finding acting through a joint lists its runner-up: the candidate whose swap for it fits best
+    (`stepwise.look_alikes` at level 1: every candidate with no more directions, closest first, outside its
+    own family of forms), Δχ² how much worse — a reader sees how far the next name is even when it is beyond the look-alike bound."""
+    joint = [j for j, i in enumerate(sel.accepted) if re.match(r"J\d", str(p.lib[i].location))]
+    if not joint:
+        return
+    pos = [sel.testable.index(i) for i in sel.accepted]
+    every = look_alikes(sel.r_w, sel.Sp, p.dof, pos, sel.tols, level=1.0)
+    for j in joint:  # another form of its own family is not a rival name (`inference.forms` chose among them)
+        near = [(c, dl) for c, dl in every.get(pos[j], [])
+                if p.lib[sel.testable[c]].family != p.lib[sel.accepted[j]].family]
+        if near:
+            c, dl = near[0]
+            e = p.lib[sel.testable[c]]
+            findings[j]["runner_up"] = {"effect": e.name, "location": str(e.location), "delta_chi2": dl}
 
 
 def _choose_forms(p: screen.Problem, nz: screen.Noise, sel: screen.Selection, folds: list) -> dict:

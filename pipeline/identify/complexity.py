@@ -144,13 +144,14 @@ def _screen(model: MeasurementModel, data: Table, kept: list[str], singles: list
     return sorted(singles, key=lambda n: -gain[n])[:SINGLE_SCREEN]
 
 
-def explain(sel: Selection) -> list[str]:
-    """One line per decision, in mm."""
-    lines = [f"registration only: held-out RMS {sel.holdout_registration_m * 1e3:.3f} mm"]
+def explain(sel: Selection, unit: str = "m") -> list[str]:
+    """One line per decision, in mm (residuals in m) or px (a camera's, `unit` px)."""
+    k, u = (1.0, "px") if unit == "px" else (1e3, "mm")
+    lines = [f"registration only: held-out RMS {sel.holdout_registration_m * k:.3f} {u}"]
     for r in sel.rounds[1:]:
         verdict = "kept" if r["kept"] else "not kept"
-        lines.append(f"+ {r['candidate']}: held-out {r['holdout_rms_m'] * 1e3:.3f} mm against "
-                     f"{r['against_m'] * 1e3:.3f} mm → {verdict}")
+        lines.append(f"+ {r['candidate']}: held-out {r['holdout_rms_m'] * k:.3f} {u} against "
+                     f"{r['against_m'] * k:.3f} {u} → {verdict}")
     return lines
 
 

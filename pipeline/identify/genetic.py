@@ -122,13 +122,14 @@ def fit_ga(model, data, options: GAOptions = GAOptions()):
 
 
 def cross_validate_ga(model, data, k: int = 5, seed: int = 0, options: GAOptions = GAOptions()) -> np.ndarray:
-    """Held-out residuals (n, residual_dim) m, each fold predicted by a GA fit on the others."""
-    from pipeline.identify.least_squares import kfold_indices
+    """Held-out residuals (n, residual_dim) m, each fold predicted by a GA fit on the others (the folds of
+    `least_squares.cross_validate`: kept representative of the design, `folds.design_folds`)."""
+    from pipeline.identify.folds import design_folds
     from pipeline.identify.model import n_rows, take
 
     n = n_rows(data)
     out = np.full((n, model.residual_dim), np.nan)
-    for test in kfold_indices(n, k, seed):
+    for test in design_folds(n, k, seed, None, data):
         train = np.setdiff1d(np.arange(n), test)
         f = fit_ga(model, take(data, train), options)
         out[test] = model.residuals(f.x, take(data, test))

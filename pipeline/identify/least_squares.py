@@ -221,10 +221,13 @@ def holdout_warning(n: int, k: int, residual_dim: int, n_free: int) -> str | Non
 @single_threaded
 def cross_validate(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0,
                    options: FitOptions = FitOptions(), groups: np.ndarray | None = None) -> np.ndarray:
-    """Held-out residuals (n, residual_dim) m: each fold predicted by a fit on the others."""
+    """Held-out residuals (n, residual_dim) m: each fold predicted by a fit on the others; the folds
+    keep every face, placement and joint range of the design in every training set (`folds.design_folds`)."""
+    from pipeline.identify.folds import design_folds
+
     n = n_rows(data)
     out = np.full((n, model.residual_dim), np.nan)
-    for test in kfold_indices(n, k, seed, groups):
+    for test in design_folds(n, k, seed, groups, data):
         train = np.setdiff1d(np.arange(n), test)
         f = fit(model, take(data, train), options)
         out[test] = model.residuals(f.x, take(data, test))

@@ -171,7 +171,8 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
 
     from pipeline.identify.complexity import fixed_for
     from pipeline.identify.identifiability import analyse
-    from pipeline.identify.least_squares import Fit, fit, kfold_indices
+    from pipeline.identify.folds import design_folds
+    from pipeline.identify.least_squares import Fit, fit
     from pipeline.identify.model import n_rows, take
 
     t0 = time.perf_counter()
@@ -197,7 +198,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     else:
         s = shrink(model, data, prior, f0.x, fixed=fixed + held, progress=progress)
         holdout = np.full((n, kd), np.nan)
-        for test in kfold_indices(n, k, seed):
+        for test in design_folds(n, k, seed, None, data):  # as `least_squares.cross_validate`
             train = np.setdiff1d(np.arange(n), test)
             sf = shrink(model, take(data, train), prior, s.x, fixed=fixed + held, grid=(s.mu_m,), scale_m=1.0)
             holdout[test] = np.asarray(model.residuals(sf.x, take(data, test)), float).reshape(len(test), kd)

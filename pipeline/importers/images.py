@@ -131,7 +131,7 @@ def write_camera_recording(out: Path, desc: RobotDescription, target: Target, de
         w.metadata(META_URDF, {"urdf": desc.urdf, "root": desc.root, "tip": desc.tip, "source": desc.source})
         w.metadata(META_CAMPAIGN, camp)
         for i, d in enumerate(used):
-            t = T0_NS + i * 1_000_000_000
+            t = getattr(d, "t_ns", None) or T0_NS + i * 1_000_000_000  # a bag's image stamp, else 1 s apart
             w.write("/measure/camera", {"timestamp_ns": t, "joint_positions": np.asarray(d.q, float).tolist(),
                                         "image": d.name, "corners": d.ids.tolist(), "pixels": d.pixels.ravel().tolist(),
                                         "width": d.size[0], "height": d.size[1]})

@@ -74,9 +74,8 @@ def _topics_line(topics: dict[str, str]) -> str:
     return ", ".join(f"{t} ({ty})" for t, ty in sorted(topics.items())) or "none"
 
 
-def choose_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> tuple[str, str, str]:
-    """(joint topic, measurement topic, measure) checked against the bag's topic → type map."""
-    jt = spec.joint_topic
+def choose_joint_topic(path: Path, topics: dict[str, str], jt: str) -> str:
+    """The joint topic `jt` checked against the bag's topic → type map."""
     js = sorted(t for t, ty in topics.items() if ty == JOINT_STATE)
     if jt not in topics:
         if not js:
@@ -84,12 +83,22 @@ def choose_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> tuple[st
         raise RobocalError(f"{at(path, jt)}: not in the bag; {JOINT_STATE} topics: {', '.join(js)} (--joint-topic)")
     if topics[jt] != JOINT_STATE:
         raise RobocalError(f"{at(path, jt)}: is {topics[jt]}, expected {JOINT_STATE} (--joint-topic)")
+    return jt
+
+
+def choose_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> tuple[str, str, str]:
+    """(joint topic, measurement topic, measure) checked against the bag's topic → type map."""
+    jt = choose_joint_topic(path, topics, spec.joint_topic)
     mt = spec.measure_topic
     cands = sorted(t for t, ty in topics.items() if ty in MEASURE_TYPES)
     if mt is None:
         if len(cands) != 1:
+            camera = not cands and any(ty.startswith(("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"))
+                                       for ty in topics.values())
             raise RobocalError(f"{path}: {'several' if cands else 'no'} PointStamped / PoseStamped topics "
-                               f"({', '.join(cands) or _topics_line(topics)}): name one with --measure-topic")
+                               f"({', '.join(cands) or _topics_line(topics)}): name one with --measure-topic"
+                               + ("; a camera bag: `robocal import ros2 BAG --target BOARD …` (docs/guide/import-ros2.md)"
+                                  if camera else ""))
         mt = cands[0]
     if mt not in topics:
         raise RobocalError(f"{at(path, mt)}: not in the bag; measurement topics: {', '.join(cands) or 'none'} "

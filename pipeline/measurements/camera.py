@@ -41,6 +41,7 @@ class CameraModel(Composed):
     n_dist: int = 5
     image_size: tuple[int, int] = (640, 480)  # width, height px: the nominal principal point and focal length
     kinematics_known: bool = False
+    k_start: tuple | None = None  # intrinsics the camera states (a ROS CameraInfo's K, D): nominal and start
     residual_dim = 2
     residual_unit = "px"
     robust_scale = 0.5  # px: the scale of validate's robust outlier screen (a detector's gross error is pixels)
@@ -53,6 +54,8 @@ class CameraModel(Composed):
         return pj.intrinsic_units(self.lens, self.n_dist)
 
     def extra_nominal(self) -> np.ndarray:
+        if self.k_start is not None:
+            return np.asarray(self.k_start, float)
         w, h = self.image_size
         return np.r_[float(w), float(w), (w - 1) / 2, (h - 1) / 2, np.zeros(self.n_dist)]
 
@@ -135,8 +138,9 @@ class CameraModel(Composed):
         return out
 
     def initial_guess(self, data: Table) -> np.ndarray:
-        """OpenCV's two-step answer as the start: calibrateCamera on the detections, then
-        calibrateHandEye (Park) against the nominal chain's flange poses (`pipeline.camera.start`)."""
+        """OpenCV's two-step answer as the start: calibrateCamera on the detections (from `k_start`
+        where the camera states its intrinsics), then calibrateHandEye (Park) against the nominal
+        chain's flange poses (`pipeline.camera.start`)."""
         from pipeline.camera.start import opencv_start
 
         return opencv_start(self, data)

@@ -65,6 +65,17 @@ class TouchCampaign:
         return len(self.face_id)
 
 
+def write_document(out: Path, doc: dict) -> None:
+    """The plan / campaign JSON, robocal's generator its first key (`recording.output`: robocal may
+    replace it later; it never replaces a file it did not create)."""
+    from pipeline.recording.output import check_output, generated
+    from pipeline.stages.artefacts import write_json
+
+    check_output(out, "plan")
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    write_json(out, generated(doc))
+
+
 def load_document(path: str | Path) -> dict:
     """A campaign file as JSON, checked against schemas/campaign.schema.json (one-line RobocalError
     naming the file and the first offending measurement)."""

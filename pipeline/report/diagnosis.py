@@ -162,7 +162,7 @@ def finding_rows(doc: dict) -> list[dict[str, str]]:
                                            for k, v in ev.items()) if isinstance(ev, dict) else str(ev),
                      "absorbed_fraction": _fmt(f.get("absorbed_fraction"), ""),
                      "confidence": str(f.get("confidence", "")) + (f" ({f['note']})" if f.get("note") else "")
-                     + _alikes(f.get("look_alikes"))})
+                     + _alikes(f.get("look_alikes")) + _runner_up(f.get("runner_up"))})
     return rows
 
 
@@ -173,6 +173,13 @@ def _alikes(v: Any) -> str:
         return ""
     return "; the campaign can hardly tell it from " + ", ".join(
         f"{a.get('effect')}@{a.get('location')} (Δχ² {_fmt(a.get('delta_chi2'), '')})" for a in items)
+
+
+def _runner_up(v: Any) -> str:
+    """'; runner-up X (Δχ² …)': the next name for a joint finding and how much worse its swap fits."""
+    if not isinstance(v, dict):
+        return ""
+    return f"; runner-up {v.get('effect')}@{v.get('location')} (Δχ² {_fmt(v.get('delta_chi2'), '')})"
 
 
 def _loc(v: Any) -> str:

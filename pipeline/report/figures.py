@@ -112,6 +112,8 @@ class ResidualSeries:
     prismatic: frozenset = frozenset()  # joints whose readings are m (plotted in mm, not deg)
     time_label: str = "time since first measurement (s)"  # or the table row, for tables without times
     group_title: str = "face / channel"  # what a residual group is (a jig face; a URDF campaign's target)
+    scale: float = 1e3  # display factor of the residuals: m → mm; 1 for a camera's px
+    unit: str = "mm"  # their display unit
 
 
 def residual_series(art: RunArtefacts) -> ResidualSeries:
@@ -140,7 +142,8 @@ def residual_series(art: RunArtefacts) -> ResidualSeries:
                           after=mats["after"].ravel(), holdout=mats["holdout"].ravel(),
                           joints={j: rep(v) for j, v in joints.items()}, component=np.tile(np.arange(k), n),
                           used=rep(art.used), prismatic=art.prismatic_joints(), time_label=time_label,
-                          group_title=labels.group_title(art.system))
+                          group_title=labels.group_title(art.system),
+                          **dict(zip(("scale", "unit"), labels.residual_display((art.fit or {}).get("residual_unit")))))
 
 
 def correlation(art: RunArtefacts) -> tuple[list[str], np.ndarray] | None:

@@ -16,7 +16,7 @@ from pipeline.report import compensation
 from pipeline.report import diagnosis as dg
 from pipeline.report import figures as fg
 from pipeline.report import plots
-from pipeline.report.labels import joints_unit_phrase
+from pipeline.report.labels import joints_unit_phrase, residual_text
 from pipeline.report.markup import figure as _figure
 from pipeline.report.markup import section as _section
 from pipeline.report.markup import table as _table
@@ -74,11 +74,12 @@ def _sig(v: float | None, digits: int = 5) -> str:
 
 
 def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
-    cards = [("RMS before", _mm(s["rms_before_m"])), ("RMS after", _mm(s["rms_after_m"])),
-             ("held-out RMS", _mm(s["holdout_rms_m"])),
+    res = lambda v: residual_text(v, s.get("residual_unit"))  # noqa: E731 — mm, or px for a camera
+    cards = [("RMS before", res(s["rms_before_m"])), ("RMS after", res(s["rms_after_m"])),
+             ("held-out RMS", res(s["holdout_rms_m"])),
              ("parameters identified", f"{s['n_identifiable']} / {s['n_parameters']}"),
              ("measurements", f"{s['n_measurements']}" + (f" ({s['n_rejected']} rejected)" if s["n_rejected"] else "")),
-             ("max |residual| after", _mm(s["max_abs_after_m"]))]
+             ("max |residual| after", res(s["max_abs_after_m"]))]
     if s.get("rms_3d_after_m") is not None:  # URDF points / poses: the norm of the 3-D error, as other tools publish
         cards[:3] = [(f"{k} (per axis)", v) for k, v in cards[:3]]
         cards[:0] = [("RMS of the 3-D error before → after",
@@ -87,7 +88,7 @@ def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
     if s.get("accuracy_map_rms_1sigma_m") is not None:  # the one stated accuracy: the map's (accuracy section)
         cards.append(("predicted accuracy over the workspace (1σ RMS)", _mm(s["accuracy_map_rms_1sigma_m"])))
     if s.get("sigma_m") is not None:
-        cards.append(("residual σ", _mm(s["sigma_m"])))
+        cards.append(("residual σ", res(s["sigma_m"])))
     html = '<div class="cards">' + "".join(
         f'<div class="card"><div class="v">{escape(v)}</div><div class="k">{escape(k)}</div></div>' for k, v in cards
     ) + "</div>"
@@ -100,20 +101,22 @@ def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
 
 
 def residual_section(art, series: fg.ResidualSeries) -> str:
-    rows = [[escape(r["group"]), str(r["n"]), _mm(r["rms_before_m"]), _mm(r["rms_after_m"]),
-             _mm(r["rms_holdout_m"])] for r in fg.group_table(art)]
+    ru = series.unit
+    res = lambda v: residual_text(v, "px" if ru == "px" else None)  # noqa: E731
+    rows = [[escape(r["group"]), str(r["n"]), res(r["rms_before_m"]), res(r["rms_after_m"]),
+             res(r["rms_holdout_m"])] for r in fg.group_table(art)]
     html = _table([series.group_title, "n", "RMS before", "RMS after", "RMS held out"], rows, {1, 2, 3, 4})
     html += _figure(plots.residuals_by_group(series), f"Residuals per {series.group_title.replace(' / ', '/')} "
                     "before and after calibration "
-                    "(mm); held out = predicted by a fit that did not see the measurement.", "fig-residuals-group")
+                    f"({ru}); held out = predicted by a fit that did not see the measurement.", "fig-residuals-group")
     against = ("time since the first measurement" if series.time_label.startswith("time")
                else "the measurement's row in the table (it has no times)")
-    html += _figure(plots.residuals_vs_time(series), f"Residuals against {against} (mm): "
+    html += _figure(plots.residuals_vs_time(series), f"Residuals against {against} ({ru}): "
                     "structure here means drift.", "fig-residuals-time")
     if series.joints:
         unit = joints_unit_phrase(series.joints, series.prismatic)
         html += _figure(plots.residuals_vs_joints(series), "Residuals after calibration against each joint angle "
-                        f"(mm vs {unit}): structure here means an effect the model leaves out.", "fig-residuals-joints")
+                        f"({ru} vs {unit}): structure here means an effect the model leaves out.", "fig-residuals-joints")
     return _section("residuals", "Residuals", html)
 
 
@@ -295,6 +298,8 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     """The whole report page; `tick(note)` is called after each section (progress)."""
     tick = tick or (lambda note="": None)
     s = fg.summary(art)
+    if art.fit.get("residual_unit"):  # a camera's residuals: px
+        s["residual_unit"] = art.fit["residual_unit"]
     if isinstance(art.accuracy, dict) and art.accuracy.get("map_rms_1sigma_m") is not None:
         s["accuracy_map_rms_1sigma_m"] = art.accuracy["map_rms_1sigma_m"]
     series = fg.residual_series(art)
@@ -307,11 +312,14 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
 
     from pipeline.report.physics import section_html as physics_section
 
+    from pipeline.report.camera import section as camera_section
+
     acc_html = accuracy_section(art)
     tick("accuracy section")
     phys_html = physics_section(art.fit)
+    cam_html = camera_section(art)
     sections = [summary_section(s, warnings), acc_html]
-    for name, make in (("residuals", lambda: residual_section(art, series)), ("physics", lambda: phys_html),
+    for name, make in (("residuals", lambda: residual_section(art, series) + cam_html), ("physics", lambda: phys_html),
                        ("parameters", lambda: parameter_section(art.fit)), ("observability", lambda: observability_section(art)),
                        ("solver", lambda: solver_section(art.history)), ("validation", lambda: validation_section(art.validate)),
                        ("diagnosis", lambda: diagnosis_section(art))):
@@ -320,7 +328,8 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     comp = compensation.section(art.run_dir)
     sections += [comp or "", provenance_section(prov, rrd_name)]
     titles = [("summary", "Summary")] + ([("accuracy", "Accuracy")] if acc_html else []) + [
-              ("residuals", "Residuals")] + ([("physics", "Physics")] if phys_html else []) + [("parameters", "Parameters"),
+              ("residuals", "Residuals")] + ([("camera", "Camera images")] if cam_html else []) + (
+              [("physics", "Physics")] if phys_html else []) + [("parameters", "Parameters"),
               ("observability", "Observability"), ("solver", "Solver"), ("validation", "Validation")]
     if art.diagnosis is not None:
         titles.append(("diagnosis", "Diagnosis"))

@@ -56,3 +56,18 @@ def plain_log_ticks(ax, axis: str = "y") -> None:
     target = ax.yaxis if axis == "y" else ax.xaxis
     target.set_major_formatter(fmt)
     target.set_minor_formatter(NullFormatter())
+
+
+def residual_display(unit: str | None) -> tuple[float, str]:
+    """(factor from the stored value, display unit) of a run's residual figures: lengths stored in m
+    are shown in mm; a camera's pixel residuals (``residual_unit`` px in fit.json and the summary)
+    stay px."""
+    return (1.0, "px") if unit == "px" else (1e3, "mm")
+
+
+def residual_text(v: float | None, unit: str | None, digits: int = 4, none: str = "–") -> str:
+    """A residual figure (RMS, max) as text in its display unit (`residual_display`)."""
+    if v is None:
+        return none
+    k, u = residual_display(unit)
+    return f"{v * k:.{digits}f} {u}"

@@ -72,7 +72,7 @@ def residuals_by_group(s: ResidualSeries) -> str:
             for gi, g in enumerate(groups):
                 m = s.group == g
                 for si, (label, y, c) in enumerate(sets):
-                    yy = y[m] * MM
+                    yy = y[m] * s.scale
                     ok = np.isfinite(yy)
                     off = (si - (len(sets) - 1) / 2) * 0.25
                     a.scatter(gi + off + rng.uniform(-0.08, 0.08, ok.sum()), yy[ok], s=10, color=c, alpha=0.75,
@@ -80,7 +80,7 @@ def residuals_by_group(s: ResidualSeries) -> str:
             a.axhline(0, color="k", lw=0.6)
             a.set_xticks(range(len(groups)), groups, rotation=30, ha="right")
             a.set_title(title)
-            a.set_ylabel("residual (mm)")
+            a.set_ylabel(f"residual ({s.unit})")
             a.legend(loc="upper right")
     return _svg(fig)
 
@@ -92,18 +92,18 @@ def residuals_vs_time(s: ResidualSeries) -> str:
         fig, ax = _fig(9.5, 4.6, 2, 1, sharex=True)
         for g, c in colors.items():
             m = s.group == g
-            ax[0, 0].scatter(s.t_s[m], s.before[m] * MM, s=12, color=c, label=g, linewidths=0)
-            ax[1, 0].scatter(s.t_s[m], s.after[m] * MM, s=12, color=c, linewidths=0)
-            ax[1, 0].scatter(s.t_s[m], s.holdout[m] * MM, s=14, facecolors="none", edgecolors=c, linewidths=0.7)
+            ax[0, 0].scatter(s.t_s[m], s.before[m] * s.scale, s=12, color=c, label=g, linewidths=0)
+            ax[1, 0].scatter(s.t_s[m], s.after[m] * s.scale, s=12, color=c, linewidths=0)
+            ax[1, 0].scatter(s.t_s[m], s.holdout[m] * s.scale, s=14, facecolors="none", edgecolors=c, linewidths=0.7)
         rej = ~s.used
         if rej.any():
-            ax[1, 0].scatter(s.t_s[rej], s.after[rej] * MM, s=30, marker="x", color="k", label="rejected outlier")
+            ax[1, 0].scatter(s.t_s[rej], s.after[rej] * s.scale, s=30, marker="x", color="k", label="rejected outlier")
             ax[1, 0].legend(loc="upper right")
         ax[0, 0].set_title("before calibration")
         ax[1, 0].set_title("after calibration (filled) and held out (hollow)")
         for a in ax[:, 0]:
             a.axhline(0, color="k", lw=0.6)
-            a.set_ylabel("residual (mm)")
+            a.set_ylabel(f"residual ({s.unit})")
         ax[1, 0].set_xlabel(s.time_label)
         ax[0, 0].legend(loc="center left", bbox_to_anchor=(1.0, 0.0), title=s.group_title)
     return _svg(fig)
@@ -125,12 +125,12 @@ def residuals_vs_joints(s: ResidualSeries) -> str:
             q = s.joints[joints[i]] * scale
             for g, c in colors.items():
                 m = s.group == g
-                a.scatter(q[m], s.after[m] * MM, s=10, color=c, label=g if i == 0 else None, linewidths=0)
-                a.scatter(q[m], s.holdout[m] * MM, s=12, facecolors="none", edgecolors=c, linewidths=0.6)
+                a.scatter(q[m], s.after[m] * s.scale, s=10, color=c, label=g if i == 0 else None, linewidths=0)
+                a.scatter(q[m], s.holdout[m] * s.scale, s=12, facecolors="none", edgecolors=c, linewidths=0.6)
             a.axhline(0, color="k", lw=0.6)
             a.set_xlabel(f"{joints[i]} ({unit})")
             if i % ncols == 0:
-                a.set_ylabel("residual after (mm)")
+                a.set_ylabel(f"residual after ({s.unit})")
         if joints:
             fig.legend(loc="outside right center", title=s.group_title)
     return _svg(fig)

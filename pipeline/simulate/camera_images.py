@@ -149,29 +149,36 @@ def truth(model, q_home: np.ndarray, k: np.ndarray, target: Target, rng: np.rand
     """A true parameter vector: the nominal robot plus N(0, error) on joint origins and offsets,
     a random hand-eye (camera or board ≈ 5 cm off the flange, rotations ≈ 0.1 rad), intrinsics k,
     and the board (tip) or camera (world) placed so that at q_home the board's centre is
-    `distance_m` in front of the camera, facing it."""
-    from pipeline.camera.start import homogeneous, inverse
-    from pipeline.models import chain as ch
+    `distance_m` in front of the camera, facing it (`place_board`)."""
     from pipeline.models.urdf import matrix_of_rpy, rpy_of
     from pipeline.simulate.urdf_robot import random_truth
 
     x = random_truth(model, rng, error_m, error_rad, registration=False)
     names = model.parameter_names()
-    it, ib = names.index("tool.x"), names.index("base.x")
+    it = names.index("tool.x")
     x[it:it + 3] = rng.normal(0, 0.05, 3)
     x[it + 3:it + 6] = rng.normal(0, 0.1, 3)
     if model.mount == "world":  # the board on the flange, facing back along the flange z
         x[it + 3:it + 6] = rpy_of(np.diag([1.0, -1.0, -1.0]) @ matrix_of_rpy(*rng.normal(0, 0.1, 3)))
     x[model.n_kin:] = k
+    return place_board(model, x, q_home, target, distance_m)
+
+
+def place_board(model, x: np.ndarray, q_home: np.ndarray, target: Target, distance_m: float) -> np.ndarray:
+    """x with the chain's base frame (board → robot base, eye-in-hand; camera → robot base,
+    eye-to-hand) set so that at q_home the board's centre is `distance_m` in front of the camera,
+    the board's axes along the camera's."""
+    from pipeline.camera.start import homogeneous, inverse
+    from pipeline.models import chain as ch
+    from pipeline.models.urdf import rpy_of
+
+    x = np.array(x, float)
+    ib = model.parameter_names().index("base.x")
     x[ib:ib + 6] = 0.0
-    R, p = ch.forward(model.kin.chain(), model.split(x)[0], q_home[None])
+    R, p = ch.forward(model.kin.chain(), model.split(x)[0], np.asarray(q_home, float)[None])
     T_base_tool = homogeneous(R[0], p[0])
-    c = target.points.mean(0)
-    T_cam_board = homogeneous(np.eye(3), np.array([0.0, 0.0, distance_m]) - c)
-    if model.mount == "tip":  # base.* = board → robot base
-        B = inverse(T_base_tool @ T_cam_board)
-    else:  # base.* = camera → robot base: the camera sees the board (tool) at T_cam_board
-        B = T_cam_board @ inverse(T_base_tool)
+    T_cam_board = homogeneous(np.eye(3), np.array([0.0, 0.0, distance_m]) - target.points.mean(0))
+    B = inverse(T_base_tool @ T_cam_board) if model.mount == "tip" else T_cam_board @ inverse(T_base_tool)
     x[ib:ib + 3] = B[:3, 3]
     x[ib + 3:ib + 6] = rpy_of(B[:3, :3])
     return x

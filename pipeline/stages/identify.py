@@ -130,6 +130,8 @@ def run(run_dir: Path, params: dict) -> dict:
         "parameters": parameter_table(f),
         "warnings": [w for w in [holdout_warning(int(rf.kept.sum()), folds, k, int(free.sum()))] if w],
     }
+    if getattr(model, "residual_unit", "m") != "m":  # a camera's residuals are px: the *_m figures are px then
+        doc["residual_unit"] = model.residual_unit
     doc = with_3d(doc, model, take(data, rf.kept), before[rf.kept], after[rf.kept], holdout_kept)
     tol = (rec.metadata.get(META_FIXTURE) or {}).get("tolerance_m")
     if tol and "face" in kept_data:  # per-face machining error, shared by a face's contacts (not in σ̂²(JᵀJ)⁻¹)
@@ -139,7 +141,7 @@ def run(run_dir: Path, params: dict) -> dict:
     if selection is not None:
         doc["model_selection"] = {"kept_groups": selection.kept, "rounds": selection.rounds,
                                   "holdout_registration_only_m": selection.holdout_registration_m,
-                                  "explanation": explain(selection)}
+                                  "explanation": explain(selection, getattr(model, "residual_unit", "m"))}
     from pipeline.physics.summary import summarise
 
     physics = summarise(model, f, kept_data, opts, folds, int(params.get("seed", 0)), rms(holdout_kept))
@@ -164,7 +166,7 @@ def run(run_dir: Path, params: dict) -> dict:
         if doc["implausible"]:
             doc["warnings"] += warnings_of(doc["implausible"])
             doc["status"] = "warn"
-    keys += tuple(k_ for k_ in ("status", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
+    keys += tuple(k_ for k_ in ("status", "residual_unit", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
     return {k_: doc[k_] for k_ in keys} | {k_: doc[k_] for k_ in ("extra", "physics") if k_ in doc}
 
 

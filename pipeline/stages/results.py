@@ -10,7 +10,8 @@ from pipeline.stages.registry import STAGES
 
 HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m",
-            "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind")  # 3-D: URDF points/poses
+            "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind",  # 3-D: URDF points/poses
+            "residual_unit")  # px for a camera (its *_m residual figures are px); absent: m
 
 
 def _consistent(run_dir: Path, docs: dict[str, dict], doc: dict) -> bool:

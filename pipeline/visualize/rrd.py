@@ -20,7 +20,6 @@ Per-system hooks: module ``pipeline.visualize.<system>`` (``-`` → ``_``) with
 from __future__ import annotations
 
 import importlib
-import re
 import inspect
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ import rerun.blueprint as rrb
 
 from pipeline.report.artefacts import RunArtefacts, residual_matrix
 from pipeline.visualize import robot, scene
+from pipeline.visualize.scene import entity_part
 from pipeline.visualize.source import align, model_and_table
 
 TIMELINE = "time"
@@ -53,13 +53,6 @@ def _component_colors(rgb: tuple[int, int, int], k: int) -> list[tuple[int, int,
     """Distinct colours for the k components of one group: red / green / blue tinted by the group."""
     base = [(214, 39, 40), (44, 160, 44), (31, 119, 180)] + _palette(max(k - 3, 1))
     return [tuple(int(0.75 * b + 0.25 * g) for b, g in zip(base[i], rgb)) for i in range(k)]
-
-
-def entity_part(label: str) -> str:
-    """A group label as one entity-path part (a channel name such as /tracker/point → tracker_point,
-    "target 0" → target_0: rerun's entity paths take no unescaped whitespace)."""
-    part = "_".join(p for p in re.split(r"[/\s]+", str(label)) if p)
-    return part or "all"
 
 
 def _times(ns: np.ndarray) -> rr.TimeColumn:
@@ -217,7 +210,10 @@ def call_system_hook(rec: rr.RecordingStream, system: str, model, table: dict, x
 
 def summary_markdown(art: RunArtefacts, figures: dict[str, Any]) -> str:
     """Headline figures as markdown for the `summary` text view."""
-    mm = lambda v: "n/a" if v is None else f"{v * 1e3:.4f} mm"  # noqa: E731
+    from pipeline.report.labels import residual_text
+
+    unit = figures.get("residual_unit") or (art.fit or {}).get("residual_unit")  # px for a camera
+    mm = lambda v: residual_text(v, unit, none="n/a")  # noqa: E731
     name = art.robot_name()
     return "\n".join([
         f"# robocal run — {name}" + (f" ({art.system})" if name != art.system else ""), "",
@@ -249,14 +245,17 @@ def diagnosis_markdown(doc: dict) -> str:
     return "\n".join(lines)
 
 
-def blueprint(has_scene: bool) -> rrb.Blueprint:
-    """Layout: 3-D scene left; encoder, residuals and solver/summary right; time panel on `time`."""
+def blueprint(has_scene: bool, image_view: str | None = None) -> rrb.Blueprint:
+    """Layout: 3-D scene left; encoder, residuals and solver/summary right; time panel on `time`;
+    `image_view` (a camera run): the entity of one image shown in 2-D first among the bottom tabs."""
+    first = [rrb.Spatial2DView(origin=image_view, name="Image: detected (yellow), reprojected (green) corners, "
+                               "residuals (red, magnified) px")] if image_view else []
     right = rrb.Vertical(
         rrb.TimeSeriesView(origin="/encoder", name="Joint readings (rad; prismatic m)"),
         rrb.Tabs(rrb.TimeSeriesView(origin="/residuals/after_mm", name="Residuals after (mm)"),
                  rrb.TimeSeriesView(origin="/residuals/before_mm", name="Residuals before (mm)"),
                  rrb.TimeSeriesView(origin="/residuals/holdout_mm", name="Residuals held out (mm)")),
-        rrb.Tabs(rrb.TextDocumentView(origin="/summary", name="Summary"),
+        rrb.Tabs(*first, rrb.TextDocumentView(origin="/summary", name="Summary"),
                  rrb.TextDocumentView(origin="/accuracy", name="Accuracy"),
                  rrb.TextDocumentView(origin="/diagnosis", name="Diagnosis"),
                  rrb.TimeSeriesView(origin="/diagnosis/plots", name="Diagnosis plots (timeline: diagnosis x <nn>)"),
@@ -319,6 +318,10 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
                 warnings.append("the model's parameters do not start with its arm's: arm drawn from the hook only")
             else:
                 entities += log_arm(rec, arm, x_arm, table, art.encoder)
+        if getattr(model, "residual_unit", "") == "px" and hasattr(model, "image_size"):  # a camera: frusta, images
+            from pipeline.visualize.camera import log_run
+
+            entities += log_run(rec, art, model, table, x_after, params or {}, warnings)
         try:
             hook = call_system_hook(rec, art.system, model, table, x_before, x_after, art)
         except Exception as e:  # a drawing hook must not lose the rest of the recording
@@ -330,7 +333,8 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
             entities += log_accuracy(rec, art.accuracy)
         except Exception as e:  # a drawing error must not lose the rest of the recording
             warnings.append(f"accuracy map not logged: {type(e).__name__}: {e}")
-    rec.send_blueprint(blueprint(built is not None))
+    cams = [e for e in entities if e.startswith("world/base/cameras/") and e.count("/") == 3]
+    rec.send_blueprint(blueprint(built is not None, "/" + cams[0] if cams else None))
     rec.flush()
     rec.disconnect()
     return {"path": str(path), "entities": entities, "system_hook": hook, "warnings": warnings}

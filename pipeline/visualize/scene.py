@@ -5,6 +5,8 @@ Nothing here talks to rerun: these return arrays that `pipeline.visualize.record
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from pipeline.models import serial_arm
@@ -70,3 +72,10 @@ def decimate(t_ns: np.ndarray, rate_hz: float) -> np.ndarray:
         return np.zeros(0, int)
     bins = (t - t[0]) // int(1e9 / rate_hz)
     return np.flatnonzero(np.r_[True, np.diff(bins) > 0])
+
+
+def entity_part(label: str) -> str:
+    """A group label as one entity-path part (a channel name such as /tracker/point → tracker_point,
+    "target 0" → target_0: rerun's entity paths take no unescaped whitespace)."""
+    part = "_".join(p for p in re.split(r"[/\s]+", str(label)) if p)
+    return part or "all"

@@ -58,7 +58,8 @@ def clustered_summary(W, nm, s, ad, lib: list, dropped: list[int]) -> dict:
 def assemble(*, system: str, n: int, k: int, sigma: float, sigma_after: float, s, clustered: dict | None,
              status: tuple[str, str], floor: dict | None, findings: list, rejected: list, carried: dict | None,
              gates: list, where: list, lof: list, before_cv: np.ndarray, after_cv: np.ndarray, all_cv: float,
-             names: list, z: np.ndarray, free: np.ndarray, resim: dict) -> dict:
+             names: list, z: np.ndarray, free: np.ndarray, resim: dict, moved: int = 0,
+             alone: list | None = None, design: dict | None = None) -> dict:
     """The diagnosis document (no wall-clock time: bit-identical across runs)."""
     ng = len(names)
     return {
@@ -84,7 +85,16 @@ def assemble(*, system: str, n: int, k: int, sigma: float, sigma_after: float, s
         "holdout_rms_after_m": resampling.rms(after_cv),
         "holdout_rms_with_all_selected_m": all_cv,
         "cross_validation": {"folds": s.folds, "groups": f"time blocks of {s.block} consecutive measurements",
-                             "seed": s.seed, "linearised_at": "the full-data solution"},
+                             "seed": s.seed, "linearised_at": "the full-data solution",
+                             **({"repaired": f"{moved} measurement(s) moved between folds so every training set keeps "
+                                             "every face, placement, joint range and parameter direction"}
+                                if moved else {}),
+                             **({"unpredictable_measurements": alone,
+                                 "unpredictable_note": "each carries a parameter direction alone (own leverage "
+                                                       "> 0.99): no fit without it predicts it; it is in every "
+                                                       "training set and out of the held-out figures"}
+                                if alone else {})},
+        **({"holdout_over_insample": design} if design and design["flagged"] else {}),
         "candidates": candidates(gates),
         "geometry": {"names": names, "x": [float(v) for v in z[:ng]], "free": [bool(b) for b in free]},
         "resimulation": resim,

@@ -36,7 +36,8 @@ def _within_one_se(e2_a: np.ndarray, e2_b: np.ndarray) -> bool:
 
 
 def _cv(Jf: np.ndarray, S: list[np.ndarray], idx: list[int], r: np.ndarray, folds: list) -> np.ndarray:
-    return resampling.holdout(np.hstack([Jf] + [S[i] for i in idx]), r, folds)
+    rows = np.sort(np.concatenate(folds))  # measurements in no fold are not predicted (`resampling.design_folds`)
+    return resampling.holdout(np.hstack([Jf] + [S[i] for i in idx]), r, folds)[rows]
 
 
 def choose(lib: list[Effect], accepted: list[int], testable: list[int], S: list[np.ndarray], Jf: np.ndarray,

@@ -129,7 +129,8 @@ def finding_records(rf: Refit, table, ad, lib: list, accepted: list[int], steps:
                          "bootstrap_frequency": _family_frequency(lib, i, testable, boot)},
             "absorbed_fraction": gates[i].absorbed_fraction,
             "look_alikes": [{"effect": lib[testable[c]].name, "location": str(lib[testable[c]].location),
-                             "delta_chi2": dl} for c, dl in alikes.get(testable.index(i), [])],
+                             "delta_chi2": dl, "advice": lib[testable[c]].advice}
+                            for c, dl in alikes.get(testable.index(i), [])],
             "min_detectable": gates[i].min_detectable,
             "confidence": "high",
         })

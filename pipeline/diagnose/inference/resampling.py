@@ -9,6 +9,36 @@ import numpy as np
 
 from pipeline.diagnose.inference.projection import orthonormal, project_out
 from pipeline.diagnose.inference.stepwise import forward_select
+from pipeline.identify.least_squares import kfold_indices
+
+
+HOLDOUT_OVER_SIGMA_MAX = 3.0  # a held-out RMS above this many in-sample σ: the campaign cannot predict itself
+
+
+def design_folds(n: int, k: int, s, time_s: np.ndarray, table: dict,
+                 Jf: np.ndarray) -> tuple[list[np.ndarray], int, list[int]]:
+    """(folds of the flattened residual rows, measurements moved, measurements in no fold): time blocks
+    of `s.block` in `s.folds` seeded folds, repaired so every training set keeps every face, placement,
+    joint range and parameter direction of the linearised geometry `Jf`; a measurement that alone
+    carries a direction is in no test fold (`identify.folds.design_folds`; its held-out error is NaN)."""
+    from pipeline.identify.folds import design_folds as repaired, expand
+
+    blocks = time_blocks(time_s, s.block)
+    base = kfold_indices(n, s.folds, s.seed, blocks)
+    folds = repaired(n, s.folds, s.seed, blocks, table, Jf, k)
+    alone = np.setdiff1d(np.arange(n), np.concatenate(folds))
+    moved = int(sum(np.setdiff1d(f, b).size for f, b in zip(folds, base)))
+    return expand(folds, k), moved, [int(i) for i in alone]
+
+
+def holdout_over_insample(before_cv: np.ndarray, after_cv: np.ndarray, sigma: float, sigma_after: float) -> dict:
+    """The held-out RMS over the in-sample σ, geometry alone and final model; `flagged` above
+    `HOLDOUT_OVER_SIGMA_MAX` (a good design predicts its left-out measurements within ≈ 1.1–1.5 σ)."""
+    before = rms(before_cv) / sigma if sigma > 0 else float("nan")
+    after = rms(after_cv) / sigma_after if sigma_after > 0 else float("nan")
+    worst = max(v for v in (before, after, 0.0) if np.isfinite(v))
+    return {"geometry": float(before), "final": float(after), "limit": HOLDOUT_OVER_SIGMA_MAX,
+            "flagged": bool(worst > HOLDOUT_OVER_SIGMA_MAX)}
 
 
 def time_blocks(t: np.ndarray, size: int = 5) -> np.ndarray:
@@ -20,7 +50,8 @@ def time_blocks(t: np.ndarray, size: int = 5) -> np.ndarray:
 
 
 def holdout(A: np.ndarray, r: np.ndarray, folds: list[np.ndarray]) -> np.ndarray:
-    """Held-out residuals (n,) of the linearised model r + A·δ: each fold predicted from the others."""
+    """Held-out residuals (n,) of the linearised model r + A·δ: each fold predicted from the others
+    (rows in no fold: NaN)."""
     out = np.full(r.size, np.nan)
     norms = np.linalg.norm(A, axis=0)
     norms[norms == 0] = 1

@@ -3,6 +3,8 @@
 - ``joint_compliance`` Jj: δq_j = c·τ_j, τ_j the gravity torque about joint j (N·m, `gravity`), c in
   rad/(N·m);
 - ``backlash`` Jj: δq_j = −(b/2)·s_j, s_j the sign of joint j's last motion (the load lags the motor), b rad;
+  its forms ``Jj (play ≥ X mrad)`` take s_j from the last motion longer than X mrad (a search shorter than the
+  play does not turn the link: the approach before it sets the load side);
 - ``joint_scale`` Jj: δq_j = ε·q_j (1);
 - ``encoder_eccentricity`` Jj: δq_j = a·cos q_j + b·sin q_j (rad);
 - ``transmission_error`` Jj: δq_j = a·cos 2q_j + b·sin 2q_j (rad);
@@ -47,6 +49,14 @@ ADVICE = {
     "joint_coupling": "move the driving joint alone over its range while the driven one stays put",
     "coupling_difference": "vary the two joints' relative angle independently of each one",
 }
+PLAY_RAD = (1e-3, 2e-3)  # plays (rad) of the backlash forms: a search shorter than the play leaves the link where it was
+
+
+def play_column(play_rad: float) -> str:
+    """The diagnosis table's column of the sign of each joint's last motion longer than `play_rad` (rad)."""
+    return f"last_motion_sign_beyond_{play_rad * 1e3:g}mrad"
+
+
 WRIST_PAIRS = ((3, 4), (3, 5), (4, 5))  # (driving, driven) joint indices of `wrist_coupling`
 NEIGHBOURS = ((0, 1), (1, 0), (1, 2), (2, 1), (2, 3), (3, 2))  # (driving, driven) of `joint_coupling`
 DIFFERENCE_PAIRS = ((1, 2), (2, 1))  # (other, driven) of `coupling_difference`
@@ -63,6 +73,12 @@ def _compliance(j):
 def _backlash(j):
     def basis(arm, x, t):
         return one_joint(j, arm.n_joints, -0.5 * np.asarray(t["last_motion_sign"], float)[:, j:j + 1])
+    return basis
+
+
+def _backlash_play(j, column):
+    def basis(arm, x, t):
+        return one_joint(j, arm.n_joints, -0.5 * np.asarray(t[column], float)[:, j:j + 1])
     return basis
 
 
@@ -127,6 +143,16 @@ def backlash(arm, j: int) -> Effect:
     J = _names(arm)[j]
     return Effect("backlash", J, (f"backlash_{J}",), ("rad",), PLAUSIBLE["backlash"], "joint", _backlash(j),
                   20, f"q_{J}", ADVICE["backlash"])
+
+
+def backlash_play(arm, j: int, play_rad: float, column: str) -> Effect:
+    """Backlash whose load side is set by the last motion longer than `play_rad` (table `column`): a gear
+    with that much play does not turn its link over a shorter search, the approach before it decides
+    (the dead band's hysteresis); a form of `backlash` Jj (`inference.forms` chooses by held-out error)."""
+    J = _names(arm)[j]
+    return Effect("backlash", f"{J} (play ≥ {play_rad * 1e3:g} mrad)", (f"backlash_{J}",), ("rad",),
+                  PLAUSIBLE["backlash"], "joint", _backlash_play(j, column), 21 + int(play_rad * 1e3),
+                  f"q_{J}", ADVICE["backlash"], data={"form": {"play_rad": play_rad}})
 
 
 def scale(arm, j: int) -> Effect:

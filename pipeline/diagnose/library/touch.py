@@ -26,6 +26,9 @@ def touch_library(arm: SerialArm, table: Table, jig_tolerance_m: float = 2e-5) -
     lib: list[Effect] = []
     for family in (joint.compliance, joint.backlash, joint.scale, joint.eccentricity, joint.transmission_error):
         lib += [family(arm, j) for j in range(nj)]
+    lib += [joint.backlash_play(arm, j, play, joint.play_column(play)) for play in joint.PLAY_RAD
+            if joint.play_column(play) in table
+            for j in range(nj)]
     if nj >= 6:
         lib += [joint.wrist_coupling(arm, src, dst) for src, dst in joint.WRIST_PAIRS]
     lib.append(thermal.thermal_drift_effect(table))

@@ -6,7 +6,9 @@
 - `carried`: findings that rest on one or two records (`checks.carried_by`);
 - `misspecification`: findings whose own variable still shows structure (`checks.misspecified`)
   are `low` confidence; `twins`: findings the gate found indistinguishable from another
-  library candidate are `medium` and list it.
+  library candidate are `medium` and list it; `look_alike_cap`: a finding the data can hardly tell
+  from another candidate (its `look_alikes`: the swap fits worse by less than χ²_k(95 %)) is never
+  `high` — the label agrees with the text that says so.
 """
 
 from __future__ import annotations
@@ -103,3 +105,17 @@ def twins(findings: list, gates: list) -> None:
             fd["confidence"] = "medium"
             fd["note"] = (f"this campaign cannot tell it from {', '.join(e.label for e in tw)} "
                           f"(> 95 % of the signature shared): {tw[0].advice}")
+
+
+def look_alike_cap(findings: list) -> None:
+    """A `high` finding with look-alikes (names the campaign can hardly tell from it) becomes `medium`; the
+    other forms of its own family at its own place (`inference.forms`: chosen by held-out error) do not count."""
+    for fd in findings:
+        base = fd["location"].split(" (")[0]  # forms of one family at one place are alike by construction
+        al = [a for a in fd.get("look_alikes") or []
+              if not (a["effect"] == fd["effect"] and a["location"].split(" (")[0] == base)]
+        if fd["confidence"] == "high" and al:
+            names = ", ".join(f"{a['effect']}@{a['location']} (Δχ² {a['delta_chi2']:.2g})" for a in al)
+            fd["confidence"] = "medium"
+            fd["note"] = (f"the campaign can hardly tell it from {names}: the swap fits almost as well; "
+                          f"{al[0].get('advice') or 'vary what separates them'}")

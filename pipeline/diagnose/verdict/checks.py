@@ -63,13 +63,15 @@ def holdout_floor_check(A: np.ndarray, e_cv: np.ndarray, folds: list[np.ndarray]
     for test in folds:
         train = np.setdiff1d(np.arange(n), test)
         P[np.ix_(test, train)] = As[test] @ np.linalg.pinv(As[train], rcond=1e-10)
-    R = np.eye(n) - P
+    rows = np.sort(np.concatenate(folds))  # rows in no fold are not predicted (`resampling.design_folds`)
+    R = (np.eye(n) - P)[rows]
+    e_cv = e_cv[rows]
     QV = (R.T @ R) * var_floor[None, :]
     m1, m2 = float(np.trace(QV)), float(np.sum(QV * QV.T))
     g, h = m2 / m1, m1**2 / m2
     T = float(e_cv @ e_cv)
     p = float(scipy.stats.chi2.sf(T / g, h))
-    return {"holdout_rms_expected_at_floor_m": float(np.sqrt(m1 / n)), "holdout_p_value": p,
+    return {"holdout_rms_expected_at_floor_m": float(np.sqrt(m1 / rows.size)), "holdout_p_value": p,
             "holdout_above_floor": bool(p < alpha)}
 
 
@@ -214,17 +216,22 @@ def advice_for(variable: str) -> str:
 
 
 def status(n_findings: int, located: bool, floor: dict | None, worse: bool,
-           misfit: list[str] = ()) -> tuple[str, str]:
+           misfit: list[str] = (), design: dict | None = None) -> tuple[str, str]:
     """(status, reason) of a diagnosis (module docstring); `misfit`: the variables along which a
-    named effect's form leaves structure (`misspecified`)."""
+    named effect's form leaves structure (`misspecified`); `design`: the held-out RMS over the in-sample σ
+    (`resampling.holdout_over_insample`) — flagged, the status is never `clean` or `explained`."""
     above = bool(floor and floor.get("above_floor"))
+    far = bool(design and design.get("flagged"))
     if worse:
         return ("model_worse_out_of_sample", "modelling the selected effects made the cross-validated RMS worse than "
                 "geometry alone: nothing is reported as found")
     left = " and ".join(w for w, b in (("structure located by the lack-of-fit test", located),
                                        ("residuals above the noise floor", above),
                                        (f"structure along {', '.join(misfit)} that the named form misses",
-                                        bool(misfit))) if b)
+                                        bool(misfit)),
+                                       (f"a held-out RMS {max(design['geometry'], design['final']):.1f}× the in-sample σ "
+                                        "(the campaign cannot predict its own left-out measurements: the design, or "
+                                        "an error the model lacks)" if far else "", far)) if b)
     if n_findings and left:
         return "partially_explained", f"findings explain part of the residual; left: {left}"
     if n_findings:

@@ -6,7 +6,8 @@
 - `grade`: a finding is `low` when it is re-selected in few bootstrap resamples, has no
   held-out improvement, leaves structure along its own variable, is misspecified there
   (`arbiter.misspecification`), or is a likely proxy of located structure or of a narrow bump
-  along its own variable; `medium` with a twin the campaign cannot tell from it (`arbiter.twins`);
+  along its own variable; `medium` with a twin the campaign cannot tell from it (`arbiter.twins`) or a
+  look-alike the data can hardly tell from it (`arbiter.look_alike_cap`);
 - `floor_and_status`: back to the declared noise floor (`checks.floor_check`), the status, and
   `high` findings of a partial diagnosis downgraded to `medium`.
 """
@@ -66,6 +67,7 @@ def grade(findings: list[dict], effects: list, contributions: list, col_of_list:
     # misspecification along each finding's own variable, and names the campaign cannot make unique
     misfit = arbiter.misspecification(findings, effects, r_final, A, variables, alpha) if W is None else []
     arbiter.twins(findings, gates)
+    arbiter.look_alike_cap(findings)
     # a likely proxy: a finding that is no longer significant once the located unexplained structure, or
     # a narrow bump along the finding's own variable (a localised error there), is in the design, while
     # that structure stays significant beside the finding (a real effect explains the bump away instead)
@@ -97,8 +99,9 @@ def grade(findings: list[dict], effects: list, contributions: list, col_of_list:
 
 def floor_and_status(ad, xg: np.ndarray, r_final: np.ndarray, A: np.ndarray, after_cv: np.ndarray, folds: list,
                      findings: list[dict], where: list[dict], worse: bool, misfit: list[str],
-                     alpha: float) -> tuple[dict | None, str, str]:
-    """(noise-floor check or None, status, reason); downgrades `high` findings of a partial diagnosis."""
+                     alpha: float, design: dict | None = None) -> tuple[dict | None, str, str]:
+    """(noise-floor check or None, status, reason); downgrades `high` findings of a partial diagnosis.
+    `design`: `resampling.holdout_over_insample` (flagged: never `clean`/`explained`)."""
     nk = r_final.size
     floor = None
     if ad.floor_variance is not None:
@@ -109,7 +112,7 @@ def floor_and_status(ad, xg: np.ndarray, r_final: np.ndarray, A: np.ndarray, aft
         floor = checks.floor_check(r_final, nk - A.shape[1], vf, alpha)
         floor.update(checks.holdout_floor_check(A, after_cv, folds, vf, alpha))
         floor["holdout_rms_over_floor"] = resampling.rms(after_cv) / floor["holdout_rms_expected_at_floor_m"]
-    st_name, st_reason = checks.status(len(findings), bool(where), floor, worse, misfit)
+    st_name, st_reason = checks.status(len(findings), bool(where), floor, worse, misfit, design)
     if st_name == "partially_explained":
         for fd in findings:
             if fd["confidence"] == "high":

@@ -7,7 +7,9 @@ studentized, Bonferroni at the family α: `checks.studentized_outliers`), is set
 named.  After it: a finding that is no longer significant with one or two records left out
 (`checks.carried_by`, computed inside the diagnosis) is reported as an outlier of those records
 and the diagnosis is run again without them (once; a finding still carried by a few records
-after that is rejected).  Every record set aside is listed in `outlier_records` with the reason.
+after that is rejected); the status reason says so (the effect is not shown to be absent, only to rest on
+those records: as often noise as physics, so the status itself is not changed).  Every record set aside is listed in `outlier_records` with the
+reason.
 """
 
 from __future__ import annotations
@@ -82,6 +84,18 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
                 if i not in bad:
                     bad.append(i)
                     out.append(_entry(table, i, r, f"the finding {label} rests on this record (not significant "
-                                                   f"without it): an outlier of the record, not physics"))
+                                                   f"without it): set aside, the finding is not reported"))
     doc["outlier_records"] = out
+    rest = sorted({label for label, _ in carried_labels(out)})
+    if rest:  # said beside the status (a finding of one or two records is as often noise as physics)
+        recs = sorted({rec for _, rec in carried_labels(out)})
+        doc["status_reason"] += (f"; {', '.join(rest)} rested on record(s) {', '.join(map(str, recs))} alone and is "
+                                 "not reported (remeasure those poses to tell a bad record from an effect)")
     return doc
+
+
+def carried_labels(out: list[dict]) -> list[tuple[str, int]]:
+    """(finding label, record) of the records set aside because a finding rested on them."""
+    pre, post = "the finding ", " rests on this record"
+    return [(o["reason"][len(pre):o["reason"].index(post)], o["record"]) for o in out
+            if o["reason"].startswith(pre) and post in o["reason"]]

@@ -87,9 +87,13 @@ def main() -> None:
     ap.add_argument("--folds", type=int, default=5)
     ap.add_argument("--protocols", default="", help="tiago-sessions,mukca: the peers' own held-out protocols "
                     "(benchmarks/peer_protocols.py) instead of the table above")
-    ap.add_argument("--models", default="registration only,groups,all,shrinkage",
+    ap.add_argument("--run-timing", action="store_true", help="--protocols tiago-sessions: also time whole "
+                    "`robocal run`s of the training session (default and shrinkage; about a minute)")
+    ap.add_argument("--models", default="registration only,groups,all,shrinkage rigid,shrinkage",
                     help="model choices of --protocols (Panda's groups selection costs minutes of CPU)")
-    ap.add_argument("--mukca-train", default="front_center", help="panda_2 placement fitted (--protocols mukca)")
+    ap.add_argument("--mukca-train", default="front_center", help="placement fitted (--protocols mukca)")
+    ap.add_argument("--mukca-robot", default="panda_2", help="MUKCa unit (--protocols mukca): panda_2 (MUKCa's "
+                    "calibrated URDF published) or panda_1 (--mukca-train front)")
     a = ap.parse_args()
     if not REAL.is_dir():
         sys.exit(f"real data not found at {REAL}")
@@ -99,9 +103,9 @@ def main() -> None:
         choices = tuple(c.strip() for c in a.models.split(","))
         with tempfile.TemporaryDirectory() as tmp:
             if "tiago-sessions" in a.protocols:
-                pp.tiago(REAL, Path(tmp), choices)
+                pp.tiago(REAL, Path(tmp), choices, a.run_timing)
             if "mukca" in a.protocols:
-                pp.mukca(REAL, Path(tmp), choices, a.mukca_train)
+                pp.mukca(REAL, Path(tmp), choices, a.mukca_train, a.mukca_robot)
         return
     robocal = str(Path(sys.executable).parent / "robocal")
     rows = []

@@ -9,11 +9,14 @@
 
 Models compared: registration only (nominal robot), robocal's default group selection (`groups`, k-fold
 over rows), every group free (`all`), shrinkage toward nominal (`shrinkage`: scale by leaving out whole
-sockets where the recording has several, else GCV); `+tool`: the tool point estimated too (MUKCa frees its
-ball joint).  Time:
-CPU seconds of the model choice and of one plain fit of the chosen model.
+sockets where the recording has several, else GCV; with the gravity-compliance families `robocal run`
+offers by default, each kept only if admissible and of least score: `pipeline.identify.physics_choice`);
+` rigid`: the same choice on the rigid model (no gravity terms); `+tool`: the tool point estimated too
+(MUKCa frees its ball joint).  Time: CPU seconds of the model choice and of one plain fit of the chosen
+model, and their ratio; `--run-timing`: wall and CPU seconds of the whole `robocal run` (every stage) on
+the TIAGo training session, default and shrinkage.
 
-    python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca [--mukca-train front_center]
+    python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca [--mukca-train front_center] [--run-timing]
 """
 
 from __future__ import annotations
@@ -72,11 +75,19 @@ def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
 
     import dataclasses
 
+    from pipeline.systems.registry import load_with_physics
+
     rec = read_recording(train_path)
-    base_model, data = detect(rec).load(rec)
+    system = detect(rec)
+    rigid_model, rigid_data = system.load(rec)
+    auto_model, auto_data = load_with_physics(system, rec, "auto", None)  # robocal run's default gravity terms
     out = {}
     for c in choices:
+        rigid = "rigid" in c or not c.startswith(("shrinkage", "groups"))
+        base_model, data = (rigid_model, rigid_data) if rigid else (auto_model, auto_data)
         # "+tool": the tool point (Panda: the ball centre) estimated too, as MUKCa does (its config frees ball_joint)
+        if c.endswith("+tool") and not hasattr(base_model, "fit_tool"):
+            continue  # no tool point to free (point data estimate it anyway)
         model = dataclasses.replace(base_model, fit_tool=True) if c.endswith("+tool") else base_model
         prior = prior_sigma(model)[0]
         groups = [g for g in model.groups() if not g.startswith("_")]
@@ -92,9 +103,12 @@ def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
         if c.startswith("shrinkage"):
             f, s, _ = shrunk_fit(model, data, FitOptions(prior_sigma=prior), k=2)
             x, t_choice = f.x, time.process_time() - t0
-            note = f"μ {s.mu_m * 1e3:.3g} mm, {s.dof:.1f} eff. parameters, {len(s.implausible)} beyond 3σ"
+            note = (f"μ {s.mu_m * 1e3:.3g} mm, {s.dof:.1f} eff. parameters, {len(s.implausible)} beyond 3σ"
+                    + (f", physics: {s.physics['chosen']}" if s.physics else ""))
             t1 = time.process_time()
-            fit(model, data, FitOptions(fixed=fixed_for(model, groups), before=False, prior_sigma=prior))
+            on = tuple((s.physics or {}).get("terms", ()))
+            fit(model, data, FitOptions(fixed=tuple(n for n in fixed_for(model, groups) if n not in on), before=False,
+                                        prior_sigma=prior))
         else:
             t_choice = time.process_time() - t0
             t1 = time.process_time()
@@ -107,34 +121,66 @@ def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
     return out
 
 
-def tiago(real: Path, tmp: Path, choices: tuple[str, ...]) -> None:
+def tiago_figures(real: Path, tmp: Path, choices: tuple[str, ...]) -> dict[str, list[float]]:
+    """{choice: [fit session, 11-26, 11-30 14:03, 11-30 15:04]} norm of the 3-D error, RMS, m."""
     paths = tiago_recordings(real, tmp)
     recs = [read_recording(p) for p in paths]
+    return {c: ([d["rms_3d_m"] for d in evaluate(cal, recs)], tc, tf, note)
+            for c, (cal, tc, tf, note) in models(paths[0], choices).items()}
+
+
+def run_timing(train: Path, out: Path, *args: str) -> tuple[float, float]:
+    """(wall s, CPU s) of one whole `robocal run` (every stage) of `train`."""
+    import resource
+
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    _robocal("run", train, "--out", out, *args)
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.perf_counter() - t0, (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+
+
+def tiago(real: Path, tmp: Path, choices: tuple[str, ...], timing: bool = False) -> None:
     print("\n### FIGAROH's frozen TIAGo protocol: fit on 2021-11-30, evaluate on the others without refitting\n")
-    print("| model | fit session | 11-26 | 11-30 14:03 | 11-30 15:04 | choice s CPU | one fit s CPU | note |")
-    print("|---|---|---|---|---|---|---|---|")
-    for c, (cal, tc, tf, note) in models(paths[0], choices).items():
-        r = [d["rms_3d_m"] * 1e3 for d in evaluate(cal, recs)]
-        print(f"| robocal {c} | " + " | ".join(f"{v:.2f}" for v in r) + f" | {tc:.1f} | {tf:.1f} | {note} |")
+    print("| model | fit session | 11-26 | 11-30 14:03 | 11-30 15:04 | choice s CPU | one fit s CPU | choice / fit | note |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for c, (r, tc, tf, note) in tiago_figures(real, tmp, choices).items():
+        ratio = f"{tc / tf:.1f}×" if tf > 0 else "—"
+        print(f"| robocal {c} | " + " | ".join(f"{v * 1e3:.2f}" for v in r) + f" | {tc:.1f} | {tf:.1f} | {ratio} | {note} |")
     for k, v in FIGAROH.items():
-        print(f"| FIGAROH {k} (published) | — | " + " | ".join(f"{x:.2f}" for x in v) + " | | | |")
-    print("\nmm: norm of the 3-D error, RMS over postures (target: ≤ FIGAROH full)")
+        print(f"| FIGAROH {k} (published) | — | " + " | ".join(f"{x:.2f}" for x in v) + " | | | | |")
+    print("\nmm: norm of the 3-D error, RMS over postures (target: ≤ FIGAROH full on every held-out session)")
+    if timing:
+        train = tmp / f"tiago_{SESSIONS[0]}.mcap"
+        for label, args in (("default (groups)", ()), ("--model-choice shrinkage", ("--model-choice", "shrinkage"))):
+            wall, cpu = run_timing(train, tmp / f"run-{len(args)}", *args)
+            print(f"whole `robocal run` {label} on the training session: {wall:.1f} s wall, {cpu:.1f} s CPU")
 
 
-def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str) -> None:
-    paths = [panda_recording(real, tmp, p) for p in PLACEMENTS]
+def placements(real: Path, robot: str) -> tuple[str, ...]:
+    """The placements of a MUKCa unit (panda_2: `PLACEMENTS`' order; others: their folders, sorted)."""
+    if robot == "panda_2":
+        return PLACEMENTS
+    return tuple(sorted(p.name for p in (real / "mukca_panda" / "data" / robot).iterdir() if p.is_dir()))
+
+
+def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str, robot: str = "panda_2") -> None:
+    places = placements(real, robot)
+    paths = [panda_recording(real, tmp, p, robot) for p in places]
     recs = [read_recording(p) for p in paths]
-    i = PLACEMENTS.index(train)
+    i = places.index(train)
     others = [r for j, r in enumerate(recs) if j != i]
-    print(f"\n### MUKCa's protocol, panda_2: fit on placement {train}, evaluate on the other {len(others)}\n")
+    print(f"\n### MUKCa's protocol, {robot}: fit on placement {train}, evaluate on the other {len(others)}\n")
     print("| model | fit placement: mean / RMS | other placements: mean of per-placement mean 3-D | RMS 3-D over "
           "all their rows | worst placement RMS | RMS socket-distance error | choice s CPU | one fit s CPU |")
     print("|---|---|---|---|---|---|---|---|")
-    mk = from_urdf(real / "mukca_panda" / "calibrated_urdf" / "panda_2" / "panda_calibrated.urdf", "panda_link0",
-                   "ball_link", "coincidence")
+    published = real / "mukca_panda" / "calibrated_urdf" / robot / "panda_calibrated.urdf"
+    mk = from_urdf(published, "panda_link0", "ball_link", "coincidence") if published.is_file() else None
     rows = [(f"robocal {c}", cal, tc, tf) for c, (cal, tc, tf, _) in models(paths[i], choices).items()]
-    for name, cal, tc, tf in rows + [("MUKCa calibrated URDF (published)", mk, None, None)]:
+    per = {}
+    for name, cal, tc, tf in rows + ([("MUKCa calibrated URDF (published)", mk, None, None)] if mk else []):
         own, *rest = evaluate(cal, [recs[i], *others])
+        per[name] = [d["mean_3d_m"] for d in rest]
         n = np.array([d["n"] for d in rest])
         rms_all = np.sqrt(np.sum(n * np.array([d["rms_3d_m"] for d in rest]) ** 2) / n.sum())
         dist = np.sqrt(np.mean([d["rms_distance_error_m"] ** 2 for d in rest]))
@@ -143,3 +189,7 @@ def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str) -> None:
               f"{np.mean([d['mean_3d_m'] for d in rest]) * 1e3:.3f} | {rms_all * 1e3:.3f} | "
               f"{max(d['rms_3d_m'] for d in rest) * 1e3:.3f} | {dist * 1e3:.3f} | {t} |")
     print("\nmm: ball centres about their socket's mean (MUKCa's figure: the mean), socket distance against 50 mm")
+    names = [p for j, p in enumerate(places) if j != i]
+    print("\nPer placement, mean 3-D (mm):\n\n| model | " + " | ".join(names) + " |\n|---|" + "---|" * len(names))
+    for name, v in per.items():
+        print(f"| {name} | " + " | ".join(f"{x * 1e3:.3f}" for x in v) + " |")

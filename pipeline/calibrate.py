@@ -138,7 +138,8 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
 
     implausible = []
     if solver == "lm" and getattr(model, "groups", None) and model.groups():  # URDF robots
-        implausible = doc["implausible"] = find_implausible(model, f.x, f.free, options.prior_sigma)
+        by_sign = tuple((shrunk.physics or {}).get("terms", ())) if "shrunk" in locals() else ()
+        implausible = doc["implausible"] = find_implausible(model, f.x, f.free, options.prior_sigma, by_sign)
         doc["warnings"] += warnings_of(implausible)
     if implausible and doc["status"] == "pass":  # never a silent pass over a parameter beyond its prior
         doc["status"] = "warn"

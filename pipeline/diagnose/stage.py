@@ -18,6 +18,7 @@ import numpy as np
 from pipeline.diagnose.method import Settings
 
 NAME = "diagnose"
+PHYSICS_SUFFIXES = (".compliance", ".lateral1", ".lateral2")
 SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner", "urdf")
 
 
@@ -32,12 +33,13 @@ def settings_of(params: dict) -> Settings:
 
 def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | None = None,
                        drop_records: list[int] | None = None, stream=None, physics: dict | None = None,
-                       held: tuple[str, ...] | None = None) -> dict:
+                       held: tuple[str, ...] | None = None, chosen: bool = False) -> dict:
     """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker, SCORBOT scanner);
     `stream`: its encoder stream when already decoded (the ingest stage's `encoder.parquet`); `physics`:
     the run's gravity-term choice ({physics, payload}, ingest's recording.json) and `held`: the parameters
     identify's model selection held, for a URDF tree or a model with physics terms (the same model as
-    identify's, not selected again)."""
+    identify's, not selected again) or, `chosen`, whenever identify made a model choice (its groups, or
+    after a shrinkage fit what it did not estimate)."""
     from pipeline.diagnose.adapters import touch_table as dtable
     from pipeline.diagnose.method import diagnose
     from pipeline.identify.model import take
@@ -62,9 +64,10 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
             tab = take(tab, ~np.isin(tab["record"], np.asarray(drop_records, int)))
         if x0 is not None and len(x0) != len(model.parameter_names()):
             x0 = None
-        tree = hasattr(model, "deflected")  # a TreePointModel: identify's selection stands (it is costly)
+        # a TreePointModel, or identify's own model choice (`held`): identify's selection stands (it is costly)
+        keep = hasattr(model, "deflected") or chosen
         doc = diagnose(model, tab, x0=x0, settings=settings,
-                       adapter=durdf.adapter(model, tab, held if tree and x0 is not None else None))
+                       adapter=durdf.adapter(model, tab, held if keep and x0 is not None else None))
         doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
         return doc
     if detect(rec).SYSTEM == "delta-tracker":
@@ -108,14 +111,21 @@ def run(run_dir: Path, params: dict) -> dict:
         fit_path = run_dir / "identify" / "fit.json"
         from pipeline.stages.ingest import recording_info
 
-        x0, drop, held = None, None, None
+        x0, drop, held, chosen = None, None, None, False
         if fit_path.is_file():
             fj = read_json(fit_path)
             x0 = np.asarray(fj["x"], float)
             drop = fj.get("rejected_records") or None
             held = tuple(n for n, r in (fj.get("reasons") or {}).items() if "model_selection" in str(r))
+            sel = fj.get("model_selection") or {}
+            chosen = str(sel.get("method", "")).startswith("shrinkage") or "kept_groups" in sel
+            if "kept_groups" not in sel and chosen:  # shrinkage estimated every parameter: hold what it did not
+                held = tuple(n for n, fr in zip(fj.get("names", []), fj.get("free", [])) if not fr)
+        physics = recording_info(run_dir).get("physics")
+        if physics is None and x0 is not None and any(n.endswith(PHYSICS_SUFFIXES) for n in fj.get("names", [])):
+            physics = {"physics": "auto"}  # identify's default gravity terms: the same model, not selected again
         doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=stream,
-                                 physics=recording_info(run_dir).get("physics"), held=held)
+                                 physics=physics, held=held, chosen=chosen)
         doc["supported"] = True
     write_json(out / "diagnosis.json", doc)
     return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],

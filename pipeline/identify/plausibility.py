@@ -4,7 +4,9 @@ A fitted joint origin 15 mm from its URDF value when the prior says 2 mm (1σ) i
 description or the fit absorbing something else (a wrong joint mapping, a moved instrument).  Either
 way the user must hear of it: each such parameter is named (results ``implausible``, a warning) and
 the status is never ``pass`` over it.  The registration group (instrument frame, tool, targets,
-socket points, planes) is not judged: an instrument stands anywhere.
+socket points, planes) is not judged: an instrument stands anywhere.  Gravity-compliance terms a
+shrinkage fit estimated with the registration (`pipeline.identify.physics_choice`) are judged by their
+sign instead of the rigid robot's prior: a negative compliance has no physical stiffness.
 """
 
 from __future__ import annotations
@@ -14,8 +16,9 @@ import numpy as np
 PLAUSIBLE = 3.0  # prior σ beyond which an estimate is named
 
 
-def implausible(model, x: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray) -> list[dict]:
-    """[{name, estimate, nominal, prior_sigma, z}] of the estimated robot parameters beyond `PLAUSIBLE` σ."""
+def implausible(model, x: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray, by_sign=()) -> list[dict]:
+    """[{name, estimate, nominal, prior_sigma, z}] of the estimated robot parameters beyond `PLAUSIBLE` σ;
+    `by_sign`: compliance names judged only by their sign (named when negative)."""
     groups = model.groups() if hasattr(model, "groups") else {}
     if not groups:
         return []
@@ -24,7 +27,7 @@ def implausible(model, x: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray)
     out = []
     for i, n in enumerate(names):
         s = float(prior_sigma[i])
-        if not free[i] or n in reg or not s > 0:
+        if not free[i] or n in reg or not s > 0 or (n in by_sign and float(x[i]) >= 0):
             continue
         z = (float(x[i]) - nominal[i]) / s
         if abs(z) > PLAUSIBLE:

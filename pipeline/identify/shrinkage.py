@@ -15,11 +15,12 @@ prior σ is named in `implausible`: the caller warns of it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
 
+from pipeline.blas import single_threaded
 from pipeline.identify.plausibility import PLAUSIBLE
 
 GRID = (0.03, 0.1, 0.3, 1.0, 3.0)  # μ as multiples of the registration-only RMS residual (per axis)
@@ -35,23 +36,31 @@ class Shrunk:
     fits: int  # solves done
     per_group: dict = field(default_factory=dict)  # μ → {group: held-out RMS m} (choice by left-out groups)
     holdout: np.ndarray | None = None  # (n, residual_dim) held-out residuals at the chosen μ (left-out groups)
+    physics: dict = field(default_factory=dict)  # {chosen, candidates: {label: {admissible, score_m2, …}}}
 
 
-def _anchor(model, prior_sigma: np.ndarray, fixed: tuple[str, ...]) -> np.ndarray:
+def _registration(model, extra: tuple[str, ...] = ()) -> set[str]:
+    """Names estimated with the registration (unpenalised, anchored at the registration-stage estimate): the
+    registration group and `extra` (the physics terms chosen by `pipeline.identify.physics_choice`)."""
+    groups = model.groups() if hasattr(model, "groups") else {}
+    return set(groups.get("registration", [])) | set(extra)
+
+
+def _anchor(model, prior_sigma: np.ndarray, fixed: tuple[str, ...], extra: tuple[str, ...] = ()) -> np.ndarray:
     """1/σ of the registration group's free parameters (0 elsewhere): a weak pull toward the registration-only
     estimate (not toward nominal: an instrument stands anywhere), so a frame the data cannot pin down (a
     ball-in-socket tool's base rotation) stays put instead of wandering."""
     names = model.parameter_names()
-    groups = model.groups() if hasattr(model, "groups") else {}
-    reg = set(groups.get("registration", [])) - set(fixed)
+    reg = _registration(model, extra) - set(fixed)
     return np.array([1.0 / max(float(s), 1e-12) if n in reg else 0.0 for n, s in zip(names, prior_sigma)])
 
 
-def _penalty(model, prior_sigma: np.ndarray, fixed: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """(free mask, weight 1/σ per parameter; 0 for the registration group)."""
+def _penalty(model, prior_sigma: np.ndarray, fixed: tuple[str, ...], extra: tuple[str, ...] = ()
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(free mask, weight 1/σ per parameter; 0 for the registration group and `extra`)."""
     names = model.parameter_names()
     groups = model.groups() if hasattr(model, "groups") else {}
-    reg = set(groups.get("registration", []))
+    reg = _registration(model, extra)
     never = {n for g, v in groups.items() if g.startswith("_") for n in v} | set(fixed)
     free = np.array([n not in never for n in names])
     w = np.array([0.0 if (n in reg) else 1.0 / max(float(s), 1e-12) for n, s in zip(names, prior_sigma)])
@@ -80,12 +89,13 @@ def map_solve(model, data, x: np.ndarray, idx: np.ndarray, lam: np.ndarray, nomi
 
 
 def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[str, ...] = (),
-           scale_m: float | None = None, grid=GRID, progress=None) -> Shrunk:
+           scale_m: float | None = None, grid=GRID, progress=None, extra: tuple[str, ...] = ()) -> Shrunk:
     """MAP estimate with μ chosen by GCV (module docstring).  `x0`: start (e.g. the registration-only
-    fit); `scale_m`: the registration-only RMS residual per axis (default: at x0)."""
+    fit); `scale_m`: the registration-only RMS residual per axis (default: at x0); `extra`: names
+    estimated with the registration (anchored at x0, not pulled toward nominal)."""
     nominal = np.asarray(model.nominal(), float)
-    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed)
-    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed)
+    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
+    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
     centre = np.where(w > 0, nominal, np.asarray(x0, float))
     idx = np.flatnonzero(free)
     r0 = np.asarray(model.residuals(x0, data), float).ravel()
@@ -120,23 +130,24 @@ def _implausible(model, x, idx, w, nominal) -> list[dict]:
 
 
 def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, groups: np.ndarray,
-                     fixed: tuple[str, ...] = (), grid=GRID, progress=None) -> Shrunk:
+                     fixed: tuple[str, ...] = (), grid=GRID, progress=None, extra: tuple[str, ...] = ()) -> Shrunk:
     """MAP estimate with μ chosen by leaving out whole groups (`group_holdout`): the candidates are the
     grid and μ = ∞ (registration only, the nominal robot); a μ is eligible only if no left-out group is
-    predicted worse than by registration only, and the eligible μ of least held-out RMS is chosen."""
+    predicted worse than by registration only, and the eligible μ of least held-out RMS is chosen, then
+    refined once by the same rule over the geometric midpoints either side of it (half a grid step)."""
     from pipeline.identify.group_holdout import held_out, per_group_rms
 
     nominal = np.asarray(model.nominal(), float)
-    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed)
-    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed)
+    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
+    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
     centre = np.where(w > 0, nominal, np.asarray(x0, float))
     idx = np.flatnonzero(free)
     reg = idx[w[idx] == 0]
     scale = float(np.sqrt(np.mean(np.asarray(model.residuals(x0, data), float) ** 2)))
     cands = [np.inf] + [g * scale for g in sorted(grid, reverse=True)]
-    x = np.asarray(x0, float).copy()
     per, total, full, outs = {}, {}, {}, {}
-    for i, mu in enumerate(cands):
+
+    def judge(mu, x, label):
         if np.isinf(mu):
             def solve(d, xs):
                 return map_solve(model, d, xs, reg, np.zeros(reg.size), nominal)
@@ -145,12 +156,26 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
                 return map_solve(model, d, xs, idx, lam, centre)
         r = held_out(model, data, groups, solve, x)
         per[mu], total[mu], outs[mu] = per_group_rms(r, groups), float(np.sqrt(np.nanmean(r**2))), r
-        x = full[mu] = solve(data, x)
+        full[mu] = solve(data, x)
         if progress is not None:
-            progress(f"model choice {i + 1}/{len(cands)}: μ = {mu * 1e3:.4g} mm, held-out (whole groups left out) "
+            progress(f"model choice {label}: μ = {mu * 1e3:.4g} mm, held-out (whole groups left out) "
                      f"RMS {total[mu] * 1e3:.4g} mm")
-    ok = [mu for mu in cands if all(per[mu][g] <= per[np.inf][g] for g in per[np.inf])]
-    mu = min(ok, key=lambda m: total[m])
+        return full[mu]
+
+    def best():
+        ok = [m for m in per if all(per[m][g] <= per[np.inf][g] for g in per[np.inf])]
+        return min(ok, key=lambda m: total[m])
+
+    x = np.asarray(x0, float).copy()
+    for i, mu in enumerate(cands):
+        x = judge(mu, x, f"{i + 1}/{len(cands)}")
+    mu = best()
+    if not np.isinf(mu) and len(grid) > 1:  # refine: the geometric midpoints either side of the chosen grid point
+        step = np.sqrt(max(grid) / min(grid)) ** (1 / max(len(grid) - 1, 1))
+        for k, m in enumerate((mu * step, mu / step)):
+            judge(m, full[mu], f"refined {k + 1}/2")
+        mu = best()
+    cands = sorted(per, reverse=True)
     xb = full[mu]
     J = np.asarray(model.jacobian(xb, data), float).reshape(-1, xb.size)[:, idx]
     lam = (0.0 if np.isinf(mu) else mu) * wa[idx]
@@ -160,6 +185,25 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
                   per_group={float(m): per[m] for m in cands}, holdout=outs[mu])
 
 
+def _downhill(at, first: Shrunk) -> Shrunk:
+    """The `at(grid)` shrink of least GCV found by walking the GRID from the point `first` chose, each way
+    while the score falls (a few solves instead of the whole grid); its `gcv` holds every point tried."""
+    g = sorted(GRID, reverse=True)
+    i0 = list(first.gcv).index(first.mu_m)
+    seen = {i0: at((g[i0],))}
+    score = lambda s: s.gcv[s.mu_m]  # noqa: E731
+    for step in (-1, 1):
+        j = i0
+        while 0 <= j + step < len(g):
+            j += step
+            seen[j] = at((g[j],))
+            if score(seen[j]) >= score(seen[j - step]):
+                break
+    best = min(seen.values(), key=score)
+    return replace(best, gcv={s.mu_m: score(s) for _, s in sorted(seen.items())}, fits=len(seen))
+
+
+@single_threaded
 def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     """(`Fit` of the MAP estimate, `Shrunk`, k-fold held-out residuals (n, residual_dim)).
 
@@ -167,7 +211,6 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     estimated parameters (registration ones the data cannot separate are held by the rank test);
     each fold re-solves at the chosen μ, warm-started from the whole-data estimate."""
     import time
-    from dataclasses import replace
 
     from pipeline.identify.complexity import fixed_for
     from pipeline.identify.identifiability import analyse
@@ -181,29 +224,62 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
         from pipeline.accuracy.prior import prior_sigma
 
         prior = prior_sigma(model)[0]
-    reg_fixed = tuple(set(options.fixed) | set(fixed_for(model, ["registration"])))
-    f0 = fit(model, data, replace(options, fixed=reg_fixed))
-    groups = [g for g in model.groups() if not g.startswith("_")]
-    fixed = tuple(set(options.fixed) | set(fixed_for(model, groups)))
-    # registration parameters the data cannot tell apart stay at their registration-only values
-    names = model.parameter_names()
-    held = tuple(n for i, n in enumerate(names) if not f0.free[i] and n in set(model.groups().get("registration", [])))
+    from pipeline.identify import physics_choice as pc
     from pipeline.identify.group_holdout import row_groups
 
+    names = model.parameter_names()
+    groups = [g for g in model.groups() if not g.startswith("_")]
+    registration = set(model.groups().get("registration", []))
     n, kd = n_rows(data), model.residual_dim
     groups_of_rows = row_groups(model, data)
-    if groups_of_rows is not None:  # whole groups left out: what carries over to a new session / placement
-        s = shrink_by_groups(model, data, prior, f0.x, groups_of_rows, fixed=fixed + held, progress=progress)
+    best, tried, first = None, {}, None
+    for chosen in pc.candidates(model):  # gravity-compliance families: none, each, all (physics_choice)
+        on, off = pc.names_of(model, chosen)
+        label = "+".join(chosen) or "rigid"
+        reg_fixed = tuple((set(options.fixed) | set(fixed_for(model, ["registration", *on]))) | set(off))
+        f0 = fit(model, data, replace(options, fixed=reg_fixed))
+        bad = pc.inadmissible(f0, on) if not getattr(model, "forced", False) else []
+        if bad:
+            tried[label] = {"admissible": False, "negative": bad}
+            if progress is not None:
+                progress(f"physics {label}: not admissible (negative compliance {', '.join(bad)})")
+            continue
+        fixed = tuple(set(options.fixed) | set(fixed_for(model, groups)) | set(off))
+        # registration parameters the data cannot tell apart stay at their registration-only values
+        held = tuple(nm for i, nm in enumerate(names) if not f0.free[i] and nm in registration | set(on))
+        if groups_of_rows is not None:  # whole groups left out: what carries over to a new session / placement
+            s = shrink_by_groups(model, data, prior, f0.x, groups_of_rows, fixed=fixed + held, progress=progress,
+                                 extra=on)
+            score = s.gcv[s.mu_m]
+        else:
+            def at(grid, x0=f0.x, fixed=fixed + held, on=on):
+                return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid)
+
+            # later candidates: from the first one's chosen grid point, downhill along the grid only
+            s = at(GRID) if first is None else _downhill(at, first)
+            m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
+            rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
+            score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
+        first = s if first is None and groups_of_rows is None else first
+        tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m)}
+        if progress is not None and len(pc.candidates(model)) > 1:
+            progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")
+        if best is None or score < best[0]:
+            best = (score, s, f0, fixed, held, on, label)
+    _, s, f0, fixed, held, on, label = best
+    if len(tried) > 1 or on:
+        s = replace(s, physics={"chosen": label, "terms": list(on), "candidates": tried})
+    if groups_of_rows is not None:
         holdout = s.holdout
     else:
-        s = shrink(model, data, prior, f0.x, fixed=fixed + held, progress=progress)
         holdout = np.full((n, kd), np.nan)
         for test in design_folds(n, k, seed, None, data):  # as `least_squares.cross_validate`
             train = np.setdiff1d(np.arange(n), test)
-            sf = shrink(model, take(data, train), prior, s.x, fixed=fixed + held, grid=(s.mu_m,), scale_m=1.0)
+            sf = shrink(model, take(data, train), prior, s.x, fixed=fixed + held, grid=(s.mu_m,), scale_m=1.0,
+                        extra=on)
             holdout[test] = np.asarray(model.residuals(sf.x, take(data, test)), float).reshape(len(test), kd)
-    free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held)
-    wa = w + _anchor(model, np.asarray(prior, float), fixed + held)
+    free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held, on)
+    wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
     J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
     mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
     est = free_mask & ~((w > 0) & np.isinf(s.mu_m))  # μ = ∞: the robot stays nominal
@@ -232,6 +308,8 @@ def shrinkage_document(s: Shrunk) -> dict:
                      + ("leaving out whole groups" if s.per_group else "GCV"),
            "mu_m": mu, "effective_parameters": s.dof, "implausible": s.implausible,
            "score_m2": {key(m): v for m, v in s.gcv.items()}}
+    if s.physics:
+        doc["physics_families"] = s.physics
     if s.per_group:
         doc["holdout_per_group_m"] = {key(m): v for m, v in s.per_group.items()}
     return doc

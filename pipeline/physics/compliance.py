@@ -37,8 +37,8 @@ MIN_LOAD_NM = 1.0
 EQUILIBRIUM = "first order: gravity loads evaluated at the joint readings (nominal geometry)"
 SCHEMA_VERSION = 2
 
-_CACHE: dict[str, Load] = {}
-_ROWS: dict[str, dict[bytes, tuple[np.ndarray, np.ndarray]]] = {}  # per robot and payload: posture → loads
+_CACHE: dict[tuple, Load] = {}
+_ROWS: dict[tuple, dict[bytes, tuple[np.ndarray, np.ndarray]]] = {}  # per robot and payload: posture → loads
 
 
 def parse_spec(text: str | None) -> tuple[str, tuple[str, ...]]:
@@ -76,11 +76,11 @@ def loads(tree, q: np.ndarray, payload: tuple = ()) -> Load:
     Cached per posture: the rows of a campaign's subsets (cross-validation folds, model-selection rounds)
     are computed by Pinocchio once, whichever subset asks first."""
     q = np.ascontiguousarray(q, float)
-    h = hashlib.sha256(tree.urdf.encode() + repr((tree.coupled, payload, q.shape)).encode() + q.tobytes()).hexdigest()
+    h = (tree.urdf, repr((tree.coupled, payload, q.shape)), hashlib.sha256(q.tobytes()).hexdigest())
     hit = _CACHE.get(h)
     if hit is None:
         names = [j.name for j in tree.all_joints]
-        key = hashlib.sha256(tree.urdf.encode() + repr((tree.coupled, payload, names)).encode()).hexdigest()
+        key = (tree.urdf, repr((tree.coupled, payload, names)))
         rows = _ROWS.setdefault(key, {})
         keys = [r.tobytes() for r in q]
         todo = sorted({k: i for i, k in enumerate(keys) if k not in rows}.values())

@@ -162,7 +162,8 @@ def run(run_dir: Path, params: dict) -> dict:
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
             "loss", "function_evaluations", "predicted_point_sigma_rms_m", "warnings")
     if opts.prior_sigma is not None and grouped:  # robot parameters beyond their prior: named, never a silent pass
-        doc["implausible"] = implausible(model, f.x, f.free, opts.prior_sigma)
+        by_sign = tuple((shrunk.physics or {}).get("terms", ())) if shrunk is not None else ()
+        doc["implausible"] = implausible(model, f.x, f.free, opts.prior_sigma, by_sign)
         if doc["implausible"]:
             doc["warnings"] += warnings_of(doc["implausible"])
             doc["status"] = "warn"

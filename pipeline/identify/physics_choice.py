@@ -1,0 +1,61 @@
+"""Which gravity-compliance families a shrinkage fit keeps, and how it estimates them.
+
+The physics terms of a `TreePointModel` (``J.compliance``, ``J.lateral1/2``, rad/(N·m);
+`pipeline.physics.compliance`) are estimated with the registration, against the nominal robot: the
+instrument frame, the tool point and the compliances that explain how the error follows the gravity
+load before any link is moved.  The geometry is then shrunk toward nominal with those terms anchored at
+their registration-stage values (`pipeline.identify.shrinkage`, ``extra``), not pulled toward zero.
+
+Each subset of the offered families (none, each alone, all) is a candidate; a candidate is
+*admissible* only when every compliance it estimates is physical, i.e. not negative beyond
+`NEGATIVE_SIGMA` of its standard error (a stiffness is positive: a negative compliance absorbs
+something else).  Among admissible candidates the one of least model-choice score wins (GCV counting
+the physics terms as estimated parameters, or the held-out error of left-out groups — there each fold
+re-estimates the compliances from its training groups, anchored at the all-groups registration-stage
+values, so the left-out group's rows weigh a little on its own prediction).  A model whose terms were
+asked for explicitly (``--physics joint-compliance``: ``forced``) keeps all of them.
+"""
+
+from __future__ import annotations
+
+from itertools import combinations
+
+import numpy as np
+
+SUFFIXES = {"compliance": "joint-compliance", "lateral1": "lateral-compliance", "lateral2": "lateral-compliance"}
+NEGATIVE_SIGMA = 2.0
+
+
+def families(model) -> dict[str, tuple[str, ...]]:
+    """{family: its parameter names} of the model's physics terms (empty for a rigid model)."""
+    out: dict[str, list[str]] = {}
+    for n in model.parameter_names():
+        fam = SUFFIXES.get(n.rsplit(".", 1)[-1]) if "." in n else None
+        if fam is not None:
+            out.setdefault(fam, []).append(n)
+    return {f: tuple(v) for f, v in out.items()}
+
+
+def candidates(model) -> list[tuple[str, ...]]:
+    """Family subsets to try, the rigid model first; only the full set when the terms were forced."""
+    fams = sorted(families(model))
+    if not fams:
+        return [()]
+    if getattr(model, "forced", False):
+        return [tuple(fams)]
+    return [c for k in range(len(fams) + 1) for c in combinations(fams, k)]
+
+
+def names_of(model, chosen: tuple[str, ...]) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(names of the chosen families' terms, names of the others: held at 0, the rigid nominal)."""
+    fams = families(model)
+    on = tuple(n for f in chosen for n in fams[f])
+    off = tuple(n for f, v in fams.items() if f not in chosen for n in v)
+    return on, off
+
+
+def inadmissible(fit, names: tuple[str, ...]) -> list[str]:
+    """The terms of `names` whose registration-stage estimate is negative beyond `NEGATIVE_SIGMA` σ."""
+    idx = {n: i for i, n in enumerate(fit.names)}
+    std = np.asarray(fit.std, float) if fit.std is not None else np.zeros(len(fit.names))
+    return [n for n in names if fit.x[idx[n]] < 0 and fit.x[idx[n]] < -NEGATIVE_SIGMA * std[idx[n]]]

@@ -5,9 +5,12 @@ equilibrium) calibrated by the command line, per seed:
 * the recovered joint stiffnesses against the truth (z = (ĉ − c)/σ̂ of the compliance c = 1/k);
 * held-out RMS (per residual component, as robocal reports it): geometry only (physics held at 0, same
   folds), with the physics the model selection kept, `--physics none`, and the noise floor (σ per axis);
-* the time of `robocal calibrate` with `--physics auto` (the default) and `--physics none`.
+* the time of `robocal calibrate` with `--physics auto` (the default) and `--physics none`;
+* with `--reading eccentricity|scale`, encoder errors in the truth (`READING`): whether the model selection kept
+  the family, and each recovered term against the truth (z = (v̂ − v)/σ̂).
 
     python benchmarks/bench_physics.py --seeds 0 1 2 --n 150         # the documented figures
+    python benchmarks/bench_physics.py --seeds 7 --n 120 --reading eccentricity
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 import independent_humanoid as hu  # noqa: E402
 
 ROBOCAL = str(Path(sys.executable).with_name("robocal"))
+READING = {"eccentricity": {"eccentricity": {"left_j3": (3e-3, -2e-3), "right_j3": (-2e-3, 2.5e-3)}},
+           "scale": {"scale": {"left_j4": 4e-3, "right_j2": -3e-3}}, "none": {}}
 
 
 def cli(*args) -> float:
@@ -35,8 +40,8 @@ def cli(*args) -> float:
     return time.perf_counter() - t0
 
 
-def one(seed: int, n: int, noise: float, tmp: Path) -> dict:
-    d = hu.write(tmp / f"s{seed}", seed=seed, n=n, noise_m=noise)
+def one(seed: int, n: int, noise: float, tmp: Path, reading: str = "none") -> dict:
+    d = hu.write(tmp / f"s{seed}", seed=seed, n=n, noise_m=noise, **READING[reading])
     rec = tmp / f"s{seed}.mcap"
     cli("import", "csv", d / "postures.csv", "--urdf", d / "humanoid.urdf", "--root", "base",
         "--tip", "left_hand=lx,ly,lz", "--tip", "right_hand=rx,ry,rz", "--coupled", "torso_j3=-torso_j1-torso_j2",
@@ -52,7 +57,14 @@ def one(seed: int, n: int, noise: float, tmp: Path) -> dict:
         t = terms.get(j)
         if t and t["compliance_std_rad_per_Nm"]:
             z[j] = ((t["compliance_rad_per_Nm"] - 1 / k) / t["compliance_std_rad_per_Nm"], t["stiffness_Nm_per_rad"], k)
-    return {"seed": seed, "z": z, "geometry_m": auto["physics"]["holdout_geometry_only_m"],
+    p = {r["name"]: r for r in auto["parameters"]}
+    truth_terms = {f"{j}.ecc_sin": a for j, (a, _) in truth["eccentricity"].items()} | \
+        {f"{j}.ecc_cos": b for j, (_, b) in truth["eccentricity"].items()} | \
+        {f"{j}.scale": v for j, v in truth["scale"].items()}
+    zr = {k: ((p[k]["estimate"] - v) / p[k]["std"], p[k]["estimate"], v) for k, v in truth_terms.items()
+          if k in p and p[k]["identifiable"] and p[k]["std"]}
+    return {"seed": seed, "z": z, "z_reading": zr, "groups": auto["model_selection"]["kept_groups"],
+            "geometry_m": auto["physics"]["holdout_geometry_only_m"],
             "physics_m": auto["physics"]["holdout_with_physics_m"], "none_m": none["holdout_rms_m"],
             "floor_m": noise, "t_auto": t_auto, "t_none": t_none,
             "kept": [t["parameter"] for t in auto["physics"]["terms"]]}
@@ -63,6 +75,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--n", type=int, default=150, help="postures per campaign (two hand markers each)")
     ap.add_argument("--noise-m", type=float, default=2e-4)
+    ap.add_argument("--reading", choices=sorted(READING), default="none", help="encoder errors in the truth")
     a = ap.parse_args()
     print(f"humanoid, {a.n} postures × 2 hands, noise {a.noise_m * 1e3:.2f} mm per axis")
     print("seed | held-out mm: geometry only | with physics | --physics none | floor | calibrate s: auto | none",
@@ -70,7 +83,7 @@ def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for s in a.seeds:  # one line per seed as it finishes
-            r = one(s, a.n, a.noise_m, Path(tmp))
+            r = one(s, a.n, a.noise_m, Path(tmp), a.reading)
             rows.append(r)
             print(f"{r['seed']:4d} | {r['geometry_m'] * 1e3:26.3f} | {r['physics_m'] * 1e3:12.3f} | "
                   f"{r['none_m'] * 1e3:14.3f} | {r['floor_m'] * 1e3:5.3f} | {r['t_auto']:17.1f} | {r['t_none']:4.1f}",
@@ -84,7 +97,10 @@ def main() -> None:
         print(f"\n|z| ≤ 2 for {sum(abs(v) <= 2 for v in zs)}/{len(zs)} recovered stiffnesses; "
               f"RMS z {(sum(v * v for v in zs) / len(zs)) ** 0.5:.2f}")
     for r in rows:
-        print(f"seed {r['seed']} kept physics terms: {', '.join(r['kept']) or 'none'}")
+        print(f"seed {r['seed']} kept groups: {', '.join(r['groups'])}; {len(r['kept'])} physics terms")
+        if r["z_reading"]:
+            print("  reading terms (estimate / truth, z): " + "; ".join(
+                f"{k} {v_hat:.3g}/{v:.3g} z={zz:+.1f}" for k, (zz, v_hat, v) in r["z_reading"].items()))
 
 
 if __name__ == "__main__":

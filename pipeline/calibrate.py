@@ -149,9 +149,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures
         doc.update(model.extra_metrics(f.nominal, f.x, table))
     out.mkdir(parents=True, exist_ok=True)
-    (out / "model.json").write_text(json.dumps(model.describe(f.x), indent=2) + "\n")
-    from pipeline.identify.exports import write_exports
-    doc["exports"] = write_exports(model, f.x, out)
+    from pipeline.identify.exports import describe, write_exports
+    (out / "model.json").write_text(json.dumps(describe(model, f.x, f.std, f.free), indent=2) + "\n")
+    doc["exports"] = write_exports(model, f.x, out, f.std, f.free)
     from pipeline.stages.artefacts import dumps
 
     (out / "results.json").write_text(dumps(doc))  # numpy-aware (the accuracy map), NaN → null

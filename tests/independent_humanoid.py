@@ -15,7 +15,9 @@ static equilibrium by fixed-point iteration:
 
 The torso is a three-joint pitch chain whose last joint is driven by the other two,
 q3 = −q1 − q2 (the chest stays level, as on humanoids with a parallel torso linkage); the CSV
-carries only the two driven joints. Geometry errors: joint offsets and origin perturbations (mm,
+carries only the two driven joints. Optional reading errors of the encoders (off by default): an
+eccentric encoder disc, q_true = q_read + a·sin q_read + b·cos q_read (rad), and a gear-ratio error,
+q_true = q_read + s·q_read, on chosen read joints (before the torso coupling). Geometry errors: joint offsets and origin perturbations (mm,
 mrad) of every joint; a motion-capture frame with an unknown pose; one marker per hand at an
 unknown offset. Measurements: both hand markers in the motion-capture frame with isotropic
 Gaussian noise (m).
@@ -235,6 +237,8 @@ class Truth:
     origin_drpy: dict = field(default_factory=dict)  # rad
     compliance: dict = field(default_factory=dict)  # rad/(N·m)
     lateral: dict = field(default_factory=dict)  # rad/(N·m), both normal axes
+    eccentricity: dict = field(default_factory=dict)  # {joint: (a, b)} rad: δq = a·sin q + b·cos q
+    scale: dict = field(default_factory=dict)  # {joint: s}: δq = s·q (a gear ratio off by s)
     marker: dict = field(default_factory=dict)  # m, in the hand link's frame
     registration_xyz: tuple = (0.0, 0.0, 0.0)  # m: the mocap frame's pose in the base frame
     registration_rpy: tuple = (0.0, 0.0, 0.0)
@@ -285,9 +289,12 @@ def postures(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
 def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, payload=None) -> dict:
     """Marker positions (n, 3) per hand in the mocap frame, at static equilibrium, with noise."""
     joints, links = true_robot(t), humanoid()[1]
-    q = {k: v + t.joint_offset.get(k, 0.0) for k, v in q_read.items()}
+    turned = {k: v + t.scale.get(k, 0.0) * v for k, v in q_read.items()}  # the motor's true turn
+    for k, (a, b) in t.eccentricity.items():
+        turned[k] = turned[k] + a * np.sin(q_read[k]) + b * np.cos(q_read[k])
+    q = {k: v + t.joint_offset.get(k, 0.0) for k, v in turned.items()}
     for name, comb in COUPLED.items():
-        q[name] = sum(c * q_read[k] for k, c in comb.items()) + t.joint_offset.get(name, 0.0)
+        q[name] = sum(c * turned[k] for k, c in comb.items()) + t.joint_offset.get(name, 0.0)
     qd, tilt, _, step = equilibrium(joints, links, q, t.compliance, t.lateral, payload)
     assert step < 1e-9, step
     frames = link_frames(joints, qd, tilt)
@@ -302,14 +309,17 @@ def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, pa
 
 
 def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geometry: bool = True,
-          session: int | None = None) -> Path:
+          session: int | None = None, eccentricity: dict | None = None, scale: dict | None = None) -> Path:
     """humanoid.urdf (nominal), postures.csv and truth.json under `out_dir`; returns the folder.  The robot
     (truth) comes from `seed`; `session` (default: the same stream) draws another set of postures and noise
-    of the same robot — a second measurement session."""
+    of the same robot — a second measurement session.  `eccentricity` {joint: (a, b) rad} and `scale`
+    {joint: s} add encoder errors to read joints (none by default)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     t = default_truth(rng, geometry)
+    t.eccentricity = {k: tuple(map(float, v)) for k, v in (eccentricity or {}).items()}
+    t.scale = {k: float(v) for k, v in (scale or {}).items()}
     if session is not None:
         rng = np.random.default_rng([seed, session])
     joints, links = humanoid()

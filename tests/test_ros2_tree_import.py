@@ -101,3 +101,40 @@ def test_bad_tip_input_is_one_line(data, tmp_path, args, needle):
                 "--out", tmp_path / "x.mcap")
     assert_one_line_error(r, needle)
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_run_takes_the_whole_tree_bag_in_one_command(data, tmp_path):
+    """`robocal run BAG` with a measurement topic per tip: imported into the run folder (the same rows
+    as `import ros2`), then identified on both hands' points."""
+    import json
+
+    d, bag = data
+    out = tmp_path / "run"
+    r = run_cli("run", bag, "--urdf", d / "humanoid.urdf", "--root", "base", "--coupled", "torso_j3=-torso_j1-torso_j2",
+                "--measure-topic", f"left_hand={TOPICS['left']}", "--measure-topic", f"right_hand={TOPICS['right']}",
+                "--physics", "none", "--stages", "ingest,validate,identify", "--folds", "3", "--out", out)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr[-3000:]
+    i = run_cli("import", "ros2", bag, "--urdf", d / "humanoid.urdf", "--root", "base",
+                "--coupled", "torso_j3=-torso_j1-torso_j2", "--measure-topic", f"left_hand={TOPICS['left']}",
+                "--measure-topic", f"right_hand={TOPICS['right']}", "--out", tmp_path / "bag.mcap")
+    assert i.returncode == 0, i.stderr
+    m_run, t_run = _table(out / "import" / "recording.mcap")
+    _, t_imp = _table(tmp_path / "bag.mcap")
+    assert m_run.kin.tips == ["left_hand", "right_hand"] and "torso_j3" in m_run.kin.coupling
+    for k in t_run:
+        np.testing.assert_array_equal(t_run[k], t_imp[k])
+    fit = json.loads((out / "identify" / "fit.json").read_text())
+    assert fit["n_measurements"] == 40
+    assert fit["holdout_rms_m"] < 5e-3  # both hands fitted by one tree model (geometry errors: mm)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--measure-topic", "left_hand=/mocap/left_hand", "--measure-topic", "/mocap/right_hand"], "LINK=TOPIC"),
+    (["--tip", "left_hand", "--measure-topic", "left_hand=/mocap/left_hand"], "--tip and --measure-topic"),
+    (["--measure-topic", "left_hand=/mocap/left_hand", "--measure-topic", "left_hand=/mocap/right_hand"], "twice"),
+    (["--measure-topic", "nose=/mocap/left_hand"], "nose"),
+])
+def test_run_bad_tip_input_is_one_line(data, tmp_path, args, needle):
+    d, bag = data
+    r = run_cli("run", bag, "--urdf", d / "humanoid.urdf", "--root", "base", *args, "--out", tmp_path / "run")
+    assert_one_line_error(r, needle)

@@ -20,7 +20,11 @@ def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
     return {
         "joint_topic": typer.Option("/joint_states", "--joint-topic", help="sensor_msgs/msg/JointState topic.", **kw),
         "measure_topic": typer.Option(None, "--measure-topic", help="geometry_msgs/msg/PointStamped or PoseStamped "
-                                      "topic (default: the bag's only one).", **kw),
+                                      "topic (default: the bag's only one); a robot measured on several links: "
+                                      "LINK=TOPIC, repeated (one PointStamped topic per tip).", **kw),
+        "coupled": typer.Option(None, "--coupled", help="A joint driven by others, not in the JointStates: "
+                                "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2 (repeatable; URDF <mimic> joints are "
+                                "coupled already).", **kw),
         "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type).", **kw),
         "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window", min=1e-6,
                                  help="Standstill window around each measurement, s.", **kw),
@@ -32,6 +36,28 @@ def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
         "sigma_m": typer.Option(1e-3, "--sigma-m", help="Pose: position uncertainty, m.", **kw),
         "sigma_rad": typer.Option(1e-3, "--sigma-rad", help="Pose: orientation uncertainty, rad.", **kw),
     }
+
+
+def measure_topics(measure_topic: list[str] | None, tip: str | None, bag: bool = True
+                   ) -> tuple[str | None, tuple[tuple[str, str], ...]]:
+    """(the one measurement topic or None, ((tip link, topic), …)) of the repeated --measure-topic values:
+    one TOPIC (the chain's --tip), or LINK=TOPIC per measured link (the tree's tips).  `bag`: whether a tip
+    is needed (a ROS 2 bag; `robocal run` of a recording needs none)."""
+    from pipeline.errors import RobocalError
+
+    topics = list(measure_topic or [])
+    tips = tuple(tuple(p.strip() for p in t.split("=", 1)) for t in topics if "=" in t)
+    if tips and (len(tips) != len(topics) or any(not a or not b for a, b in tips)):
+        raise RobocalError("--measure-topic: with several tips, each is LINK=TOPIC (e.g. left_hand=/mocap/left)")
+    if len(topics) > 1 and not tips:
+        raise RobocalError("--measure-topic: given several times, each is LINK=TOPIC (one topic per tip)")
+    if tips and tip is not None:
+        raise RobocalError("--tip and --measure-topic LINK=TOPIC: the tips are the links of --measure-topic")
+    if bag and not tips and tip is None:
+        raise RobocalError("--tip LINK is needed (or --measure-topic LINK=TOPIC per measured link)")
+    if len({a for a, _ in tips}) != len(tips):
+        raise RobocalError("--measure-topic: a link is given twice")
+    return (None if tips else (topics[0] if topics else None)), tips
 
 
 def print_read(bag: Path, extras: dict) -> None:

@@ -24,13 +24,7 @@ def import_ros2(
                                       "--measure-topic LINK=TOPIC, whose links are the tips)."),
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
     joint_topic: str = BAG["joint_topic"],
-    measure_topic: Optional[list[str]] = typer.Option(None, "--measure-topic", help="PointStamped / PoseStamped "
-                                                      "topic (default: the bag's only one); a robot measured on "
-                                                      "several links: LINK=TOPIC, repeated (one PointStamped topic "
-                                                      "per tip)."),
-    coupled: Optional[list[str]] = typer.Option(None, "--coupled", help="A joint driven by others, not in the "
-                                                "JointStates: JOINT=EXPR, e.g. torso_3=-torso_1-torso_2 "
-                                                "(repeatable; URDF <mimic> joints are coupled already)."),
+    measure_topic: Optional[list[str]] = BAG["measure_topic"], coupled: Optional[list[str]] = BAG["coupled"],
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
@@ -81,20 +75,9 @@ def import_ros2(
                          kinematics_known=kinematics_known)
         import_camera(bag, urdf, root, tip, out, spec, cam, robot_id)
         return
-    topics = list(measure_topic or [])
-    tips = tuple(tuple(p.strip() for p in t.split("=", 1)) for t in topics if "=" in t)
-    if tips and (len(tips) != len(topics) or any(not a or not b for a, b in tips)):
-        raise RobocalError("--measure-topic: with several tips, each is LINK=TOPIC (e.g. left_hand=/mocap/left)")
-    if len(topics) > 1 and not tips:
-        raise RobocalError("--measure-topic: given several times, each is LINK=TOPIC (one topic per tip)")
-    if tips and tip is not None:
-        raise RobocalError("--tip and --measure-topic LINK=TOPIC: the tips are the links of --measure-topic")
-    if not tips and tip is None:
-        raise RobocalError("--tip LINK is needed (or --measure-topic LINK=TOPIC per measured link)")
-    if len({a for a, _ in tips}) != len(tips):
-        raise RobocalError("--measure-topic: a link is given twice")
-    spec = BagSpec(joint_topic=joint_topic, measure_topic=None if tips else (topics[0] if topics else None),
-                   measure=measure, window_s=window_s, max_speed=max_speed, time=time, tips=tips)
+    mt, tips = bag_options.measure_topics(measure_topic, tip)
+    spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
+                   max_speed=max_speed, time=time, tips=tips)
     done = import_bag(bag, urdf, root, tip, out, spec, sigma_m, sigma_rad, robot_id, on_read=bag_options.print_read,
                       coupled=tuple(coupled or ()))
     bag_options.print_written(done)

@@ -132,8 +132,9 @@ REJECT = typer.Option(None, "--reject", help="identify: reject measurements beyo
 FOLDS = typer.Option(None, "--folds", min=2, help="identify: folds of the held-out cross-validation (default 5).")
 FORCE = typer.Option(False, "--force", help="Run even if cached.")
 MODEL = "Model (physics terms)"
-PHYSICS = typer.Option(None, "--physics", rich_help_panel=MODEL, help="Gravity terms of a URDF robot (point data): "
-                       "auto (default: kept when held-out error improves), none, or joint-compliance,lateral-compliance.")
+PHYSICS = typer.Option(None, "--physics", rich_help_panel=MODEL, help="Physics terms of a URDF robot (point data): "
+                       "auto (default: each family kept when held-out error improves), none, or a list of "
+                       "joint-compliance, lateral-compliance, encoder-eccentricity, joint-scale, joint-coupling, backlash.")
 PAYLOAD = typer.Option(None, "--payload", rich_help_panel=MODEL, help="A mass carried besides the URDF's links: "
                        "KG@LINK or KG@LINK:X,Y,Z (m, link frame); repeatable.")
 ACCURACY = "Accuracy (predicted over the workspace)"
@@ -186,9 +187,11 @@ def run_cmd(
                                         help="ROS 2 bag: the robot's URDF (docs/guide/import-ros2.md)."),
     root: Optional[str] = typer.Option(None, "--root", help="ROS 2 bag: root link of the calibrated chain.",
                                        rich_help_panel=bag_options.RUN_PANEL),
-    tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain.",
+    tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain (not with "
+                                      "--measure-topic LINK=TOPIC, whose links are the tips).",
                                       rich_help_panel=bag_options.RUN_PANEL),
-    joint_topic: str = BAG["joint_topic"], measure_topic: Optional[str] = BAG["measure_topic"],
+    joint_topic: str = BAG["joint_topic"], measure_topic: Optional[list[str]] = BAG["measure_topic"],
+    coupled: Optional[list[str]] = bag_options.options()["coupled"],
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
@@ -214,8 +217,9 @@ def run_cmd(
     from pipeline.importers.bag_import import run_input
     from pipeline.importers.ros2 import BagSpec
 
-    spec = BagSpec(joint_topic=joint_topic, measure_topic=measure_topic, measure=measure, window_s=window_s,
-                   max_speed=max_speed, time=time_source)
+    mt, tips = bag_options.measure_topics(measure_topic, tip, bag=False)
+    spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
+                   max_speed=max_speed, time=time_source, tips=tips)
     importer = None
     if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
         from pipeline.cli.ros2_camera import import_camera
@@ -224,7 +228,8 @@ def run_cmd(
         cam = CameraSpec(target=target, mount=camera_on, clock_bound_s=clock_bound)
         importer = lambda rec: import_camera(recording, urdf, root, tip, rec, spec, cam)  # noqa: E731
     recording = run_input(recording, out, urdf, root, tip, spec, sigma_m, sigma_rad,
-                          on_read=bag_options.print_read, on_written=bag_options.print_written, importer=importer)
+                          on_read=bag_options.print_read, on_written=bag_options.print_written, importer=importer,
+                          coupled=tuple(coupled or ()))
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)

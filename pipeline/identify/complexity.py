@@ -5,8 +5,10 @@ is grown greedily (forward selection): starting from registration only, each rou
 group whose k-fold cross-validated RMS is lowest, if it lowers it by at least `min_gain`
 (relative) and the row-wise paired improvement is significant (one-sided, `z` standard errors);
 it stops when no group does.  Small campaigns then try single parameters of the groups not kept
-(screened by their linearised gain).  Thin data therefore keep registration only rather than a
-model that wins the cross-validation by chance.  Each round's figures are kept so the result can
+(screened by their linearised gain).  A model's ``late_groups()`` (optional: second-order terms such
+as the errors of the joint readings) are offered only after that, against the model chosen without
+them, so they never displace the groups offered first.  Thin data therefore keep registration only
+rather than a model that wins the cross-validation by chance.  Each round's figures are kept so the result can
 say which groups were kept and why.
 """
 
@@ -58,7 +60,8 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
     paired test asks that the win be carried by the rows, not by one or two of them."""
     from pipeline.identify.group_holdout import held_out, row_groups
 
-    candidates = [g for g in model.groups() if g != "registration" and not g.startswith("_")]
+    late = [g for g in (getattr(model, "late_groups", lambda: ())()) if g in model.groups()]
+    candidates = [g for g in model.groups() if g != "registration" and not g.startswith("_") and g not in late]
     kept = ["registration"]
     # sessions, placements, sockets: leave whole ones out, their own points / frames refitted from their rows
     whole = row_groups(model, data) if groups_of_rows is None else None
@@ -116,6 +119,8 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
         if n is None:
             break
         singles.remove(n)
+    while late and (g := grow(late)) is not None:  # second-order groups, against the model chosen without them
+        late.remove(g)
     return Selection(kept=kept, fixed=fixed_for(model, kept), rounds=rounds, holdout_registration_m=reg,
                      holdout_rms_m=rms(e_best))
 

@@ -74,22 +74,23 @@ def run_input(recording: Path, out: Path, urdf: Path | None, root: str | None, t
               spec: BagSpec = BagSpec(), sigma_m: float = 1e-3, sigma_rad: float = 1e-3,
               on_read: Callable[[Path, dict], None] | None = None,
               on_written: Callable[[BagImport], None] | None = None,
-              importer: Callable[[Path], None] | None = None) -> Path:
+              importer: Callable[[Path], None] | None = None, coupled: tuple[str, ...] = ()) -> Path:
     """What `robocal run` reads: `recording` itself, or — for a ROS 2 bag — the recording imported
     from it into DIR/import/recording.mcap (re-imported each run: bit-identical, so the stages after
     it stay cached).  `importer(out)`: writes that recording instead of `import_bag` (a camera bag,
     `robocal run BAG --target`).  Bag options without a bag, or a bag without the robot, are one-line errors."""
     from pipeline.stages.runfolder import claim, fresh_stage_dir, locked, record_manifest
 
-    given = [f"--{k}" for k, v in (("urdf", urdf), ("root", root), ("tip", tip)) if v is not None]
+    given = [f"--{k}" for k, v in (("urdf", urdf), ("root", root), ("tip", tip or spec.tips)) if v]
     if ros2_kind(recording) is None:
-        if given or spec.measure_topic or importer is not None:
-            raise RobocalError(f"{recording}: is not a ROS 2 bag; --urdf/--root/--tip/--measure-topic/--target apply "
-                               "to ROS 2 bags only")
+        if given or spec.measure_topic or importer is not None or coupled:
+            raise RobocalError(f"{recording}: is not a ROS 2 bag; --urdf/--root/--tip/--measure-topic/--target/"
+                               "--coupled apply to ROS 2 bags only")
         return recording
     if len(given) < 3:
         raise RobocalError(f"{recording}: is a ROS 2 bag: give the robot as --urdf ROBOT.urdf --root LINK --tip LINK "
-                           "(and --measure-topic TOPIC; docs/guide/import-ros2.md)")
+                           "(and --measure-topic TOPIC, or --measure-topic LINK=TOPIC per measured link; "
+                           "docs/guide/import-ros2.md)")
     with locked(out):
         claim(out)
         d = fresh_stage_dir(out, "import")
@@ -99,7 +100,8 @@ def run_input(recording: Path, out: Path, urdf: Path | None, root: str | None, t
             if importer is not None:
                 importer(rec)
             else:
-                done = import_bag(recording, urdf, root, tip, rec, spec, sigma_m, sigma_rad, on_read=on_read)
+                done = import_bag(recording, urdf, root, tip, rec, spec, sigma_m, sigma_rad, on_read=on_read,
+                                  coupled=coupled)
         finally:
             record_manifest(d)  # what robocal wrote there, so a rerun replaces only that
         if on_written is not None and done is not None:

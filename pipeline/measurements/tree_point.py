@@ -11,7 +11,10 @@ Physics terms (parameters appended after the kinematics', rad/(N·m), nominal 0 
 * ``J.compliance``: joint J turns by c_J · τ_J (its axial gravity moment) — a joint's torsional
   compliance (the inverse of its stiffness, N·m/rad);
 * ``J.lateral1``, ``J.lateral2``: joint J's child frame tilts by c · τ about each axis normal to
-  J's axis (bearing and link bending), through the tree's lateral virtual joints.
+  J's axis (bearing and link bending), through the tree's lateral virtual joints;
+* errors of the readings (`pipeline.physics.encoder`, after the compliance terms): ``J.ecc_sin``,
+  ``J.ecc_cos`` (rad), ``J.scale``, ``J.coupling`` (rad/rad) — the read joint J turns by
+  a·sin q + b·cos q + s·q + κ·q_driver more than read, before the couplings are expanded.
 
 The deflections enter the chain exactly (as joint values); the loads are evaluated at the
 configuration given in the table (the readings to first order; `pipeline.physics.compliance`
@@ -21,6 +24,7 @@ re-evaluates them at the deflected configuration for static equilibrium).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -39,15 +43,23 @@ class TreePointModel(Composed):
     compliant: tuple[str, ...] = ()  # joints with a torsional compliance parameter
     payload: tuple = ()  # ((mass kg, link, (x, y, z) m in the link frame), …) carried besides the URDF's links
     forced: bool = False  # True: the physics terms are always fitted (not left to the model selection)
+    encoder: tuple[str, ...] = ()  # reading-error terms (`pipeline.physics.encoder`): J.ecc_sin, J.scale, …
+    absent: tuple[str, ...] = ()  # families asked for that the data cannot carry (backlash: no motion direction)
     residual_dim = 3
 
     # ----- physics parameters ---------------------------------------------------------------
-    def extra_names(self) -> list[str]:
+    def gravity_names(self) -> list[str]:
+        """The compliance terms (rad/(N·m)), before the encoder terms in the parameter vector."""
         return [f"{j}.compliance" for j in self.compliant] + \
                [f"{j}.lateral{a}" for j in self.kin.lateral for a in (1, 2)]
 
+    def extra_names(self) -> list[str]:
+        return self.gravity_names() + list(self.encoder)
+
     def extra_units(self) -> list[str]:
-        return [COMPLIANCE_UNIT] * len(self.extra_names())
+        from pipeline.physics.encoder import UNITS
+
+        return [COMPLIANCE_UNIT] * len(self.gravity_names()) + [UNITS[n.rsplit(".", 1)[1]] for n in self.encoder]
 
     def extra_nominal(self) -> np.ndarray:
         return np.zeros(len(self.extra_names()))
@@ -62,17 +74,34 @@ class TreePointModel(Composed):
             phys["joint compliance"] = [f"{j}.compliance" for j in self.compliant]
         if self.kin.lateral:
             phys["lateral compliance"] = [f"{j}.lateral{a}" for j in self.kin.lateral for a in (1, 2)]
+        if self.encoder:
+            from pipeline.physics.encoder import GROUPS, family
+
+            for n in self.encoder:
+                phys.setdefault(GROUPS[family(n)], []).append(n)
         if self.forced:
             g["registration"] = g["registration"] + [n for v in phys.values() for n in v]
             return g
         return g | phys
 
+    def late_groups(self) -> tuple[str, ...]:
+        """The reading-error groups: offered to the model selection after the geometry and the compliance
+        (`pipeline.identify.complexity`), so a reading error never displaces a geometric group."""
+        from pipeline.physics.encoder import GROUPS
+
+        return () if self.forced else tuple(GROUPS.values())
+
     # ----- evaluation ------------------------------------------------------------------------
     def deflected(self, x: np.ndarray, data: Table) -> np.ndarray:
-        """Full joint matrix (n, J_all + 2·L) with the compliant deflections added (rad)."""
-        qf = self.kin.expand(data["joint_positions"])
+        """Full joint matrix (n, J_all + 2·L) with the reading errors and compliant deflections added (rad)."""
         _, xe = self.split(x)
-        if not self.extra_names():
+        q = data["joint_positions"]
+        if self.encoder:
+            from pipeline.physics.encoder import corrected
+
+            q = corrected(self.kin, self.encoder, xe[len(self.gravity_names()):], q)
+        qf = self.kin.expand(q)
+        if not self.gravity_names():
             return qf
         col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
         nc = len(self.compliant)
@@ -103,8 +132,10 @@ class TreePointModel(Composed):
         J = np.zeros((n, 3, P)) if jac else None
         col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
         nj, nc = len(self.kin.all_joints), len(self.compliant)
-        extra = jac and bool(self.extra_names())
-        load, n_kin = (self.load(data), self.n_kin) if extra else (None, 0)
+        if jac and self.encoder:
+            from pipeline.physics.encoder import basis
+
+            enc_B, enc_col = basis(self.kin, self.encoder, data["joint_positions"])
         for k in range(len(self.kin.descs)):
             rows = np.flatnonzero(tip == k)
             if rows.size == 0:
@@ -113,21 +144,45 @@ class TreePointModel(Composed):
             if not jac:
                 p[rows] = ch.forward(c, xk, qf[rows])[1]
                 continue
-            p[rows], J[rows] = ch.jacobian(c, xk, qf[rows], width=P)
-            if extra:
-                _, Jq = ch.joint_jacobian(c, xk, qf[rows])
+            if not self.extra_names():
+                p[rows], J[rows] = ch.jacobian(c, xk, qf[rows], width=P)
+                continue
+            p[rows], J[rows], Jq = ch.jacobians(c, xk, qf[rows], P, self._joint_columns)
+            if self.encoder:  # d p / d reading through the couplings, times each term's basis
+                Jr = Jq[:, :, :nj] @ self.kin.coupling_matrix()
+                J[rows, :, self.n_kin + len(self.gravity_names()):] = Jr[:, :, enc_col] * enc_B[rows, None, :]
+            if self.gravity_names():
+                load = self.load(data)
                 ax = load.axial[rows]
-                for i, j in enumerate(self.compliant):
-                    J[rows, :, n_kin + i] = Jq[:, :, col[j]] * ax[:, col[j], None]
-                lat = load.lateral[rows]
-                for i, j in enumerate(self.kin.lateral):
-                    for a in range(2):
-                        J[rows, :, n_kin + nc + 2 * i + a] = Jq[:, :, nj + 2 * i + a] * lat[:, col[j], a, None]
+                ci = np.array([col[j] for j in self.compliant], int)  # every compliance column at once
+                J[rows, :, self.n_kin:self.n_kin + nc] = Jq[:, :, ci] * ax[:, None, ci]
+                li = np.array([col[j] for j in self.kin.lateral], int)
+                nl = 2 * len(li)  # lateral virtual joint 2i + a ↔ parameter 2i + a, load (joint i, normal a)
+                J[rows, :, self.n_kin + nc:self.n_kin + nc + nl] = \
+                    Jq[:, :, nj:nj + nl] * load.lateral[rows][:, li, :].reshape(len(rows), 1, nl)
         return p, J
 
-    @property
+    @cached_property
+    def _joint_columns(self) -> np.ndarray:
+        """The full joint matrix's columns the physics terms act through (their d p / d q is needed)."""
+        col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
+        nj = len(col)
+        A = self.kin.coupling_matrix()
+        read = {n: i for i, n in enumerate(self.kin.joint_names)}
+        driven = {k for n in self.encoder for k in np.flatnonzero(A[:, read[n.rsplit(".", 1)[0]]])}
+        return np.array(sorted({col[j] for j in self.compliant} | set(range(nj, nj + 2 * len(self.kin.lateral)))
+                               | {int(k) for k in driven}), int)
+
+    @cached_property
     def n_kin(self) -> int:
         return len(self.kin.parameter_names())
+
+    def parameter_names(self) -> list[str]:
+        return list(self._names)
+
+    @cached_property
+    def _names(self) -> tuple[str, ...]:
+        return tuple(self.kin.parameter_names() + self.extra_names())
 
     def tool(self, x: np.ndarray, q: np.ndarray, jac: bool = True, angular: bool = True):
         """Tip 0's tool frame from readings `q` (rigid): for callers that draw or plan one tool."""
@@ -159,22 +214,29 @@ class TreePointModel(Composed):
                           False)[0]
         return with_registration(self.parameter_names(), x, p, np.asarray(data["position"], float))
 
-    def exports(self, x: np.ndarray) -> dict[str, str]:
-        """model.urdf (geometry) and, with physics terms, model.physics.yaml (what URDF cannot carry)."""
+    def exports(self, x: np.ndarray, std: np.ndarray | None = None, free: np.ndarray | None = None) -> dict[str, str]:
+        """model.urdf (geometry) and, with physics terms, model.physics.yaml (what URDF cannot carry), each
+        term with its 1σ when `std` (per parameter) is given."""
         out = {"model.urdf": self.kin.urdf_text(self.split(x)[0])}
-        if self.extra_names():
-            from pipeline.physics.compliance import document, to_yaml
+        if self.extra_names() or self.absent:
+            from pipeline.physics.compliance import to_yaml
 
-            out["model.physics.yaml"] = to_yaml(document(self, x))
+            out["model.physics.yaml"] = to_yaml(self._physics(x, std, free))
         return out
 
-    def describe(self, x: np.ndarray) -> dict:
+    def describe(self, x: np.ndarray, std: np.ndarray | None = None, free: np.ndarray | None = None) -> dict:
         d = super().describe(x)
-        if self.extra_names():
-            from pipeline.physics.compliance import document
-
-            d["physics"] = document(self, x)
+        if self.extra_names() or self.absent:
+            d["physics"] = self._physics(x, std, free)
         return d
+
+    def _physics(self, x, std, free) -> dict:
+        from pipeline.physics.compliance import document
+
+        P = len(self.parameter_names())
+        ok = lambda a: a is not None and np.size(a) == P  # noqa: E731
+        return document(self, x, np.asarray(std, float) if ok(std) else None,
+                        np.asarray(free, bool) if ok(free) else None)
 
 
 __all__ = ["TreePointModel", "COMPLIANCE_UNIT"]

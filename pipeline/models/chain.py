@@ -288,6 +288,18 @@ def joint_jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = F
     return p.copy(), Jq, Jw
 
 
+def jacobians(chain: Chain, x: np.ndarray, q: np.ndarray, width: int, joints: np.ndarray):
+    """One walk for both: end positions (N,3), d position / d x (N,3,width) and d position / d q
+    (N,3,n_joints) of the joint columns in `joints` (the others zero) — for measurement models whose
+    extra parameters act through a few joint values (a tree's physics terms)."""
+    x = np.asarray(x, dtype=float)
+    _, p, starts = walk(chain, x, q, True)
+    Jp, _ = _derivatives(chain, x, p, starts, chain.param >= 0, chain.param, width, False)
+    select = np.isin(chain.joint, np.asarray(joints, int)) & (chain.joint >= 0)
+    Jq, _ = _derivatives(chain, x, p, starts, select, chain.joint, chain.n_joints, False)
+    return p.copy(), Jp, Jq
+
+
 def frames(chain: Chain, x: np.ndarray, q: np.ndarray, marks: list[int]) -> np.ndarray:
     """World poses (N, len(marks), 4, 4) after each step index in `marks` (for drawing)."""
     x = np.asarray(x, dtype=float)

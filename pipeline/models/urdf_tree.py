@@ -23,6 +23,7 @@ full joint matrix (0 for a rigid robot).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -60,7 +61,7 @@ class UrdfTree:
     def name(self) -> str:
         return self.descs[0].name
 
-    @property
+    @cached_property
     def all_joints(self) -> list[UrdfJoint]:
         """Every movable joint of the tree's chains, once, in order of first appearance."""
         seen: dict[str, UrdfJoint] = {}
@@ -69,11 +70,11 @@ class UrdfTree:
                 seen.setdefault(j.name, j)
         return list(seen.values())
 
-    @property
+    @cached_property
     def coupling(self) -> dict[str, tuple[dict[str, float], float]]:
         return {c: (dict(terms), float(off)) for c, terms, off in self.coupled}
 
-    @property
+    @cached_property
     def joint_names(self) -> list[str]:
         """The joints read in a recording: every movable joint but the coupled ones."""
         cp = self.coupling
@@ -109,6 +110,10 @@ class UrdfTree:
 
     def coupling_matrix(self) -> np.ndarray:
         """d q_full / d q_read, (J_all, n_joints)."""
+        return self._coupling_matrix.copy()
+
+    @cached_property
+    def _coupling_matrix(self) -> np.ndarray:
         col = {n: i for i, n in enumerate(self.joint_names)}
         cp = self.coupling
         A = np.zeros((len(self.all_joints), self.n_joints))
@@ -129,15 +134,16 @@ class UrdfTree:
         return "tool" if len(self.descs) == 1 else f"tool.{self.descs[k].tip}"
 
     def parameter_names(self) -> list[str]:
-        names = self.__dict__.get("_names")  # built once per tree (a solver asks at every evaluation)
-        if names is None:
-            names = [f"base.{k}" for k in FRAME_KEYS]
-            for j in self.all_joints:
-                names += [f"{j.name}.{k}" for k in self._joint_keys(j)]
-            for k in range(len(self.descs)):
-                names += [f"{self.tool_prefix(k)}.{a}" for a in FRAME_KEYS]
-            object.__setattr__(self, "_names", names)
-        return list(names)
+        return list(self._parameter_names)
+
+    @cached_property
+    def _parameter_names(self) -> tuple[str, ...]:
+        names = [f"base.{k}" for k in FRAME_KEYS]
+        for j in self.all_joints:
+            names += [f"{j.name}.{k}" for k in self._joint_keys(j)]
+        for k in range(len(self.descs)):
+            names += [f"{self.tool_prefix(k)}.{a}" for a in FRAME_KEYS]
+        return tuple(names)
 
     def parameter_units(self) -> list[str]:
         return ["rad" if n.rsplit(".", 1)[1] in _ANGLES else "m" for n in self.parameter_names()]

@@ -7,10 +7,12 @@ Two families (parameters of `pipeline.measurements.tree_point.TreePointModel`, r
 * ``lateral-compliance``: a revolute joint's child frame tilts about the two axes normal to its
   axis by c · τ⊥ (bearing play under load, link bending).
 
-`physics` choices (`robocal calibrate/run --physics`): ``auto`` offers both families to the
+`physics` choices (`robocal calibrate/run --physics`): ``auto`` offers every family to the
 held-out model selection (a family is kept only when it lowers the held-out error, like every
-geometric parameter group), ``none`` keeps the model rigid, a comma list (``joint-compliance``,
-``lateral-compliance``) fits those families always.  Candidate joints: revolute joints whose
+geometric parameter group) — both compliance families where the URDF has masses, and the reading
+errors of `pipeline.physics.encoder` (eccentricity, scale, coupling) wherever the model carries
+physics terms; ``none`` keeps the model rigid; a comma list of `FAMILIES` fits those families always
+(``backlash`` is only noted: a point table carries no direction of motion).  Candidate joints: revolute joints whose
 gravity load varies over the campaign by at least `MIN_LOAD_NM` (RMS about its mean) — a constant
 load is a joint offset, not something the data can name.
 
@@ -26,14 +28,17 @@ import hashlib
 import numpy as np
 
 from pipeline.errors import RobocalError
+from pipeline.physics.encoder import BACKLASH_ABSENT, FAMILIES as ENCODER
 from pipeline.physics.gravity import G_M_S2, Load, gravity_load, has_inertials
 
-FAMILIES = ("joint-compliance", "lateral-compliance")
+GRAVITY = ("joint-compliance", "lateral-compliance")
+FAMILIES = GRAVITY + ENCODER + ("backlash",)
 MIN_LOAD_NM = 1.0
 EQUILIBRIUM = "first order: gravity loads evaluated at the joint readings (nominal geometry)"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 _CACHE: dict[tuple, Load] = {}
+_ROWS: dict[tuple, dict[bytes, tuple[np.ndarray, np.ndarray]]] = {}  # per robot and payload: posture → loads
 
 
 def parse_spec(text: str | None) -> tuple[str, tuple[str, ...]]:
@@ -66,16 +71,32 @@ def parse_payload(items) -> tuple:
 
 
 def loads(tree, q: np.ndarray, payload: tuple = ()) -> Load:
-    """Gravity load on every movable joint of `tree` (`UrdfTree.all_joints` order) at readings q (n, n_joints)."""
+    """Gravity load on every movable joint of `tree` (`UrdfTree.all_joints` order) at readings q (n, n_joints).
+
+    Cached per posture: the rows of a campaign's subsets (cross-validation folds, model-selection rounds)
+    are computed by Pinocchio once, whichever subset asks first."""
     q = np.ascontiguousarray(q, float)
     h = (tree.urdf, repr((tree.coupled, payload, q.shape)), hashlib.sha256(q.tobytes()).hexdigest())
     hit = _CACHE.get(h)
     if hit is None:
         names = [j.name for j in tree.all_joints]
-        full = tree.expand(q)[:, :len(names)]
-        hit = gravity_load(tree.urdf, names, full, payload=[(m, ln, np.asarray(c)) for m, ln, c in payload])
+        key = (tree.urdf, repr((tree.coupled, payload, names)))
+        rows = _ROWS.setdefault(key, {})
+        keys = [r.tobytes() for r in q]
+        todo = sorted({k: i for i, k in enumerate(keys) if k not in rows}.values())
+        if todo:
+            full = tree.expand(q[todo])[:, :len(names)]
+            new = gravity_load(tree.urdf, names, full, payload=[(m, ln, np.asarray(c)) for m, ln, c in payload])
+            for r, i in enumerate(todo):
+                rows[keys[i]] = (new.axial[r], new.lateral[r])
+        nj = len(names)
+        hit = Load(np.array([rows[k][0] for k in keys]).reshape(len(q), nj),
+                   np.array([rows[k][1] for k in keys]).reshape(len(q), nj, 2))
         if len(_CACHE) > 32:
             _CACHE.clear()
+        if len(_ROWS) > 8:
+            _ROWS.clear()
+            _ROWS[key] = rows
         _CACHE[h] = hit
     return hit
 
@@ -83,6 +104,7 @@ def loads(tree, q: np.ndarray, payload: tuple = ()) -> Load:
 def candidates(tree, q: np.ndarray, families: tuple[str, ...], payload: tuple = (),
                source: str = "URDF") -> tuple[tuple[str, ...], tuple[str, ...]]:
     """(joints with a torsional compliance term, joints with lateral terms) for `families`."""
+    families = tuple(f for f in families if f in GRAVITY)
     if not families:
         return (), ()
     if not has_inertials(tree.urdf):
@@ -99,29 +121,42 @@ def candidates(tree, q: np.ndarray, families: tuple[str, ...], payload: tuple = 
 
 
 def document(model, x: np.ndarray, std: np.ndarray | None = None, free: np.ndarray | None = None) -> dict:
-    """The physics sidecar (`schemas/model_physics.schema.json`): every term's value, σ and stiffness."""
+    """The physics sidecar (`schemas/model_physics.schema.json`): every term's value and σ, each compliance's
+    stiffness and its σ (first order: σ_k = σ_c / c²), the families asked for but not carried by the data."""
+    from pipeline.physics.encoder import describe, is_encoder
+
     names = model.parameter_names()
     terms = []
     for i, n in enumerate(names):
-        if not n.endswith((".compliance", ".lateral1", ".lateral2")):
+        if not (n.endswith((".compliance", ".lateral1", ".lateral2")) or is_encoder(n)):
             continue
         if free is not None and not free[i]:
             continue
         joint, kind = n.rsplit(".", 1)
         c = float(x[i])
-        if c == 0.0 and std is None:  # held at the rigid nominal (not kept by the model selection)
+        s = float(std[i]) if std is not None and np.isfinite(std[i]) else None
+        if c == 0.0 and std is None:  # held at the nominal (not kept by the model selection)
+            continue
+        if is_encoder(n):
+            t = describe(model.kin, n, c, s)
+            t.pop("reading")
+            terms.append(t)
             continue
         t = {"joint": joint, "family": "joint-compliance" if kind == "compliance" else "lateral-compliance",
              "axis": "joint" if kind == "compliance" else ("normal1" if kind == "lateral1" else "normal2"),
              "compliance_rad_per_Nm": c, "stiffness_Nm_per_rad": (1.0 / c) if c > 0 else None}
-        if std is not None:
-            t["compliance_std_rad_per_Nm"] = float(std[i])
+        if s is not None:
+            t["compliance_std_rad_per_Nm"] = s
+            t["stiffness_std_Nm_per_rad"] = s / c**2 if c > 0 else None
         terms.append(t)
     return {"schema": "robocal.model_physics", "version": SCHEMA_VERSION, "gravity_m_s2": G_M_S2,
             "gravity_frame": "root link, −z", "root": model.kin.root, "equilibrium": EQUILIBRIUM,
             "payload": [{"mass_kg": m, "link": ln, "com_m": list(c)} for m, ln, c in model.payload],
             "normals": "e1, e2 ⟂ the joint axis in the joint frame: e1 = normalize(a × axis), a = x unless the "
                        "axis is within 25.8° of x (then y); e2 = axis × e1",
+            "readings": "encoder terms: the true angle of read joint J is q + a·sin q + b·cos q + s·q + κ·q(driver), "
+                        "q its reading (rad), before the couplings",
+            "not_fitted": [{"family": f, "reason": BACKLASH_ABSENT} for f in getattr(model, "absent", ())],
             "terms": terms}
 
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from pipeline.accuracy.propagate import fixture_covariance
 from pipeline.identify.complexity import explain, relabel, select
-from pipeline.identify.exports import write_exports
+from pipeline.identify.exports import describe, write_exports
 from pipeline.identify.least_squares import FitOptions, cross_validate, holdout_warning, point_accuracy
 from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.outliers import fit_rejecting
@@ -154,10 +154,10 @@ def run(run_dir: Path, params: dict) -> dict:
     if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
         doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
     out.mkdir(parents=True, exist_ok=True)
-    doc["exports"] = write_exports(model, f.x, out)
+    doc["exports"] = write_exports(model, f.x, out, f.std, f.free)
     write_json(out / "fit.json", doc)
     write_json(out / "history.json", {"cost_rms_m": f.history})
-    write_json(out / "model.json", model.describe(f.x))
+    write_json(out / "model.json", describe(model, f.x, f.std, f.free))
     keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
             "loss", "function_evaluations", "predicted_point_sigma_rms_m", "warnings")

@@ -110,44 +110,53 @@ def check_coupling(coupled: dict, movable: set, where_: str) -> None:
 
 def physics_model(rec, table: dict, physics: str | None = None, payload: tuple = ()):
     """A `TreePointModel` of a point recording, with the physics terms `physics` asks for
-    (`pipeline.physics.compliance.parse_spec`); None where the rigid single-chain model serves."""
+    (`pipeline.physics.compliance.parse_spec`); None where the rigid single-chain model serves.
+    ``auto`` offers the reading-error terms (`pipeline.physics.encoder`) only to a model that carries
+    physics terms anyway (a tree, a URDF with masses): a rigid single chain stays rigid."""
     from pipeline.measurements.tree_point import TreePointModel
-    from pipeline.physics import compliance
+    from pipeline.physics import compliance, encoder
 
     mode, families = compliance.parse_spec(physics or "none")
     tree = is_tree(rec)
     meta = rec.meta(META_URDF)
+    gravity = tuple(f for f in families if f in compliance.GRAVITY)
     if mode == "auto":
         from pipeline.physics.gravity import has_inertials
 
         if not (isinstance(meta, dict) and isinstance(meta.get("urdf"), str) and has_inertials(meta["urdf"])):
-            families = ()
-    if payload and not families:
+            gravity = ()
+    if payload and not gravity:
         raise RobocalError(f"{rec.path}: --payload needs gravity terms (--physics auto or a list, and URDF inertials)")
-    if not tree and not families:
+    if not tree and not gravity and (mode == "auto" or not families):
         return None
     rigid = tree_of(rec)
-    compliant, lateral = compliance.candidates(rigid, table["joint_positions"], families, payload,
+    compliant, lateral = compliance.candidates(rigid, table["joint_positions"], gravity, payload,
                                                source=f"{rec.path}: metadata robocal.urdf")
-    return TreePointModel(tree_of(rec, lateral), compliant=compliant, payload=payload, forced=mode == "fixed")
+    reading = encoder.candidates(rigid, table["joint_positions"], tuple(f for f in families if f in encoder.FAMILIES))
+    return TreePointModel(tree_of(rec, lateral), compliant=compliant, payload=payload, forced=mode == "fixed",
+                          encoder=reading, absent=("backlash",) if "backlash" in families else ())
 
 
 def model_like(rec, names: list[str], payload: tuple = ()):
     """The `TreePointModel` of a point recording with the physics terms a calibration has (`names`: its
-    parameter names — ``J.compliance``, ``J.lateral1``), whatever this recording's loads: a calibrated
-    model is applied as it was fitted.  None when `names` hold no physics term and `rec` is no tree."""
+    parameter names — ``J.compliance``, ``J.lateral1``, ``J.ecc_sin`` …), whatever this recording's loads:
+    a calibrated model is applied as it was fitted.  None when `names` hold no physics term and `rec` is
+    no tree."""
     from pipeline.measurements.tree_point import TreePointModel
+    from pipeline.physics.encoder import is_encoder
 
     compliant = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".compliance"))
     lateral = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".lateral1"))
-    if not (compliant or lateral or is_tree(rec)):
+    reading = tuple(n for n in names if is_encoder(n))
+    if not (compliant or lateral or reading or is_tree(rec)):
         return None
     tree = tree_of(rec, lateral)
     known = {j.name for j in tree.all_joints}
-    if not set(compliant + lateral) <= known:
-        raise RobocalError(f"{rec.path}: the calibration's physics terms name joints {sorted(set(compliant + lateral) - known)} "
+    used = set(compliant + lateral + tuple(n.rsplit(".", 1)[0] for n in reading))
+    if not used <= known:
+        raise RobocalError(f"{rec.path}: the calibration's physics terms name joints {sorted(used - known)} "
                            "that are not in this recording's chains")
-    return TreePointModel(tree, compliant=compliant, payload=payload)
+    return TreePointModel(tree, compliant=compliant, payload=payload, encoder=reading)
 
 
 def model_for(arm: UrdfArm, measure: str, campaign: dict, labels: list[str] | None = None):

@@ -16,6 +16,9 @@ campaign (the measurement postures, or the encoder stream at a few Hz where the 
 
 - ``world/robot/<nominal|calibrated>/links`` Capsules3D; ``…/joints`` Points3D at each movable
   joint's frame, labelled with the joint's name; ``…/tool`` the tool frame's axes (Arrows3D);
+  a tree with several tips (`UrdfTree`) draws every chain root → tip under
+  ``world/robot/<nominal|calibrated>/<tip link>/{links,joints,tool}``, the links and joints a chain
+  shares with an earlier one (a torso) drawn once, with the first chain;
 - ``world/robot/<calibrated, or the only robot drawn>/root`` the root link's axes (static, first posture — the base does not
   move) and ``world/instrument`` the instrument's own axes at the world origin.
 
@@ -39,12 +42,13 @@ PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 1
            (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)]
 
 
-def skeleton(kin, x: np.ndarray, q: np.ndarray) -> tuple[list[str], list[str], np.ndarray]:
-    """(frame names, movable joint names each frame follows or "", frames (N, F, 4, 4) m)."""
+def skeleton(kin, x: np.ndarray, q: np.ndarray, k: int = 0) -> tuple[list[str], list[str], np.ndarray]:
+    """(frame names, movable joint names each frame follows or "", frames (N, F, 4, 4) m); a tree's
+    chain root → tip `k`."""
     q = np.atleast_2d(np.asarray(q, float))
     if hasattr(kin, "link_frames"):
-        names, F = kin.link_frames(x, q)
-        desc = kin.desc if hasattr(kin, "desc") else kin.descs[0]  # a tree: its first tip's chain
+        names, F = kin.link_frames(x, q, k) if hasattr(kin, "descs") else kin.link_frames(x, q)
+        desc = kin.desc if hasattr(kin, "desc") else kin.descs[k]
         moving = {j.child: j.name for j in desc.movable}
         return names, [moving.get(n, "") for n in names], F
     F = serial_arm.frames(np.asarray(x, float), q)
@@ -91,53 +95,76 @@ def _partitioned(columns, n: int, k: int):
     return columns.partition(np.full(n, k, int))
 
 
+def tips_of(kin) -> list[str]:
+    """The tip links of a tree with several tips; [] for one chain (drawn at the unchanged paths)."""
+    tips = list(getattr(kin, "tips", []) or [])
+    return tips if len(tips) > 1 else []
+
+
 def log_robot(rec: rr.RecordingStream, kin, x_kin: dict[str, np.ndarray], q: np.ndarray, t_ns: np.ndarray,
               scale_m: float | None = None) -> list[str]:
     """Both robots (`x_kin`: "nominal"/"calibrated" → kinematic parameter vector) at postures q
-    (N, n_joints) on `time` t_ns (N,); returns the entity paths logged (see module docstring)."""
+    (N, n_joints) on `time` t_ns (N,), every chain of a tree; returns the entity paths logged (see
+    module docstring)."""
     q = np.atleast_2d(np.asarray(q, float))
     t = np.asarray(t_ns, np.int64)
     paths: list[str] = []
     reach = None
     primary = list(x_kin)[-1]  # labelled, with the root's axes: the calibrated robot when both are drawn
+    tips = tips_of(kin)
     for which, x in x_kin.items():
-        names, follows, F = skeleton(kin, x, q)
-        n = len(q)
-        keep, tr, quat, L = segments(F)
-        if reach is None:
-            reach = float(np.max(np.linalg.norm(F[:, :, :3, 3] - F[:, :1, :3, 3], axis=-1)))
-            scale_m = scale_m or max(reach, 0.05)
-        base = f"world/robot/{which}"
-        rgba = COLORS.get(which, (120, 120, 120, 255))
-        radius = LINK_RADIUS_M * scale_m if which == "calibrated" else 0.45 * LINK_RADIUS_M * scale_m
-        labels = [f"{names[i]} → {names[i + 1]}" for i in keep]
-        rec.log(f"{base}/links", rr.Capsules3D.from_fields(radii=[radius], colors=[rgba], labels=labels,
-                                                           show_labels=False), static=True)
-        rec.send_columns(f"{base}/links", indexes=[_times(t)], columns=_partitioned(rr.Capsules3D.columns(
-            translations=tr.reshape(-1, 3), quaternions=quat.reshape(-1, 4), lengths=L.reshape(-1)), n, len(keep)))
-        paths.append(f"{base}/links")
-        jmask = np.array([bool(f) for f in follows])
-        if jmask.any():
-            jl = [f for f in follows if f]
-            rec.log(f"{base}/joints", rr.Points3D.from_fields(radii=[1.3 * radius], colors=[rgba], labels=jl,
-                                                              show_labels=which == primary), static=True)
-            rec.send_columns(f"{base}/joints", indexes=[_times(t)], columns=_partitioned(
-                rr.Points3D.columns(positions=F[:, jmask, :3, 3].reshape(-1, 3)), n, int(jmask.sum())))
-            paths.append(f"{base}/joints")
-        o, v = axes(F[:, -1], 0.15 * scale_m)
-        rec.log(f"{base}/tool", rr.Arrows3D.from_fields(colors=AXIS_RGB, radii=[0.15 * radius]), static=True)
-        rec.send_columns(f"{base}/tool", indexes=[_times(t)], columns=_partitioned(
-            rr.Arrows3D.columns(origins=o.reshape(-1, 3), vectors=v.reshape(-1, 3)), n, 3))
-        paths.append(f"{base}/tool")
-        if which == primary:
-            o, v = axes(F[0, 0], 0.2 * scale_m)
-            rec.log(f"{base}/root", rr.Arrows3D(origins=o, vectors=v, colors=AXIS_RGB, radii=[0.2 * radius],
-                                                labels=[f"{names[0]} x", "y", "z"]), static=True)
-            paths.append(f"{base}/root")
+        drawn: set[str] = set()  # frames of earlier chains (a tree's shared links are drawn once)
+        for k in range(max(1, len(tips))):
+            names, follows, F = skeleton(kin, x, q, k)
+            if reach is None:
+                reach = float(np.max(np.linalg.norm(F[:, :, :3, 3] - F[:, :1, :3, 3], axis=-1)))
+                scale_m = scale_m or max(reach, 0.05)
+            base = f"world/robot/{which}"
+            radius = LINK_RADIUS_M * scale_m if which == "calibrated" else 0.45 * LINK_RADIUS_M * scale_m
+            chain = f"{base}/{tips[k]}" if tips else base
+            own = [n not in drawn or n == "tool" for n in names]
+            paths += _log_chain(rec, chain, names, follows, F, t, own, which, radius, scale_m, which == primary)
+            drawn |= set(names[:-1])
+            if which == primary and k == 0:
+                o, v = axes(F[0, 0], 0.2 * scale_m)
+                rec.log(f"{base}/root", rr.Arrows3D(origins=o, vectors=v, colors=AXIS_RGB, radii=[0.2 * radius],
+                                                    labels=[f"{names[0]} x", "y", "z"]), static=True)
+                paths.append(f"{base}/root")
     o, v = axes(np.eye(4), 0.2 * (scale_m or 1.0))
     rec.log("world/instrument", rr.Arrows3D(origins=o, vectors=v, colors=AXIS_RGB, radii=[0.004 * (scale_m or 1.0)],
                                             labels=["instrument x", "y", "z"]), static=True)
     paths.append("world/instrument")
+    return paths
+
+
+def _log_chain(rec, base: str, names: list[str], follows: list[str], F: np.ndarray, t: np.ndarray, own: list[bool],
+               which: str, radius: float, scale_m: float, labelled: bool) -> list[str]:
+    """One chain's links (the segments ending at a frame no earlier chain drew), joints and tool axes."""
+    n = len(F)
+    rgba = COLORS.get(which, (120, 120, 120, 255))
+    keep, tr, quat, L = segments(F)
+    sel = np.array([own[i + 1] for i in keep], bool)
+    keep, tr, quat, L = keep[sel], tr[:, sel], quat[:, sel], L[:, sel]
+    paths = []
+    labels = [f"{names[i]} → {names[i + 1]}" for i in keep]
+    rec.log(f"{base}/links", rr.Capsules3D.from_fields(radii=[radius], colors=[rgba], labels=labels,
+                                                       show_labels=False), static=True)
+    rec.send_columns(f"{base}/links", indexes=[_times(t)], columns=_partitioned(rr.Capsules3D.columns(
+        translations=tr.reshape(-1, 3), quaternions=quat.reshape(-1, 4), lengths=L.reshape(-1)), n, len(keep)))
+    paths.append(f"{base}/links")
+    jmask = np.array([bool(f) and o for f, o in zip(follows, own)])
+    if jmask.any():
+        jl = [f for f, m in zip(follows, jmask) if m]
+        rec.log(f"{base}/joints", rr.Points3D.from_fields(radii=[1.3 * radius], colors=[rgba], labels=jl,
+                                                          show_labels=labelled), static=True)
+        rec.send_columns(f"{base}/joints", indexes=[_times(t)], columns=_partitioned(
+            rr.Points3D.columns(positions=F[:, jmask, :3, 3].reshape(-1, 3)), n, int(jmask.sum())))
+        paths.append(f"{base}/joints")
+    o, v = axes(F[:, -1], 0.15 * scale_m)
+    rec.log(f"{base}/tool", rr.Arrows3D.from_fields(colors=AXIS_RGB, radii=[0.15 * radius]), static=True)
+    rec.send_columns(f"{base}/tool", indexes=[_times(t)], columns=_partitioned(
+        rr.Arrows3D.columns(origins=o.reshape(-1, 3), vectors=v.reshape(-1, 3)), n, 3))
+    paths.append(f"{base}/tool")
     return paths
 
 

@@ -174,7 +174,7 @@ def test_bad_camera_input_is_one_line_naming_bag_topic_record(small, damage, nee
     assert "Traceback" not in r.stderr
     last = [ln for ln in r.stderr.splitlines() if ln.strip()][-1]
     assert needle in last and str(tmp_path / "bag") in last and sim["topic"] in last, last
-    assert "usable: " in last and f"{sim['topic']}#0" in last  # the usable images still listed
+    assert "usable: " in last and f"{sim['topic']}#{0}" in last  # the usable images still listed
     assert not (tmp_path / "rec.mcap").exists()  # nothing written
     if "bad" in damage:  # --skip-bad imports the rest
         r = _run(tmp_path / "bag", tmp / "r6.urdf", tmp_path / "rec.mcap", "--skip-bad")
@@ -254,10 +254,10 @@ def test_images_without_the_board_or_blurred_are_listed_with_the_reason(small, t
     r = _cli(tmp_path / "bag", tmp / "r6.urdf", tmp_path / "rec.mcap")
     assert r.exit_code == 0, r.output
     topic = sim["topic"]
-    assert f"{topic}#1: not found: no 9x6-corner chessboard found — not used" in r.output
-    assert f"{topic}#3: blurred: edges " in r.output
+    assert f"{topic}#{1}: not found: no 9x6-corner chessboard found — not used" in r.output
+    assert f"{topic}#{3}: blurred: edges " in r.output
     camp = read_recording(tmp_path / "rec.mcap").metadata["robocal.campaign"]
-    assert {s["image"]: s["status"] for s in camp["skipped"]} == {f"{topic}#1": "not found", f"{topic}#3": "blurred"}
+    assert {s["image"]: s["status"] for s in camp["skipped"]} == {f"{topic}#{1}": "not found", f"{topic}#{3}": "blurred"}
     assert camp["images"] == [f"{topic}#{i}" for i in (0, 2, 4)]
 
 

@@ -17,7 +17,9 @@ and each image that is not used is listed with its reason:
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -150,13 +152,23 @@ def detect_array(img: np.ndarray, name: str, target: Target | str, max_edge_px: 
     return Detection(name, status, reason, wh, np.asarray(ids, np.int64), np.asarray(px, float), sharp)
 
 
-def pool(workers: int) -> ProcessPoolExecutor:
-    """A process pool for detection whose workers are forked from a fresh forkserver, not from this
-    process: a process that has run OpenCV's own thread pool (rendering, resizing) deadlocks the
-    children it forks in their first OpenCV call."""
+@contextmanager
+def pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """A process pool for detection whose workers are forked from a forkserver, not from this process:
+    a process that has run OpenCV's own thread pool (rendering, resizing) deadlocks the children it
+    forks in their first OpenCV call.  A forkserver this pool had to start is stopped with the pool, so
+    that nothing else in the process (a local cluster's workers) is later forked from it."""
     import multiprocessing
 
-    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"))
+    from pipeline import forkserver
+
+    fresh = not forkserver.running()
+    try:
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver")) as ex:
+            yield ex
+    finally:
+        if fresh:
+            forkserver.terminate()
 
 
 def _one(args) -> Detection:

@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import atexit
 import os
-import signal
 import threading
 from pathlib import Path
+
+from pipeline.forkserver import terminate
 
 SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 # What a task imports on its first call beyond the stage and system modules: robocal's lazy imports and
@@ -24,7 +25,8 @@ TASK_IMPORTS = ("pipeline.stages.reprocess", "pipeline.stages.results", "pipelin
                 "pipeline.models.jig", "pipeline.models.dh_export", "pipeline.importers.bagkind",
                 "pyarrow.dataset", "dateutil.relativedelta", "pipeline.physics.compliance",
                 "pipeline.physics.gravity", "pipeline.physics.summary", "pipeline.validate.plausibility",
-                "threadpoolctl")
+                "threadpoolctl", "pipeline.identify.folds", "pipeline.identify.physics_choice",
+                "pipeline.physics.encoder")
 _started = False  # this module started the forkserver running now
 _lock = threading.Lock()
 
@@ -96,22 +98,12 @@ def start_if_fresh(out: Path, stages: list[str] | None = None) -> bool:
 def stop() -> None:
     """Stop the fork server this process started (none: a no-op), once no worker is forked from it any
     more: SIGTERM (its default action: no interpreter teardown) and reap it."""
-    from multiprocessing import forkserver
-
     global _started
     with _lock:
         if not _started:
             return
         _started = False
-        server = forkserver._forkserver  # the module's singleton (no public handle on it)
-        pid = getattr(server, "_forkserver_pid", None)
-        if pid is None:
-            return
-        try:
-            os.kill(pid, signal.SIGTERM)
-        except ProcessLookupError:
-            pass
-        server._stop()  # closes our end of its liveness pipe and waits for it
+        terminate()  # pipeline.forkserver
 
 
 # At exit, after distributed's own handlers (registered later, when it is imported: atexit runs them

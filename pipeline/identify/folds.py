@@ -1,6 +1,6 @@
 """Cross-validation folds that respect the campaign's design (stratified, leverage-aware).
 
-A seeded k-fold split of time blocks (`least_squares.kfold_indices`) can, in a campaign with few
+A seeded k-fold split of time blocks (`kfold_indices`) can, in a campaign with few
 contacts on a face, put every contact of that face in one fold: the fit on the other folds then
 cannot see that face, a parameter (or a combination of parameters) is unidentifiable there, and
 the held-out error of that fold measures the design, not the model.  The same holds for a
@@ -32,13 +32,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.identify.least_squares import kfold_indices
 
 STRATA_COLUMNS = ("face", "session", "placement", "payload_kg")
 RANGE_GAP_SHARE = 0.1  # a gap in a joint's sorted angles above this share of its span (and GAP_MIN) splits ranges
 RANGE_GAP_MIN_RAD = 0.05
 LEVERAGE_SHARE = 0.01  # a fold must leave at least this share of every parameter direction's information
 MAX_PASSES = 4
+
+
+def kfold_indices(n: int, k: int, seed: int = 0, groups: np.ndarray | None = None) -> list[np.ndarray]:
+    """Test-index sets of a seeded k-fold split; rows that share a group stay together."""
+    rng = np.random.default_rng(seed)
+    g = np.arange(n) if groups is None else np.asarray(groups)
+    uniq = np.unique(g)
+    perm = rng.permutation(uniq)
+    fold_of_group = {u: i % k for i, u in enumerate(perm)}
+    fold = np.array([fold_of_group[v] for v in g])
+    return [np.flatnonzero(fold == i) for i in range(k)]
 
 
 def design_strata(data: dict, n: int) -> list[np.ndarray]:

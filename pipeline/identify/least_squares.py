@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
+from pipeline.identify.folds import kfold_indices  # noqa: F401 — re-exported: the seeded split the folds repair
 from pipeline.blas import single_threaded
 from pipeline.identify.identifiability import RANK_TOL, Identifiability, analyse
 from pipeline.identify.model import MeasurementModel, Table, n_rows, take, uncalibrated
@@ -195,17 +196,6 @@ def point_accuracy(model: MeasurementModel, f: Fit, data: Table) -> np.ndarray:
     _, Jp = model.points(f.x, data)
     Jp = Jp[:, :, f.free]
     return np.sqrt(np.einsum("nip,pq,niq->n", Jp, f.cov, Jp))
-
-
-def kfold_indices(n: int, k: int, seed: int = 0, groups: np.ndarray | None = None) -> list[np.ndarray]:
-    """Test-index sets of a seeded k-fold split; rows that share a group stay together."""
-    rng = np.random.default_rng(seed)
-    g = np.arange(n) if groups is None else np.asarray(groups)
-    uniq = np.unique(g)
-    perm = rng.permutation(uniq)
-    fold_of_group = {u: i % k for i, u in enumerate(perm)}
-    fold = np.array([fold_of_group[v] for v in g])
-    return [np.flatnonzero(fold == i) for i in range(k)]
 
 
 def holdout_warning(n: int, k: int, residual_dim: int, n_free: int) -> str | None:

@@ -47,10 +47,16 @@ def candidates(model) -> list[tuple[str, ...]]:
 
 
 def names_of(model, chosen: tuple[str, ...]) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """(names of the chosen families' terms, names of the others: held at 0, the rigid nominal)."""
+    """(names of the chosen families' terms, names of the others: held at 0, the rigid nominal).  The
+    reading-error terms (`pipeline.physics.encoder`) are among the others unless the model's terms were
+    forced: the shrinkage route chooses only among the gravity-compliance families."""
+    from pipeline.physics.encoder import is_encoder
+
     fams = families(model)
     on = tuple(n for f in chosen for n in fams[f])
     off = tuple(n for f, v in fams.items() if f not in chosen for n in v)
+    if not getattr(model, "forced", False):  # reading errors are not chosen here: held at their nominal 0
+        off += tuple(n for n in model.parameter_names() if is_encoder(n))
     return on, off
 
 

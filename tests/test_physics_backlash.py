@@ -101,6 +101,24 @@ def test_backlash_kept_recovered_and_at_the_noise_floor(recordings):
     assert r.returncode == 0, r.stderr
     (ev,) = json.loads((tmp / "ev_play" / "evaluation.json").read_text())["recordings"]
     assert ev["rms_3d_m"] < 1.3 * np.sqrt(3) * truth["noise_m"], ev["rms_3d_m"]
+    # compensate's kinematics (`TreeKinematics`, --approach): every joint approaching from above (+1), the
+    # left tip lands on the generator's noise-free marker; taken as unknown (0, mid-play) it does not
+    from pipeline.compensate.tree import TreeKinematics
+    from pipeline.recording.reader import read_recording
+    from pipeline.systems.registry import detect, load_with_physics
+
+    r2 = read_recording(rec)
+    model, _ = load_with_physics(detect(r2), r2, "auto", None)
+    assert model.parameter_names() == [q["name"] for q in doc["parameters"]]
+    x = np.array([q["estimate"] for q in doc["parameters"]])
+    t = hu.default_truth(np.random.default_rng(11), geometry=False)
+    t.backlash = dict(PLAY)
+    qd = hu.postures(np.random.default_rng(3), 20)
+    want = hu.measure(t, qd, 0.0, np.random.default_rng(0), approach={k: np.ones(20) for k in PLAY})["left"]
+    q = np.column_stack([qd[j] for j in hu.READ])
+    err = {a: np.sqrt(np.mean(np.sum((TreeKinematics(model, 0, True, a).pose(x, q)[1] - want) ** 2, axis=1)))
+           for a in (1, 0)}
+    assert err[1] < 0.5e-3 and err[1] < 0.5 * err[0], err
 
 
 def test_no_play_not_kept(recordings):

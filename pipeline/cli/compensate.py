@@ -24,6 +24,9 @@ def compensate_cmd(
                                 "under its gravity (and --payload); none: the rigid calibrated robot."),
     tip: Optional[str] = typer.Option(None, "--tip", help="A URDF tree's tip link the targets are for (default: "
                                       "the recording's first tip)."),
+    approach: int = typer.Option(0, "--approach", help="Direction every joint moves in as it reaches its target, "
+                                 "for a calibrated backlash: +1 (towards higher values), -1, or 0 (unknown: the "
+                                 "middle of the play)."),
 ) -> None:
     """Inverse kinematics of the calibrated model for a program of Cartesian targets (see docs/guide/compensate.md)."""
     import time
@@ -41,12 +44,14 @@ def compensate_cmd(
     tg = pg.read_targets(targets, names)
     from pipeline.physics.compliance import parse_payload
 
+    if approach not in (-1, 0, 1):
+        raise RobocalError(f"--approach {approach}: expected -1, 0 or 1")
     if physics not in ("auto", "none"):
         raise RobocalError(f"--physics {physics!r}: expected auto or none")
     load = parse_payload(payload)
     pg.check_payload(run, load)
     t0 = time.perf_counter()
-    c = pg.compensate_run(run, tg, load, physics == "auto", tip)
+    c = pg.compensate_run(run, tg, load, physics == "auto", tip, approach)
     sigma = pg.predicted_sigma(run["model"], run["x"], run["free"], run["cov"], c.q)
     elapsed = time.perf_counter() - t0
     pg.write_program(out, c, tg, names, sigma)

@@ -146,3 +146,11 @@ def test_bad_direction_column_one_line_exit_2(recordings, tmp_path, bad):
     assert r.stderr.strip().count("\n") == 0 and "Traceback" not in r.stderr, r.stderr
     assert "bad.csv: row 6: column 'dir_left_j3'" in r.stderr, r.stderr
     assert not (tmp_path / "bad.mcap").exists()
+
+
+def test_compensate_approach_must_be_a_direction(tmp_path):
+    (tmp_path / "t.csv").write_text("x,y,z\n0.1,0.2,0.3\n")
+    r = run_cli("compensate", tmp_path / "no_run", "--targets", tmp_path / "t.csv", "--out", tmp_path / "p.csv",
+                "--approach", "2")
+    assert r.returncode == 2 and r.stderr.strip() == "robocal: error: --approach 2: expected -1, 0 or 1", r.stderr
+    assert not (tmp_path / "p.csv").exists()

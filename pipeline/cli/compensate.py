@@ -36,6 +36,8 @@ def compensate_cmd(
     from pipeline.recording.output import check_output
     from pipeline.stages.artefacts import write_json
 
+    if approach not in (-1, 0, 1):
+        raise RobocalError(f"--approach {approach}: expected -1, 0 or 1")
     if out.resolve() == targets.resolve():
         raise RobocalError(f"{out}: --out would overwrite the targets file")
     check_output(out, "program")  # never over a file robocal did not create (its own programs are replaced)
@@ -44,8 +46,6 @@ def compensate_cmd(
     tg = pg.read_targets(targets, names)
     from pipeline.physics.compliance import parse_payload
 
-    if approach not in (-1, 0, 1):
-        raise RobocalError(f"--approach {approach}: expected -1, 0 or 1")
     if physics not in ("auto", "none"):
         raise RobocalError(f"--physics {physics!r}: expected auto or none")
     load = parse_payload(payload)

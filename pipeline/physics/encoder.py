@@ -14,7 +14,9 @@ drivers), q the joint's reading in rad:
   ``approach`` (n, n_joints), from the CSV columns ``dir_<joint>`` or the recording's ``approach``
   field; 0 unknown: no correction).  Offered only for a read joint approached from both sides
   (at least `MIN_SIDE` rows each); b is fitted free of sign — a play is b ≥ 0, a negative estimate
-  beyond its σ says the reading leads rather than lags.  Without directions it is not fitted:
+  beyond its σ says the reading leads rather than lags.  Unlike the other three families (offered
+  after the geometry), backlash is offered to the model selection with the geometric groups
+  (`TreePointModel.late_groups`).  Without directions it is not fitted:
   `BACKLASH_ABSENT` says so in the sidecar and the report.
 
 Identifiability: a joint whose readings spread less than `MIN_SPREAD_RAD` (RMS about their mean) is

@@ -17,7 +17,9 @@ The torso is a three-joint pitch chain whose last joint is driven by the other t
 q3 = −q1 − q2 (the chest stays level, as on humanoids with a parallel torso linkage); the CSV
 carries only the two driven joints. Optional reading errors of the encoders (off by default): an
 eccentric encoder disc, q_true = q_read + a·sin q_read + b·cos q_read (rad), and a gear-ratio error,
-q_true = q_read + s·q_read, on chosen read joints (before the torso coupling). Geometry errors: joint offsets and origin perturbations (mm,
+q_true = q_read + s·q_read, on chosen read joints (before the torso coupling); free play (backlash) b,
+q_true = q_read + b·d/2 with d = ±1 the joint's direction of approach at the posture (drawn at random
+per posture and joint, written as the columns `dir_<joint>`). Geometry errors: joint offsets and origin perturbations (mm,
 mrad) of every joint; a motion-capture frame with an unknown pose; one marker per hand at an
 unknown offset. Measurements: both hand markers in the motion-capture frame with isotropic
 Gaussian noise (m).
@@ -239,6 +241,7 @@ class Truth:
     lateral: dict = field(default_factory=dict)  # rad/(N·m), both normal axes
     eccentricity: dict = field(default_factory=dict)  # {joint: (a, b)} rad: δq = a·sin q + b·cos q
     scale: dict = field(default_factory=dict)  # {joint: s}: δq = s·q (a gear ratio off by s)
+    backlash: dict = field(default_factory=dict)  # {joint: b} rad: δq = b·d/2, d = ±1 the direction of approach
     marker: dict = field(default_factory=dict)  # m, in the hand link's frame
     registration_xyz: tuple = (0.0, 0.0, 0.0)  # m: the mocap frame's pose in the base frame
     registration_rpy: tuple = (0.0, 0.0, 0.0)
@@ -286,12 +289,16 @@ def postures(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
     return out
 
 
-def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, payload=None) -> dict:
-    """Marker positions (n, 3) per hand in the mocap frame, at static equilibrium, with noise."""
+def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, payload=None,
+            approach: dict | None = None) -> dict:
+    """Marker positions (n, 3) per hand in the mocap frame, at static equilibrium, with noise; `approach`
+    {joint: (n,) ±1} the directions of approach (needed where the truth has backlash)."""
     joints, links = true_robot(t), humanoid()[1]
     turned = {k: v + t.scale.get(k, 0.0) * v for k, v in q_read.items()}  # the motor's true turn
     for k, (a, b) in t.eccentricity.items():
         turned[k] = turned[k] + a * np.sin(q_read[k]) + b * np.cos(q_read[k])
+    for k, b in t.backlash.items():
+        turned[k] = turned[k] + 0.5 * b * np.asarray(approach[k], float)
     q = {k: v + t.joint_offset.get(k, 0.0) for k, v in turned.items()}
     for name, comb in COUPLED.items():
         q[name] = sum(c * turned[k] for k, c in comb.items()) + t.joint_offset.get(name, 0.0)
@@ -309,25 +316,30 @@ def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, pa
 
 
 def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geometry: bool = True,
-          session: int | None = None, eccentricity: dict | None = None, scale: dict | None = None) -> Path:
+          session: int | None = None, eccentricity: dict | None = None, scale: dict | None = None,
+          backlash: dict | None = None, directions: bool = False) -> Path:
     """humanoid.urdf (nominal), postures.csv and truth.json under `out_dir`; returns the folder.  The robot
     (truth) comes from `seed`; `session` (default: the same stream) draws another set of postures and noise
     of the same robot — a second measurement session.  `eccentricity` {joint: (a, b) rad} and `scale`
-    {joint: s} add encoder errors to read joints (none by default)."""
+    {joint: s} add encoder errors to read joints (none by default); `backlash` {joint: b rad} a free play,
+    `directions` (implied by `backlash`) the columns `dir_<joint>` (±1, drawn per posture and joint)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     t = default_truth(rng, geometry)
     t.eccentricity = {k: tuple(map(float, v)) for k, v in (eccentricity or {}).items()}
     t.scale = {k: float(v) for k, v in (scale or {}).items()}
+    t.backlash = {k: float(v) for k, v in (backlash or {}).items()}
     if session is not None:
         rng = np.random.default_rng([seed, session])
     joints, links = humanoid()
     (out_dir / "humanoid.urdf").write_text(urdf_text(joints, links))
     q = postures(rng, n)
-    y = measure(t, q, noise_m, rng)
-    cols = READ + ["lx", "ly", "lz", "rx", "ry", "rz"]
-    data = np.column_stack([q[k] for k in READ] + [y["left"], y["right"]])
+    drng = np.random.default_rng([seed, 0 if session is None else session, 99])  # its own stream
+    d = {k: drng.choice([-1, 1], n) for k in READ} if (directions or backlash) else {}
+    y = measure(t, q, noise_m, rng, approach=d)
+    cols = READ + ["lx", "ly", "lz", "rx", "ry", "rz"] + [f"dir_{k}" for k in d]
+    data = np.column_stack([q[k] for k in READ] + [y["left"], y["right"]] + [d[k] for k in d])
     lines = [",".join(cols)] + [",".join(f"{v:.12g}" for v in row) for row in data]
     (out_dir / "postures.csv").write_text("\n".join(lines) + "\n")
     truth = {"noise_m": noise_m, "n": n, "seed": seed, "session": session, "coupled": COUPLED,

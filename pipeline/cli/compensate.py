@@ -24,6 +24,9 @@ def compensate_cmd(
                                 "under its gravity (and --payload); none: the rigid calibrated robot."),
     tip: Optional[str] = typer.Option(None, "--tip", help="A URDF tree's tip link the targets are for (default: "
                                       "the recording's first tip)."),
+    approach: int = typer.Option(0, "--approach", help="Direction every joint moves in as it reaches its target, "
+                                 "for a calibrated backlash: +1 (towards higher values), -1, or 0 (unknown: the "
+                                 "middle of the play)."),
 ) -> None:
     """Inverse kinematics of the calibrated model for a program of Cartesian targets (see docs/guide/compensate.md)."""
     import time
@@ -33,6 +36,8 @@ def compensate_cmd(
     from pipeline.recording.output import check_output
     from pipeline.stages.artefacts import write_json
 
+    if approach not in (-1, 0, 1):
+        raise RobocalError(f"--approach {approach}: expected -1, 0 or 1")
     if out.resolve() == targets.resolve():
         raise RobocalError(f"{out}: --out would overwrite the targets file")
     check_output(out, "program")  # never over a file robocal did not create (its own programs are replaced)
@@ -46,7 +51,7 @@ def compensate_cmd(
     load = parse_payload(payload)
     pg.check_payload(run, load)
     t0 = time.perf_counter()
-    c = pg.compensate_run(run, tg, load, physics == "auto", tip)
+    c = pg.compensate_run(run, tg, load, physics == "auto", tip, approach)
     sigma = pg.predicted_sigma(run["model"], run["x"], run["free"], run["cov"], c.q)
     elapsed = time.perf_counter() - t0
     pg.write_program(out, c, tg, names, sigma)

@@ -131,15 +131,16 @@ def rms_bound95(run: dict, c: serial.Compensated) -> float | None:
 
 
 def compensate_run(run: dict, targets: dict, payload: tuple = (), physics: bool = True,
-                   tip: str | None = None) -> serial.Compensated:
+                   tip: str | None = None, approach: int = 0) -> serial.Compensated:
     """Dispatch on the run's model: a URDF tree or a model with physics terms (LM IK of the deflected
     robot under its gravity and `payload`: `pipeline.compensate.tree`), serial arm (LM IK) or Delta
-    (closed form; damped Newton for the extended model)."""
+    (closed form; damped Newton for the extended model).  `approach` (−1/0/+1): every joint's direction of
+    approach for a calibrated backlash (`TreeKinematics`)."""
     from pipeline.compensate.tree import TreeKinematics, is_tree_model
 
     model = run["model"]
     if is_tree_model(model):
-        kin = TreeKinematics.of(model, payload, tip, physics)
+        kin = TreeKinematics.of(model, payload, tip, physics, approach)
         # the nominal controller: nominal geometry, rigid, placed in the work frame by the calibrated
         # registration (instrument → root, tip → tool point), which no URDF carries
         x_nom = np.asarray(run["x_nominal"], float).copy()
@@ -147,8 +148,9 @@ def compensate_run(run: dict, targets: dict, payload: tuple = (), physics: bool 
         x_nom[reg] = np.asarray(run["x"], float)[reg]
         return serial.compensate(kin, x_nom, run["x"], targets["p"], targets["R"],
                                  np.zeros((1, kin.n_joints)), targets["hint"])
-    if payload or tip:
-        raise RobocalError(f"--payload / --tip: the {run['system']} model of this run has no physics terms or tips")
+    if payload or tip or approach:
+        raise RobocalError(f"--payload / --tip / --approach: the {run['system']} model of this run has no physics "
+                           "terms or tips")
     if _chain_kin(model) is not None:  # seed 000's arm, a URDF robot: any measurement model over a Chain
         from pipeline.simulate.arc_welder import IK_SEEDS
 

@@ -9,7 +9,10 @@ under the robot's own gravity and the payload, to first order in the deflection 
 at the readings, as in the calibration).  The joint Jacobian is the rigid one through the coupling
 matrix (the derivative of the deflection, c·∂τ/∂q ≈ 1e-3, only slows the Newton steps slightly);
 the solver's error is that of the exact deflected pose.  With `physics=False` the physics parameters
-are held at 0 (the rigid calibrated robot).  Poses in the instrument (work) frame, m and rad.
+are held at 0 (the rigid calibrated robot).  A calibrated backlash b (``J.backlash``) shifts joint J by
+b·d/2 with d = `approach` (+1: every joint of the program reaches its target moving towards higher
+values, −1: lower, 0 (default): unknown, the middle of the play).  Poses in the instrument (work)
+frame, m and rad.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ class TreeKinematics:
     model: object
     tip: int = 0
     physics: bool = True
+    approach: int = 0  # direction of approach of every joint (−1/0/+1) for the backlash terms
     n_joints: int = field(init=False)
     lower: np.ndarray = field(init=False)
     upper: np.ndarray = field(init=False)
@@ -39,7 +43,8 @@ class TreeKinematics:
         object.__setattr__(self, "upper", np.asarray(kin.upper, float))
 
     @classmethod
-    def of(cls, model, payload: tuple = (), tip: str | None = None, physics: bool = True) -> "TreeKinematics":
+    def of(cls, model, payload: tuple = (), tip: str | None = None, physics: bool = True,
+           approach: int = 0) -> "TreeKinematics":
         """From a `TreePointModel`; `payload` replaces the model's (the load the program carries);
         `tip` a link name of the tree's tips (default the first)."""
         from pipeline.errors import RobocalError
@@ -47,7 +52,13 @@ class TreeKinematics:
         tips = list(model.kin.tips)
         if tip is not None and tip not in tips:
             raise RobocalError(f"--tip {tip!r}: not a tip of the calibrated tree ({', '.join(tips)})")
-        return cls(replace(model, payload=tuple(payload)), tips.index(tip) if tip else 0, physics)
+        return cls(replace(model, payload=tuple(payload)), tips.index(tip) if tip else 0, physics, int(approach))
+
+    def _data(self, q: np.ndarray) -> dict:
+        data = {"joint_positions": q, "target": np.full(len(q), self.tip, np.int64)}
+        if self.approach:
+            data["approach"] = np.full(q.shape, self.approach, np.int8)
+        return data
 
     def _x(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x, float)
@@ -61,7 +72,7 @@ class TreeKinematics:
         x = self._x(x)
         if not np.any(x[self.model.n_kin:]):
             return self.model.kin.expand(q)
-        return self.model.deflected(x, {"joint_positions": q})
+        return self.model.deflected(x, self._data(q))
 
     def pose(self, x, q):
         c = self.model.kin.chain(self.tip)
@@ -81,8 +92,7 @@ class TreeKinematics:
     def point_jacobian(self, x, q) -> np.ndarray:
         """d tool point / d parameters (N, 3, P) over every parameter of the model (physics included)."""
         q = np.atleast_2d(np.asarray(q, float))
-        data = {"joint_positions": q, "target": np.full(len(q), self.tip, np.int64)}
-        return self.model.points(self._x(x), data)[1]
+        return self.model.points(self._x(x), self._data(q))[1]
 
 
 def is_tree_model(model) -> bool:

@@ -6,6 +6,8 @@ measurement columns or ignored).  Units are declared (`joint_units` deg|rad for 
 joint's limits after conversion — the usual sign of degrees declared as radians — is an error
 naming file, row and column.  Several files may be given: their rows are concatenated and each
 row keeps its file's stem (the plane or group name for plane / coincidence measurements).
+Optional columns ``dir_<joint>`` (−1/0/+1, point measurements) give each joint's direction of approach
+(`approach`): the sign of its last motion before the standstill, 0 unknown — what backlash needs.
 """
 
 from __future__ import annotations
@@ -52,6 +54,24 @@ def _numeric(path: Path, cols: dict, name: str, scale: float = 1.0) -> np.ndarra
     return v
 
 
+def approach(path: Path, cols: dict, names: list[str], n: int) -> np.ndarray:
+    """(n, n_joints) int8 direction of approach of each joint at each row from the optional columns
+    ``dir_<joint>`` (−1: the joint last moved towards lower values, +1: towards higher, 0 or no column:
+    unknown); any other value is one line naming file, row and column."""
+    out = np.zeros((n, len(names)), np.int8)
+    for k, j in enumerate(names):
+        c = f"dir_{j}"
+        if c not in cols:
+            continue
+        v = numbers(path, c, cols[c])
+        bad = np.flatnonzero(~np.isin(v, (-1.0, 0.0, 1.0)))
+        if bad.size:
+            raise RobocalError(f"{path}: row {bad[0] + 2}: column {c!r}: {v[bad[0]]!r} is not -1, 0 or +1 "
+                               "(the joint's direction of approach)")
+        out[:, k] = v.astype(np.int8)
+    return out
+
+
 def _need(path: Path, header: list[str], names: list[str], what: str, used: set[str]) -> None:
     missing = [c for c in names if c not in header]
     if missing:
@@ -77,7 +97,7 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
         path = Path(path)
         used = set(spec.position) | {c for t in spec.targets for c in t} | set(spec.orientation)
         pl_off = spec.planes.get(path.stem, {}).get("offset")
-        keep = set(names) | used | ({pl_off} if isinstance(pl_off, str) else set())
+        keep = set(names) | used | ({pl_off} if isinstance(pl_off, str) else set()) | {f"dir_{j}" for j in names}
         header, cols, n = read_columns(path, keep, spec.columns)
         if n == 0:
             raise RobocalError(f"{path}: no data rows")
@@ -98,6 +118,10 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
             raise RobocalError(f"{path}: row {i + 2}: column {names[k]!r}: {q[i, k]:.6g} is far outside the joint's "
                                f"limits [{lo[k]:.6g}, {hi[k]:.6g}]{hint}")
         part: dict[str, np.ndarray] = {"joint_positions": q}
+        if any(f"dir_{j}" in cols for j in names):
+            if spec.measure != "point":
+                raise RobocalError(f"{path}: direction columns dir_<joint> need --measure point (got {spec.measure})")
+            part["approach"] = approach(path, cols, names, n)
         if spec.measure in ("point", "pose"):
             _need(path, header, list(spec.position), "position", set(names))
             pos = [np.stack([_numeric(path, cols, c, lscale) for c in spec.position], 1)]
@@ -107,6 +131,8 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
             part["position"] = np.concatenate(pos)
             part["target"] = np.repeat(np.arange(len(pos)), n)
             part["joint_positions"] = np.tile(q, (len(pos), 1))
+            if "approach" in part:
+                part["approach"] = np.tile(part["approach"], (len(pos), 1))
         if spec.measure == "pose":
             _need(path, header, list(spec.orientation), "orientation", set(names))
             o = np.stack([_numeric(path, cols, c) for c in spec.orientation], 1)

@@ -49,6 +49,8 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
                 m["position"] = np.asarray(table["position"][i], float).tolist()
             if "target" in table:
                 m["target"] = int(table["target"][i])
+            if "approach" in table:
+                m["approach"] = [int(v) for v in table["approach"][i]]
             if "orientation" in table:
                 m["orientation"] = np.asarray(table["orientation"][i], float).tolist()
             for key in ("plane", "group"):

@@ -14,7 +14,8 @@ Physics terms (parameters appended after the kinematics', rad/(N·m), nominal 0 
   J's axis (bearing and link bending), through the tree's lateral virtual joints;
 * errors of the readings (`pipeline.physics.encoder`, after the compliance terms): ``J.ecc_sin``,
   ``J.ecc_cos`` (rad), ``J.scale``, ``J.coupling`` (rad/rad) — the read joint J turns by
-  a·sin q + b·cos q + s·q + κ·q_driver more than read, before the couplings are expanded.
+  a·sin q + b·cos q + s·q + κ·q_driver more than read, before the couplings are expanded; ``J.backlash``
+  (rad) adds b·d/2, d the optional column ``approach`` (n, n_joints) −1/0/+1 (0 or absent: unknown).
 
 The deflections enter the chain exactly (as joint values); the loads are evaluated at the
 configuration given in the table (the readings to first order; `pipeline.physics.compliance`
@@ -86,10 +87,13 @@ class TreePointModel(Composed):
 
     def late_groups(self) -> tuple[str, ...]:
         """The reading-error groups: offered to the model selection after the geometry and the compliance
-        (`pipeline.identify.complexity`), so a reading error never displaces a geometric group."""
+        (`pipeline.identify.complexity`), so a reading error never displaces a geometric group.  Backlash is
+        offered with the geometry: a play of a few mrad is a first-order error (a joint offset that flips
+        with the direction of approach), and offered last it left the lateral compliance refused before it
+        (held-out 0.260 mm against 0.217 mm offered first, `tests/test_physics_backlash.py`'s campaign)."""
         from pipeline.physics.encoder import GROUPS
 
-        return () if self.forced else tuple(GROUPS.values())
+        return () if self.forced else tuple(g for g in GROUPS.values() if g != "backlash")
 
     # ----- evaluation ------------------------------------------------------------------------
     def deflected(self, x: np.ndarray, data: Table) -> np.ndarray:
@@ -99,7 +103,7 @@ class TreePointModel(Composed):
         if self.encoder:
             from pipeline.physics.encoder import corrected
 
-            q = corrected(self.kin, self.encoder, xe[len(self.gravity_names()):], q)
+            q = corrected(self.kin, self.encoder, xe[len(self.gravity_names()):], q, data.get("approach"))
         qf = self.kin.expand(q)
         if not self.gravity_names():
             return qf
@@ -135,7 +139,7 @@ class TreePointModel(Composed):
         if jac and self.encoder:
             from pipeline.physics.encoder import basis
 
-            enc_B, enc_col = basis(self.kin, self.encoder, data["joint_positions"])
+            enc_B, enc_col = basis(self.kin, self.encoder, data["joint_positions"], data.get("approach"))
         for k in range(len(self.kin.descs)):
             rows = np.flatnonzero(tip == k)
             if rows.size == 0:

@@ -12,7 +12,7 @@ held-out model selection (a family is kept only when it lowers the held-out erro
 geometric parameter group) — both compliance families where the URDF has masses, and the reading
 errors of `pipeline.physics.encoder` (eccentricity, scale, coupling) wherever the model carries
 physics terms; ``none`` keeps the model rigid; a comma list of `FAMILIES` fits those families always
-(``backlash`` is only noted: a point table carries no direction of motion).  Candidate joints: revolute joints whose
+(``backlash`` needs each measurement's direction of approach; without it, it is only noted).  Candidate joints: revolute joints whose
 gravity load varies over the campaign by at least `MIN_LOAD_NM` (RMS about its mean) — a constant
 load is a joint offset, not something the data can name.
 
@@ -32,7 +32,7 @@ from pipeline.physics.encoder import BACKLASH_ABSENT, FAMILIES as ENCODER
 from pipeline.physics.gravity import G_M_S2, Load, gravity_load, has_inertials
 
 GRAVITY = ("joint-compliance", "lateral-compliance")
-FAMILIES = GRAVITY + ENCODER + ("backlash",)
+FAMILIES = GRAVITY + ENCODER  # the reading errors end with backlash
 MIN_LOAD_NM = 1.0
 EQUILIBRIUM = "first order: gravity loads evaluated at the joint readings (nominal geometry)"
 SCHEMA_VERSION = 2
@@ -154,8 +154,9 @@ def document(model, x: np.ndarray, std: np.ndarray | None = None, free: np.ndarr
             "payload": [{"mass_kg": m, "link": ln, "com_m": list(c)} for m, ln, c in model.payload],
             "normals": "e1, e2 ⟂ the joint axis in the joint frame: e1 = normalize(a × axis), a = x unless the "
                        "axis is within 25.8° of x (then y); e2 = axis × e1",
-            "readings": "encoder terms: the true angle of read joint J is q + a·sin q + b·cos q + s·q + κ·q(driver), "
-                        "q its reading (rad), before the couplings",
+            "readings": "encoder terms: the true angle of read joint J is q + a·sin q + b·cos q + s·q + κ·q(driver) "
+                        "+ b_play·d/2, q its reading (rad), d its direction of approach (±1, 0 unknown), "
+                        "before the couplings",
             "not_fitted": [{"family": f, "reason": BACKLASH_ABSENT} for f in getattr(model, "absent", ())],
             "terms": terms}
 

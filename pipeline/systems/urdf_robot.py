@@ -132,9 +132,11 @@ def physics_model(rec, table: dict, physics: str | None = None, payload: tuple =
     rigid = tree_of(rec)
     compliant, lateral = compliance.candidates(rigid, table["joint_positions"], gravity, payload,
                                                source=f"{rec.path}: metadata robocal.urdf")
-    reading = encoder.candidates(rigid, table["joint_positions"], tuple(f for f in families if f in encoder.FAMILIES))
+    reading = encoder.candidates(rigid, table["joint_positions"], tuple(f for f in families if f in encoder.FAMILIES),
+                                 table.get("approach"))
+    carried = any(n.endswith(".backlash") for n in reading)
     return TreePointModel(tree_of(rec, lateral), compliant=compliant, payload=payload, forced=mode == "fixed",
-                          encoder=reading, absent=("backlash",) if "backlash" in families else ())
+                          encoder=reading, absent=("backlash",) if "backlash" in families and not carried else ())
 
 
 def model_like(rec, names: list[str], payload: tuple = ()):
@@ -196,6 +198,19 @@ def _column(rec, topic, msgs, key, shape, dtype=float):
     return np.stack(out) if out else np.zeros((0,) + shape, dtype)
 
 
+def _approach(rec, topic, msgs, nj: int) -> np.ndarray:
+    """(n, n_joints) int8 direction of approach per joint (−1/0/+1; 0 where a message has none)."""
+    out = np.zeros((len(msgs), nj), np.int8)
+    for i, m in enumerate(msgs):
+        if "approach" not in m:
+            continue
+        v = np.asarray(m["approach"], float)
+        if v.shape != (nj,) or not np.all(np.isin(v, (-1.0, 0.0, 1.0))):
+            raise RobocalError(f"{where(rec.path, topic, i)}: field 'approach' must hold {nj} values of -1, 0 or +1")
+        out[i] = v.astype(np.int8)
+    return out
+
+
 def load(rec, physics: str | None = None, payload: tuple = ()):
     """Measurement model and measurement table of a URDF recording.  `physics` and `payload`: the
     gravity terms offered to identification (`physics_model`; point measurements); None keeps the
@@ -220,6 +235,8 @@ def load(rec, physics: str | None = None, payload: tuple = ()):
         table["position"] = _column(rec, topic, msgs, "position", (3,))
     if measure == "point":
         table["target"] = np.array([int(m.get("target", 0)) for m in msgs], np.int64)
+        if any("approach" in m for m in msgs):
+            table["approach"] = _approach(rec, topic, msgs, arm.n_joints)
         table["label"] = np.array([f"target {t}" for t in table["target"]], object)
     if measure == "pose":
         quat = _column(rec, topic, msgs, "orientation", (4,))

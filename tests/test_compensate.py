@@ -138,24 +138,7 @@ def test_compensated_program_on_the_true_robot_is_within_the_predicted_accuracy(
     assert rms(after) <= 1.2 * rms(sigma), (rms(after), rms(sigma))
 
 
-URDF = """<robot name="six">
-  <link name="base"/><link name="l1"/><link name="l2"/><link name="l3"/><link name="l4"/><link name="l5"/>
-  <link name="l6"/><link name="tool"/>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.4"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.1 0 0" rpy="1.5707963 0 0"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j3" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0.45 0 0"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j4" type="revolute"><parent link="l3"/><child link="l4"/><origin xyz="0.05 0.4 0" rpy="-1.5707963 0 0"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j5" type="revolute"><parent link="l4"/><child link="l5"/><origin xyz="0 0 0" rpy="1.5707963 0 0"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="j6" type="revolute"><parent link="l5"/><child link="l6"/><origin xyz="0 0 0" rpy="-1.5707963 0 0"/>
-    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-  <joint name="flange" type="fixed"><parent link="l6"/><child link="tool"/><origin xyz="0.02 0 0.12"/></joint>
-</robot>
-"""
+from r6_robot import WRIST_URDF as URDF  # noqa: E402 — the spherical-wrist 6R arm shared with the camera planning tests
 
 
 def test_a_urdf_robot_plugs_into_compensation_through_its_chain():

@@ -123,10 +123,7 @@ def test_rerun_viewer_shows_the_robot(tiago_run, tmp_path):
 
     img = viewer_screenshot(tiago_run / "run.rrd", tmp_path / "viewer.png")
     h, w = img.shape[:2]
-    R, G, B = img[..., 0], img[..., 1], img[..., 2]
-    scene = (slice(int(0.05 * h), int(0.75 * h)), slice(int(0.13 * w), int(0.53 * w)))
-    blue = (B > 0.45) & (B > R + 0.2) & (B > G + 0.1)
-    red = (R > 0.5) & (R > G + 0.25) & (R > B + 0.25)
+    blue, red, scene = _robot_colours(img)
     assert blue[scene].mean() > 5e-3, "no calibrated robot in the 3-D view"
     assert red[scene].mean() > 1e-3, "no nominal robot in the 3-D view"
     plots = (slice(int(0.05 * h), int(0.27 * h)), slice(int(0.55 * w), int(0.81 * w)))
@@ -159,9 +156,14 @@ def test_rerun_viewer_shows_the_arc_welder(report_run, tmp_path):  # noqa: F811
 
     img = viewer_screenshot(report_run / "run.rrd", tmp_path / "viewer.png")
     h, w = img.shape[:2]
-    R, G, B = img[..., 0], img[..., 1], img[..., 2]
-    scene = (slice(int(0.05 * h), int(0.75 * h)), slice(int(0.13 * w), int(0.53 * w)))
-    blue = (B > 0.45) & (B > R + 0.2) & (B > G + 0.1)
-    red = (R > 0.5) & (R > G + 0.25) & (R > B + 0.25)
+    blue, red, scene = _robot_colours(img)
     assert blue[scene].mean() > 5e-3, "no calibrated arm in the 3-D view"
     assert red[scene].mean() > 1e-3, "no nominal arm in the 3-D view"
+
+
+def _robot_colours(img):
+    """(blue mask: the calibrated robot's capsules, red mask: the nominal robot's, the 3-D view's region)."""
+    h, w = img.shape[:2]
+    R, G, B = img[..., 0], img[..., 1], img[..., 2]
+    scene = (slice(int(0.05 * h), int(0.75 * h)), slice(int(0.13 * w), int(0.53 * w)))
+    return (B > 0.45) & (B > R + 0.2) & (B > G + 0.1), (R > 0.5) & (R > G + 0.25) & (R > B + 0.25), scene

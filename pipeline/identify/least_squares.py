@@ -8,7 +8,7 @@ start (not one linearised step), with dependent parameters eliminated by the ran
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -72,7 +72,63 @@ def _flat_jac(model: MeasurementModel, x: np.ndarray, data: Table) -> np.ndarray
 
 @single_threaded
 def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()) -> Fit:
-    """Identify the model's parameters from `data` (see module docstring)."""
+    """Identify the model's parameters from `data` (see module docstring).
+
+    A model may offer ``without(names)``: the same model lacking those of `names` it can drop — terms
+    held at 0 that are then no-ops (a `TreePointModel`'s physics terms: rigid), so every residual and
+    every other parameter's Jacobian column is unchanged.  Parameters held fixed at 0 are then fitted
+    on the smaller model (its chains shorter, its Jacobian narrower) and the result widened back."""
+    small = _without_fixed(model, options)
+    if small is not None:
+        return _widened(model, data, options, small)
+    return _fit(model, data, options)[0]
+
+
+def _without_fixed(model: MeasurementModel, options: FitOptions):
+    """The model without the parameters `options` holds fixed at 0 that it can drop, or None."""
+    hook = getattr(model, "without", None)
+    if hook is None or not options.fixed:
+        return None
+    names = model.parameter_names()
+    fixed = set(options.fixed)
+    if options.x0 is not None:
+        x0 = np.asarray(options.x0, float)
+        drop = tuple(n for n, v in zip(names, x0) if n in fixed and v == 0.0)
+    else:  # the start is the model's nominal or its data-dependent guess: a droppable term starts at 0 there
+        drop = tuple(n for n in names if n in fixed)
+    small = hook(drop) if drop else model
+    return None if small is model or len(small.parameter_names()) == len(names) else small
+
+
+def _widened(model: MeasurementModel, data: Table, options: FitOptions, small) -> Fit:
+    """`fit` of `model` through `small` (`model` without terms held fixed at 0), widened back to
+    `model`'s parameters: the dropped ones held at 0, fixed by the user.  The rank tests run on
+    `model`'s Jacobian (its fixed columns shape the pivoted QR's rounding), so the outcome is the
+    one `fit` on `model` itself reaches, to the last bit."""
+    t0 = time.perf_counter()
+    names = model.parameter_names()
+    index = {n: i for i, n in enumerate(names)}
+    sub = small.parameter_names()
+    keep = np.array([index[n] for n in sub], int)
+    kept = set(sub)
+    cut = lambda a: None if a is None else np.asarray(a, float)[keep]  # noqa: E731
+    opts = replace(options, fixed=tuple(n for n in options.fixed if n in kept), x0=cut(options.x0),
+                   prior_sigma=cut(options.prior_sigma), before=False)
+    f, ident = _fit(small, data, opts, (model, keep, np.array([n in set(options.fixed) for n in names])))
+    # "before": as `_fit` computes it on the whole model (its registration-only fit is itself reduced)
+    r0 = model.residuals(uncalibrated(model, data), data) if options.before else f.residuals_before
+    P = len(names)
+    x, nominal, std = np.zeros(P), np.zeros(P), np.zeros(P)
+    x[keep], nominal[keep], std[keep] = f.x, f.nominal, f.std
+    return Fit(names=names, units=model.parameter_units(), nominal=nominal, x=x, identifiability=ident, std=std,
+               cov=f.cov, residuals_before=r0, residuals_after=f.residuals_after, sigma=f.sigma, nfev=f.nfev,
+               elapsed_s=time.perf_counter() - t0, history=f.history, converged=f.converged)
+
+
+def _fit(model: MeasurementModel, data: Table, options: FitOptions, whole=None):
+    """`fit` on the model as it is: (Fit, its rank test).  `whole`: (the model `model` was cut from, the
+    index of each of `model`'s parameters in it, its fixed mask) — the rank tests then run on the
+    whole model's Jacobian at the widened x and the rank test returned is the whole model's."""
     t0 = time.perf_counter()
     names = model.parameter_names()
     if options.x0 is not None:
@@ -90,7 +146,26 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
     r0 = model.residuals(uncalibrated(model, data) if options.before else x0, data)
     history: list[float] = []
     x = x0.copy()
-    ident = analyse(_flat_jac(model, x0, data), names, fixed, priority, options.rank_tol)
+
+    def rank(J: np.ndarray | None, x: np.ndarray, fx: np.ndarray):
+        """(rank test over `model`'s parameters, the same over the whole model's) at x, `fx` held fixed."""
+        if whole is None:
+            a = analyse(_flat_jac(model, x, data) if J is None else J, names, fx, priority, options.rank_tol)
+            return a, a
+        big, keep, bfixed = whole
+        xw = np.zeros(bfixed.size)
+        xw[keep] = x
+        fw = bfixed.copy()
+        fw[keep] |= fx
+        key = xw.tobytes()
+        if key not in jw:
+            jw.clear()
+            jw[key] = _flat_jac(big, xw, data)
+        a = analyse(jw[key], big.parameter_names(), fw, getattr(big, "priority", lambda: None)(), options.rank_tol)
+        return Identifiability(free=a.free[keep], reasons={}, pivots=a.pivots, order=a.order), a
+
+    jw: dict = {}
+    ident, ident_w = rank(None, x0, fixed)
     nfev = 0
     # Seed 000 re-eliminates dependent parameters at every iteration (eq. 57): a dependency
     # that holds only at the nominal geometry (e.g. a tool tip exactly on the last joint
@@ -108,18 +183,20 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
         x = x.copy()
         x[ident.free] = sol.x
         J = _flat_jac(model, x, data)
-        again, weak = analyse(J, names, fixed, priority, options.rank_tol), np.zeros(x.size, bool)
+        (again, again_w), weak = rank(J, x, fixed), np.zeros(x.size, bool)
         for _ in range(x.size):  # fixing a weak one may free its dependent partner: test that too
             more = weakly_freed(model, data, x, ident.free, again.free, J, options.prior_sigma) & ~weak
             if not more.any():
                 break
             weak |= more
-            again = analyse(J, names, fixed | weak, priority, options.rank_tol)
+            again, again_w = rank(J, x, fixed | weak)
         for i in np.flatnonzero(weak):
             again.reasons[int(i)] = "determined no better than its prior (freed only off the nominal geometry)"
+            if whole is not None:
+                again_w.reasons[int(whole[1][i])] = again.reasons[int(i)]
         if np.array_equal(again.free, ident.free) or round_ == 3:
             break
-        ident = again
+        ident, ident_w = again, again_w
         x[~ident.free] = x0[~ident.free]
     free = ident.free
     r1 = model.residuals(x, data)
@@ -131,7 +208,7 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
     std[free] = np.sqrt(np.clip(np.diag(cov), 0, None))
     return Fit(names=names, units=model.parameter_units(), nominal=x0, x=x, identifiability=ident,
                std=std, cov=cov, residuals_before=r0, residuals_after=r1, sigma=sigma, nfev=nfev,
-               elapsed_s=time.perf_counter() - t0, history=history, converged=bool(sol.status != 0))
+               elapsed_s=time.perf_counter() - t0, history=history, converged=bool(sol.status != 0)), ident_w
 
 
 def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np.ndarray,
@@ -219,6 +296,6 @@ def cross_validate(model: MeasurementModel, data: Table, k: int = 5, seed: int =
     out = np.full((n, model.residual_dim), np.nan)
     for test in design_folds(n, k, seed, groups, data):
         train = np.setdiff1d(np.arange(n), test)
-        f = fit(model, take(data, train), options)
+        f = fit(model, take(data, train), replace(options, before=False))  # only its parameters are used
         out[test] = model.residuals(f.x, take(data, test))
     return out

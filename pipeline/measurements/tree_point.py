@@ -35,6 +35,7 @@ from pipeline.measurements.point import with_registration
 from pipeline.models import chain as ch
 
 COMPLIANCE_UNIT = "rad/(N·m)"
+_SMALL: dict = {}  # (id of a model, its kept terms) → (that model, `TreePointModel.without`)
 
 
 @dataclass(frozen=True)
@@ -94,6 +95,30 @@ class TreePointModel(Composed):
         from pipeline.physics.encoder import GROUPS
 
         return () if self.forced else tuple(g for g in GROUPS.values() if g != "backlash")
+
+    def without(self, names) -> "TreePointModel":
+        """This model without the physics terms among `names` (a lateral joint's virtual joints only when both
+        its terms go): at 0 they are no-ops, so the smaller model has the same residuals and the same
+        Jacobian columns for every other parameter, with shorter chains and a narrower Jacobian
+        (`pipeline.identify.least_squares.fit` fits terms held at 0 on it).  Self when none can go."""
+        drop = set(names)
+        compliant = tuple(j for j in self.compliant if f"{j}.compliance" not in drop)
+        lateral = tuple(j for j in self.kin.lateral if not {f"{j}.lateral1", f"{j}.lateral2"} <= drop)
+        encoder = tuple(n for n in self.encoder if n not in drop)
+        if (compliant, lateral, encoder) == (self.compliant, self.kin.lateral, self.encoder):
+            return self
+        key = (id(self), compliant, lateral, encoder)
+        hit = _SMALL.get(key)
+        if hit is not None and hit[0] is self:
+            return hit[1]
+        from dataclasses import replace
+
+        kin = self.kin if lateral == self.kin.lateral else replace(self.kin, lateral=lateral)
+        small = replace(self, kin=kin, compliant=compliant, encoder=encoder)
+        if len(_SMALL) > 64:
+            _SMALL.clear()
+        _SMALL[key] = (self, small)
+        return small
 
     # ----- evaluation ------------------------------------------------------------------------
     def deflected(self, x: np.ndarray, data: Table) -> np.ndarray:

@@ -97,7 +97,9 @@ def _without_fixed(model: MeasurementModel, options: FitOptions):
     else:  # the start is the model's nominal or its data-dependent guess: a droppable term starts at 0 there
         drop = tuple(n for n in names if n in fixed)
     small = hook(drop) if drop else model
-    return None if small is model or len(small.parameter_names()) == len(names) else small
+    if small is model or type(small) is not type(model):  # a wrapper that passes attributes on: not its hook
+        return None
+    return small if len(small.parameter_names()) < len(names) else None
 
 
 def _widened(model: MeasurementModel, data: Table, options: FitOptions, small) -> Fit:
@@ -251,7 +253,12 @@ def _solve(model: MeasurementModel, data: Table, x_start: np.ndarray, free: np.n
         history.append(float(np.sqrt(np.mean(r**2))))
         return r
 
+    columns = getattr(type(model), "jacobian_columns", None)  # the model's own (not a wrapper's passed on)
+
     def jac(z: np.ndarray) -> np.ndarray:
+        if columns is not None:  # only the free columns: the same numbers, the fixed ones not computed
+            J = columns(model, expand(z), data, free)
+            return J.reshape(-1, J.shape[-1])
         return _flat_jac(model, expand(z), data)[:, free]
 
     m = n_rows(data) * model.residual_dim

@@ -37,6 +37,13 @@ class SessionFrames:
     def _p(self) -> int:
         return len(self.inner.parameter_names())
 
+    def without(self, names) -> SessionFrames:
+        """The same sessions around the inner model without the terms of `names` it can drop (its
+        ``without``; held at 0 they are no-ops: `pipeline.identify.least_squares.fit`)."""
+        hook = getattr(self.inner, "without", None)
+        small = hook(names) if hook is not None else self.inner
+        return self if small is self.inner else SessionFrames(small, self.n_sessions)
+
     def session_names(self) -> list[str]:
         return [f"base.{k}@{s}" for s in range(1, self.n_sessions) for k in FRAME]
 

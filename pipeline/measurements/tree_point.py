@@ -151,16 +151,23 @@ class TreePointModel(Composed):
 
         return loads(self.kin, data["joint_positions"], self.payload)
 
-    def _predict(self, x: np.ndarray, data: Table, jac: bool):
+    def _predict(self, x: np.ndarray, data: Table, jac: bool, free: np.ndarray | None = None):
+        """Points (n, 3) and, with `jac`, d point / d x (n, 3, P) — or only the columns `free` ((P,) bool) holds,
+        (n, 3, free.sum()): the same numbers, the others not computed."""
         xk, _ = self.split(x)
         qf = self.deflected(x, data)
         n = len(qf)
         tip = np.asarray(data.get("target", np.zeros(n, int)), int)
         P = len(self.parameter_names())
+        cols = None if free is None else np.where(free, np.cumsum(free) - 1, -1)  # each parameter's column, −1 none
+        W = P if free is None else int(np.sum(free))
         p = np.empty((n, 3))
-        J = np.zeros((n, 3, P)) if jac else None
+        J = np.zeros((n, 3, W)) if jac else None
         col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
-        nj, nc = len(self.kin.all_joints), len(self.compliant)
+        ne = len(self.extra_names())
+        ext = np.arange(ne) if cols is None else np.flatnonzero(cols[self.n_kin:] >= 0)  # extra terms asked for
+        dest = self.n_kin + ext if cols is None else cols[self.n_kin:][ext]
+        kcols = None if cols is None else cols[:self.n_kin]
         if jac and self.encoder:
             from pipeline.physics.encoder import basis
 
@@ -173,23 +180,33 @@ class TreePointModel(Composed):
             if not jac:
                 p[rows] = ch.forward(c, xk, qf[rows])[1]
                 continue
-            if not self.extra_names():
-                p[rows], J[rows] = ch.jacobian(c, xk, qf[rows], width=P)
+            if not ne:
+                p[rows], J[rows] = ch.jacobian(c, xk, qf[rows], width=W, columns=kcols)
                 continue
-            p[rows], J[rows], Jq = ch.jacobians(c, xk, qf[rows], P, self._joint_columns)
-            if self.encoder:  # d p / d reading through the couplings, times each term's basis
-                Jr = Jq[:, :, :nj] @ self.kin.coupling_matrix()
-                J[rows, :, self.n_kin + len(self.gravity_names()):] = Jr[:, :, enc_col] * enc_B[rows, None, :]
-            if self.gravity_names():
-                load = self.load(data)
-                ax = load.axial[rows]
-                ci = np.array([col[j] for j in self.compliant], int)  # every compliance column at once
-                J[rows, :, self.n_kin:self.n_kin + nc] = Jq[:, :, ci] * ax[:, None, ci]
-                li = np.array([col[j] for j in self.kin.lateral], int)
-                nl = 2 * len(li)  # lateral virtual joint 2i + a ↔ parameter 2i + a, load (joint i, normal a)
-                J[rows, :, self.n_kin + nc:self.n_kin + nc + nl] = \
-                    Jq[:, :, nj:nj + nl] * load.lateral[rows][:, li, :].reshape(len(rows), 1, nl)
+            p[rows], Jk, Jq = ch.jacobians(c, xk, qf[rows], W, self._joint_columns, kcols)
+            if ext.size:
+                Jk[:, :, dest] = self._extra_columns(data, rows, Jq, enc_B if self.encoder else None,
+                                                     enc_col if self.encoder else None, col)[:, :, ext]
+            J[rows] = Jk
         return p, J
+
+    def _extra_columns(self, data: Table, rows: np.ndarray, Jq: np.ndarray, enc_B, enc_col, col: dict) -> np.ndarray:
+        """d point / d (physics terms) (len(rows), 3, n_extra) of the rows of one tip: through the joint
+        columns Jq (d point / d full joint matrix) times each term's load or reading basis."""
+        nj, nc = len(self.kin.all_joints), len(self.compliant)
+        E = np.zeros((len(rows), 3, len(self.extra_names())))
+        if self.encoder:  # d p / d reading through the couplings, times each term's basis
+            Jr = Jq[:, :, :nj] @ self.kin.coupling_matrix()
+            E[:, :, len(self.gravity_names()):] = Jr[:, :, enc_col] * enc_B[rows, None, :]
+        if self.gravity_names():
+            load = self.load(data)
+            ax = load.axial[rows]
+            ci = np.array([col[j] for j in self.compliant], int)  # every compliance column at once
+            E[:, :, :nc] = Jq[:, :, ci] * ax[:, None, ci]
+            li = np.array([col[j] for j in self.kin.lateral], int)
+            nl = 2 * len(li)  # lateral virtual joint 2i + a ↔ parameter 2i + a, load (joint i, normal a)
+            E[:, :, nc:nc + nl] = Jq[:, :, nj:nj + nl] * load.lateral[rows][:, li, :].reshape(len(rows), 1, nl)
+        return E
 
     @cached_property
     def _joint_columns(self) -> np.ndarray:
@@ -232,6 +249,11 @@ class TreePointModel(Composed):
 
     def jacobian(self, x: np.ndarray, data: Table) -> np.ndarray:
         return self._predict(x, data, True)[1]
+
+    def jacobian_columns(self, x: np.ndarray, data: Table, free: np.ndarray) -> np.ndarray:
+        """`jacobian`'s columns where `free` ((P,) bool) holds, (n, 3, free.sum()), computing only those
+        (a solver's step moves the free parameters only)."""
+        return self._predict(x, data, True, np.asarray(free, bool))[1]
 
     def points(self, x: np.ndarray, data: Table):
         return self._predict(x, data, True)

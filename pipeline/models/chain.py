@@ -105,14 +105,15 @@ def _value(chain: Chain, x: np.ndarray, s: int) -> float:
     return float(x[chain.param[s]]) if chain.param[s] >= 0 else 0.0
 
 
-_RUNS: dict = {}  # (chain id, x bytes, s, e) -> folded run: planners call `forward` thousands of times per x
+_RUNS: dict = {}  # (chain id, the run's parameter values, s, e) -> folded run: planners call `forward` thousands of times per x
 
 
 def _constant_run(chain: Chain, x: np.ndarray, s: int, e: int):
     """Product P of steps s..e−1 (no joint among them) and each step's axis and origin in the
     run's first frame (memoised per parameter vector, read-only)."""
-    key = (id(chain), x.tobytes(), s, e)
-    hit = _RUNS.get(key)
+    p = chain.param[s:e]
+    key = (id(chain), (np.where(p >= 0, x[p], 0.0) if x.size else np.zeros(p.size)).tobytes(), s, e)  # the run's own values: a fit that holds
+    hit = _RUNS.get(key)  # them fixed (most joints, most rounds of a model selection) folds the run once
     if hit is not None and hit[0] is chain:
         return hit[1]
     P = np.eye(4)
@@ -263,15 +264,27 @@ def _add(J: np.ndarray, idx: np.ndarray, rows: slice, cols: np.ndarray) -> None:
         J[j, rows] += c
 
 
-def jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = False, width: int | None = None):
+def _columns(chain: Chain, columns: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """(which steps, into which column) of the parameter derivatives: each parameter into its own
+    column, or with `columns` ((n_params,) int: each parameter's column, −1 none) only those asked for."""
+    if columns is None:
+        return chain.param >= 0, chain.param
+    c = np.asarray(columns, int)
+    idx = np.where(chain.param >= 0, c[chain.param], -1) if c.size else np.full(chain.n_steps, -1)
+    return idx >= 0, idx
+
+
+def jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = False, width: int | None = None,
+             columns: np.ndarray | None = None):
     """End positions (N,3) and d position / d x (N,3,P); with `angular`, also the end frame's
     rotations (N,3,3) and its angular derivative (N,3,P): the world-frame rotation vector δω
     with δR = [δω]× R.  `width` ≥ P allocates that many columns (a caller's parameters appended
-    after the chain's stay zero) instead of copying into a wider array afterwards."""
+    after the chain's stay zero) instead of copying into a wider array afterwards.  `columns`
+    ((P,) int, −1 none): only the parameters a solver moves, each into its column (the same numbers)."""
     x = np.asarray(x, dtype=float)
     R, p, starts = walk(chain, x, q, True)
     w = chain.n_params if width is None else width
-    Jp, Jw = _derivatives(chain, x, p, starts, chain.param >= 0, chain.param, w, angular)
+    Jp, Jw = _derivatives(chain, x, p, starts, *_columns(chain, columns), w, angular)
     if not angular:
         return p.copy(), Jp
     return p.copy(), Jp, R.copy(), Jw
@@ -288,13 +301,14 @@ def joint_jacobian(chain: Chain, x: np.ndarray, q: np.ndarray, angular: bool = F
     return p.copy(), Jq, Jw
 
 
-def jacobians(chain: Chain, x: np.ndarray, q: np.ndarray, width: int, joints: np.ndarray):
+def jacobians(chain: Chain, x: np.ndarray, q: np.ndarray, width: int, joints: np.ndarray,
+              columns: np.ndarray | None = None):
     """One walk for both: end positions (N,3), d position / d x (N,3,width) and d position / d q
     (N,3,n_joints) of the joint columns in `joints` (the others zero) — for measurement models whose
-    extra parameters act through a few joint values (a tree's physics terms)."""
+    extra parameters act through a few joint values (a tree's physics terms).  `columns` as in `jacobian`."""
     x = np.asarray(x, dtype=float)
     _, p, starts = walk(chain, x, q, True)
-    Jp, _ = _derivatives(chain, x, p, starts, chain.param >= 0, chain.param, width, False)
+    Jp, _ = _derivatives(chain, x, p, starts, *_columns(chain, columns), width, False)
     select = np.isin(chain.joint, np.asarray(joints, int)) & (chain.joint >= 0)
     Jq, _ = _derivatives(chain, x, p, starts, select, chain.joint, chain.n_joints, False)
     return p.copy(), Jp, Jq

@@ -5,7 +5,8 @@ equilibrium) calibrated by the command line, per seed:
 * the recovered joint stiffnesses against the truth (z = (ĉ − c)/σ̂ of the compliance c = 1/k);
 * held-out RMS (per residual component, as robocal reports it): geometry only (physics held at 0, same
   folds), with the physics the model selection kept, `--physics none`, and the noise floor (σ per axis);
-* the time of `robocal calibrate` with `--physics auto` (the default) and `--physics none`;
+* the time of `robocal calibrate` with `--physics auto` (the default) and `--physics none`, wall and CPU
+  (user + system of the child process: the figure a loaded machine disturbs least), and their ratio auto/none;
 * with `--reading eccentricity|scale`, encoder errors in the truth (`READING`): whether the model selection kept
   the family, and each recovered term against the truth (z = (v̂ − v)/σ̂).
 
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -32,12 +34,14 @@ READING = {"eccentricity": {"eccentricity": {"left_j3": (3e-3, -2e-3), "right_j3
            "scale": {"scale": {"left_j4": 4e-3, "right_j2": -3e-3}}, "none": {}}
 
 
-def cli(*args) -> float:
-    t0 = time.perf_counter()
+def cli(*args) -> tuple[float, float]:
+    """(wall s, CPU s: user + system of the robocal process) of one robocal command."""
+    t0, c0 = time.perf_counter(), os.times()
     r = subprocess.run([ROBOCAL, *map(str, args)], capture_output=True, text=True)
     if r.returncode != 0:
         raise SystemExit(f"robocal {' '.join(map(str, args[:2]))} failed:\n{r.stderr[-2000:]}")
-    return time.perf_counter() - t0
+    c1 = os.times()
+    return time.perf_counter() - t0, (c1.children_user - c0.children_user) + (c1.children_system - c0.children_system)
 
 
 def one(seed: int, n: int, noise: float, tmp: Path, reading: str = "none") -> dict:
@@ -46,8 +50,8 @@ def one(seed: int, n: int, noise: float, tmp: Path, reading: str = "none") -> di
     cli("import", "csv", d / "postures.csv", "--urdf", d / "humanoid.urdf", "--root", "base",
         "--tip", "left_hand=lx,ly,lz", "--tip", "right_hand=rx,ry,rz", "--coupled", "torso_j3=-torso_j1-torso_j2",
         "--measure", "point", "--out", rec)
-    t_auto = cli("calibrate", rec, "--out", tmp / f"auto{seed}")
-    t_none = cli("calibrate", rec, "--out", tmp / f"none{seed}", "--physics", "none")
+    t_auto, c_auto = cli("calibrate", rec, "--out", tmp / f"auto{seed}")
+    t_none, c_none = cli("calibrate", rec, "--out", tmp / f"none{seed}", "--physics", "none")
     auto = json.loads((tmp / f"auto{seed}" / "results.json").read_text())
     none = json.loads((tmp / f"none{seed}" / "results.json").read_text())
     truth = json.loads((d / "truth.json").read_text())
@@ -66,7 +70,7 @@ def one(seed: int, n: int, noise: float, tmp: Path, reading: str = "none") -> di
     return {"seed": seed, "z": z, "z_reading": zr, "groups": auto["model_selection"]["kept_groups"],
             "geometry_m": auto["physics"]["holdout_geometry_only_m"],
             "physics_m": auto["physics"]["holdout_with_physics_m"], "none_m": none["holdout_rms_m"],
-            "floor_m": noise, "t_auto": t_auto, "t_none": t_none,
+            "floor_m": noise, "t_auto": t_auto, "t_none": t_none, "c_auto": c_auto, "c_none": c_none,
             "kept": [t["parameter"] for t in auto["physics"]["terms"]]}
 
 
@@ -78,16 +82,20 @@ def main() -> None:
     ap.add_argument("--reading", choices=sorted(READING), default="none", help="encoder errors in the truth")
     a = ap.parse_args()
     print(f"humanoid, {a.n} postures × 2 hands, noise {a.noise_m * 1e3:.2f} mm per axis")
-    print("seed | held-out mm: geometry only | with physics | --physics none | floor | calibrate s: auto | none",
-          flush=True)
+    print("seed | held-out mm: geometry only | with physics | --physics none | floor | calibrate s: auto | none "
+          "| CPU s: auto | none | auto/none: wall | CPU", flush=True)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for s in a.seeds:  # one line per seed as it finishes
             r = one(s, a.n, a.noise_m, Path(tmp), a.reading)
             rows.append(r)
             print(f"{r['seed']:4d} | {r['geometry_m'] * 1e3:26.3f} | {r['physics_m'] * 1e3:12.3f} | "
-                  f"{r['none_m'] * 1e3:14.3f} | {r['floor_m'] * 1e3:5.3f} | {r['t_auto']:17.1f} | {r['t_none']:4.1f}",
-                  flush=True)
+                  f"{r['none_m'] * 1e3:14.3f} | {r['floor_m'] * 1e3:5.3f} | {r['t_auto']:17.1f} | {r['t_none']:4.1f} "
+                  f"| {r['c_auto']:10.1f} | {r['c_none']:4.1f} | {r['t_auto'] / r['t_none']:15.2f} | "
+                  f"{r['c_auto'] / r['c_none']:3.2f}", flush=True)
+    tw = [sum(r[k] for r in rows) for k in ("t_auto", "t_none", "c_auto", "c_none")]
+    print(f"\n--physics auto / --physics none, all seeds: wall {tw[0] / tw[1]:.2f}× ({tw[0]:.1f} s / {tw[1]:.1f} s), "
+          f"CPU {tw[2] / tw[3]:.2f}× ({tw[2]:.1f} s / {tw[3]:.1f} s)")
     print("\nrecovered stiffness (N·m/rad) vs truth, z = (ĉ − c)/σ̂ of the compliance")
     for r in rows:
         cells = [f"{j} {k_hat:.3g}/{k:.3g} z={zz:+.1f}" for j, (zz, k_hat, k) in r["z"].items()]

@@ -5,7 +5,7 @@ physics family offered.
 * `TreePointModel.jacobian_columns` (only the free columns) against finite differences of the
   residuals, and bit for bit against the full Jacobian's columns;
 * `TreePointModel.without` (terms held at 0 dropped: shorter chains) has the same residuals and the
-  same Jacobian columns, bit for bit;
+  same Jacobian columns, bit for bit, and `held_columns` gives the dropped terms' columns bit for bit;
 * `fit` with terms held at 0 (fitted through `without`) against the fit on the whole model, bit for
   bit (both under one BLAS thread, as `fit` runs): parameters, free set, every reason, σ — for the rigid round of a model choice and for one
   that keeps the joint compliance and drops the rest; the same through `SessionFrames`.
@@ -83,6 +83,14 @@ def test_without_the_terms_held_at_zero_nothing_else_changes(auto):
     x[keep] += rng.normal(0, 1e-4, len(keep))  # kept terms away from 0, the dropped ones at 0
     assert np.array_equal(model.residuals(x, table), small.residuals(x[keep], table))
     assert np.array_equal(model.jacobian(x, table)[:, :, keep], small.jacobian(x[keep], table))
+    from pipeline.identify.least_squares import _flat_jac, _whole_jacobian
+
+    x[[i for i in range(len(names)) if i not in keep]] = 0.0
+    gone = np.setdiff1d(np.arange(len(names)), keep)  # the dropped terms' columns from the smaller chains
+    assert np.array_equal(small.held_columns(x[keep], table, [names[i] for i in gone]),
+                          model.jacobian(x, table)[:, :, gone])
+    assert np.array_equal(_whole_jacobian(small, model, np.array(keep), x[keep], x, table, None),
+                          _flat_jac(model, x, table))
     assert model.without(["base.x", "torso_j1.offset"]) is model  # geometry is never dropped
     one = model.without([lateral[0]])  # half a lateral pair: its virtual joints stay
     assert one.kin.lateral == model.kin.lateral

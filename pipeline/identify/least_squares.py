@@ -162,7 +162,7 @@ def _fit(model: MeasurementModel, data: Table, options: FitOptions, whole=None):
         key = xw.tobytes()
         if key not in jw:
             jw.clear()
-            jw[key] = _flat_jac(big, xw, data)
+            jw[key] = _whole_jacobian(model, big, keep, x, xw, data, J)
         a = analyse(jw[key], big.parameter_names(), fw, getattr(big, "priority", lambda: None)(), options.rank_tol)
         return Identifiability(free=a.free[keep], reasons={}, pivots=a.pivots, order=a.order), a
 
@@ -211,6 +211,24 @@ def _fit(model: MeasurementModel, data: Table, options: FitOptions, whole=None):
     return Fit(names=names, units=model.parameter_units(), nominal=x0, x=x, identifiability=ident,
                std=std, cov=cov, residuals_before=r0, residuals_after=r1, sigma=sigma, nfev=nfev,
                elapsed_s=time.perf_counter() - t0, history=history, converged=bool(sol.status != 0)), ident_w
+
+
+def _whole_jacobian(small, whole, keep: np.ndarray, x: np.ndarray, xw: np.ndarray, data: Table,
+                    J: np.ndarray | None) -> np.ndarray:
+    """The flat Jacobian of `whole` at xw (x widened): `small`'s columns (J, its flat Jacobian at x, if the
+    caller has it) and, where `small` offers ``held_columns``, the dropped terms' from it — the same numbers
+    as `whole`'s own Jacobian, without walking `whole`'s longer chains."""
+    held = getattr(type(small), "held_columns", None)
+    if held is None:
+        return _flat_jac(whole, xw, data)
+    Js = _flat_jac(small, x, data) if J is None else J
+    out = np.zeros((Js.shape[0], xw.size))
+    out[:, keep] = Js
+    gone = np.setdiff1d(np.arange(xw.size), keep)
+    names = whole.parameter_names()
+    H = held(small, x, data, [names[i] for i in gone])
+    out[:, gone] = H.reshape(Js.shape[0], -1)
+    return out
 
 
 def weakly_freed(model: MeasurementModel, data: Table, x: np.ndarray, before: np.ndarray,

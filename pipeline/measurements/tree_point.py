@@ -208,6 +208,51 @@ class TreePointModel(Composed):
             E[:, :, nc:nc + nl] = Jq[:, :, nj:nj + nl] * load.lateral[rows][:, li, :].reshape(len(rows), 1, nl)
         return E
 
+    def held_columns(self, x: np.ndarray, data: Table, names) -> np.ndarray:
+        """d point / d term (n, 3, len(names)) of physics terms this model does not carry (`without` dropped
+        them), held at 0: the columns the model with them has at x, the same numbers — a compliance,
+        d point / d q_J times J's axial load; a lateral term, the turn about e1 or e2 after J's own (`ch.turns_after`)
+        times its lateral load; a reading term, d point / d reading times its basis."""
+        from pipeline.physics.encoder import basis
+        from pipeline.physics.gravity import normals
+
+        names = list(names)
+        qf = self.deflected(x, data)
+        xk = self.split(x)[0]
+        n, nj = len(qf), len(self.kin.all_joints)
+        tip = np.asarray(data.get("target", np.zeros(n, int)), int)
+        col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
+        by = {j.name: j for j in self.kin.all_joints}
+        split = [n.rsplit(".", 1) for n in names]
+        enc = [i for i, (_, kind) in enumerate(split) if kind not in ("compliance", "lateral1", "lateral2")]
+        lat = [i for i, (_, kind) in enumerate(split) if kind in ("lateral1", "lateral2")]
+        load = self.load(data) if len(enc) < len(names) else None
+        if enc:
+            B, bcol = basis(self.kin, tuple(names[i] for i in enc), data["joint_positions"], data.get("approach"))
+        out = np.zeros((n, 3, len(names)))
+        for k in range(len(self.kin.descs)):
+            rows = np.flatnonzero(tip == k)
+            if rows.size == 0:
+                continue
+            c = self.kin.chain(k)
+            _, Jq = ch.joint_jacobian(c, xk, qf[rows])
+            for i, (joint, kind) in enumerate(split):
+                if kind == "compliance":
+                    out[rows, :, i] = Jq[:, :, col[joint]] * load.axial[rows][:, None, col[joint]]
+            if lat:
+                steps = {int(c.joint[s]): s for s in np.flatnonzero(c.joint >= 0)}
+                here = [i for i in lat if col[split[i][0]] in steps]
+                if here:
+                    axes = [normals(by[split[i][0]].axis)[int(split[i][1][-1]) - 1] for i in here]
+                    T = ch.turns_after(c, xk, qf[rows], np.array([steps[col[split[i][0]]] for i in here]), axes)
+                    for m, i in enumerate(here):
+                        a = int(split[i][1][-1]) - 1
+                        out[rows, :, i] = T[:, :, m] * load.lateral[rows][:, col[split[i][0]], a][:, None]
+            if enc:
+                Jr = Jq[:, :, :nj] @ self.kin.coupling_matrix()
+                out[np.ix_(rows, [0, 1, 2], enc)] = Jr[:, :, bcol] * B[rows, None, :]
+        return out
+
     @cached_property
     def _joint_columns(self) -> np.ndarray:
         """The full joint matrix's columns the physics terms act through (their d p / d q is needed)."""

@@ -239,16 +239,37 @@ def _derivatives(chain: Chain, x: np.ndarray, p: np.ndarray, starts: list, selec
     for lo in range(0, n, CHUNK):  # row blocks: every temporary stays in cache, cost linear in N
         sl = slice(lo, min(lo + CHUNK, n))
         for A, O, rot, idx, Rs, ps in runs:
-            d = ps[None, sl, :] - O[:, None, :]  # (k,n,3); ps: the end point in the run's start frame
-            a = A[:, None, :]
-            cr = np.stack([a[..., 1] * d[..., 2] - a[..., 2] * d[..., 1],
-                           a[..., 2] * d[..., 0] - a[..., 0] * d[..., 2],
-                           a[..., 0] * d[..., 1] - a[..., 1] * d[..., 0]], axis=-1)
-            local = np.where(rot[:, None, None], cr, a)
-            _add(Jp, idx, sl, _rotate(Rs[sl], local))  # (k,n,3) in the chain's frame
+            _add(Jp, idx, sl, _run_columns(A, O, rot, Rs[sl], ps[sl]))  # (k,n,3) in the chain's frame
             if angular and rot.any():
                 _add(Jw, idx, sl, _rotate(Rs[sl], np.where(rot[:, None], A, 0.0)[:, None, :]))
     return Jp.transpose(1, 2, 0), (Jw.transpose(1, 2, 0) if angular else None)
+
+
+def _run_columns(A: np.ndarray, O: np.ndarray, rot: np.ndarray, Rs: np.ndarray, ps: np.ndarray) -> np.ndarray:
+    """(k,n,3) d end point / d value of k steps of one run (axes A, origins O (k,3) in the run's start
+    frame, `rot` rotation or translation), the run's start frame Rs (n,3,3), the end point in it ps (n,3)."""
+    d = ps[None, :, :] - O[:, None, :]  # (k,n,3)
+    a = A[:, None, :]
+    cr = np.stack([a[..., 1] * d[..., 2] - a[..., 2] * d[..., 1],
+                   a[..., 2] * d[..., 0] - a[..., 0] * d[..., 2],
+                   a[..., 0] * d[..., 1] - a[..., 1] * d[..., 0]], axis=-1)
+    return _rotate(Rs, np.where(rot[:, None, None], cr, a))
+
+
+def turns_after(chain: Chain, x: np.ndarray, q: np.ndarray, after: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """d end position / d angle (N,3,K) of K rotations at angle 0 about `axes` (K,3), each given in the frame
+    after step `after[k]` (a joint step: a run of its own): the column a chain with that rotation inserted
+    there as a joint (a virtual joint held at 0, e.g. a tree's lateral compliance) has — the same numbers,
+    since a turn by 0 leaves every frame as it is."""
+    x = np.asarray(x, dtype=float)
+    _, p, starts = walk(chain, x, q, True)
+    at = {s: (Rs, ps) for s, _e, Rs, _t, ps in starts}
+    out = np.zeros((len(after), p.shape[0], 3))
+    for k, (s, a) in enumerate(zip(after, axes)):
+        Rs, ps = at[int(s) + 1]
+        A = (np.asarray(a, float) / np.linalg.norm(a))[None, :]
+        out[k] += _run_columns(A, np.zeros((1, 3)), np.array([True]), Rs, ps)[0]
+    return out.transpose(1, 2, 0)
 
 
 def _rotate(Rs: np.ndarray, v: np.ndarray) -> np.ndarray:

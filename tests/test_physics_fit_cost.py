@@ -134,3 +134,11 @@ def _same(a, b) -> None:
                                                                                      b.residuals_after)
     assert np.array_equal(a.identifiability.order, b.identifiability.order)
     assert a.sigma == b.sigma and a.nfev == b.nfev
+
+
+def test_an_unknown_fixed_name_is_still_refused(auto):
+    from pipeline.identify.least_squares import FitOptions, fit
+
+    model, table = auto
+    with pytest.raises(ValueError, match="cannot fix unknown parameters: \\['nope.x'\\]"):
+        fit(model, table, FitOptions(fixed=(*_physics(model), "nope.x")))

@@ -91,6 +91,8 @@ def _without_fixed(model: MeasurementModel, options: FitOptions):
         return None
     names = model.parameter_names()
     fixed = set(options.fixed)
+    if fixed - set(names):  # `_fit` says which are unknown
+        return None
     if options.x0 is not None:
         x0 = np.asarray(options.x0, float)
         drop = tuple(n for n, v in zip(names, x0) if n in fixed and v == 0.0)

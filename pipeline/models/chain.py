@@ -236,19 +236,26 @@ def _derivatives(chain: Chain, x: np.ndarray, p: np.ndarray, starts: list, selec
         if k.size:
             ax, org = _local(chain, x, s, e)
             runs.append((ax[k], org[k], chain.kind[s + k] == ROT, index[s + k], Rs, ps))
+    if not runs:
+        return Jp.transpose(1, 2, 0), (Jw.transpose(1, 2, 0) if angular else None)
+    # every run's steps at once, each with its run's start frame: the same numbers in one pass
+    A, O, rot, idx = (np.concatenate([r[i] for r in runs]) for i in range(4))
+    which = np.concatenate([np.full(len(r[0]), i) for i, r in enumerate(runs)])
+    Rs_all, ps_all = np.stack([r[4] for r in runs]), np.stack([r[5] for r in runs])
     for lo in range(0, n, CHUNK):  # row blocks: every temporary stays in cache, cost linear in N
         sl = slice(lo, min(lo + CHUNK, n))
-        for A, O, rot, idx, Rs, ps in runs:
-            _add(Jp, idx, sl, _run_columns(A, O, rot, Rs[sl], ps[sl]))  # (k,n,3) in the chain's frame
-            if angular and rot.any():
-                _add(Jw, idx, sl, _rotate(Rs[sl], np.where(rot[:, None], A, 0.0)[:, None, :]))
+        R = Rs_all[:, sl][which]  # (K,n,3,3): each step's run start frame
+        _add(Jp, idx, sl, _run_columns(A, O, rot, R, ps_all[:, sl][which]))  # (K,n,3) in the chain's frame
+        if angular and rot.any():
+            _add(Jw, idx[rot], sl, _rotate(R[rot], A[rot][:, None, :]))
     return Jp.transpose(1, 2, 0), (Jw.transpose(1, 2, 0) if angular else None)
 
 
 def _run_columns(A: np.ndarray, O: np.ndarray, rot: np.ndarray, Rs: np.ndarray, ps: np.ndarray) -> np.ndarray:
-    """(k,n,3) d end point / d value of k steps of one run (axes A, origins O (k,3) in the run's start
-    frame, `rot` rotation or translation), the run's start frame Rs (n,3,3), the end point in it ps (n,3)."""
-    d = ps[None, :, :] - O[:, None, :]  # (k,n,3)
+    """(k,n,3) d end point / d value of k steps (axes A, origins O (k,3) in their run's start frame, `rot`
+    rotation or translation), the run's start frame Rs (n,3,3) and the end point in it ps (n,3) — or each
+    step's own, (k,n,3,3) and (k,n,3)."""
+    d = (ps[None, :, :] if ps.ndim == 2 else ps) - O[:, None, :]  # (k,n,3)
     a = A[:, None, :]
     cr = np.stack([a[..., 1] * d[..., 2] - a[..., 2] * d[..., 1],
                    a[..., 2] * d[..., 0] - a[..., 0] * d[..., 2],
@@ -273,9 +280,10 @@ def turns_after(chain: Chain, x: np.ndarray, q: np.ndarray, after: np.ndarray, a
 
 
 def _rotate(Rs: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rs[n] @ v[k, n] for Rs (N,3,3) and v (k,N,3) or (k,1,3): three streaming multiply-adds
+    """Rs[n] @ v[k, n] for Rs (N,3,3) or (k,N,3,3) and v (k,N,3) or (k,1,3): three streaming multiply-adds
     (a batched 3×3 product per row is several times slower at this shape)."""
-    return Rs[None, :, :, 0] * v[..., 0:1] + Rs[None, :, :, 1] * v[..., 1:2] + Rs[None, :, :, 2] * v[..., 2:3]
+    R = Rs[None] if Rs.ndim == 3 else Rs
+    return R[..., 0] * v[..., 0:1] + R[..., 1] * v[..., 1:2] + R[..., 2] * v[..., 2:3]
 
 
 def _add(J: np.ndarray, idx: np.ndarray, rows: slice, cols: np.ndarray) -> None:

@@ -211,6 +211,26 @@ def _approach(rec, topic, msgs, nj: int) -> np.ndarray:
     return out
 
 
+def approach_from_stream(rec, t_ns: np.ndarray, joints: list[str]) -> np.ndarray | None:
+    """(n, n_joints) int8 direction of approach of each joint at the measurement times `t_ns` (ns) from
+    the recording's encoder stream (`/robot/joint_state`): the sign of the joint's last motion before
+    the measurement (`pipeline.ingest.context.last_motion_sign`; 0 where it did not move within the
+    look-back or is not in the stream).  None without a stream, or where no joint moved before any
+    measurement (the recording then carries no direction)."""
+    from pipeline.ingest.context import last_motion_sign
+    from pipeline.ingest.streams import JOINT_STATE, joint_stream
+
+    if not rec.messages.raw.get(JOINT_STATE) or not len(t_ns):
+        return None
+    s = joint_stream(rec)
+    cols = [s.names.index(j) if j in s.names else -1 for j in joints]
+    if len(s) < 2 or all(c < 0 for c in cols):
+        return None
+    sign = last_motion_sign(s.t_ns, s.q[:, [max(c, 0) for c in cols]], np.asarray(t_ns, np.int64))
+    d = np.where(np.array(cols) >= 0, sign, 0).astype(np.int8)
+    return d if d.any() else None
+
+
 def load(rec, physics: str | None = None, payload: tuple = ()):
     """Measurement model and measurement table of a URDF recording.  `physics` and `payload`: the
     gravity terms offered to identification (`physics_model`; point measurements); None keeps the
@@ -235,8 +255,10 @@ def load(rec, physics: str | None = None, payload: tuple = ()):
         table["position"] = _column(rec, topic, msgs, "position", (3,))
     if measure == "point":
         table["target"] = np.array([int(m.get("target", 0)) for m in msgs], np.int64)
-        if any("approach" in m for m in msgs):
+        if any("approach" in m for m in msgs):  # explicit directions win over the stream's
             table["approach"] = _approach(rec, topic, msgs, arm.n_joints)
+        elif (derived := approach_from_stream(rec, table["timestamp_ns"], arm.joint_names)) is not None:
+            table["approach"] = derived
         table["label"] = np.array([f"target {t}" for t in table["target"]], object)
     if measure == "pose":
         quat = _column(rec, topic, msgs, "orientation", (4,))

@@ -242,6 +242,9 @@ def run_cmd(
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
     if physics is not None or payload:  # the model's gravity terms (default auto), chosen at ingest for every stage
+        from pipeline.systems.urdf_robot import check_physics_input
+
+        check_physics_input(recording, physics, payload)  # one line before any stage, not a failed run
         params.setdefault("ingest", {}).update({"physics": physics, "payload": list(payload or [])})
     try:
         outs = run_pipeline(recording, out, params, force=force, log=_log,

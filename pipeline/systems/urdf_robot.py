@@ -248,14 +248,17 @@ def approach_from_stream(rec, t_ns: np.ndarray, joints: list[str]) -> np.ndarray
     """(n, n_joints) int8 direction of approach of each joint at the measurement times `t_ns` (ns) from
     the recording's encoder stream (`/robot/joint_state`): the sign of the joint's last motion before
     the measurement (`pipeline.ingest.context.last_motion_sign`; 0 where it did not move within the
-    look-back or is not in the stream).  None without a stream, or where no joint moved before any
-    measurement (the recording then carries no direction)."""
+    look-back or is not in the stream).  None without a readable stream, or where no joint moved before
+    any measurement (the recording then carries no direction)."""
     from pipeline.ingest.context import last_motion_sign
     from pipeline.ingest.streams import JOINT_STATE, joint_stream
 
     if not rec.messages.raw.get(JOINT_STATE) or not len(t_ns):
         return None
-    s = joint_stream(rec)
+    try:
+        s = joint_stream(rec)
+    except RobocalError:  # a damaged stream is validate's finding; the measurements stand without directions
+        return None
     cols = [s.names.index(j) if j in s.names else -1 for j in joints]
     if len(s) < 2 or all(c < 0 for c in cols):
         return None

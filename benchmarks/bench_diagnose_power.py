@@ -116,9 +116,30 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
     return out
 
 
-def world(m: int = 120):
+def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0) -> it.Targets:
+    """robocal's own campaign (`robocal plan arc-welder --select SELECT`), written to a plan file and read back
+    by the generator as plain JSON (`independent_touch.from_campaign`): its first m contacts whose search
+    touches on the true arm (`independent_touch.touching`), in the plan's order."""
+    import tempfile
+
+    from pipeline.plan.arc_welder import touch_campaign
+    from pipeline.plan.campaign import write_document
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "campaign.json"
+        write_document(path, touch_campaign(1000, select, seed))
+        targets = it.from_campaign(json.loads(path.read_text()))
+    ok = np.flatnonzero(it.touching(nom, tru, targets))
+    if ok.size < m:
+        raise RuntimeError(f"robocal's plan: only {ok.size} of {select} contacts touch on the true arm")
+    return it.take(targets, ok[:m])
+
+
+def world(plan: str = "robocal", m: int = 120):
+    """(nominal, truth, targets, σ along the normal): the campaign robocal plans (`plan` "robocal"), or the
+    generator's own random one (`plan` "generator": m approach poses on random face points, random order)."""
     nom, tru = it.default_arms()
-    targets = it.plan(nom, it.stepped_block(), m=m, seed=1)
+    targets = planned_targets(nom, tru) if plan == "robocal" else it.plan(nom, it.stepped_block(), m=m, seed=1)
     return nom, tru, targets, it.run(nom, tru, targets, (), seed=0).along_normal_noise_sigma_m
 
 
@@ -130,12 +151,14 @@ def main() -> None:
     ap.add_argument("--cases", default="")
     ap.add_argument("--n-boot", type=int, default=20)
     ap.add_argument("--out", default="")
+    ap.add_argument("--plan", default="robocal", choices=("robocal", "generator"),
+                    help="the campaign: robocal's plan (robocal plan arc-welder) or the generator's random one")
     a = ap.parse_args()
     t0 = time.time()
-    w = world()
+    w = world(a.plan)
     names = a.cases.split(",") if a.cases else list(cases(w[2]))
     seeds = range(a.first_seed, a.first_seed + a.seeds)
-    report = {"seeds": a.seeds, "mult": a.mult}
+    report = {"seeds": a.seeds, "mult": a.mult, "plan": a.plan}
     for name in names:
         r = run_case(w, name, a.mult, seeds, a.n_boot)
         report[name] = r

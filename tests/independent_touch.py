@@ -182,6 +182,30 @@ def _face_shift(effects, face_idx: np.ndarray, uv: np.ndarray, jig: Jig) -> np.n
     return out
 
 
+def _bisect_unsettled(gap, s: np.ndarray, travel_m: float = 0.12, step_m: float = 1e-3, tol: float = 1e-11) -> np.ndarray:
+    """Where Newton did not settle (a gap with a kink, a search line that curves), the first zero of the gap
+    along the search: bracketed on a `step_m` grid up to `travel_m`, then bisected.  Rows that settled stay
+    where they are (a dead band couples each contact to the one before); a row with no crossing stays as it
+    was (the caller refuses it)."""
+    g = gap(np.nan_to_num(s, nan=0.0))
+    bad = ~(np.abs(g) <= tol)
+    if not bad.any():
+        return s
+    base = np.where(bad, 0.0, s)
+    lo, hi = np.zeros_like(s), np.full_like(s, np.nan)
+    for v in np.arange(0.0, travel_m + step_m, step_m):
+        cross = bad & np.isnan(hi) & (gap(np.where(bad, v, base)) <= 0)
+        hi = np.where(cross, v, hi)
+        lo = np.where(bad & np.isnan(hi), v, lo)
+    found = bad & ~np.isnan(hi)
+    hi = np.where(found, hi, lo)
+    for _ in range(60):
+        mid = np.where(found, 0.5 * (lo + hi), base)
+        below = gap(mid) <= 0
+        hi, lo = np.where(below, mid, hi), np.where(below, lo, mid)
+    return np.where(found, 0.5 * (lo + hi), s)
+
+
 # ----- campaign ---------------------------------------------------------------------------
 @dataclass
 class Campaign:
@@ -249,6 +273,7 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
         for _ in range(30):
             g = gap(s, ls)
             s = s - g / ((gap(s + 1e-6, ls) - g) / 1e-6)
+        s = _bisect_unsettled(lambda ss: gap(ss, ls), s)
     if np.max(np.abs(gap(s, ls))) > 1e-11:
         raise RuntimeError("contact search did not converge")
     t_contact = times(s) + extra / speed  # the latch
@@ -306,6 +331,36 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
     return Campaign(table, q_latch, float(np.hypot(repeatability_3sigma_m / 3, jig_error_m / np.sqrt(3))) * noise,
                     speed, wild, t_ns, q_stream, [(d["t_ns"], d["payload_kg"]) for d in schedule], planned_schedule,
                     direction, payload)
+
+
+def touching(nominal: Arm, truth: Arm, targets: Targets, jig: Jig | None = None, travel_m: float = 0.085) -> np.ndarray:
+    """(m,) bool: the targets whose search reaches its face on the true arm within `travel_m` of search, without
+    effects or noise (a search that has not touched by then grazes its face or misses it: a controller reports
+    "no contact" and the campaign goes on without it)."""
+    ok = np.zeros(targets.face.size, bool)
+    for i in range(ok.size):
+        one = Targets(targets.face[i:i + 1], targets.q_a[i:i + 1], targets.dq[i:i + 1])
+        try:
+            q = run(nominal, truth, one, (), n=1, jig=jig, noise=0.0).truth_joint_q[0]
+        except RuntimeError:
+            continue
+        k = np.argmax(np.abs(one.dq[0]))
+        ok[i] = 0 < (q[k] - one.q_a[0, k]) / one.dq[0, k] <= travel_m
+    return ok
+
+
+def from_campaign(doc: dict, jig: Jig | None = None) -> Targets:
+    """The targets of a campaign file (`schemas/campaign.schema.json`, read here as plain JSON): each
+    measurement's face, approach joints and search joint rate, in execution order."""
+    ids = [f.id for f in (jig or stepped_block()).faces]
+    rows = doc["measurements"]
+    return Targets(np.array([ids.index(r["face"]) for r in rows], int),
+                   np.array([r["approach_joints_rad"] for r in rows], float),
+                   np.array([r["search_joint_rate_rad_per_m"] for r in rows], float))
+
+
+def take(targets: Targets, idx: np.ndarray) -> Targets:
+    return Targets(targets.face[idx], targets.q_a[idx], targets.dq[idx])
 
 
 # ----- minimum detectable size, computed here (3σ over the projected signature) --------------

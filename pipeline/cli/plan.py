@@ -105,6 +105,9 @@ def plan_cmd(
         err.print(f"stage {doc['stage']} of {doc['stages']}: {len(doc['measurements'])} measurements planned from "
                   f"{doc['n_candidates']} candidates in {doc['selection_s']:.3f} s; predicted landing probability "
                   f"min {min(p):.3f}, mean {np.mean(p):.3f}; margin {margin * 1e3:.1f} mm")
+        if bal := doc.get("approach_balance"):
+            err.print("approach from both sides (rarer side's share of the contacts): " + ", ".join(
+                f"{j} {b['rarer_share']:.0%}" for j, b in bal["joints"].items()), highlight=False, soft_wrap=True)
         for w in doc.get("warnings", []):
             err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
         if doc["stage"] < doc["stages"]:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.models.jig import Jig, stepped_block
+from pipeline.plan.approach import document_balance
 from pipeline.simulate.arc_welder import Campaign, Noise, SimResult, simulate
 from pipeline.systems import arc_welder as aw
 
@@ -90,7 +91,7 @@ def touch_campaign(n_candidates: int, m: int, seed: int = 0, margin_m: float = 0
                 "elapsed_s_note": "selection_s excludes the candidates' inverse kinematics", **extra})
     if w := landing_warning(np.asarray(p, float)):
         doc["warnings"] = [w]
-    return doc
+    return document_balance(doc)
 
 
 LANDING_MIN = 0.5  # a contact predicted to land less often than this is named

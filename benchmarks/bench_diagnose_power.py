@@ -55,6 +55,7 @@ REPEATABILITY = 1e-4
 def cases(targets: it.Targets) -> dict[str, tuple[it.Effect, dict, tuple | None]]:
     """name → (the generator's effect at unit size, campaign options, (effect, location prefix) when in library)."""
     q2 = float(np.median(targets.q_a[:100, 1]))
+    dent_face, dent = dent_place(targets)
     return {
         "backlash_J1": (it.Effect("backlash", 1.0, {"joint": 0}), {}, ("backlash", "J1")),
         "backlash_J2": (it.Effect("backlash", 1.0, {"joint": 1}), {}, ("backlash", "J2")),
@@ -63,8 +64,31 @@ def cases(targets: it.Targets) -> dict[str, tuple[it.Effect, dict, tuple | None]
                                          ("joint_compliance", "J2")),
         "thermal": (it.Effect("linear_growth", 1.0), {}, ("thermal_growth", "links")),
         "bump": (it.Effect("bump", 1.0, {"joint": 1, "centre": q2, "width": 0.1}), {}, None),
-        "dent": (it.Effect("dent", 1.0, {"face": 1, "centre": (0.15, 0.1), "radius": 0.03}), {}, None),
+        "dent": (it.Effect("dent", 1.0, {"face": dent_face, "centre": dent, "radius": DENT_RADIUS}), {}, None),
     }
+
+
+DENT_FACE, DENT_AT, DENT_RADIUS = 1, (0.15, 0.1), 0.03  # the dent: face top2 at (x, y), its radius, m
+
+
+def dent_place(targets: it.Targets) -> tuple[int, tuple[float, float]]:
+    """(face, centre) of the dent: top2 at `DENT_AT` when the campaign touches it within one radius of there,
+    else the median point of the face the campaign touches most (a dent where no contact or a single one
+    looks is not one any diagnosis can locate — a structure resting on one or two records is refused by
+    design; the bump is likewise at the campaign's median J2).  The points: the approach poses' tips (nominal
+    arm), whose search runs along the face normal, on the face's two other axes."""
+    nom, _ = it.default_arms()
+    faces = it.stepped_block().faces
+    face = targets.face[:100]
+
+    def points(f):
+        return it.tip(nom, targets.q_a[:100][face == f])[:, list(faces[f].other_axes())]
+
+    near = points(DENT_FACE)
+    if near.size and np.min(np.linalg.norm(near - np.array(DENT_AT), axis=1)) <= DENT_RADIUS:
+        return DENT_FACE, DENT_AT
+    f = int(np.argmax(np.bincount(face, minlength=len(faces))))
+    return f, tuple(float(v) for v in np.median(points(f), axis=0))
 
 
 def score(d: dict, key: tuple | None) -> dict:

@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-PLAY_RAD = 2e-3  # the largest plausible gear play (the diagnosis library's bound for backlash), rad
+from pipeline.diagnose.library.joint import PLAY_RAD as FORM_PLAYS_RAD
+
+PLAY_RAD = max(FORM_PLAYS_RAD)  # the largest play the diagnosis's backlash forms test, rad
 ONE_SIDED = 0.2  # a joint approached from its rarer side at fewer than this share of the contacts is named
 
 

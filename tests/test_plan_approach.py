@@ -1,0 +1,80 @@
+"""A planned touch campaign approaches every joint from both sides, says how balanced that is
+(`approach_balance`), and the signs it states are the ones the campaign's encoder stream shows when the
+independent generator (`independent_touch`, its own kinematics and controller timeline) executes the plan file
+and ingest derives each joint's last motion (`last_motion_sign_beyond_2mrad`)."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+import independent_touch as it
+from pipeline.plan.approach import ONE_SIDED, PLAY_RAD, document_balance, last_motion_signs
+from pipeline.plan.arc_welder import touch_campaign
+from pipeline.plan.campaign import write_document
+
+
+@pytest.fixture(scope="module")
+def plan_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("plan") / "campaign.json"
+    write_document(path, touch_campaign(300, 40, seed=0))
+    return path
+
+
+def test_a_planned_campaign_approaches_every_joint_from_both_sides(plan_file):
+    doc = json.loads(plan_file.read_text())
+    bal = doc["approach_balance"]["joints"]
+    assert list(bal) == doc["joint_names"] and doc["approach_balance"]["play_rad"] == PLAY_RAD
+    for name, b in bal.items():
+        assert b["positive"] + b["negative"] + b["unknown"] == len(doc["measurements"]), (name, b)
+        assert b["positive"] > 0 and b["negative"] > 0, (name, b)
+        assert b["rarer_share"] >= ONE_SIDED, (name, b)
+        assert b["faces_both_ways"] >= 1, (name, b)
+    assert not any("one side" in w for w in doc.get("warnings", [])), doc["warnings"]
+
+
+def test_the_stated_signs_are_what_the_executed_campaign_shows(plan_file):
+    """Executed by the generator on an arm equal to the planning model (no noise: each search ends where the
+    plan predicts), ingest's sign of each joint's last motion beyond the play agrees with the plan's, contact
+    by contact and joint by joint (the first contact: the stream starts at its approach pose)."""
+    doc = json.loads(plan_file.read_text())
+    targets = it.from_campaign(doc)
+    nom, _ = it.default_arms()
+    n = targets.face.size
+    c = it.run(nom, nom, targets, (), seed=0, n=n, noise=0.0)
+    seen = c.table[f"last_motion_sign_beyond_{PLAY_RAD * 1e3:g}mrad"]
+    rows = doc["measurements"]
+    stated, by_search = last_motion_signs(targets.q_a, targets.dq, np.array([r["predicted_travel_m"] for r in rows]))
+    travel = np.abs(targets.dq * np.array([r["predicted_travel_m"] for r in rows])[:, None])
+    clear = (np.abs(travel - PLAY_RAD) > 1e-4)[1:]  # not on the edge of the play
+    assert by_search.mean() > 0.8  # the searches turn most joints further than the play
+    assert np.array_equal(stated[1:][clear], seen[1:][clear]), np.argwhere(stated[1:] != seen[1:])
+    for name, j in zip(doc["joint_names"], range(6)):
+        assert doc["approach_balance"]["joints"][name]["positive"] == int(np.sum(stated[:, j] > 0))
+
+
+def test_a_joint_approached_from_one_side_is_warned(plan_file):
+    """The same plan keeping only the contacts whose search turns J2 positively: the plan says J2 is one-sided
+    and how to fix it; the balanced joints are not named."""
+    doc = json.loads(plan_file.read_text())
+    one = copy.deepcopy(doc)
+    one["measurements"] = [r for r in doc["measurements"] if r["search_joint_rate_rad_per_m"][1] > 0]
+    one.pop("warnings", None)
+    document_balance(one)
+    assert one["approach_balance"]["joints"]["J2"]["negative"] == 0
+    (w,) = [w for w in one["warnings"] if "one side" in w]
+    assert "J2 (0%)" in w and "both sides" in w
+    assert all(f"{j} (" not in w for j, b in one["approach_balance"]["joints"].items() if b["rarer_share"] >= ONE_SIDED)
+
+
+def test_a_short_search_leaves_the_sign_to_the_approach_move():
+    """A search turning a joint less than the play: its sign is the move to the approach pose (from the
+    previous contact's), 0 for the first contact and for a joint that does not move."""
+    q = np.array([[0.0, 0.0], [0.1, 0.0], [0.05, 0.0]])
+    dq = np.array([[1.0, 0.0], [0.01, 0.0], [0.01, -1.0]])
+    s, by = last_motion_signs(q, dq, np.array([0.04, 0.04, 0.04]))
+    assert s.tolist() == [[1, 0], [1, 0], [-1, -1]]
+    assert by.tolist() == [[True, False], [False, False], [False, True]]

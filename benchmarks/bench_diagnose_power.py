@@ -44,6 +44,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+import independent_campaign_file as icf  # noqa: E402
 import independent_touch as it  # noqa: E402
 
 from pipeline.diagnose import Settings, diagnose  # noqa: E402
@@ -142,8 +143,8 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
 
 def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0) -> it.Targets:
     """robocal's own campaign (`robocal plan arc-welder --select SELECT`), written to a plan file and read back
-    by the generator as plain JSON (`independent_touch.from_campaign`): its first m contacts whose search
-    touches on the true arm (`independent_touch.touching`), in the plan's order."""
+    by the generator as plain JSON (`independent_campaign_file.from_campaign`): its first m contacts whose search
+    touches on the true arm (`independent_campaign_file.touching`), in the plan's order."""
     import tempfile
 
     from pipeline.plan.arc_welder import touch_campaign
@@ -152,11 +153,11 @@ def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0) ->
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "campaign.json"
         write_document(path, touch_campaign(1000, select, seed))
-        targets = it.from_campaign(json.loads(path.read_text()))
-    ok = np.flatnonzero(it.touching(nom, tru, targets))
+        targets = icf.from_campaign(json.loads(path.read_text()))
+    ok = np.flatnonzero(icf.touching(nom, tru, targets))
     if ok.size < m:
         raise RuntimeError(f"robocal's plan: only {ok.size} of {select} contacts touch on the true arm")
-    return it.take(targets, ok[:m])
+    return icf.take(targets, ok[:m])
 
 
 def world(plan: str = "robocal", m: int = 120):

@@ -11,21 +11,31 @@ import json
 import numpy as np
 import pytest
 
+import independent_campaign_file as icf
 import independent_touch as it
+from conftest import run_cli
 from pipeline.plan.approach import ONE_SIDED, PLAY_RAD, document_balance, last_motion_signs
-from pipeline.plan.arc_welder import touch_campaign
-from pipeline.plan.campaign import write_document
+from pipeline.recording.schemas import validator
 
 
 @pytest.fixture(scope="module")
-def plan_file(tmp_path_factory):
+def planned(tmp_path_factory):
+    """(plan file, what `robocal plan` said)."""
     path = tmp_path_factory.mktemp("plan") / "campaign.json"
-    write_document(path, touch_campaign(300, 40, seed=0))
-    return path
+    r = run_cli("plan", "arc-welder", "--candidates", "300", "--select", "40", "--out", path)
+    assert r.returncode == 0, r.stderr
+    return path, " ".join(r.stderr.split())
 
 
-def test_a_planned_campaign_approaches_every_joint_from_both_sides(plan_file):
+@pytest.fixture(scope="module")
+def plan_file(planned):
+    return planned[0]
+
+
+def test_a_planned_campaign_approaches_every_joint_from_both_sides(planned):
+    plan_file, said = planned
     doc = json.loads(plan_file.read_text())
+    validator("campaign").validate(doc)
     bal = doc["approach_balance"]["joints"]
     assert list(bal) == doc["joint_names"] and doc["approach_balance"]["play_rad"] == PLAY_RAD
     for name, b in bal.items():
@@ -34,6 +44,19 @@ def test_a_planned_campaign_approaches_every_joint_from_both_sides(plan_file):
         assert b["rarer_share"] >= ONE_SIDED, (name, b)
         assert b["faces_both_ways"] >= 1, (name, b)
     assert not any("one side" in w for w in doc.get("warnings", [])), doc["warnings"]
+    shares = ", ".join(f"{j} {b['rarer_share']:.0%}" for j, b in bal.items())
+    assert f"approach from both sides (rarer side's share of the contacts): {shares}" in said, said
+
+
+def test_the_planner_still_warns_before_a_campaign_it_predicts_will_land_poorly(planned):
+    """40 contacts planned on the nominal model in one stage: fewer than 90 % expected to land under the prior
+    error sizes; the warning stays first in the file and is printed."""
+    plan_file, said = planned
+    doc = json.loads(plan_file.read_text())
+    p = np.array([m["landing_probability"] for m in doc["measurements"]])
+    assert p.sum() < 0.9 * p.size
+    assert doc["warnings"][0].startswith("this campaign is predicted to land poorly")
+    assert "warning: this campaign is predicted to land poorly" in said
 
 
 def test_the_stated_signs_are_what_the_executed_campaign_shows(plan_file):
@@ -41,7 +64,7 @@ def test_the_stated_signs_are_what_the_executed_campaign_shows(plan_file):
     plan predicts), ingest's sign of each joint's last motion beyond the play agrees with the plan's, contact
     by contact and joint by joint (the first contact: the stream starts at its approach pose)."""
     doc = json.loads(plan_file.read_text())
-    targets = it.from_campaign(doc)
+    targets = icf.from_campaign(doc)
     nom, _ = it.default_arms()
     n = targets.face.size
     c = it.run(nom, nom, targets, (), seed=0, n=n, noise=0.0)

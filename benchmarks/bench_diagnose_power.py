@@ -2,6 +2,10 @@
 
 Each effect is injected at `--mult` × its minimum detectable size (3σ over the norm of its signature ⊥ the
 geometric Jacobian, computed by the generator itself) into 100-contact touch campaigns of one plan:
+`--plan robocal` (default) robocal's own campaign — `robocal plan arc-welder --select 115` written to a plan
+file, which the generator reads as plain JSON (`tests/independent_campaign_file.py`), its first 100 contacts
+that touch on the true arm; `--plan generator` the generator's own random one (random face points, random
+order: `independent_touch.plan`).
 
 - in library: backlash of J1, J2, J3 (the load lags the motor by half the play, the sign of the joint's
   velocity along the search), joint compliance of J2 in a single-payload campaign (6 kg throughout: the
@@ -19,14 +23,19 @@ of the signature (`mds_generator_without_top_contact`: a finding resting on one 
 Targets: named ≥ 95 % in library, located ≥ 80 % out of library, misnamed with high confidence ≤ 10 %,
 worse 0.
 
-Backlash at J2 in this plan is below that target by the campaign, not by the diagnosis: J2 turns the same
-way during the search on almost every face, so the geometry (J2's offset) absorbs the signature but on a few
-contacts, and one contact carries a third of the rest.  That contact is >9σ off the geometric fit and set
-aside; without it the detectable play is 2.5× larger (1.33 vs 0.53 mrad at the injected 2.1 mrad); the
-gate's is 1.4–1.6 mrad for the forms it can test, which fit about half of a 2.1 mrad play (the form that
-matches it, play ≥ 2 mrad, needs 2.6 mrad: over the plausible 2 mrad, not testable).  Keeping the contact
-only moves the finding to "rests on one record" (not reported).  The remedy is the campaign's: reverse J2
-before the search (the backlash advice).
+Backlash at J2 on the generator's random plan is below that target by the campaign, not by the diagnosis:
+J2 turns the same way during the search on almost every face, so the geometry (J2's offset) absorbs the
+signature but on a few contacts, and one contact carries a third of the rest.  That contact is >9σ off the
+geometric fit and set aside; without it the detectable play is 2.5× larger (1.33 vs 0.53 mrad at the injected
+2.1 mrad).  Keeping the contact only moves the finding to "rests on one record" (not reported).  The remedy is
+the campaign's: approach J2 both ways.  robocal's plan does (`approach_balance` in the campaign file: its
+constant-orientation searches turn J2 both ways on many faces), J2's detectable play there is 0.12 mrad and
+leaving out its top contact raises it 1.25×, not 2.5×.
+
+The dent sits where the campaign samples a face (`dent_place`): top2 at (0.15, 0.1) m as before where the
+campaign touches within its radius of there (the random plan), else the median point of the face the campaign
+touches most (robocal's plan has 5 contacts on top2, none within 59 mm of that point: a dent under one or two
+contacts is refused by design, as the backlash above).
 
 Usage: ``python benchmarks/bench_diagnose_power.py [--seeds 20] [--mult 4] [--cases a,b] [--out f.json]``.
 (CI runs a bounded version: tests/test_diagnose_power.py.)

@@ -150,7 +150,7 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
     return out
 
 
-def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0) -> it.Targets:
+def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, backlash: bool = False) -> it.Targets:
     """robocal's own campaign (`robocal plan arc-welder --select SELECT`), written to a plan file and read back
     by the generator as plain JSON (`independent_campaign_file.from_campaign`): its first m contacts whose search
     touches on the true arm (`independent_campaign_file.touching`), in the plan's order."""
@@ -161,7 +161,7 @@ def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0) ->
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "campaign.json"
-        write_document(path, touch_campaign(1000, select, seed))
+        write_document(path, touch_campaign(1000, select, seed, backlash=backlash))
         targets = icf.from_campaign(json.loads(path.read_text()))
     ok = np.flatnonzero(icf.touching(nom, tru, targets))
     if ok.size < m:
@@ -170,10 +170,12 @@ def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0) ->
 
 
 def world(plan: str = "robocal", m: int = 120):
-    """(nominal, truth, targets, σ along the normal): the campaign robocal plans (`plan` "robocal"), or the
+    """(nominal, truth, targets, σ along the normal): the campaign robocal plans (`plan` "robocal"; "robocal-backlash":
+    planned for every joint's backlash too, `robocal plan --backlash`), or the
     generator's own random one (`plan` "generator": m approach poses on random face points, random order)."""
     nom, tru = it.default_arms()
-    targets = planned_targets(nom, tru) if plan == "robocal" else it.plan(nom, it.stepped_block(), m=m, seed=1)
+    targets = (planned_targets(nom, tru, backlash=plan == "robocal-backlash") if plan.startswith("robocal")
+               else it.plan(nom, it.stepped_block(), m=m, seed=1))
     return nom, tru, targets, it.run(nom, tru, targets, (), seed=0).along_normal_noise_sigma_m
 
 
@@ -185,8 +187,8 @@ def main() -> None:
     ap.add_argument("--cases", default="")
     ap.add_argument("--n-boot", type=int, default=20)
     ap.add_argument("--out", default="")
-    ap.add_argument("--plan", default="robocal", choices=("robocal", "generator"),
-                    help="the campaign: robocal's plan (robocal plan arc-welder) or the generator's random one")
+    ap.add_argument("--plan", default="robocal", choices=("robocal", "robocal-backlash", "generator"),
+                    help="the campaign: robocal's plan (robocal plan arc-welder [--backlash]) or the generator's random one")
     a = ap.parse_args()
     t0 = time.time()
     w = world(a.plan)

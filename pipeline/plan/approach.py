@@ -60,7 +60,7 @@ def balance_warning(bal: dict[str, dict], one_sided: float = ONE_SIDED) -> str |
         return None
     return (f"joints approached from one side at almost every contact (rarer side's share): {', '.join(lop)} — a "
             f"backlash there looks like a joint offset; approach them from both sides (reverse the joint before the "
-            f"search)")
+            f"search; robocal plan --backlash plans for it)")
 
 
 def document_balance(doc: dict, play_rad: float = PLAY_RAD) -> dict:
@@ -75,3 +75,20 @@ def document_balance(doc: dict, play_rad: float = PLAY_RAD) -> dict:
     if w := balance_warning(bal):
         doc.setdefault("warnings", []).append(w)
     return doc
+
+
+def backlash_columns(names: list[str], dq: np.ndarray, travel: np.ndarray, play_rad: float = PLAY_RAD):
+    """`select.plan`'s `extra` for planning for every joint's backlash too: per joint whose zero is a free
+    parameter, the column −sign(search's turn)/2 · ∂(residual)/∂(joint zero) (a play b shifts the joint by
+    −sign·b/2), 0 where the search turns the joint by no more than `play_rad` (the order decides there).  The
+    candidates' search joint rates `dq` (N, nj) rad/m and predicted travels (N,) m."""
+    search = np.asarray(dq, float) * np.asarray(travel, float)[:, None]
+    signs = np.where(np.abs(search) > play_rad, np.sign(search), 0.0)
+
+    def columns(J: np.ndarray, free: np.ndarray) -> np.ndarray:
+        cols = [-0.5 * signs[:, j, None] * J[:, :, names.index(f"J{j + 1}.theta_offset")]
+                for j in range(signs.shape[1]) if f"J{j + 1}.theta_offset" in names
+                and free[names.index(f"J{j + 1}.theta_offset")]]
+        return np.stack(cols, axis=2) if cols else J[:, :, :0]
+
+    return columns

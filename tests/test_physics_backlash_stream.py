@@ -7,7 +7,8 @@ direction anywhere in the bag.  The import derives each joint's direction (the s
 equal to the generator's; `--physics auto` keeps the play, recovers it within 2σ, the held-out error is
 at the noise floor and the geometry-only fit is clearly worse.  A robocal recording with an encoder stream
 and no direction field (`robocal simulate urdf --drive`) gets its directions from the stream at load;
-an explicit ``approach`` field wins over the stream."""
+an explicit ``approach`` field wins over the stream; a stream that does not decode leaves the directions
+unknown and every measurement loaded."""
 
 from __future__ import annotations
 
@@ -148,3 +149,31 @@ def test_explicit_direction_wins_over_the_stream(drive_recording):
                          stream={"t_ns": s.t_ns, "q": s.q})
     _, got = _load(tmp / "explicit.mcap", "none")
     assert np.array_equal(got["approach"], explicit)
+
+
+def test_a_damaged_stream_leaves_the_directions_unknown(drive_recording):
+    """A stream that does not decode (a batch naming other joints) is validate's finding: the measurements
+    still load, every one of them, without directions."""
+    from pipeline.ingest.streams import joint_stream
+    from pipeline.recording.reader import read_recording
+    from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
+    from pipeline.recording.writer import RecordingWriter
+
+    tmp, out = drive_recording
+    r = read_recording(out)
+    _, table = _load(out, "none")
+    s = joint_stream(r)
+    with RecordingWriter(tmp / "damaged.mcap") as w:
+        w.metadata(META_URDF, r.meta(META_URDF))
+        w.metadata(META_CAMPAIGN, r.meta(META_CAMPAIGN))
+        for m in r.require("/measure/point"):
+            w.write("/measure/point", m)
+        half = len(s.t_ns) // 2
+        w.write_batch(s.t_ns[:half], s.q[:half], list(s.names))
+        w.write_batch(s.t_ns[half:], s.q[half:], [f"other_{n}" for n in s.names])
+    damaged = read_recording(tmp / "damaged.mcap")
+    with pytest.raises(Exception, match="differ from the first message"):
+        joint_stream(damaged)
+    _, got = _load(tmp / "damaged.mcap", "none")
+    assert "approach" not in got
+    assert np.array_equal(got["joint_positions"], table["joint_positions"])

@@ -6,7 +6,8 @@ reaches each posture from the generator's side (±1), markers on one PointStampe
 direction anywhere in the bag.  The import derives each joint's direction (the sign of its last motion),
 equal to the generator's; `--physics auto` keeps the play, recovers it within 2σ, the held-out error is
 at the noise floor and the geometry-only fit is clearly worse.  A robocal recording with an encoder stream
-and no direction field (`robocal simulate urdf --drive`) gets its directions from the stream at load;
+and no direction field (`robocal simulate urdf --drive`, and the same campaign acquired by `robocal acquire`
+over a pty) gets its directions from the stream at load;
 an explicit ``approach`` field wins over the stream; a stream that does not decode leaves the directions
 unknown and every measurement loaded."""
 
@@ -177,3 +178,17 @@ def test_a_damaged_stream_leaves_the_directions_unknown(drive_recording):
     _, got = _load(tmp / "damaged.mcap", "none")
     assert "approach" not in got
     assert np.array_equal(got["joint_positions"], table["joint_positions"])
+
+
+def test_robocal_acquisition_gives_directions_at_load(drive_recording, tmp_path):
+    """robocal's own acquisition (device-sim replaying the simulated campaign over a pty, `robocal acquire`):
+    the acquired recording's stream gives each measurement the same directions as the source's."""
+    from stream_support import record_over_pty
+
+    _, src = drive_recording
+    out, s, _ = record_over_pty(tmp_path, "urdf", ("--recording", str(src), "--speed", "20", "--batch", "4"))
+    assert s["stop_reason"] == "campaign complete"
+    _, want = _load(src, "none")
+    _, got = _load(out, "none")
+    assert np.array_equal(got["joint_positions"], want["joint_positions"])
+    assert np.array_equal(got["approach"], want["approach"]) and np.abs(want["approach"]).sum() > 0

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.accuracy import information as I, propagate as P
+from pipeline.accuracy.condition import fixed_moment
 
 TAUGHT_MAX = 0.5  # calibrated map 1σ RMS / uncalibrated above this: the campaign taught little
 UNMEASURED_EIG = 1e-6  # relative eigenvalue of the measured-direction matrix below which a direction is unmeasured
@@ -47,6 +48,7 @@ class Inputs:
     holdout: dict | None = None  # `holdout.consistency` of the run's cross-validation, if any
     Jp_full: np.ndarray | None = None  # (N, 3, P) where a campaign could measure (default: the map)
     residual_unit: str = "m"  # of the measurements' residuals (px for a camera; the map's points stay m)
+    residuals: np.ndarray | None = None  # (m·k,) in-sample at the estimate: the fixed parameters conditioned on them
 
 
 def _axis_name(v: np.ndarray) -> str:
@@ -59,11 +61,12 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
     system's words for how to measure along a direction (e.g. which jig faces to touch)."""
     free = np.asarray(inp.free, bool)
     A = P.absorption(inp.Jm, free)
-    meas = P.predict(inp.Jp_meas, free, inp.cov_free, inp.prior_sigma, A)
-    amap = P.predict(inp.Jp_map, free, inp.cov_free, inp.prior_sigma, A)
+    mom = None if inp.residuals is None else fixed_moment(inp.Jm, free, inp.prior_sigma, inp.residuals)
+    meas = P.predict(inp.Jp_meas, free, inp.cov_free, inp.prior_sigma, A, mom)
+    amap = P.predict(inp.Jp_map, free, inp.cov_free, inp.prior_sigma, A, mom)
     before = P.uncalibrated(inp.Jp_map_uncal, inp.prior_sigma)
     sig, b95 = amap.sigma, amap.bound95
-    contrib = P.fixed_contributions(inp.Jp_map, free, inp.prior_sigma, A)
+    contrib = P.fixed_contributions(inp.Jp_map, free, inp.prior_sigma, A, mom)
     fixed_names = [n for n, f in zip(inp.names, free) if not f]
     top = sorted(zip(fixed_names, contrib), key=lambda t: -t[1])[:5]
 
@@ -83,11 +86,11 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
     inflate_fit = I.fit_inflation(info.dof)
     if math.isfinite(inflate_fit) and inflate_fit != 1.0:  # σ̂ from few degrees of freedom: its 95 % upper bound
         cov_scaled = np.asarray(inp.cov_free, float) * inflate_fit
-        meas = P.predict(inp.Jp_meas, free, cov_scaled, inp.prior_sigma, A)
-        amap = P.predict(inp.Jp_map, free, cov_scaled, inp.prior_sigma, A)
+        meas = P.predict(inp.Jp_meas, free, cov_scaled, inp.prior_sigma, A, mom)
+        amap = P.predict(inp.Jp_map, free, cov_scaled, inp.prior_sigma, A, mom)
         sig, b95 = amap.sigma, amap.bound95
     cov_used = np.asarray(inp.cov_free, float) * (inflate_fit if math.isfinite(inflate_fit) else 1.0)
-    field = P.field_scale(inp.Jp_map, free, cov_used, inp.prior_sigma, A, b95)
+    field = P.field_scale(inp.Jp_map, free, cov_used, inp.prior_sigma, A, b95, moment=mom)
     b95 = b95 * field  # ≥ 95 % of the map within it in 99 % of calibrations
     w, V = P.measured_directions(inp.Jm, inp.Jp_meas, inp.residual_dim)
     unmeasured = [V[:, i] for i in range(3) if w[i] < UNMEASURED_EIG]
@@ -201,7 +204,7 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
                  cov_free=cov_free,
                  prior_sigma=np.asarray(prior_sigma, float), Jm=J.reshape(-1, J.shape[-1]), Jp_meas=Jp_meas,
                  points_map=pts, Jp_map=Jp_map, Jp_map_uncal=Jp_uncal, residual_dim=model.residual_dim, holdout=ho,
-                 Jp_full=Jp_full, residual_unit=getattr(model, "residual_unit", "m"))
+                 Jp_full=Jp_full, residual_unit=getattr(model, "residual_unit", "m"), residuals=e.reshape(-1))
     doc = assess(inp, tolerance_m, direction_advice)
     if shared is not None:
         doc["shared_error"] = {"sigma_w_m": shared["sigma_w_m"], "tau_m": shared["tau_m"],

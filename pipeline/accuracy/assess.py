@@ -206,6 +206,8 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
                  points_map=pts, Jp_map=Jp_map, Jp_map_uncal=Jp_uncal, residual_dim=model.residual_dim, holdout=ho,
                  Jp_full=Jp_full, residual_unit=getattr(model, "residual_unit", "m"), residuals=e.reshape(-1))
     doc = assess(inp, tolerance_m, direction_advice)
+    if inp.residual_unit == "m" and model.residual_dim == 3:  # the residual is the 3-D point's error
+        doc["new_measurement"] = new_measurement(doc, Jf, cov_free, e)
     if shared is not None:
         doc["shared_error"] = {"sigma_w_m": shared["sigma_w_m"], "tau_m": shared["tau_m"],
                                "tau_source": shared["tau_source"],
@@ -214,6 +216,26 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
                                        "at that pose): Ω = σ_w² I + τ² B; the fitted parameters' covariance is the "
                                        "sandwich J⁺ΩJ⁺ᵀ" + ("" if shared["tau_m"] > 0 else " (τ = 0: not used)")}
     return doc
+
+
+def new_measurement(doc: dict, Jf: np.ndarray, cov_free: np.ndarray, residuals: np.ndarray) -> dict:
+    """The predicted RMS 3-D error of a new measurement at a new configuration, measured as in this
+    campaign (what `robocal evaluate` reports for a new session, and what held-out residuals measure):
+    the model's error over the map (`map_rms_1sigma_m`) plus the scatter of one measurement about the
+    model, √3·σ̂ per point, σ̂² = (|e|² + tr J_f Σ_f J_fᵀ) / m — the residual mean square with the fit's
+    effective number of parameters (exact for least squares and for the shrinkage's penalised fit).
+    That scatter is the instrument's noise and the robot's error the model does not carry (free play,
+    non-repeatability); both inflated by the held-out check's factor like the map.  Residuals (m, 3) m."""
+    e = np.asarray(residuals, float).reshape(-1)
+    s2 = (float(e @ e) + float(np.einsum("ij,jk,ik->", Jf, np.asarray(cov_free, float), Jf))) / max(e.size, 1)
+    ho = doc.get("holdout_check") or {}
+    f = float(ho.get("inflation", 1.0)) if not ho.get("consistent", True) else 1.0
+    scatter = float(np.sqrt(3.0 * s2)) * f
+    model_rms = float(doc["map_rms_1sigma_m"])
+    return {"rms_3d_m": float(np.hypot(model_rms, scatter)), "model_rms_3d_m": model_rms, "scatter_rms_3d_m": scatter,
+            "label": "a new measurement at a new configuration (a new session, placement or posture), measured as in "
+                     "this campaign: the model's error over the map and one measurement's scatter about the model "
+                     "(instrument noise and the robot's unmodelled error); compare with `robocal evaluate`"}
 
 
 def touch_advice(fixture: dict | None):

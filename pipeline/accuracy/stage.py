@@ -123,6 +123,8 @@ def run(run_dir: Path, params: dict) -> dict:
     write_json(run_dir / NAME / "accuracy.json", doc)
     out = {k: doc[k] for k in ("status", "reason", "advice", "map_rms_1sigma_m", "map_max_1sigma_m",
                                "map_max_bound95_m", "map_uncalibrated_rms_1sigma_m", "tolerance") if k in doc}
+    if "new_measurement" in doc:
+        out["new_measurement_rms_3d_m"] = doc["new_measurement"]["rms_3d_m"]
     out["status"] = {"pass": "pass", "insufficient": "insufficient", "fail": "tolerance_fail"}.get(doc["status"], "warn")
     if "previous" in doc:
         out["moved_parameters"] = [m["name"] for m in doc["previous"]["moved"]]

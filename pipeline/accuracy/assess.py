@@ -191,7 +191,7 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
     ho = None
     if holdout is not None:
         ho = consistency(Jf, e, holdout[0], holdout[1], model.residual_dim, groups=groups, shared=shared)
-    _, Jp_meas = model.points(x, data)
+    pts_meas, Jp_meas = model.points(x, data)
     pts, Jp_map = model.points(x, map_data)
     _, Jp_uncal = model.points(x_uncal, map_data)
     Jp_full = None
@@ -200,6 +200,9 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
 
         spread = spread_table(model, data)
         Jp_full = None if spread is None else model.points(x, spread)[1]
+    if not getattr(model, "fixes_frame", True):  # coincidences: the error of the points relative to each other
+        Jp_meas = P.modulo_rigid(pts_meas, Jp_meas)
+        Jp_map, Jp_uncal = P.modulo_rigid(pts, Jp_map), P.modulo_rigid(pts, Jp_uncal)
     inp = Inputs(names=model.parameter_names(), free=np.asarray(free, bool),
                  cov_free=cov_free,
                  prior_sigma=np.asarray(prior_sigma, float), Jm=J.reshape(-1, J.shape[-1]), Jp_meas=Jp_meas,

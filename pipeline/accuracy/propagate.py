@@ -194,3 +194,21 @@ def fixture_covariance(J_free: np.ndarray, labels: np.ndarray, residual_dim: int
     D = np.repeat(D, residual_dim, axis=0)  # every residual row of a measurement on its face
     PD = pinv(J_free) @ D
     return (tolerance_m**2 / 3.0) * PD @ PD.T
+
+
+def modulo_rigid(points: np.ndarray, Jp: np.ndarray) -> np.ndarray:
+    """Point Jacobians (n,3,P) less their part that moves all n points as one rigid body: the error of
+    the points relative to each other, for measurements that fix no frame (coincidences: the sockets'
+    unknown positions take up any common rigid motion, and no such measurement can see or test it).
+    points (n,3) m: where the Jacobians are evaluated."""
+    n = Jp.shape[0]
+    if n < 3:
+        return Jp
+    c = np.asarray(points, float) - np.mean(points, axis=0)
+    R = np.zeros((n, 3, 6))
+    R[:, :, :3] = np.eye(3)
+    for k in range(3):  # rotation about axis k moves point p by e_k × p
+        R[:, :, 3 + k] = np.cross(np.eye(3)[k], c)
+    Q, _ = np.linalg.qr(R.reshape(3 * n, 6))
+    J = Jp.reshape(3 * n, -1)
+    return (J - Q @ (Q.T @ J)).reshape(Jp.shape)

@@ -6,7 +6,8 @@ The error of the calibrated point at a configuration has two parts (a "consider"
   Jacobian: Jp_f Σ_f Jp_fᵀ;
 * the fixed parameters' prior: an error δ of the fixed parameters shifts the measurements by
   J_x δ, which the fit absorbs as far as it can (the free estimates move by −J_f⁺J_x δ); what is
-  left moves the point by G δ with G = Jp_x − Jp_f·J_f⁺J_x.  Its covariance is G diag(σ_prior²) Gᵀ.
+  left moves the point by G δ with G = Jp_x − Jp_f·J_f⁺J_x.  Its covariance is G diag(σ_prior²) Gᵀ,
+  or G (Σ + μμᵀ) Gᵀ with δ conditioned on the run's residuals (`condition.fixed_moment`).
   A fixed parameter the fit absorbs exactly (J1.θ ≡ base.rz) contributes nothing; one no
   measurement sees (base.x without an x-facing face) contributes its full effect.
 

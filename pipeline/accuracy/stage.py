@@ -74,8 +74,10 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None
     doc["priors"] = [{"name": n, "kind": k, "sigma": float(s), "source": src, "fixed": not bool(f)}
                      for n, k, s, src, f in zip(model.parameter_names(), kinds, sigma, source, free)]
     doc["note"] = ("Predicted 3-D error (1σ RMS, and the 95 % bound of |error|) of the calibrated point over the map: "
-                   "the fitted parameters' covariance plus the prior of every parameter held at nominal, less what "
-                   "the fit absorbs of it (docs/guide/accuracy.md).")
+                   "the fitted parameters' covariance plus the prior of every parameter held at nominal, conditioned "
+                   "on what this run's data show of it, less what the fit absorbs of it; new_measurement: a new "
+                   "session or posture measured as here, the map and one measurement's scatter "
+                   "(docs/guide/accuracy.md).")
     return doc
 
 

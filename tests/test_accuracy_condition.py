@@ -70,4 +70,5 @@ def test_unseen_or_absorbed_columns_keep_their_prior(seed, scale):
     prior = np.r_[np.ones(3), scale, 2 * scale]
     e = rng.standard_normal(30)
     M = fixed_moment(J, free, prior, e)
+    assert fixed_moment(J, free, prior, np.zeros(30)) is None  # no residual: nothing learnt, the prior unchanged
     assert np.allclose(M, np.diag([scale**2, 4 * scale**2]), rtol=1e-6, atol=1e-12 * scale**2)

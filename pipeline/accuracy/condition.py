@@ -29,23 +29,24 @@ import numpy as np
 from pipeline.accuracy.holdout import basis
 
 
-def fixed_moment(Jm: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray, residuals: np.ndarray) -> np.ndarray:
+def fixed_moment(Jm: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray,
+                 residuals: np.ndarray) -> np.ndarray | None:
     """Second moment (n_fixed, n_fixed) of the held-at-nominal parameters' error given the run's data
     (module docstring).  Jm (m·k, P) measurement Jacobian at the estimate over all parameters, residuals
-    (m·k,) in-sample at the estimate.  diag(σ_prior²) where the data carry no residual degree of freedom."""
+    (m·k,) in-sample at the estimate.  None (the prior, diag σ_prior², unchanged) where the data carry no residual
+    degree of freedom or nothing is held at nominal."""
     free = np.asarray(free, bool)
     s = np.asarray(prior_sigma, float)[~free]
-    S = np.diag(s**2)
     e = np.asarray(residuals, float).reshape(-1)
     Jm = np.asarray(Jm, float)
     if s.size == 0 or not np.all(np.isfinite(e)) or e.size != Jm.shape[0]:
-        return S
+        return None
     U = basis(Jm[:, free])
     dof = e.size - U.shape[1]
     Me = e - U @ (U.T @ e)
     s2 = float(Me @ Me) / dof if dof > 0 else 0.0
     if s2 <= 0:
-        return S
+        return None
     Jx = Jm[:, ~free]
     K = (Jx - U @ (U.T @ Jx)) * s / np.sqrt(s2)  # scaled: δx = s ⊙ z, z ~ N(0, I)
     w, V = np.linalg.eigh(K.T @ K)

@@ -63,6 +63,10 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
     if s.get("predicted_map_rms_1sigma_m") is not None:
         rows.append(("predicted accuracy over the workspace (1σ RMS / worst 95 %)",
                      f"{mm(s['predicted_map_rms_1sigma_m'])} / {mm(s.get('predicted_map_max_bound95_m'))}"))
+    if s.get("predicted_new_measurement_rms_3d_m") is not None:
+        from pipeline.calibrate import NEW_LABEL
+
+        rows.append((NEW_LABEL, mm(s["predicted_new_measurement_rms_3d_m"])))
     for k, v in rows:
         t.add_row(k, str(v))
     console(stderr=True).print(t)

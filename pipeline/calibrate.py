@@ -19,7 +19,7 @@ from pipeline.systems.registry import detect, load_with_physics
 def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOptions(), k_folds: int = 5,
               seed: int = 0, solver: str = "lm", joint_offsets: bool = False, variant: str | None = None,
               select_groups: bool = True, accuracy: dict | None = None, physics: str | None = None,
-              payload: list[str] | None = None, model_choice: str = "auto") -> dict:
+              payload: list[str] | None = None, model_choice: str = "groups") -> dict:
     """Read, identify, cross-validate; write DIR/results.json and DIR/model.json.
 
     `solver`: 'lm' (least squares, default) or 'ga' (seed 001's genetic algorithm, for systems

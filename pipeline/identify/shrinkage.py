@@ -216,7 +216,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     from pipeline.identify.identifiability import analyse
     from pipeline.identify.folds import design_folds
     from pipeline.identify.least_squares import Fit, fit
-    from pipeline.identify.model import n_rows, take
+    from pipeline.identify.model import n_rows
 
     t0 = time.perf_counter()
     prior = options.prior_sigma
@@ -269,19 +269,17 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     _, s, f0, fixed, held, on, label = best
     if len(tried) > 1 or on:
         s = replace(s, physics={"chosen": label, "terms": list(on), "candidates": tried})
-    if groups_of_rows is not None:
-        holdout = s.holdout
-    else:
-        holdout = np.full((n, kd), np.nan)
-        for test in design_folds(n, k, seed, None, data):  # as `least_squares.cross_validate`
-            train = np.setdiff1d(np.arange(n), test)
-            sf = shrink(model, take(data, train), prior, s.x, fixed=fixed + held, grid=(s.mu_m,), scale_m=1.0,
-                        extra=on)
-            holdout[test] = np.asarray(model.residuals(sf.x, take(data, test)), float).reshape(len(test), kd)
     free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held, on)
     wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
     J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
     mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
+    if groups_of_rows is not None:
+        holdout = s.holdout
+    else:  # the folds of `least_squares.cross_validate`, each left out in closed form (no refit)
+        folds = design_folds(n, k, seed, None, data)
+        idx = np.flatnonzero(free_mask)
+        r = np.asarray(model.residuals(s.x, data), float).ravel()
+        holdout = fold_holdout(J[:, idx], r, mu_eff * wa[idx], folds, kd)
     est = free_mask & ~((w > 0) & np.isinf(s.mu_m))  # μ = ∞: the robot stays nominal
     ident = analyse(np.vstack([J, np.diag(mu_eff * wa)]), names, ~est, getattr(model, "priority", lambda: None)())
     r1 = np.asarray(model.residuals(s.x, data), float).reshape(n, kd)
@@ -298,6 +296,21 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
               cov=cov, residuals_before=f0.residuals_before, residuals_after=r1, sigma=sigma,
               nfev=f0.nfev, elapsed_s=time.perf_counter() - t0)
     return out, s, holdout
+
+
+def fold_holdout(J: np.ndarray, r: np.ndarray, lam: np.ndarray, folds: list[np.ndarray], kd: int) -> np.ndarray:
+    """Held-out residuals (n, kd) of each fold left out of the penalised fit, linearised at its solution:
+    the rows T of min ‖r + J δ‖² + ‖Λ(x + δ − centre)‖² refitted without them predict e_T = (I − H_TT)⁻¹ r_T,
+    H_TT = J_T (JᵀJ + Λ²)⁻¹ J_Tᵀ (exact for a linear model; one factorisation for every fold).  `J`
+    (n·kd, p) the Jacobian of the estimated parameters, `r` (n·kd,) the residuals, `lam` (p,) Λ's diagonal."""
+    Ainv = np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True)
+    out = np.full((r.size // kd, kd), np.nan)
+    for test in folds:
+        rows = (np.asarray(test)[:, None] * kd + np.arange(kd)).ravel()
+        Jt = J[rows]
+        e = np.linalg.lstsq(np.eye(rows.size) - Jt @ Ainv @ Jt.T, r[rows], rcond=None)[0]
+        out[test] = e.reshape(len(test), kd)
+    return out
 
 
 def shrinkage_document(s: Shrunk) -> dict:

@@ -24,6 +24,7 @@ from pipeline.blas import single_threaded
 from pipeline.identify.plausibility import PLAUSIBLE
 
 GRID = (0.03, 0.1, 0.3, 1.0, 3.0)  # μ as multiples of the registration-only RMS residual (per axis)
+EXTEND = 4  # grid points added beyond an end of GRID where GCV still falls there
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,9 @@ class Shrunk:
     per_group: dict = field(default_factory=dict)  # μ → {group: held-out RMS m} (choice by left-out groups)
     holdout: np.ndarray | None = None  # (n, residual_dim) held-out residuals at the chosen μ (left-out groups)
     physics: dict = field(default_factory=dict)  # {chosen, candidates: {label: {admissible, score_m2, …}}}
+    registration: str = "anchored"  # the registration anchored at its registration-only estimate, or "free"
+    other_registration: dict = field(default_factory=dict)  # μ → score (m²) with the registration the other way
+    multiple: float = float("nan")  # the chosen μ over the registration-only RMS (GCV route)
 
 
 def _registration(model, extra: tuple[str, ...] = ()) -> set[str]:
@@ -89,10 +93,14 @@ def map_solve(model, data, x: np.ndarray, idx: np.ndarray, lam: np.ndarray, nomi
 
 
 def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[str, ...] = (),
-           scale_m: float | None = None, grid=GRID, progress=None, extra: tuple[str, ...] = ()) -> Shrunk:
+           scale_m: float | None = None, grid=GRID, progress=None, extra: tuple[str, ...] = (),
+           extend: bool = True) -> Shrunk:
     """MAP estimate with μ chosen by GCV (module docstring).  `x0`: start (e.g. the registration-only
     fit); `scale_m`: the registration-only RMS residual per axis (default: at x0); `extra`: names
-    estimated with the registration (anchored at x0, not pulled toward nominal)."""
+    estimated with the registration (anchored at x0, not pulled toward nominal).  `extend`: where the
+    least GCV lies at an end of the grid, the grid goes on that way by its own step (up to `EXTEND` points)
+    while GCV falls — the registration-only RMS sets the grid, and a robot far off its instrument's
+    frame (planes tens of mm off) would otherwise never reach the μ its data support."""
     nominal = np.asarray(model.nominal(), float)
     free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
     wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
@@ -101,10 +109,10 @@ def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[st
     r0 = np.asarray(model.residuals(x0, data), float).ravel()
     m = r0.size
     scale = float(scale_m if scale_m is not None else np.sqrt(np.mean(r0**2)))
-    x = np.asarray(x0, float).copy()
     scores: dict[float, float] = {}
-    best = None
-    for i, g in enumerate(sorted(grid, reverse=True)):  # strong shrinkage first: each solve starts near the last
+    at: dict[float, tuple] = {}
+
+    def solve(g, x):
         mu = g * scale
         lam = mu * wa[idx]
         x = map_solve(model, data, x, idx, lam, centre)
@@ -112,15 +120,29 @@ def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[st
         J = np.asarray(model.jacobian(x, data), float).reshape(m, -1)[:, idx]
         A = J.T @ J + np.diag(lam**2)
         dof = float(np.trace(np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ (J.T @ J)))  # unpenalised may be rank-deficient
-        rss = float(r @ r)
-        scores[mu] = m * rss / max(m - dof, 1e-9) ** 2
+        scores[mu] = m * float(r @ r) / max(m - dof, 1e-9) ** 2
+        at[g] = (mu, x, dof)
         if progress is not None:
-            progress(f"shrinkage μ = {mu * 1e3:.4g} mm ({i + 1}/{len(grid)}): GCV RMS "
-                     f"{np.sqrt(scores[mu]) * 1e3:.4g} mm, {dof:.1f} effective parameters")
-        if best is None or scores[mu] < best[1]:
-            best = (mu, scores[mu], x.copy(), dof)
-    mu, _, xb, dof = best
-    return Shrunk(xb, mu, scores, dof, _implausible(model, xb, idx, w, nominal), len(grid))
+            progress(f"shrinkage μ = {mu * 1e3:.4g} mm ({len(at)}/{len(grid)}{'+' if len(at) > len(grid) else ''}): "
+                     f"GCV RMS {np.sqrt(scores[mu]) * 1e3:.4g} mm, {dof:.1f} effective parameters")
+        return x
+
+    x = np.asarray(x0, float).copy()
+    for g in sorted(grid, reverse=True):  # strong shrinkage first: each solve starts near the last
+        x = solve(g, x)
+    step = (max(grid) / min(grid)) ** (1 / (len(grid) - 1)) if len(grid) > 1 else 1.0
+    best = lambda: min(at, key=lambda g: scores[at[g][0]])  # noqa: E731
+    for _ in range(EXTEND if extend and len(grid) > 1 else 0):
+        g = best()
+        if g == min(at):
+            solve(g / step, at[g][1])
+        elif g == max(at):
+            solve(g * step, at[g][1])
+        else:
+            break
+    g = best()
+    mu, xb, dof = at[g]
+    return Shrunk(xb, mu, scores, dof, _implausible(model, xb, idx, w, nominal), len(at), multiple=g)
 
 
 def _implausible(model, x, idx, w, nominal) -> list[dict]:
@@ -134,70 +156,82 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
     """MAP estimate with μ chosen by leaving out whole groups (`group_holdout`): the candidates are the
     grid and μ = ∞ (registration only, the nominal robot); a μ is eligible only if no left-out group is
     predicted worse than by registration only, and the eligible μ of least held-out RMS is chosen, then
-    refined once by the same rule over the geometric midpoints either side of it (half a grid step)."""
+    refined once by the same rule over the geometric midpoints either side of it (half a grid step).
+    The registration is anchored at its registration-only estimate (`_anchor`); the same rule then judges
+    it free (unpenalised) at the chosen μ and its two midpoints, and keeps whichever predicts the left-out
+    groups better: what carries over to a group the fit did not see decides, not an assumption."""
     from pipeline.identify.group_holdout import held_out, per_group_rms
 
     nominal = np.asarray(model.nominal(), float)
     free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
-    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
+    weights = {True: w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra), False: w}
     centre = np.where(w > 0, nominal, np.asarray(x0, float))
     idx = np.flatnonzero(free)
     reg = idx[w[idx] == 0]
     scale = float(np.sqrt(np.mean(np.asarray(model.residuals(x0, data), float) ** 2)))
     cands = [np.inf] + [g * scale for g in sorted(grid, reverse=True)]
     per, total, full, outs = {}, {}, {}, {}
+    INF = (True, np.inf)
 
-    def judge(mu, x, label):
+    def judge(key, x, label):
+        anchored, mu = key
         if np.isinf(mu):
             def solve(d, xs):
                 return map_solve(model, d, xs, reg, np.zeros(reg.size), nominal)
         else:
-            def solve(d, xs, lam=mu * wa[idx]):
+            def solve(d, xs, lam=mu * weights[anchored][idx]):
                 return map_solve(model, d, xs, idx, lam, centre)
         r = held_out(model, data, groups, solve, x)
-        per[mu], total[mu], outs[mu] = per_group_rms(r, groups), float(np.sqrt(np.nanmean(r**2))), r
-        full[mu] = solve(data, x)
+        per[key], total[key], outs[key] = per_group_rms(r, groups), float(np.sqrt(np.nanmean(r**2))), r
+        full[key] = solve(data, x)
         if progress is not None:
-            progress(f"model choice {label}: μ = {mu * 1e3:.4g} mm, held-out (whole groups left out) "
-                     f"RMS {total[mu] * 1e3:.4g} mm")
-        return full[mu]
+            progress(f"model choice {label}: μ = {mu * 1e3:.4g} mm{'' if anchored else ', registration free'}, "
+                     f"held-out (whole groups left out) RMS {total[key] * 1e3:.4g} mm")
+        return full[key]
 
-    def best():
-        ok = [m for m in per if all(per[m][g] <= per[np.inf][g] for g in per[np.inf])]
-        return min(ok, key=lambda m: total[m])
+    def best(anchored=(True, False)):
+        ok = [k for k in per if k[0] in anchored and all(per[k][g] <= per[INF][g] for g in per[INF])]
+        return min(ok, key=lambda k: total[k])
 
     x = np.asarray(x0, float).copy()
     for i, mu in enumerate(cands):
-        x = judge(mu, x, f"{i + 1}/{len(cands)}")
-    mu = best()
-    if not np.isinf(mu) and len(grid) > 1:  # refine: the geometric midpoints either side of the chosen grid point
+        x = judge((True, mu), x, f"{i + 1}/{len(cands)}")
+    key = best()
+    if not np.isinf(key[1]) and len(grid) > 1:  # refine: the geometric midpoints either side of the chosen grid point
         step = np.sqrt(max(grid) / min(grid)) ** (1 / max(len(grid) - 1, 1))
+        mu = key[1]
         for k, m in enumerate((mu * step, mu / step)):
-            judge(m, full[mu], f"refined {k + 1}/2")
-        mu = best()
-    cands = sorted(per, reverse=True)
-    xb = full[mu]
+            judge((True, m), full[key], f"refined {k + 1}/2")
+        key = best()
+        for k, m in enumerate((key[1] * step, key[1], key[1] / step)):  # the registration free, about the choice
+            judge((False, m), full[key], f"registration free {k + 1}/3")
+        key = best()
+    anchored, mu = key
+    cands = sorted((m for a, m in per if a == anchored or np.isinf(m)), reverse=True)
+    xb = full[key]
     J = np.asarray(model.jacobian(xb, data), float).reshape(-1, xb.size)[:, idx]
-    lam = (0.0 if np.isinf(mu) else mu) * wa[idx]
+    lam = (0.0 if np.isinf(mu) else mu) * weights[anchored][idx]
     dof = float(np.trace(np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True) @ (J.T @ J)))
-    return Shrunk(xb, float(mu), {float(m): total[m] ** 2 for m in cands}, dof,
-                  [] if np.isinf(mu) else _implausible(model, xb, idx, w, nominal), len(cands),
-                  per_group={float(m): per[m] for m in cands}, holdout=outs[mu])
+    at = lambda m: INF if np.isinf(m) else (anchored, m)  # noqa: E731
+    other = {float(m): total[(a, m)] ** 2 for a, m in per if a != anchored and not np.isinf(m)}
+    return Shrunk(xb, float(mu), {float(m): total[at(m)] ** 2 for m in cands}, dof,
+                  [] if np.isinf(mu) else _implausible(model, xb, idx, w, nominal), len(per),
+                  per_group={float(m): per[at(m)] for m in cands}, holdout=outs[key],
+                  registration="anchored" if anchored else "free", other_registration=other)
 
 
 def _downhill(at, first: Shrunk) -> Shrunk:
-    """The `at(grid)` shrink of least GCV found by walking the GRID from the point `first` chose, each way
-    while the score falls (a few solves instead of the whole grid); its `gcv` holds every point tried."""
-    g = sorted(GRID, reverse=True)
-    i0 = list(first.gcv).index(first.mu_m)
-    seen = {i0: at((g[i0],))}
+    """The `at(grid)` shrink of least GCV found by walking the grid's steps from the multiple `first` chose,
+    each way while the score falls (a few solves instead of the whole grid); its `gcv` holds every point tried."""
+    step = (max(GRID) / min(GRID)) ** (1 / (len(GRID) - 1))
+    seen = {0: at((first.multiple,))}
     score = lambda s: s.gcv[s.mu_m]  # noqa: E731
-    for step in (-1, 1):
-        j = i0
-        while 0 <= j + step < len(g):
-            j += step
-            seen[j] = at((g[j],))
-            if score(seen[j]) >= score(seen[j - step]):
+    for d in (-1, 1):
+        j = 0
+        while abs(j) < len(GRID) + EXTEND:
+            j += d
+            seen[j] = at((first.multiple * step**j,))
+            if score(seen[j]) >= score(seen[j - d]):
                 break
     best = min(seen.values(), key=score)
     return replace(best, gcv={s.mu_m: score(s) for _, s in sorted(seen.items())}, fits=len(seen))
@@ -253,7 +287,8 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
             score = s.gcv[s.mu_m]
         else:
             def at(grid, x0=f0.x, fixed=fixed + held, on=on):
-                return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid)
+                return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid,
+                              extend=len(grid) > 1)
 
             # later candidates: from the first one's chosen grid point, downhill along the grid only
             s = at(GRID) if first is None else _downhill(at, first)
@@ -325,5 +360,8 @@ def shrinkage_document(s: Shrunk) -> dict:
         doc["physics_families"] = s.physics
     if s.per_group:
         doc["holdout_per_group_m"] = {key(m): v for m, v in s.per_group.items()}
+        doc["registration"] = s.registration  # anchored at its registration-only estimate, or free
+        doc["score_m2_registration_" + ("free" if s.registration == "anchored" else "anchored")] = {
+            key(m): v for m, v in s.other_registration.items()}
     return doc
 

@@ -24,7 +24,8 @@ from pipeline.blas import single_threaded
 from pipeline.identify.plausibility import PLAUSIBLE
 
 GRID = (0.03, 0.1, 0.3, 1.0, 3.0)  # μ as multiples of the registration-only RMS residual (per axis)
-EXTEND = 4  # grid points added beyond an end of GRID where GCV still falls there
+EXTEND = 4  # grid steps added beyond each end of GRID (candidates judged on the linearised problem)
+ROUNDS = 4  # at most this many solves after the first (each at the least linearised GCV)
 
 
 @dataclass(frozen=True)
@@ -97,10 +98,14 @@ def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[st
            extend: bool = True) -> Shrunk:
     """MAP estimate with μ chosen by GCV (module docstring).  `x0`: start (e.g. the registration-only
     fit); `scale_m`: the registration-only RMS residual per axis (default: at x0); `extra`: names
-    estimated with the registration (anchored at x0, not pulled toward nominal).  `extend`: where the
-    least GCV lies at an end of the grid, the grid goes on that way by its own step (up to `EXTEND` points)
-    while GCV falls — the registration-only RMS sets the grid, and a robot far off its instrument's
-    frame (planes tens of mm off) would otherwise never reach the μ its data support."""
+    estimated with the registration (anchored at x0, not pulled toward nominal).
+
+    The ladder of candidates is the grid and, with `extend`, `EXTEND` more of its steps beyond each end (the
+    registration-only RMS sets the grid; a robot far off its instrument's frame — planes tens of mm off —
+    would otherwise never reach the μ its data support).  Few solves: one at the grid's middle, then GCV of
+    every candidate from the problem linearised there (one factorisation each: δ = −(JᵀJ + Λ²)⁻¹(Jᵀr +
+    Λ²(x − centre)), dof = tr((JᵀJ + Λ²)⁻¹JᵀJ)), a solve at the least, and again until the least is the
+    point solved (at most `ROUNDS`).  Scores of solved points are exact, the others linearised."""
     nominal = np.asarray(model.nominal(), float)
     free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
     wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
@@ -112,37 +117,46 @@ def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[st
     scores: dict[float, float] = {}
     at: dict[float, tuple] = {}
 
+    def gcv(J, r, xi, g):
+        """(GCV m², dof) at multiple g, linearised at (J, r, xi = x[idx])."""
+        lam = g * scale * wa[idx]
+        Ai = np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True)  # unpenalised may be rank-deficient
+        rl = r - J @ (Ai @ (J.T @ r + lam**2 * (xi - centre[idx])))
+        dof = float(np.trace(Ai @ (J.T @ J)))
+        return m * float(rl @ rl) / max(m - dof, 1e-9) ** 2, dof
+
     def solve(g, x):
         mu = g * scale
-        lam = mu * wa[idx]
-        x = map_solve(model, data, x, idx, lam, centre)
+        x = map_solve(model, data, x, idx, mu * wa[idx], centre)
         r = np.asarray(model.residuals(x, data), float).ravel()
         J = np.asarray(model.jacobian(x, data), float).reshape(m, -1)[:, idx]
-        A = J.T @ J + np.diag(lam**2)
-        dof = float(np.trace(np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ (J.T @ J)))  # unpenalised may be rank-deficient
-        scores[mu] = m * float(r @ r) / max(m - dof, 1e-9) ** 2
-        at[g] = (mu, x, dof)
+        scores[mu], dof = gcv(J, r, x[idx], g)
+        at[g] = (mu, x, dof, J, r)
         if progress is not None:
-            progress(f"shrinkage μ = {mu * 1e3:.4g} mm ({len(at)}/{len(grid)}{'+' if len(at) > len(grid) else ''}): "
-                     f"GCV RMS {np.sqrt(scores[mu]) * 1e3:.4g} mm, {dof:.1f} effective parameters")
+            progress(f"shrinkage μ = {mu * 1e3:.4g} mm (solve {len(at)}): GCV RMS {np.sqrt(scores[mu]) * 1e3:.4g} mm, "
+                     f"{dof:.1f} effective parameters")
         return x
 
-    x = np.asarray(x0, float).copy()
-    for g in sorted(grid, reverse=True):  # strong shrinkage first: each solve starts near the last
-        x = solve(g, x)
-    step = (max(grid) / min(grid)) ** (1 / (len(grid) - 1)) if len(grid) > 1 else 1.0
-    best = lambda: min(at, key=lambda g: scores[at[g][0]])  # noqa: E731
-    for _ in range(EXTEND if extend and len(grid) > 1 else 0):
-        g = best()
-        if g == min(at):
-            solve(g / step, at[g][1])
-        elif g == max(at):
-            solve(g * step, at[g][1])
-        else:
+    g_sorted = sorted(grid)
+    step = (g_sorted[-1] / g_sorted[0]) ** (1 / (len(grid) - 1)) if len(grid) > 1 else 1.0
+    k = EXTEND if extend and len(grid) > 1 else 0
+    ladder = [g_sorted[0] / step**i for i in range(k, 0, -1)] + g_sorted + [g_sorted[-1] * step**i for i in range(1, k + 1)]
+    g = g_sorted[len(g_sorted) // 2]
+    solve(g, np.asarray(x0, float).copy())
+    for _ in range(ROUNDS if len(ladder) > 1 else 0):
+        _, x, _, J, r = at[g]
+        lin = {c: scores[at[c][0]] if c in at else gcv(J, r, x[idx], c)[0] for c in ladder}
+        for c, v in lin.items():
+            scores.setdefault(c * scale, v)
+        nxt = min(lin, key=lin.get)
+        if nxt in at:
+            g = min(at, key=lambda c: scores[at[c][0]])
             break
-    g = best()
-    mu, xb, dof = at[g]
-    return Shrunk(xb, mu, scores, dof, _implausible(model, xb, idx, w, nominal), len(at), multiple=g)
+        solve(nxt, x)
+        g = nxt if scores[nxt * scale] <= scores[at[g][0]] else g
+    mu, xb, dof = at[g][:3]
+    return Shrunk(xb, mu, dict(sorted(scores.items())), dof, _implausible(model, xb, idx, w, nominal), len(at),
+                  multiple=g)
 
 
 def _implausible(model, x, idx, w, nominal) -> list[dict]:
@@ -220,23 +234,6 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
                   registration="anchored" if anchored else "free", other_registration=other)
 
 
-def _downhill(at, first: Shrunk) -> Shrunk:
-    """The `at(grid)` shrink of least GCV found by walking the grid's steps from the multiple `first` chose,
-    each way while the score falls (a few solves instead of the whole grid); its `gcv` holds every point tried."""
-    step = (max(GRID) / min(GRID)) ** (1 / (len(GRID) - 1))
-    seen = {0: at((first.multiple,))}
-    score = lambda s: s.gcv[s.mu_m]  # noqa: E731
-    for d in (-1, 1):
-        j = 0
-        while abs(j) < len(GRID) + EXTEND:
-            j += d
-            seen[j] = at((first.multiple * step**j,))
-            if score(seen[j]) >= score(seen[j - d]):
-                break
-    best = min(seen.values(), key=score)
-    return replace(best, gcv={s.mu_m: score(s) for _, s in sorted(seen.items())}, fits=len(seen))
-
-
 @single_threaded
 def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     """(`Fit` of the MAP estimate, `Shrunk`, k-fold held-out residuals (n, residual_dim)).
@@ -266,7 +263,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     registration = set(model.groups().get("registration", []))
     n, kd = n_rows(data), model.residual_dim
     groups_of_rows = row_groups(model, data)
-    best, tried, first = None, {}, None
+    best, tried = None, {}
     for chosen in pc.candidates(model):  # gravity-compliance families: none, each, all (physics_choice)
         on, off = pc.names_of(model, chosen)
         label = "+".join(chosen) or "rigid"
@@ -287,15 +284,12 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
             score = s.gcv[s.mu_m]
         else:
             def at(grid, x0=f0.x, fixed=fixed + held, on=on):
-                return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid,
-                              extend=len(grid) > 1)
+                return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid)
 
-            # later candidates: from the first one's chosen grid point, downhill along the grid only
-            s = at(GRID) if first is None else _downhill(at, first)
+            s = at(GRID)
             m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
             rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
             score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
-        first = s if first is None and groups_of_rows is None else first
         tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m)}
         if progress is not None and len(pc.candidates(model)) > 1:
             progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")

@@ -59,3 +59,26 @@ def test_reprocess_table_shows_a_camera_row_in_px(tmp_path, capsys):
     _print_table(tmp_path, rows)
     out = capsys.readouterr().out
     assert "0.9400 px" in out and "1.0200 px" in out and "0.0350" in out and "0.0350 px" not in out
+
+
+def _fleet_rows(unit, holdout):
+    par = [{"name": "fx", "unit": "px", "nominal": 600.0, "estimate": 600.0 + i * 1e-3, "std": 0.1,
+            "identifiable": True} for i in range(1)]
+    return [{"recording": f"c{i}.mcap", "robot_id": "cell", "campaign_start_ns": (1_700_000_000 + i * 86400) * 10**9,
+             "status": "pass", "n_identifiable": 1, "residual_dof": 100, "parameters": par, "holdout_rms_m": h,
+             "predicted_point_sigma_rms_m": None, "residual_unit": unit} for i, h in enumerate(holdout)]
+
+
+def test_fleet_page_of_a_camera_cell_is_px_and_not_held_to_a_length_tolerance():
+    """A camera cell's held-out figures are px: the fleet's accuracy plot says px, and a tolerance in
+    metres (0.1 mm) does not flag 0.9 px as 'above tolerance'; a length robot's 0.2 mm still is."""
+    from pipeline.fleet import plots
+    from pipeline.fleet.history import robot_history
+
+    cam = robot_history("cell", _fleet_rows("px", [0.91, 0.94, 0.90]), tolerance_m=1e-4)
+    assert cam.tolerance == []
+    svg = plots.accuracy(cam, 1e-4)
+    assert re.findall(r">([^<]*(?:px|mm)[^<]*)<", svg) == ["px"]  # the axis label; no mm, no tolerance line
+    arm = robot_history("arm", _fleet_rows(None, [5e-5, 2e-4]), tolerance_m=1e-4)
+    assert [t["holdout_rms_m"] for t in arm.tolerance] == [2e-4]
+    assert re.findall(r">([^<]*(?:px|mm)[^<]*)<", plots.accuracy(arm, 1e-4)) == ["mm", "tolerance 0.1 mm"]

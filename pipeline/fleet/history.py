@@ -261,7 +261,8 @@ def robot_history(robot_id: str, rows: list[dict], tolerance_m: float | None, al
     h.trends = find_trends(h.series, h.steps + moves, alpha)  # a level per segment, unconfirmed moves included
     if tolerance_m is not None:
         h.tolerance = [{"recording": r["recording"], "t_ns": r["campaign_start_ns"], "holdout_rms_m": r["holdout_rms_m"]}
-                       for r in h.usable if r.get("holdout_rms_m") is not None and r["holdout_rms_m"] > tolerance_m]
+                       for r in h.usable if r.get("holdout_rms_m") is not None and r["holdout_rms_m"] > tolerance_m
+                       and r.get("residual_unit") in (None, "m")]  # a length tolerance: px runs are not compared
     return h
 
 

@@ -10,6 +10,7 @@ from html import escape
 from pipeline import __version__
 from pipeline.fleet import plots
 from pipeline.fleet.history import RobotHistory
+from pipeline.report.labels import residual_text
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1100px;
@@ -108,7 +109,7 @@ def robot_section(h: RobotHistory, tolerance_m: float | None) -> str:
         out.append('<h3>Accuracy above the tolerance</h3><table class="tolerance"><tr><th>date</th>'
                    '<th>held-out RMS</th><th>recording</th></tr>')
         for t in h.tolerance:
-            out.append(f'<tr class="over"><td>{day(t["t_ns"])}</td><td class="n">{t["holdout_rms_m"] * 1e3:.4f} mm'
+            out.append(f'<tr class="over"><td>{day(t["t_ns"])}</td><td class="n">{residual_text(t["holdout_rms_m"], "m")}'
                        f'</td><td><code>{escape(t["recording"])}</code></td></tr>')
         out.append("</table>")
     out.append(f'<h3>Accuracy over time</h3><figure id="fig-accuracy-{rid}" class="plot">'

@@ -11,6 +11,7 @@ from matplotlib import rc_context
 from matplotlib.figure import Figure
 
 from pipeline.fleet.history import RobotHistory
+from pipeline.report.labels import residual_display
 
 RC = {"svg.fonttype": "none", "svg.hashsalt": "robocal-fleet", "font.size": 8, "axes.titlesize": 8,
       "axes.spines.top": False, "axes.spines.right": False, "axes.grid": True, "grid.alpha": 0.3,
@@ -42,26 +43,32 @@ def _dates_axis(ax) -> None:
 
 
 def accuracy(h: RobotHistory, tolerance_m: float | None) -> str:
-    """Held-out RMS and predicted 1σ tip accuracy (mm) per calibration, with the tolerance."""
+    """Held-out RMS and predicted 1σ tip accuracy per calibration, with the tolerance: mm for length
+    residuals; px when every calibration of the robot is a camera run (its figures are px, and a length
+    tolerance does not apply)."""
     rows = [r for r in h.usable if r.get("holdout_rms_m") is not None]
+    px = bool(rows) and all(r.get("residual_unit") == "px" for r in rows)
+    k, unit = residual_display("px" if px else None)
+    rows = [r for r in rows if (r.get("residual_unit") == "px") == px]
+    tolerance = None if px else tolerance_m
     with rc_context(RC):
         fig = Figure(figsize=(7.5, 2.0), layout="constrained")
         ax = fig.subplots()
         if rows:
             t = dates(np.array([r["campaign_start_ns"] for r in rows]))
-            ax.plot(t, [r["holdout_rms_m"] * 1e3 for r in rows], "o-", color="#1f77b4", ms=3, label="held-out RMS")
+            ax.plot(t, [r["holdout_rms_m"] * k for r in rows], "o-", color="#1f77b4", ms=3, label="held-out RMS")
             pp = [(ti, r["predicted_point_sigma_rms_m"] * 1e3) for ti, r in zip(t, rows)
-                  if r.get("predicted_point_sigma_rms_m") is not None]
+                  if r.get("predicted_point_sigma_rms_m") is not None and not px]
             if pp:
                 ax.plot(*zip(*pp), "s--", color="#2ca02c", ms=3, label="predicted tip 1σ (RMS)")
-            bad = [(ti, r["holdout_rms_m"] * 1e3) for ti, r in zip(t, rows)
-                   if tolerance_m is not None and r["holdout_rms_m"] > tolerance_m]
+            bad = [(ti, r["holdout_rms_m"] * k) for ti, r in zip(t, rows)
+                   if tolerance is not None and r["holdout_rms_m"] > tolerance]
             if bad:
                 ax.plot(*zip(*bad), "o", color="#d62728", ms=7, mfc="none", label="above tolerance")
             _dates_axis(ax)
-        if tolerance_m is not None:
-            ax.axhline(tolerance_m * 1e3, color="#d62728", lw=1, ls=":", label=f"tolerance {tolerance_m * 1e3:g} mm")
-        ax.set_ylabel("mm")
+        if tolerance is not None:
+            ax.axhline(tolerance * 1e3, color="#d62728", lw=1, ls=":", label=f"tolerance {tolerance * 1e3:g} mm")
+        ax.set_ylabel(unit)
         ax.set_ylim(bottom=0)
         ax.legend(loc="upper left", ncols=4)
     return _svg(fig)

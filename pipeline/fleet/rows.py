@@ -13,7 +13,7 @@ import pyarrow as pa
 from pipeline import __version__
 
 FIGURES = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
-           "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m")
+           "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m", "residual_unit")
 PARAMETER = pa.struct([("name", pa.string()), ("unit", pa.string()), ("nominal", pa.float64()),
                        ("estimate", pa.float64()), ("std", pa.float64()), ("identifiable", pa.bool_())])
 SCHEMA = pa.schema([
@@ -37,6 +37,7 @@ SCHEMA = pa.schema([
     ("n_parameters", pa.int64()),
     ("predicted_point_sigma_rms_m", pa.float64()),
     ("sigma_m", pa.float64()),
+    ("residual_unit", pa.string()),        # px for a camera run (its *_m residual figures are px); null: m
     ("residual_dof", pa.int64()),          # residuals used − identified parameters (σ's degrees of freedom)
     ("warnings", pa.list_(pa.string())),
     ("parameters", pa.list_(PARAMETER)),

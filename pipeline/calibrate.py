@@ -29,6 +29,7 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     `payload`: gravity terms of a URDF robot (`pipeline.physics.compliance`)."""
     t0 = time.perf_counter()
     from pipeline.identify.route import check, resolve
+    from pipeline.systems.urdf_robot import is_tree
 
     check(model_choice)
     path, out = Path(path), Path(out)
@@ -65,7 +66,8 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     gross = screen(model, table, rec.metadata.get(META_CAMPAIGN, {}), options)  # before any open-ended solve
     if gross["status"] == "fail":
         raise RobocalError(f"{path}: {gross['message']}")
-    route = resolve(model_choice, system.SYSTEM, model, rec.metadata.get(META_CAMPAIGN, {}))
+    route = resolve(model_choice, system.SYSTEM, model, rec.metadata.get(META_CAMPAIGN, {}),
+                   tree=system.SYSTEM == "urdf" and is_tree(rec))
     model_choice = route["route"]
     if solver == "ga":
         from pipeline.identify.genetic import cross_validate_ga, fit_ga

@@ -3,7 +3,7 @@
 A URDF robot imported from a CSV table (here: points of a perturbed six-joint arm measured by yourdfpy's
 forward kinematics, tests/test_evaluate.py's generator) takes shrinkage toward nominal, says so in
 results.json and the printed table, and recovers the arm to the noise floor; the seed papers' reference
-systems keep the group selection, as do simulated URDF campaigns and cameras; an unknown choice is a
+systems keep the group selection, as do simulated URDF campaigns, trees and cameras; an unknown choice is a
 one-line error (exit 2).  On real data: tests/test_physics_choice.py runs FIGAROH's TIAGo protocol through
 `robocal calibrate`'s default (shrinkage taken, every held-out session at or below FIGAROH's full model).
 """
@@ -43,6 +43,7 @@ def test_imported_urdf_takes_shrinkage_simulated_and_cameras_keep_groups():
     assert resolve("auto", "urdf", _Model(), {"source_files": ["a.csv"]})["route"] == "shrinkage"
     assert resolve("auto", "urdf", _Model(), {"simulated": True})["route"] == "groups"
     assert resolve("auto", "urdf", _Camera(), {})["route"] == "groups"
+    assert resolve("auto", "urdf", _Model(), {}, tree=True)["route"] == "groups"  # several tips / coupled joints
     for asked in ("groups", "shrinkage"):  # asked for: taken as asked, whatever the system
         assert resolve(asked, "arc-welder", _Model(), {})["route"] == asked
         assert resolve(asked, "urdf", _Model(), {})["route"] == asked

@@ -42,4 +42,5 @@ def resolve(choice: str, system: str, model, campaign: dict, tree: bool = False)
         return {"asked": "auto", "route": "groups",
                 "reason": "auto: a tree (several tips or coupled joints) keeps the group selection"}
     return {"asked": "auto", "route": "shrinkage",
-            "reason": "auto: a URDF robot measured by an instrument (imported) takes shrinkage toward nominal"}
+            "reason": "auto: a single-chain URDF robot measured by an instrument (imported) takes shrinkage "
+                      "toward nominal"}

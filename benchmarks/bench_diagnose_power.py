@@ -2,6 +2,10 @@
 
 Each effect is injected at `--mult` × its minimum detectable size (3σ over the norm of its signature ⊥ the
 geometric Jacobian, computed by the generator itself) into 100-contact touch campaigns of one plan:
+`--plan robocal` (default) robocal's own campaign — `robocal plan arc-welder --select 115` written to a plan
+file, which the generator reads as plain JSON (`tests/independent_campaign_file.py`), its first 100 contacts
+that touch on the true arm; `--plan generator` the generator's own random one (random face points, random
+order: `independent_touch.plan`).
 
 - in library: backlash of J1, J2, J3 (the load lags the motor by half the play, the sign of the joint's
   velocity along the search), joint compliance of J2 in a single-payload campaign (6 kg throughout: the
@@ -19,14 +23,19 @@ of the signature (`mds_generator_without_top_contact`: a finding resting on one 
 Targets: named ≥ 95 % in library, located ≥ 80 % out of library, misnamed with high confidence ≤ 10 %,
 worse 0.
 
-Backlash at J2 in this plan is below that target by the campaign, not by the diagnosis: J2 turns the same
-way during the search on almost every face, so the geometry (J2's offset) absorbs the signature but on a few
-contacts, and one contact carries a third of the rest.  That contact is >9σ off the geometric fit and set
-aside; without it the detectable play is 2.5× larger (1.33 vs 0.53 mrad at the injected 2.1 mrad); the
-gate's is 1.4–1.6 mrad for the forms it can test, which fit about half of a 2.1 mrad play (the form that
-matches it, play ≥ 2 mrad, needs 2.6 mrad: over the plausible 2 mrad, not testable).  Keeping the contact
-only moves the finding to "rests on one record" (not reported).  The remedy is the campaign's: reverse J2
-before the search (the backlash advice).
+Backlash at J2 on the generator's random plan is below that target by the campaign, not by the diagnosis:
+J2 turns the same way during the search on almost every face, so the geometry (J2's offset) absorbs the
+signature but on a few contacts, and one contact carries a third of the rest.  That contact is >9σ off the
+geometric fit and set aside; without it the detectable play is 2.5× larger (1.33 vs 0.53 mrad at the injected
+2.1 mrad).  Keeping the contact only moves the finding to "rests on one record" (not reported).  The remedy is
+the campaign's: approach J2 both ways.  robocal's plan does (`approach_balance` in the campaign file: its
+constant-orientation searches turn J2 both ways on many faces), J2's detectable play there is 0.12 mrad and
+leaving out its top contact raises it 1.25×, not 2.5×.
+
+The dent sits where the campaign samples a face (`dent_place`): top2 at (0.15, 0.1) m as before where the
+campaign touches within its radius of there (the random plan), else the median point of the face the campaign
+touches most (robocal's plan has 5 contacts on top2, none within 59 mm of that point: a dent under one or two
+contacts is refused by design, as the backlash above).
 
 Usage: ``python benchmarks/bench_diagnose_power.py [--seeds 20] [--mult 4] [--cases a,b] [--out f.json]``.
 (CI runs a bounded version: tests/test_diagnose_power.py.)
@@ -44,6 +53,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+import independent_campaign_file as icf  # noqa: E402
 import independent_touch as it  # noqa: E402
 
 from pipeline.diagnose import Settings, diagnose  # noqa: E402
@@ -55,6 +65,7 @@ REPEATABILITY = 1e-4
 def cases(targets: it.Targets) -> dict[str, tuple[it.Effect, dict, tuple | None]]:
     """name → (the generator's effect at unit size, campaign options, (effect, location prefix) when in library)."""
     q2 = float(np.median(targets.q_a[:100, 1]))
+    dent_face, dent = dent_place(targets)
     return {
         "backlash_J1": (it.Effect("backlash", 1.0, {"joint": 0}), {}, ("backlash", "J1")),
         "backlash_J2": (it.Effect("backlash", 1.0, {"joint": 1}), {}, ("backlash", "J2")),
@@ -63,8 +74,31 @@ def cases(targets: it.Targets) -> dict[str, tuple[it.Effect, dict, tuple | None]
                                          ("joint_compliance", "J2")),
         "thermal": (it.Effect("linear_growth", 1.0), {}, ("thermal_growth", "links")),
         "bump": (it.Effect("bump", 1.0, {"joint": 1, "centre": q2, "width": 0.1}), {}, None),
-        "dent": (it.Effect("dent", 1.0, {"face": 1, "centre": (0.15, 0.1), "radius": 0.03}), {}, None),
+        "dent": (it.Effect("dent", 1.0, {"face": dent_face, "centre": dent, "radius": DENT_RADIUS}), {}, None),
     }
+
+
+DENT_FACE, DENT_AT, DENT_RADIUS = 1, (0.15, 0.1), 0.03  # the dent: face top2 at (x, y), its radius, m
+
+
+def dent_place(targets: it.Targets) -> tuple[int, tuple[float, float]]:
+    """(face, centre) of the dent: top2 at `DENT_AT` when the campaign touches it within one radius of there,
+    else the median point of the face the campaign touches most (a dent where no contact or a single one
+    looks is not one any diagnosis can locate — a structure resting on one or two records is refused by
+    design; the bump is likewise at the campaign's median J2).  The points: the approach poses' tips (nominal
+    arm), whose search runs along the face normal, on the face's two other axes."""
+    nom, _ = it.default_arms()
+    faces = it.stepped_block().faces
+    face = targets.face[:100]
+
+    def points(f):
+        return it.tip(nom, targets.q_a[:100][face == f])[:, list(faces[f].other_axes())]
+
+    near = points(DENT_FACE)
+    if near.size and np.min(np.linalg.norm(near - np.array(DENT_AT), axis=1)) <= DENT_RADIUS:
+        return DENT_FACE, DENT_AT
+    f = int(np.argmax(np.bincount(face, minlength=len(faces))))
+    return f, tuple(float(v) for v in np.median(points(f), axis=0))
 
 
 def score(d: dict, key: tuple | None) -> dict:
@@ -116,9 +150,32 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
     return out
 
 
-def world(m: int = 120):
+def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, backlash: bool = False) -> it.Targets:
+    """robocal's own campaign (`robocal plan arc-welder --select SELECT`), written to a plan file and read back
+    by the generator as plain JSON (`independent_campaign_file.from_campaign`): its first m contacts whose search
+    touches on the true arm (`independent_campaign_file.touching`), in the plan's order."""
+    import tempfile
+
+    from pipeline.plan.arc_welder import touch_campaign
+    from pipeline.plan.campaign import write_document
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "campaign.json"
+        write_document(path, touch_campaign(1000, select, seed, backlash=backlash))
+        targets = icf.from_campaign(json.loads(path.read_text()))
+    ok = np.flatnonzero(icf.touching(nom, tru, targets))
+    if ok.size < m:
+        raise RuntimeError(f"robocal's plan: only {ok.size} of {select} contacts touch on the true arm")
+    return icf.take(targets, ok[:m])
+
+
+def world(plan: str = "robocal", m: int = 120):
+    """(nominal, truth, targets, σ along the normal): the campaign robocal plans (`plan` "robocal"; "robocal-backlash":
+    planned for every joint's backlash too, `robocal plan --backlash`), or the
+    generator's own random one (`plan` "generator": m approach poses on random face points, random order)."""
     nom, tru = it.default_arms()
-    targets = it.plan(nom, it.stepped_block(), m=m, seed=1)
+    targets = (planned_targets(nom, tru, backlash=plan == "robocal-backlash") if plan.startswith("robocal")
+               else it.plan(nom, it.stepped_block(), m=m, seed=1))
     return nom, tru, targets, it.run(nom, tru, targets, (), seed=0).along_normal_noise_sigma_m
 
 
@@ -130,12 +187,14 @@ def main() -> None:
     ap.add_argument("--cases", default="")
     ap.add_argument("--n-boot", type=int, default=20)
     ap.add_argument("--out", default="")
+    ap.add_argument("--plan", default="robocal", choices=("robocal", "robocal-backlash", "generator"),
+                    help="the campaign: robocal's plan (robocal plan arc-welder [--backlash]) or the generator's random one")
     a = ap.parse_args()
     t0 = time.time()
-    w = world()
+    w = world(a.plan)
     names = a.cases.split(",") if a.cases else list(cases(w[2]))
     seeds = range(a.first_seed, a.first_seed + a.seeds)
-    report = {"seeds": a.seeds, "mult": a.mult}
+    report = {"seeds": a.seeds, "mult": a.mult, "plan": a.plan}
     for name in names:
         r = run_case(w, name, a.mult, seeds, a.n_boot)
         report[name] = r

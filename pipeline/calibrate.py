@@ -205,6 +205,8 @@ def summary_rows(doc: dict) -> list[tuple[str, str]]:
         *([("predicted over the workspace (1σ RMS / worst 95 %)",
             f"{mm(doc['accuracy']['map_rms_1sigma_m'])} / {mm(doc['accuracy']['map_max_bound95_m'])}")]
           if "map_rms_1sigma_m" in doc.get("accuracy", {}) else []),
+        *([(NEW_LABEL, mm(doc["accuracy"]["new_measurement"]["rms_3d_m"]))]
+          if "new_measurement" in doc.get("accuracy", {}) else []),
         *([("status", doc["status"])] if "status" in doc else []),
         ("parameters identified / total", f"{doc['n_identifiable']} / {doc['n_parameters']}"),
         *([("model choice", f"{doc['model_choice']['route']} (--model-choice {doc['model_choice']['asked']})")]
@@ -213,4 +215,6 @@ def summary_rows(doc: dict) -> list[tuple[str, str]]:
     ]
 
 
-__all__ = ["calibrate", "summary_rows"]
+NEW_LABEL = "predicted for a new session or posture, measured as here (RMS 3-D)"
+
+__all__ = ["calibrate", "summary_rows", "NEW_LABEL"]

@@ -17,7 +17,8 @@ The torso is a three-joint pitch chain whose last joint is driven by the other t
 q3 = −q1 − q2 (the chest stays level, as on humanoids with a parallel torso linkage); the CSV
 carries only the two driven joints. Optional reading errors of the encoders (off by default): an
 eccentric encoder disc, q_true = q_read + a·sin q_read + b·cos q_read (rad), and a gear-ratio error,
-q_true = q_read + s·q_read, on chosen read joints (before the torso coupling); free play (backlash) b,
+q_true = q_read + s·q_read, on chosen read joints (before the torso coupling); a transmission through the
+joint before it on the arm (cables, belts), q_true = q_read + κ·q_read(driver), the driver's raw reading; free play (backlash) b,
 q_true = q_read + b·d/2 with d = ±1 the joint's direction of approach at the posture (drawn at random
 per posture and joint, written as the columns `dir_<joint>`). Geometry errors: joint offsets and origin perturbations (mm,
 mrad) of every joint; a motion-capture frame with an unknown pose; one marker per hand at an
@@ -242,6 +243,7 @@ class Truth:
     eccentricity: dict = field(default_factory=dict)  # {joint: (a, b)} rad: δq = a·sin q + b·cos q
     scale: dict = field(default_factory=dict)  # {joint: s}: δq = s·q (a gear ratio off by s)
     backlash: dict = field(default_factory=dict)  # {joint: b} rad: δq = b·d/2, d = ±1 the direction of approach
+    coupling: dict = field(default_factory=dict)  # {joint: (driver, κ)}: δq = κ·q_read(driver), rad/rad
     marker: dict = field(default_factory=dict)  # m, in the hand link's frame
     registration_xyz: tuple = (0.0, 0.0, 0.0)  # m: the mocap frame's pose in the base frame
     registration_rpy: tuple = (0.0, 0.0, 0.0)
@@ -299,6 +301,8 @@ def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, pa
         turned[k] = turned[k] + a * np.sin(q_read[k]) + b * np.cos(q_read[k])
     for k, b in t.backlash.items():
         turned[k] = turned[k] + 0.5 * b * np.asarray(approach[k], float)
+    for k, (drv, kappa) in t.coupling.items():
+        turned[k] = turned[k] + kappa * q_read[drv]
     q = {k: v + t.joint_offset.get(k, 0.0) for k, v in turned.items()}
     for name, comb in COUPLED.items():
         q[name] = sum(c * turned[k] for k, c in comb.items()) + t.joint_offset.get(name, 0.0)
@@ -317,12 +321,13 @@ def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, pa
 
 def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geometry: bool = True,
           session: int | None = None, eccentricity: dict | None = None, scale: dict | None = None,
-          backlash: dict | None = None, directions: bool = False) -> Path:
+          backlash: dict | None = None, directions: bool = False, coupling: dict | None = None) -> Path:
     """humanoid.urdf (nominal), postures.csv and truth.json under `out_dir`; returns the folder.  The robot
     (truth) comes from `seed`; `session` (default: the same stream) draws another set of postures and noise
     of the same robot — a second measurement session.  `eccentricity` {joint: (a, b) rad} and `scale`
     {joint: s} add encoder errors to read joints (none by default); `backlash` {joint: b rad} a free play,
-    `directions` (implied by `backlash`) the columns `dir_<joint>` (±1, drawn per posture and joint)."""
+    `directions` (implied by `backlash`) the columns `dir_<joint>` (±1, drawn per posture and joint);
+    `coupling` {joint: (driver, κ)} a reading of `joint` off by κ times the driver's reading."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
@@ -330,6 +335,7 @@ def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geo
     t.eccentricity = {k: tuple(map(float, v)) for k, v in (eccentricity or {}).items()}
     t.scale = {k: float(v) for k, v in (scale or {}).items()}
     t.backlash = {k: float(v) for k, v in (backlash or {}).items()}
+    t.coupling = {k: (str(drv), float(kappa)) for k, (drv, kappa) in (coupling or {}).items()}
     if session is not None:
         rng = np.random.default_rng([seed, session])
     joints, links = humanoid()

@@ -182,6 +182,30 @@ def _face_shift(effects, face_idx: np.ndarray, uv: np.ndarray, jig: Jig) -> np.n
     return out
 
 
+def _bisect_unsettled(gap, s: np.ndarray, travel_m: float = 0.12, step_m: float = 1e-3, tol: float = 1e-11) -> np.ndarray:
+    """Where Newton did not settle (a gap with a kink, a search line that curves), the first zero of the gap
+    along the search: bracketed on a `step_m` grid up to `travel_m`, then bisected.  Rows that settled stay
+    where they are (a dead band couples each contact to the one before); a row with no crossing stays as it
+    was (the caller refuses it)."""
+    g = gap(np.nan_to_num(s, nan=0.0))
+    bad = ~(np.abs(g) <= tol)
+    if not bad.any():
+        return s
+    base = np.where(bad, 0.0, s)
+    lo, hi = np.zeros_like(s), np.full_like(s, np.nan)
+    for v in np.arange(0.0, travel_m + step_m, step_m):
+        cross = bad & np.isnan(hi) & (gap(np.where(bad, v, base)) <= 0)
+        hi = np.where(cross, v, hi)
+        lo = np.where(bad & np.isnan(hi), v, lo)
+    found = bad & ~np.isnan(hi)
+    hi = np.where(found, hi, lo)
+    for _ in range(60):
+        mid = np.where(found, 0.5 * (lo + hi), base)
+        below = gap(mid) <= 0
+        hi, lo = np.where(below, mid, hi), np.where(below, lo, mid)
+    return np.where(found, 0.5 * (lo + hi), s)
+
+
 # ----- campaign ---------------------------------------------------------------------------
 @dataclass
 class Campaign:
@@ -249,6 +273,7 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
         for _ in range(30):
             g = gap(s, ls)
             s = s - g / ((gap(s + 1e-6, ls) - g) / 1e-6)
+        s = _bisect_unsettled(lambda ss: gap(ss, ls), s)
     if np.max(np.abs(gap(s, ls))) > 1e-11:
         raise RuntimeError("contact search did not converge")
     t_contact = times(s) + extra / speed  # the latch

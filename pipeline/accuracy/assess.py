@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.accuracy import information as I, propagate as P
+from pipeline.accuracy.condition import fixed_moment
 
 TAUGHT_MAX = 0.5  # calibrated map 1σ RMS / uncalibrated above this: the campaign taught little
 UNMEASURED_EIG = 1e-6  # relative eigenvalue of the measured-direction matrix below which a direction is unmeasured
@@ -47,6 +48,7 @@ class Inputs:
     holdout: dict | None = None  # `holdout.consistency` of the run's cross-validation, if any
     Jp_full: np.ndarray | None = None  # (N, 3, P) where a campaign could measure (default: the map)
     residual_unit: str = "m"  # of the measurements' residuals (px for a camera; the map's points stay m)
+    residuals: np.ndarray | None = None  # (m·k,) in-sample at the estimate: the fixed parameters conditioned on them
 
 
 def _axis_name(v: np.ndarray) -> str:
@@ -59,11 +61,12 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
     system's words for how to measure along a direction (e.g. which jig faces to touch)."""
     free = np.asarray(inp.free, bool)
     A = P.absorption(inp.Jm, free)
-    meas = P.predict(inp.Jp_meas, free, inp.cov_free, inp.prior_sigma, A)
-    amap = P.predict(inp.Jp_map, free, inp.cov_free, inp.prior_sigma, A)
+    mom = None if inp.residuals is None else fixed_moment(inp.Jm, free, inp.prior_sigma, inp.residuals)
+    meas = P.predict(inp.Jp_meas, free, inp.cov_free, inp.prior_sigma, A, mom)
+    amap = P.predict(inp.Jp_map, free, inp.cov_free, inp.prior_sigma, A, mom)
     before = P.uncalibrated(inp.Jp_map_uncal, inp.prior_sigma)
     sig, b95 = amap.sigma, amap.bound95
-    contrib = P.fixed_contributions(inp.Jp_map, free, inp.prior_sigma, A)
+    contrib = P.fixed_contributions(inp.Jp_map, free, inp.prior_sigma, A, mom)
     fixed_names = [n for n, f in zip(inp.names, free) if not f]
     top = sorted(zip(fixed_names, contrib), key=lambda t: -t[1])[:5]
 
@@ -83,11 +86,11 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
     inflate_fit = I.fit_inflation(info.dof)
     if math.isfinite(inflate_fit) and inflate_fit != 1.0:  # σ̂ from few degrees of freedom: its 95 % upper bound
         cov_scaled = np.asarray(inp.cov_free, float) * inflate_fit
-        meas = P.predict(inp.Jp_meas, free, cov_scaled, inp.prior_sigma, A)
-        amap = P.predict(inp.Jp_map, free, cov_scaled, inp.prior_sigma, A)
+        meas = P.predict(inp.Jp_meas, free, cov_scaled, inp.prior_sigma, A, mom)
+        amap = P.predict(inp.Jp_map, free, cov_scaled, inp.prior_sigma, A, mom)
         sig, b95 = amap.sigma, amap.bound95
     cov_used = np.asarray(inp.cov_free, float) * (inflate_fit if math.isfinite(inflate_fit) else 1.0)
-    field = P.field_scale(inp.Jp_map, free, cov_used, inp.prior_sigma, A, b95)
+    field = P.field_scale(inp.Jp_map, free, cov_used, inp.prior_sigma, A, b95, moment=mom)
     b95 = b95 * field  # ≥ 95 % of the map within it in 99 % of calibrations
     w, V = P.measured_directions(inp.Jm, inp.Jp_meas, inp.residual_dim)
     unmeasured = [V[:, i] for i in range(3) if w[i] < UNMEASURED_EIG]
@@ -188,7 +191,7 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
     ho = None
     if holdout is not None:
         ho = consistency(Jf, e, holdout[0], holdout[1], model.residual_dim, groups=groups, shared=shared)
-    _, Jp_meas = model.points(x, data)
+    pts_meas, Jp_meas = model.points(x, data)
     pts, Jp_map = model.points(x, map_data)
     _, Jp_uncal = model.points(x_uncal, map_data)
     Jp_full = None
@@ -197,12 +200,17 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
 
         spread = spread_table(model, data)
         Jp_full = None if spread is None else model.points(x, spread)[1]
+    if not getattr(model, "fixes_frame", True):  # coincidences: the error of the points relative to each other
+        Jp_meas = P.modulo_rigid(pts_meas, Jp_meas)
+        Jp_map, Jp_uncal = P.modulo_rigid(pts, Jp_map), P.modulo_rigid(pts, Jp_uncal)
     inp = Inputs(names=model.parameter_names(), free=np.asarray(free, bool),
                  cov_free=cov_free,
                  prior_sigma=np.asarray(prior_sigma, float), Jm=J.reshape(-1, J.shape[-1]), Jp_meas=Jp_meas,
                  points_map=pts, Jp_map=Jp_map, Jp_map_uncal=Jp_uncal, residual_dim=model.residual_dim, holdout=ho,
-                 Jp_full=Jp_full, residual_unit=getattr(model, "residual_unit", "m"))
+                 Jp_full=Jp_full, residual_unit=getattr(model, "residual_unit", "m"), residuals=e.reshape(-1))
     doc = assess(inp, tolerance_m, direction_advice)
+    if inp.residual_unit == "m" and model.residual_dim == 3:  # the residual is the 3-D point's error
+        doc["new_measurement"] = new_measurement(doc, Jf, cov_free, e)
     if shared is not None:
         doc["shared_error"] = {"sigma_w_m": shared["sigma_w_m"], "tau_m": shared["tau_m"],
                                "tau_source": shared["tau_source"],
@@ -211,6 +219,26 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
                                        "at that pose): Ω = σ_w² I + τ² B; the fitted parameters' covariance is the "
                                        "sandwich J⁺ΩJ⁺ᵀ" + ("" if shared["tau_m"] > 0 else " (τ = 0: not used)")}
     return doc
+
+
+def new_measurement(doc: dict, Jf: np.ndarray, cov_free: np.ndarray, residuals: np.ndarray) -> dict:
+    """The predicted RMS 3-D error of a new measurement at a new configuration, measured as in this
+    campaign (what `robocal evaluate` reports for a new session, and what held-out residuals measure):
+    the model's error over the map (`map_rms_1sigma_m`) plus the scatter of one measurement about the
+    model, √3·σ̂ per point, σ̂² = (|e|² + tr J_f Σ_f J_fᵀ) / m — the residual mean square with the fit's
+    effective number of parameters (exact for least squares and for the shrinkage's penalised fit).
+    That scatter is the instrument's noise and the robot's error the model does not carry (free play,
+    non-repeatability); both inflated by the held-out check's factor like the map.  Residuals (m, 3) m."""
+    e = np.asarray(residuals, float).reshape(-1)
+    s2 = (float(e @ e) + float(np.einsum("ij,jk,ik->", Jf, np.asarray(cov_free, float), Jf))) / max(e.size, 1)
+    ho = doc.get("holdout_check") or {}
+    f = float(ho.get("inflation", 1.0)) if not ho.get("consistent", True) else 1.0
+    scatter = float(np.sqrt(3.0 * s2)) * f
+    model_rms = float(doc["map_rms_1sigma_m"])
+    return {"rms_3d_m": float(np.hypot(model_rms, scatter)), "model_rms_3d_m": model_rms, "scatter_rms_3d_m": scatter,
+            "label": "a new measurement at a new configuration (a new session, placement or posture), measured as in "
+                     "this campaign: the model's error over the map and one measurement's scatter about the model "
+                     "(instrument noise and the robot's unmodelled error); compare with `robocal evaluate`"}
 
 
 def touch_advice(fixture: dict | None):

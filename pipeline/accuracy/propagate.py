@@ -6,7 +6,8 @@ The error of the calibrated point at a configuration has two parts (a "consider"
   Jacobian: Jp_f Σ_f Jp_fᵀ;
 * the fixed parameters' prior: an error δ of the fixed parameters shifts the measurements by
   J_x δ, which the fit absorbs as far as it can (the free estimates move by −J_f⁺J_x δ); what is
-  left moves the point by G δ with G = Jp_x − Jp_f·J_f⁺J_x.  Its covariance is G diag(σ_prior²) Gᵀ.
+  left moves the point by G δ with G = Jp_x − Jp_f·J_f⁺J_x.  Its covariance is G diag(σ_prior²) Gᵀ,
+  or G (Σ + μμᵀ) Gᵀ with δ conditioned on the run's residuals (`condition.fixed_moment`).
   A fixed parameter the fit absorbs exactly (J1.θ ≡ base.rz) contributes nothing; one no
   measurement sees (base.x without an x-facing face) contributes its full effect.
 
@@ -67,21 +68,26 @@ def absorption(Jm: np.ndarray, free: np.ndarray) -> np.ndarray:
     return pinv(Jm[:, free]) @ Jm[:, ~free]
 
 
+def _moment(free: np.ndarray, prior_sigma: np.ndarray, moment: np.ndarray | None) -> np.ndarray:
+    """Second moment (X,X) of the fixed parameters' error: `moment` (`condition.fixed_moment`) or diag σ_prior²."""
+    return np.diag(prior_sigma[~free] ** 2) if moment is None else np.asarray(moment, float)
+
+
 def predict(Jp: np.ndarray, free: np.ndarray, cov_free: np.ndarray, prior_sigma: np.ndarray,
-            A: np.ndarray) -> PointAccuracy:
+            A: np.ndarray, moment: np.ndarray | None = None) -> PointAccuracy:
     """Point covariances (see module docstring).  Jp (n,3,P) at the estimate; cov_free
-    (F,F) m-based SI; prior_sigma (P,); A from `absorption`."""
+    (F,F) m-based SI; prior_sigma (P,); A from `absorption`; `moment` (X,X): the fixed
+    parameters' error second moment given the data (`condition.fixed_moment`), default diag σ_prior²."""
     Jf, Jx = Jp[:, :, free], Jp[:, :, ~free]
     cov_fit = np.einsum("nip,pq,njq->nij", Jf, cov_free, Jf)
     G = Jx - np.einsum("nip,pk->nik", Jf, A)
-    s2 = prior_sigma[~free] ** 2
-    cov_prior = np.einsum("nik,k,njk->nij", G, s2, G)
+    cov_prior = np.einsum("nik,kl,njl->nij", G, _moment(free, prior_sigma, moment), G)
     return PointAccuracy(cov_fit, cov_prior)
 
 
 def field_scale(Jp: np.ndarray, free: np.ndarray, cov_free: np.ndarray, prior_sigma: np.ndarray, A: np.ndarray,
                 bound: np.ndarray, q_points: float = 0.95, q_runs: float = 0.99, n_samples: int = 2000,
-                max_points: int = 300, seed: int = 0) -> float:
+                max_points: int = 300, seed: int = 0, moment: np.ndarray | None = None) -> float:
     """Factor ≥ 1 on the per-point bounds so that, in a fraction `q_runs` of calibrations, at least
     `q_points` of the map's points lie within them.  One calibration's errors at all points come from
     the same parameter error (fitted δf ~ N(0, Σ_f), fixed δx ~ N(0, diag σ_prior²) less what the fit
@@ -96,7 +102,11 @@ def field_scale(Jp: np.ndarray, free: np.ndarray, cov_free: np.ndarray, prior_si
     w, V = np.linalg.eigh(np.asarray(cov_free, float)) if Jf.shape[2] else (np.zeros(0), np.zeros((0, 0)))
     Lf = V * np.sqrt(np.clip(w, 0, None))
     df = rng.standard_normal((n_samples, Lf.shape[1])) @ Lf.T
-    dx = rng.standard_normal((n_samples, G.shape[2])) * prior_sigma[~free]
+    if moment is None:
+        dx = rng.standard_normal((n_samples, G.shape[2])) * prior_sigma[~free]
+    else:
+        wx, Vx = np.linalg.eigh(np.asarray(moment, float))
+        dx = rng.standard_normal((n_samples, wx.size)) @ (Vx * np.sqrt(np.clip(wx, 0, None))).T
     e = np.einsum("nip,sp->sni", Jf, df) + np.einsum("nik,sk->sni", G, dx)
     b = np.asarray(bound, float)[idx]
     ratio = np.linalg.norm(e, axis=2) / np.where(b > 0, b, np.inf)
@@ -104,10 +114,12 @@ def field_scale(Jp: np.ndarray, free: np.ndarray, cov_free: np.ndarray, prior_si
     return float(max(1.0, np.quantile(per_run, q_runs)))
 
 
-def fixed_contributions(Jp: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray, A: np.ndarray) -> np.ndarray:
-    """RMS over points of each fixed parameter's unabsorbed 3-D effect, (n_fixed,) m."""
+def fixed_contributions(Jp: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray, A: np.ndarray,
+                        moment: np.ndarray | None = None) -> np.ndarray:
+    """RMS over points of each fixed parameter's unabsorbed 3-D effect, (n_fixed,) m (its own
+    second moment, `moment`'s diagonal where given)."""
     G = Jp[:, :, ~free] - np.einsum("nip,pk->nik", Jp[:, :, free], A)
-    return np.sqrt(np.mean(np.sum(G**2, axis=1), axis=0)) * prior_sigma[~free]
+    return np.sqrt(np.mean(np.sum(G**2, axis=1), axis=0) * np.diag(_moment(free, prior_sigma, moment)))
 
 
 def uncalibrated(Jp: np.ndarray, prior_sigma: np.ndarray) -> np.ndarray:
@@ -183,3 +195,21 @@ def fixture_covariance(J_free: np.ndarray, labels: np.ndarray, residual_dim: int
     D = np.repeat(D, residual_dim, axis=0)  # every residual row of a measurement on its face
     PD = pinv(J_free) @ D
     return (tolerance_m**2 / 3.0) * PD @ PD.T
+
+
+def modulo_rigid(points: np.ndarray, Jp: np.ndarray) -> np.ndarray:
+    """Point Jacobians (n,3,P) less their part that moves all n points as one rigid body: the error of
+    the points relative to each other, for measurements that fix no frame (coincidences: the sockets'
+    unknown positions take up any common rigid motion, and no such measurement can see or test it).
+    points (n,3) m: where the Jacobians are evaluated."""
+    n = Jp.shape[0]
+    if n < 3:
+        return Jp
+    c = np.asarray(points, float) - np.mean(points, axis=0)
+    R = np.zeros((n, 3, 6))
+    R[:, :, :3] = np.eye(3)
+    for k in range(3):  # rotation about axis k moves point p by e_k × p
+        R[:, :, 3 + k] = np.cross(np.eye(3)[k], c)
+    Q, _ = np.linalg.qr(R.reshape(3 * n, 6))
+    J = Jp.reshape(3 * n, -1)
+    return (J - Q @ (Q.T @ J)).reshape(Jp.shape)

@@ -74,8 +74,10 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None
     doc["priors"] = [{"name": n, "kind": k, "sigma": float(s), "source": src, "fixed": not bool(f)}
                      for n, k, s, src, f in zip(model.parameter_names(), kinds, sigma, source, free)]
     doc["note"] = ("Predicted 3-D error (1σ RMS, and the 95 % bound of |error|) of the calibrated point over the map: "
-                   "the fitted parameters' covariance plus the prior of every parameter held at nominal, less what "
-                   "the fit absorbs of it (docs/guide/accuracy.md).")
+                   "the fitted parameters' covariance plus the prior of every parameter held at nominal, conditioned "
+                   "on what this run's data show of it, less what the fit absorbs of it; new_measurement: a new "
+                   "session or posture measured as here, the map and one measurement's scatter "
+                   "(docs/guide/accuracy.md).")
     return doc
 
 
@@ -123,6 +125,8 @@ def run(run_dir: Path, params: dict) -> dict:
     write_json(run_dir / NAME / "accuracy.json", doc)
     out = {k: doc[k] for k in ("status", "reason", "advice", "map_rms_1sigma_m", "map_max_1sigma_m",
                                "map_max_bound95_m", "map_uncalibrated_rms_1sigma_m", "tolerance") if k in doc}
+    if "new_measurement" in doc:
+        out["new_measurement_rms_3d_m"] = doc["new_measurement"]["rms_3d_m"]
     out["status"] = {"pass": "pass", "insufficient": "insufficient", "fail": "tolerance_fail"}.get(doc["status"], "warn")
     if "previous" in doc:
         out["moved_parameters"] = [m["name"] for m in doc["previous"]["moved"]]

@@ -39,6 +39,10 @@ def calibrate_cmd(
     from pipeline.importers.merge import merged_input
 
     recording = merged_input(recordings, out, registration, run_folder=False)
+    if physics is not None or payload:
+        from pipeline.systems.urdf_robot import check_physics_input
+
+        check_physics_input(recording, physics, payload)  # one line naming the element, before the fit
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,

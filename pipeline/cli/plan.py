@@ -47,6 +47,9 @@ def plan_cmd(
                                      "(default 15; scanner: poses, default 4)."),
     after: Path = typer.Option(None, "--after", help="Touch, scanner: plan the next stage on the run directory of the stages "
                                "so far (robocal run REC --out RUN_DIR): its contacts, updated model and uncertainty."),
+    backlash: bool = typer.Option(False, "--backlash", help="Touch, one stage: plan for every joint's backlash too "
+                                  "(D-optimal over the geometry and each joint's play, whose sign is the search's turn "
+                                  "of the joint)."),
     urdf: Path = typer.Option(None, "--urdf", help="System urdf: the robot description (URDF)."),
     root: str = typer.Option(None, "--root", help="System urdf: root link of the chain."),
     tip: str = typer.Option(None, "--tip", help="System urdf: tip link of the chain."),
@@ -99,12 +102,15 @@ def plan_cmd(
         if check:
             err.print("[yellow]--check is not run for touch campaigns: benchmarks/bench_plan_campaign.py executes "
                       "planned and random campaigns on the true robot[/]")
-        doc = touch_campaign(candidates, select_m, seed, margin, stages, first_stage or 15, after)
+        doc = touch_campaign(candidates, select_m, seed, margin, stages, first_stage or 15, after, backlash=backlash)
         write_plan(out, doc)
         p = [m.get("landing_probability", 1.0) for m in doc["measurements"]]
         err.print(f"stage {doc['stage']} of {doc['stages']}: {len(doc['measurements'])} measurements planned from "
                   f"{doc['n_candidates']} candidates in {doc['selection_s']:.3f} s; predicted landing probability "
                   f"min {min(p):.3f}, mean {np.mean(p):.3f}; margin {margin * 1e3:.1f} mm")
+        if bal := doc.get("approach_balance"):
+            err.print("approach from both sides (rarer side's share of the contacts): " + ", ".join(
+                f"{j} {b['rarer_share']:.0%}" for j, b in bal["joints"].items()), highlight=False, soft_wrap=True)
         for w in doc.get("warnings", []):
             err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
         if doc["stage"] < doc["stages"]:

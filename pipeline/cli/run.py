@@ -66,6 +66,10 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
     if s.get("predicted_map_rms_1sigma_m") is not None:
         rows.append(("predicted accuracy over the workspace (1σ RMS / worst 95 %)",
                      f"{mm(s['predicted_map_rms_1sigma_m'])} / {mm(s.get('predicted_map_max_bound95_m'))}"))
+    if s.get("predicted_new_measurement_rms_3d_m") is not None:
+        from pipeline.calibrate import NEW_LABEL
+
+        rows.append((NEW_LABEL, mm(s["predicted_new_measurement_rms_3d_m"])))
     for k, v in rows:
         t.add_row(k, str(v))
     console(stderr=True).print(t)
@@ -244,6 +248,9 @@ def run_cmd(
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
     if physics is not None or payload:  # the model's gravity terms (default auto), chosen at ingest for every stage
+        from pipeline.systems.urdf_robot import check_physics_input
+
+        check_physics_input(recording, physics, payload)  # one line before any stage, not a failed run
         params.setdefault("ingest", {}).update({"physics": physics, "payload": list(payload or [])})
     try:
         outs = run_pipeline(recording, out, params, force=force, log=_log,

@@ -7,7 +7,8 @@ chain's joints by name (any order, other joints ignored), and ``geometry_msgs/ms
 orientations as unit quaternions x, y, z, w).  Times are the messages' ``header.stamp`` (the
 sensors' own clocks, ns), or the bag's receive times where a topic has no stamps.  Each measurement
 is paired with the joint state where the robot stood still around it (`standstill.pair`); the rest
-are reported and left out.  Where every JointState carries ``effort`` (the drive's measured torque,
+are reported and left out; a point measurement gets each joint's direction of approach, the sign of
+its last motion in the joint states before it (the ``approach`` field: what a backlash term needs).  Where every JointState carries ``effort`` (the drive's measured torque,
 N·m; force N for a prismatic joint), the joint states go into the recording's encoder stream with
 their efforts, name-matched like the positions (`robocal.JointStateBatch` field 8), for the diagnosis.  Every input problem is one `RobocalError` line naming the file, topic
 and record.
@@ -240,6 +241,19 @@ def read_joint_states(path: Path, topic: str, messages, joints: list[str]):
     return t[:, 0], t[:, 1], q, report, effort
 
 
+APPROACH_SOURCE = "joint states: the sign of each joint's last motion before the measurement"
+
+
+def _approach(tj: np.ndarray, Q: np.ndarray, tm: np.ndarray) -> np.ndarray | None:
+    """(n, J) int8 direction of approach of each joint at the measurement times `tm` (ns) from the joint
+    states (`tj` sorted ns, `Q` rad / m): the sign of its last motion (`last_motion_sign`); None where no
+    joint moved before any measurement."""
+    from pipeline.ingest.context import last_motion_sign
+
+    d = last_motion_sign(tj, Q, tm).astype(np.int8)
+    return d if d.any() else None
+
+
 def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()) -> tuple[dict, dict]:
     """(table for `write_urdf_recording`, campaign extras) of a ROS 2 bag: the paired measurements
     (joint positions in the chain's order, rad / m; positions m; orientations x,y,z,w); where the joint
@@ -315,6 +329,9 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         table["orientation"] = O[keep]
     else:
         table["target"] = target[keep]
+        approach = _approach(tj, Q, tm[keep])
+        if approach is not None:
+            table["approach"] = approach
     extras = {
         "source_files": [str(path)],
         "ros2": {"joint_topic": jt, "measure_topic": mt, "measure_type": POINT if spec.tips else topics[mt],
@@ -324,6 +341,8 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     }
     if measure == "point":
         extras["n_targets"] = 1
+        if "approach" in table:
+            extras["ros2"]["approach"] = APPROACH_SOURCE
     if spec.tips:
         extras["ros2"]["tip_topics"] = {link: topic for link, topic in spec.tips}
     if warnings:

@@ -25,6 +25,7 @@ class CoincidenceModel(Composed):
     fit_tool: bool = False  # as for planes: a free tool point can sit where no joint moves it
 
     residual_dim = 3
+    fixes_frame = False  # the groups' points take up any rigid motion: accuracy is relative (`accuracy.propagate`)
 
     def extra_names(self) -> list[str]:
         return [f"point.{g}.{a}" for g in self.groups_ for a in "xyz"]

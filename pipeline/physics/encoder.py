@@ -12,7 +12,9 @@ drivers), q the joint's reading in rad:
 * ``backlash``: δq = b·d/2 (``J.backlash`` b, rad: the free play), d = ±1 the joint's direction of
   approach at the measurement (the sign of its last motion before the standstill; the table's column
   ``approach`` (n, n_joints), from the CSV columns ``dir_<joint>`` or the recording's ``approach``
-  field; 0 unknown: no correction).  Offered only for a read joint approached from both sides
+  field, else derived from the joint stream before each measurement — a ROS 2 bag's JointState at
+  import, a recording's encoder stream at load (`pipeline.systems.urdf_robot.approach_from_stream`);
+  0 unknown: no correction).  Offered only for a read joint approached from both sides
   (at least `MIN_SIDE` rows each); b is fitted free of sign — a play is b ≥ 0, a negative estimate
   beyond its σ says the reading leads rather than lags.  Unlike the other three families (offered
   after the geometry), backlash is offered to the model selection with the geometric groups
@@ -39,7 +41,7 @@ SUFFIXES = tuple(f".{k}" for k in KINDS)
 MIN_SPREAD_RAD = 0.1
 MIN_SIDE = 5
 BACKLASH_ABSENT = ("backlash not fitted: the recording carries no direction of motion at the measurements "
-                   "(postures only: no dir_<joint> columns, no approach field)")
+                   "(postures only: no dir_<joint> columns, no approach field, no joint stream moving before them)")
 
 
 def is_encoder(name: str) -> bool:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.models.jig import Jig, stepped_block
+from pipeline.plan.approach import backlash_columns, document_balance
 from pipeline.simulate.arc_welder import Campaign, Noise, SimResult, simulate
 from pipeline.systems import arc_welder as aw
 
@@ -40,10 +41,11 @@ def measured(n: int, seed: int, random_errors: bool = False, noise_scale: float 
 
 
 def touch_campaign(n_candidates: int, m: int, seed: int = 0, margin_m: float = 0.010, stages: int = 1,
-                   first_stage: int = 15, after=None, sigma_m: float = 5e-5) -> dict:
+                   first_stage: int = 15, after=None, sigma_m: float = 5e-5, backlash: bool = False) -> dict:
     """An executable campaign document (`pipeline.plan.campaign`): one stage D-optimal with the
-    face margin; with `stages` 2 the first stage (`pipeline.plan.staged`); with `after` (a run
-    directory of the stages so far) the next stage, planned on its MAP-updated model."""
+    face margin (`backlash`: D-optimal for the geometry and every joint's backlash together,
+    `approach.backlash_columns`); with `stages` 2 the first stage (`pipeline.plan.staged`); with `after`
+    (a run directory of the stages so far) the next stage, planned on its MAP-updated model."""
     import time
 
     from pipeline.identify.model import take
@@ -52,6 +54,10 @@ def touch_campaign(n_candidates: int, m: int, seed: int = 0, margin_m: float = 0
     from pipeline.plan.select import plan
     from pipeline.simulate.arc_welder import Campaign
 
+    if backlash and (stages != 1 or after is not None):
+        from pipeline.errors import RobocalError
+
+        raise RobocalError("--backlash plans one-stage campaigns (not with --stages 2 or --after)")
     jig = stepped_block()
     nominal = aw.nominal_arm()
     campaign = Campaign()
@@ -77,12 +83,20 @@ def touch_campaign(n_candidates: int, m: int, seed: int = 0, margin_m: float = 0
                                   "to land (P >= 0.95, else the 3m likeliest)"}
         else:
             model = aw.TouchModel(nominal)
-            pl = plan(model, take(pool.table(), np.arange(pool.face.size)), m)
+            terms = backlash_columns(model.parameter_names(), pool.dq, pool.travel) if backlash else None
+            pl = plan(model, take(pool.table(), np.arange(pool.face.size)), m, extra=terms)
             idx = pl.selection.index
             p = staged.landing_probability(nominal.vector(), staged.prior_cov(nominal), jig, pool.take(idx),
                                            campaign.approach_offset_m)
-            extra = {"criterion": "D-optimal: log det of the information matrix of the free parameters",
-                     "logdet": pl.selection.logdet, "observability": pl.observability}
+            extra = {"criterion": "D-optimal: log det of the information matrix of the free parameters"
+                                  + (" and every joint's backlash" if backlash else ""),
+                     "logdet": pl.selection.logdet, "observability": pl.observability,
+                     "free_parameters": int(pl.free.sum())}
+            if backlash:  # the geometry's own, scaled as a plan without --backlash states its logdet
+                from pipeline.plan.doptimal import logdet_info, scale
+
+                J = model.jacobian(model.nominal(), take(pool.table(), np.arange(pool.face.size)))
+                extra["logdet_geometry"] = logdet_info(scale(J[:, :, pl.free])[0], idx)
         doc = touch_document(aw.SYSTEM, nominal, jig, pool.take(idx), campaign, margin_m, 1, stages, idx)
     for row, pi in zip(doc["measurements"], p):
         row["landing_probability"] = float(pi)
@@ -90,7 +104,7 @@ def touch_campaign(n_candidates: int, m: int, seed: int = 0, margin_m: float = 0
                 "elapsed_s_note": "selection_s excludes the candidates' inverse kinematics", **extra})
     if w := landing_warning(np.asarray(p, float)):
         doc["warnings"] = [w]
-    return doc
+    return document_balance(doc)
 
 
 LANDING_MIN = 0.5  # a contact predicted to land less often than this is named

@@ -23,14 +23,17 @@ class Plan:
     observability: dict[str, float]  # O1..O5 of the selected set (free parameters)
 
 
-def plan(model: MeasurementModel, candidates: Table, m: int, x: np.ndarray | None = None) -> Plan:
-    """Pick m candidates maximising log det of the free parameters' information at x (nominal)."""
+def plan(model: MeasurementModel, candidates: Table, m: int, x: np.ndarray | None = None,
+         extra: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> Plan:
+    """Pick m candidates maximising log det of the free parameters' information at x (nominal); with `extra`
+    (Jacobian (N, k, P), free mask → (N, k, E) columns of further terms planned for) of the free parameters'
+    and those terms' information together (observability: of the free parameters alone)."""
     x = model.nominal() if x is None else x
     J = model.jacobian(x, candidates)  # (N, k, P)
     priority = getattr(model, "priority", lambda: None)()
     ident = analyse(J.reshape(-1, J.shape[-1]), model.parameter_names(), priority=priority)
     A = J[:, :, ident.free]
-    sel = select(A, m)
+    sel = select(A if extra is None else np.concatenate([A, extra(J, ident.free)], axis=2), m)
     Js = A[sel.index].reshape(-1, A.shape[-1])
     return Plan(sel, ident.free, indices(singular_values(Js), Js.shape[0]))
 

@@ -25,6 +25,7 @@ from pipeline.models.serial_arm import SerialArm
 from pipeline.simulate.arc_welder import IK_SEEDS, Campaign, _targets
 
 NARROW_KEEP = 0.35  # on a face narrower than 2·margin, keep targets this fraction of its width from each edge
+MAX_SEARCH_RATE = 50.0  # rad per m of search: a faster joint is a search through a singularity (not a candidate)
 
 
 @dataclass
@@ -140,7 +141,7 @@ def _batch(arm: SerialArm, jig: Jig, inner: Jig, n_try: int, rng: np.random.Gene
     good = np.isfinite(s)
     s = np.where(good, s, 0.0)
     p = serial_arm.tip_position(x, q_a + s[:, None] * dq)
-    good &= (edge_distance(inner, faces, p) >= -1e-9) & (g0 > 0) & (s > 0)
+    good &= (edge_distance(inner, faces, p) >= -1e-9) & (g0 > 0) & (s > 0) & (np.abs(dq).max(axis=1) <= MAX_SEARCH_RATE)
     idx = np.flatnonzero(good)
     return TouchPool(face=faces[idx], axis=axis[idx], sign=sign[idx], q_approach=q_a[idx], dq=dq[idx],
                      travel=s[idx], target=p[idx], edge_distance=edge_distance(jig, faces[idx], p[idx]))

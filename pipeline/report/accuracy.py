@@ -132,6 +132,9 @@ def accuracy_section(art: RunArtefacts) -> str:
                 ("worst 1σ", _mm(acc.get("map_max_1sigma_m"))), ("worst 95 % bound", _mm(acc.get("map_max_bound95_m"))),
                 ("uncalibrated 1σ (priors, RMS)", _mm(acc.get("map_uncalibrated_rms_1sigma_m"))),
                 ("residuals per identified parameter", f"{acc.get('residuals_per_parameter', 0):.3g}")]
+        if isinstance(acc.get("new_measurement"), dict):  # what a new session measures (robocal evaluate)
+            rows.insert(1, ("predicted for a new session or posture, measured as here (RMS 3-D)",
+                            _mm(acc["new_measurement"].get("rms_3d_m"))))
         info = acc.get("information") or {}
         if info:
             rows.append(("distinct measurements / residual degrees of freedom",

@@ -54,7 +54,7 @@ def gather(run_dir: Path) -> dict:
         for k in ("reason", "advice"):
             if acc.get(k):
                 summary[f"status_{k}"] = acc[k]
-        for k in ("map_rms_1sigma_m", "map_max_bound95_m"):
+        for k in ("map_rms_1sigma_m", "map_max_bound95_m", "new_measurement_rms_3d_m"):
             if k in acc:
                 summary[f"predicted_{k}"] = acc[k]
     ingest = docs.get("ingest", {}).get("summary", {})

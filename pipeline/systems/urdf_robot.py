@@ -139,6 +139,39 @@ def physics_model(rec, table: dict, physics: str | None = None, payload: tuple =
                           encoder=reading, absent=("backlash",) if "backlash" in families and not carried else ())
 
 
+def check_physics_input(path, physics: str | None, payload) -> None:
+    """Before any stage runs (`robocal run`): the --physics value and the --payload items against the
+    recording's URDF — a payload on a link the URDF lacks, gravity terms asked by name or a payload on a
+    URDF without inertials — one `RobocalError` line naming the element.  Other systems: nothing."""
+    import xml.etree.ElementTree as ET
+
+    from pipeline.physics import compliance
+    from pipeline.physics.gravity import has_inertials
+    from pipeline.recording.reader import read_recording
+
+    mode, families = compliance.parse_spec(physics)
+    load = compliance.parse_payload(payload)
+    meta = read_recording(path, topics=set()).metadata.get(META_URDF)
+    if not (isinstance(meta, dict) and isinstance(meta.get("urdf"), str)):
+        return
+    try:
+        links = {lk.get("name") for lk in ET.fromstring(meta["urdf"]).iter("link")}
+    except ET.ParseError:
+        return  # the load says what is wrong with the description
+    for item, (_, link, _) in zip(payload or (), load):
+        if link not in links:
+            raise RobocalError(f"{path}: --payload {item!r}: link {link!r} is not in the URDF "
+                               f"(links: {', '.join(sorted(links)[:12])}{', …' if len(links) > 12 else ''})")
+    gravity = tuple(f for f in families if f in compliance.GRAVITY)
+    if load and not gravity:
+        raise RobocalError(f"{path}: --payload {payload[0]!r} needs gravity terms (--physics auto or a list with "
+                           f"{' or '.join(compliance.GRAVITY)})")
+    if (load or mode == "fixed" and gravity) and not has_inertials(meta["urdf"]):
+        what = f"gravity terms ({', '.join(gravity)})" if mode == "fixed" and gravity else f"--payload {payload[0]!r}"
+        raise RobocalError(f"{path}: metadata robocal.urdf: no link has an <inertial> mass, which {what} needs "
+                           "(use --physics none, no --payload)")
+
+
 def model_like(rec, names: list[str], payload: tuple = ()):
     """The `TreePointModel` of a point recording with the physics terms a calibration has (`names`: its
     parameter names — ``J.compliance``, ``J.lateral1``, ``J.ecc_sin`` …), whatever this recording's loads:
@@ -211,6 +244,29 @@ def _approach(rec, topic, msgs, nj: int) -> np.ndarray:
     return out
 
 
+def approach_from_stream(rec, t_ns: np.ndarray, joints: list[str]) -> np.ndarray | None:
+    """(n, n_joints) int8 direction of approach of each joint at the measurement times `t_ns` (ns) from
+    the recording's encoder stream (`/robot/joint_state`): the sign of the joint's last motion before
+    the measurement (`pipeline.ingest.context.last_motion_sign`; 0 where it did not move within the
+    look-back or is not in the stream).  None without a readable stream, or where no joint moved before
+    any measurement (the recording then carries no direction)."""
+    from pipeline.ingest.context import last_motion_sign
+    from pipeline.ingest.streams import JOINT_STATE, joint_stream
+
+    if not rec.messages.raw.get(JOINT_STATE) or not len(t_ns):
+        return None
+    try:
+        s = joint_stream(rec)
+    except RobocalError:  # a damaged stream is validate's finding; the measurements stand without directions
+        return None
+    cols = [s.names.index(j) if j in s.names else -1 for j in joints]
+    if len(s) < 2 or all(c < 0 for c in cols):
+        return None
+    sign = last_motion_sign(s.t_ns, s.q[:, [max(c, 0) for c in cols]], np.asarray(t_ns, np.int64))
+    d = np.where(np.array(cols) >= 0, sign, 0).astype(np.int8)
+    return d if d.any() else None
+
+
 def load(rec, physics: str | None = None, payload: tuple = ()):
     """Measurement model and measurement table of a URDF recording.  `physics` and `payload`: the
     gravity terms offered to identification (`physics_model`; point measurements); None keeps the
@@ -235,8 +291,10 @@ def load(rec, physics: str | None = None, payload: tuple = ()):
         table["position"] = _column(rec, topic, msgs, "position", (3,))
     if measure == "point":
         table["target"] = np.array([int(m.get("target", 0)) for m in msgs], np.int64)
-        if any("approach" in m for m in msgs):
+        if any("approach" in m for m in msgs):  # explicit directions win over the stream's
             table["approach"] = _approach(rec, topic, msgs, arm.n_joints)
+        elif (derived := approach_from_stream(rec, table["timestamp_ns"], arm.joint_names)) is not None:
+            table["approach"] = derived
         table["label"] = np.array([f"target {t}" for t in table["target"]], object)
     if measure == "pose":
         quat = _column(rec, topic, msgs, "orientation", (4,))

@@ -1,0 +1,55 @@
+"""What this run's data say about the parameters held at nominal (functional core).
+
+The consider analysis (`propagate`) charges every parameter held at nominal its full prior σ.
+That is right for a parameter no measurement sees (its column lies in the fitted parameters'
+span: the fit absorbs it, or it is zero), but not for one the data do see and that the model
+choice held at nominal because freeing it did not predict held-out data better (a joint's
+scale or coupling on an imported URDF robot, a link length the shrinkage left at nominal):
+had it been off by its prior σ, the residuals would show it.  Charging the full prior then
+states an accuracy many times worse than new sessions measure.
+
+Linearised: the fit's residuals are r = M J_x δx + M ε, M = I − H_f the projection off the
+fitted parameters' columns, δx ~ N(0, S) the held-at-nominal parameters' error (S = diag σ_prior²)
+and ε ~ N(0, σ² I).  Given r, δx ~ N(μ, Σ) with
+
+    Σ = (S⁻¹ + J_xᵀ M J_x / σ²)⁻¹,   μ = Σ J_xᵀ M r / σ².
+
+The calibrated model keeps δx at nominal, so its expected squared point error given the data
+uses the second moment Σ + μμᵀ in place of S.  Averaged over calibrations this second moment is
+S again (E_r[Σ + μμᵀ] = S), so the stated accuracy stays honest where the prior is right and
+follows the data where the prior is too wide.  σ² is the fit's σ̂² (residual mean square, which
+also carries what the held-at-nominal parameters leave: conservative).  All in SI, the residuals'
+unit for J and r.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.accuracy.holdout import basis
+
+
+def fixed_moment(Jm: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray,
+                 residuals: np.ndarray) -> np.ndarray | None:
+    """Second moment (n_fixed, n_fixed) of the held-at-nominal parameters' error given the run's data
+    (module docstring).  Jm (m·k, P) measurement Jacobian at the estimate over all parameters, residuals
+    (m·k,) in-sample at the estimate.  None (the prior, diag σ_prior², unchanged) where the data carry no residual
+    degree of freedom or nothing is held at nominal."""
+    free = np.asarray(free, bool)
+    s = np.asarray(prior_sigma, float)[~free]
+    e = np.asarray(residuals, float).reshape(-1)
+    Jm = np.asarray(Jm, float)
+    if s.size == 0 or not np.all(np.isfinite(e)) or e.size != Jm.shape[0]:
+        return None
+    U = basis(Jm[:, free])
+    dof = e.size - U.shape[1]
+    Me = e - U @ (U.T @ e)
+    s2 = float(Me @ Me) / dof if dof > 0 else 0.0
+    if s2 <= 0:
+        return None
+    Jx = Jm[:, ~free]
+    K = (Jx - U @ (U.T @ Jx)) * s / np.sqrt(s2)  # scaled: δx = s ⊙ z, z ~ N(0, I)
+    w, V = np.linalg.eigh(K.T @ K)
+    Sz = (V / (1.0 + np.clip(w, 0, None))) @ V.T  # (I + KᵀK)⁻¹
+    mz = Sz @ (K.T @ Me) / np.sqrt(s2)
+    return (Sz + np.outer(mz, mz)) * np.outer(s, s)

@@ -1,0 +1,74 @@
+"""The parameters held at nominal, conditioned on the run's data (`pipeline.accuracy.condition`),
+checked by Monte Carlo on independent linear problems (numpy least squares, no robocal fit):
+* averaged over calibrations the conditioned second moment is the prior (E[Σ + μμᵀ] = S), and the
+  stated point error is then the true one (honest where the prior is right);
+* with a prior 10× wider than the truth the stated error follows the data, not the prior;
+* a held-at-nominal column the fitted ones absorb exactly, or no measurement sees, keeps its prior."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings, strategies as st
+
+from pipeline.accuracy import propagate as P
+from pipeline.accuracy.condition import fixed_moment
+
+
+def _problem(rng, m=60, nf=4, nx=3):
+    J = rng.standard_normal((m, nf + nx))
+    Jp = rng.standard_normal((20, 3, nf + nx))  # point Jacobians at 20 new configurations
+    free = np.r_[np.ones(nf, bool), np.zeros(nx, bool)]
+    return J, Jp, free
+
+
+def _runs(J, Jp, free, prior, truth_sigma, noise, n, rng):
+    """(stated mean-square point error, true mean-square point error) per calibration."""
+    A = P.absorption(J, free)
+    Jf = J[:, free]
+    stated, true = [], []
+    for _ in range(n):
+        d = np.zeros(J.shape[1])
+        d[~free] = rng.standard_normal((~free).sum()) * truth_sigma
+        y = J @ d + noise * rng.standard_normal(J.shape[0])
+        df, *_ = np.linalg.lstsq(Jf, y, rcond=None)  # fitted correction of the free parameters
+        e = y - Jf @ df
+        err = np.einsum("nip,p->ni", Jp[:, :, free], df - d[free]) - np.einsum("nik,k->ni", Jp[:, :, ~free], d[~free])
+        s2 = e @ e / (J.shape[0] - Jf.shape[1])
+        cov = s2 * np.linalg.inv(Jf.T @ Jf)
+        pred = P.predict(Jp, free, cov, prior, A, fixed_moment(J, free, prior, e))
+        stated.append(np.mean(pred.sigma**2))
+        true.append(np.mean(np.sum(err**2, axis=1)))
+    return np.array(stated), np.array(true)
+
+
+def test_honest_where_the_prior_is_right():
+    rng = np.random.default_rng(1)
+    J, Jp, free = _problem(rng)
+    prior = np.r_[np.ones(4), np.full(3, 0.05)]
+    stated, true = _runs(J, Jp, free, prior, 0.05, 0.1, 3000, rng)
+    assert 0.9 < np.mean(true) / np.mean(stated) < 1.1
+
+
+def test_a_too_wide_prior_follows_the_data():
+    rng = np.random.default_rng(2)
+    J, Jp, free = _problem(rng)
+    prior = np.r_[np.ones(4), np.full(3, 0.5)]  # 10× the truth's spread
+    stated, true = _runs(J, Jp, free, prior, 0.05, 0.1, 1000, rng)
+    A = P.absorption(J, free)
+    unconditioned = np.mean(P.predict(Jp, free, np.zeros((4, 4)), prior, A).sigma ** 2)
+    assert np.mean(stated) < 0.2 * unconditioned  # the full prior would state ≥ 5× the error
+    assert 0.6 < np.mean(true) / np.mean(stated) < 1.5
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10_000), st.floats(1e-3, 10.0))
+def test_unseen_or_absorbed_columns_keep_their_prior(seed, scale):
+    rng = np.random.default_rng(seed)
+    J, _, free = _problem(rng, m=30, nf=3, nx=2)
+    J[:, 3] = J[:, :3] @ rng.standard_normal(3)  # absorbed exactly by the fitted columns
+    J[:, 4] = 0.0  # seen by no measurement
+    prior = np.r_[np.ones(3), scale, 2 * scale]
+    e = rng.standard_normal(30)
+    M = fixed_moment(J, free, prior, e)
+    assert fixed_moment(J, free, prior, np.zeros(30)) is None  # no residual: nothing learnt, the prior unchanged
+    assert np.allclose(M, np.diag([scale**2, 4 * scale**2]), rtol=1e-6, atol=1e-12 * scale**2)

@@ -9,6 +9,7 @@ part) in mm.  Peer figures (same data, every 5th row held out, registration only
 TIAGo 5.59 → 5.24 mm, UR10e 4.86 → 6.70 mm; MUKCa on panda_1: 7.79 → 0.347 mm (mean absolute).
 
     python benchmarks/bench_real_data.py [--only tiago,ur10,mate,panda] [--folds 5]
+    python benchmarks/bench_real_data.py --choice shrinkage --run-timing   # robocal run's default on imports
     python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca   # the peers' own protocols
 """
 
@@ -26,8 +27,9 @@ import numpy as np
 from pipeline.identify.complexity import fixed_for, select
 from pipeline.identify.least_squares import FitOptions, fit
 from pipeline.identify.model import n_rows, take
+from pipeline.identify.shrinkage import shrunk_fit
 from pipeline.recording.reader import read_recording
-from pipeline.systems.registry import detect
+from pipeline.systems.registry import detect, load_with_physics
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "real-data"
 if not REAL.is_dir():
@@ -69,9 +71,16 @@ def rms3(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1))))
 
 
-def holdout(model, data, train: np.ndarray, test: np.ndarray, folds: int, registration_only: bool) -> np.ndarray:
-    """Residuals on `test` of a model fitted on `train` (groups selected on `train` alone)."""
+def holdout(model, data, train: np.ndarray, test: np.ndarray, folds: int, registration_only: bool,
+            choice: str = "groups") -> np.ndarray:
+    """Residuals on `test` of a model fitted on `train` (groups selected, or the shrinkage scale and physics
+    family chosen, on `train` alone)."""
     d_train = take(data, train)
+    if choice == "shrinkage" and not registration_only:
+        from pipeline.accuracy.prior import prior_sigma
+
+        f, _, _ = shrunk_fit(model, d_train, FitOptions(prior_sigma=prior_sigma(model)[0]), k=2)
+        return model.residuals(f.x, take(data, test))
     if registration_only:
         opts = FitOptions(fixed=fixed_for(model, ["registration"]), before=False)
     else:
@@ -81,19 +90,55 @@ def holdout(model, data, train: np.ndarray, test: np.ndarray, folds: int, regist
     return model.residuals(f.x, take(data, test))
 
 
+def chosen_fit(model, data, choice: str, folds: int):
+    """(Fit on all rows by `choice`, what it chose, CPU s of one plain fit of the chosen model)."""
+    from pipeline.accuracy.prior import prior_sigma
+
+    if choice == "groups":
+        sel = select(model, data, k=folds)
+        c1 = time.process_time()
+        f = fit(model, data, FitOptions(fixed=sel.fixed))
+        return f, ",".join(sel.kept[1:]) or "—", time.process_time() - c1
+    prior = prior_sigma(model)[0]
+    f, s, _ = shrunk_fit(model, data, FitOptions(prior_sigma=prior), k=folds)
+    groups = [g for g in model.groups() if not g.startswith("_")]
+    on = tuple((s.physics or {}).get("terms", ()))
+    c1 = time.process_time()  # one plain fit of the same model: every group free, the chosen physics terms
+    fit(model, data, FitOptions(fixed=tuple(n for n in fixed_for(model, groups) if n not in on), before=False,
+                                prior_sigma=prior))
+    mu = "registration only" if np.isinf(s.mu_m) else f"μ {s.mu_m * 1e3:.3g} mm"
+    what = f"{mu}, {s.dof:.1f} eff. parameters" + (f", physics {s.physics['chosen']}" if s.physics else "")
+    return f, what, time.process_time() - c1
+
+
+def run_timing(robocal: str, rec: Path, out: Path) -> tuple[float, float]:
+    """(wall s, CPU s) of one whole `robocal run` (every stage, its default model choice) of `rec`."""
+    import resource
+
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run([robocal, "run", str(rec), "--out", str(out)], check=True, capture_output=True)
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.perf_counter() - t0, (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--only", default="tiago,ur10,mate,panda")
     ap.add_argument("--folds", type=int, default=5)
     ap.add_argument("--protocols", default="", help="tiago-sessions,mukca: the peers' own held-out protocols "
                     "(benchmarks/peer_protocols.py) instead of the table above")
-    ap.add_argument("--run-timing", action="store_true", help="--protocols tiago-sessions: also time whole "
-                    "`robocal run`s of the training session (default and shrinkage; about a minute)")
+    ap.add_argument("--run-timing", action="store_true", help="also time whole `robocal run`s (every stage, wall and "
+                    "CPU s): of each dataset (the table), or of the TIAGo training session (--protocols tiago-sessions: "
+                    "the default and --model-choice groups)")
     ap.add_argument("--models", default="registration only,groups,all,shrinkage rigid,shrinkage",
                     help="model choices of --protocols (Panda's groups selection costs minutes of CPU)")
     ap.add_argument("--mukca-train", default="front_center", help="placement fitted (--protocols mukca)")
     ap.add_argument("--mukca-robot", default="panda_2", help="MUKCa unit (--protocols mukca): panda_2 (MUKCa's "
                     "calibrated URDF published) or panda_1 (--mukca-train front)")
+    ap.add_argument("--choice", default="groups", help="groups (the selection, rigid model: the figures of "
+                    "docs/guide/import-csv.md) or shrinkage (as `robocal run`'s default for imported URDF robots: its "
+                    "gravity terms, scale and physics family chosen on each training set)")
     a = ap.parse_args()
     if not REAL.is_dir():
         sys.exit(f"real data not found at {REAL}")
@@ -115,13 +160,13 @@ def main() -> None:
             subprocess.run([robocal, "import", "csv", *import_args(name, rec_path)], check=True,
                            capture_output=True)
             rec = read_recording(rec_path)
-            model, data = detect(rec).load(rec)
+            system = detect(rec)
+            model, data = (system.load(rec) if a.choice == "groups" else load_with_physics(system, rec, "auto", None))
             n = n_rows(data)
             touch = np.asarray(data.get("kind", np.zeros(n, int))) == 0  # coincidence: distance rows always fitted
-            t0 = time.perf_counter()
-            sel = select(model, data, k=a.folds)
-            f = fit(model, data, FitOptions(fixed=sel.fixed))
-            t_fit = time.perf_counter() - t0
+            t0, c0 = time.perf_counter(), time.process_time()
+            f, kept, t_one = chosen_fit(model, data, a.choice, a.folds)
+            t_fit, c_choice = time.perf_counter() - t0, time.process_time() - c0 - t_one
             before = rms3(model.residuals(model.uncalibrated(data), data)[touch])
             after = rms3(f.residuals_after[touch])
             # k-fold over rows, the selection repeated inside each training set
@@ -134,22 +179,26 @@ def main() -> None:
             for k in range(a.folds):
                 test = idx[fold[idx] == k]
                 train = np.setdiff1d(np.arange(n), test)
-                kf[test] = holdout(model, data, train, test, a.folds, False)
+                kf[test] = holdout(model, data, train, test, a.folds, False, a.choice)
                 kf_reg[test] = holdout(model, data, train, test, a.folds, True)
             every5 = idx[::5]
             train5 = np.setdiff1d(np.arange(n), every5)
-            e5 = rms3(holdout(model, data, train5, every5, a.folds, False))
+            e5 = rms3(holdout(model, data, train5, every5, a.folds, False, a.choice))
             e5_reg = rms3(holdout(model, data, train5, every5, a.folds, True))
+            timing = run_timing(robocal, rec_path, Path(tmp) / f"run-{name}") if a.run_timing else None
             rows.append((name, int(touch.sum()), f"{int(f.free.sum())}/{len(f.names)}", before, after,
-                         rms3(kf_reg[touch]), rms3(kf[touch]), e5_reg, e5, t_fit, ",".join(sel.kept[1:]) or "—"))
+                         rms3(kf_reg[touch]), rms3(kf[touch]), e5_reg, e5, t_fit, kept, c_choice, t_one, timing))
             print(f"{name}: done in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     hdr = ("dataset", "rows", "identified", "before (reg.)", "after", "k-fold reg.", "k-fold robocal",
-           "every-5th reg.", "every-5th robocal", "select+fit s", "groups kept beyond registration")
+           "every-5th reg.", "every-5th robocal", "choice+fit wall s", "model choice CPU s", "one plain fit CPU s",
+           "choice / fit", "whole `robocal run` wall / CPU s", f"{a.choice}: chosen")
     print("| " + " | ".join(hdr) + " |")
     print("|" + "---|" * len(hdr))
     for r in rows:
+        ratio = f"{r[11] / r[12]:.1f}×" if r[12] > 0 else "—"
+        run = "—" if r[13] is None else f"{r[13][0]:.1f} / {r[13][1]:.1f}"
         print(f"| {r[0]} | {r[1]} | {r[2]} | " + " | ".join(f"{v * 1e3:.3f}" for v in r[3:9])
-              + f" | {r[9]:.2f} | {r[10]} |")
+              + f" | {r[9]:.2f} | {r[11]:.2f} | {r[12]:.2f} | {ratio} | {run} | {r[10]} |")
     print("\nmm, 3-D RMS of position errors; peers (every 5th held out): "
           + "; ".join(f"{k} {v}" for k, v in PEERS.items()))
 

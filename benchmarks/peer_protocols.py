@@ -7,14 +7,15 @@
   the spread of the ball centres about their socket's mean and the socket-distance error; MUKCa's own
   calibrated URDF evaluated by the same code.
 
-Models compared: registration only (nominal robot), robocal's default group selection (`groups`, k-fold
-over rows), every group free (`all`), shrinkage toward nominal (`shrinkage`: scale by leaving out whole
+Models compared: registration only (nominal robot), robocal's group selection (`groups`, k-fold over rows;
+`--model-choice groups`), every group free (`all`), shrinkage toward nominal (`shrinkage`: what `robocal run`'s
+default, auto, takes on these imports; scale by leaving out whole
 sockets where the recording has several, else GCV; with the gravity-compliance families `robocal run`
 offers by default, each kept only if admissible and of least score: `pipeline.identify.physics_choice`);
 ` rigid`: the same choice on the rigid model (no gravity terms); `+tool`: the tool point estimated too
 (MUKCa frees its ball joint).  Time: CPU seconds of the model choice and of one plain fit of the chosen
 model, and their ratio; `--run-timing`: wall and CPU seconds of the whole `robocal run` (every stage) on
-the TIAGo training session, default and shrinkage.
+the TIAGo training session, default (auto: shrinkage) and `--model-choice groups`.
 
     python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca [--mukca-train front_center] [--run-timing]
 """
@@ -152,7 +153,7 @@ def tiago(real: Path, tmp: Path, choices: tuple[str, ...], timing: bool = False)
     print("\nmm: norm of the 3-D error, RMS over postures (target: ≤ FIGAROH full on every held-out session)")
     if timing:
         train = tmp / f"tiago_{SESSIONS[0]}.mcap"
-        for label, args in (("default (groups)", ()), ("--model-choice shrinkage", ("--model-choice", "shrinkage"))):
+        for label, args in (("default (auto: shrinkage)", ()), ("--model-choice groups", ("--model-choice", "groups"))):
             wall, cpu = run_timing(train, tmp / f"run-{len(args)}", *args)
             print(f"whole `robocal run` {label} on the training session: {wall:.1f} s wall, {cpu:.1f} s CPU")
 

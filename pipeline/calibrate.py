@@ -28,8 +28,10 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     (systems whose model has a `variant` field, e.g. delta-tracker: simplified, extended).  `physics`,
     `payload`: gravity terms of a URDF robot (`pipeline.physics.compliance`)."""
     t0 = time.perf_counter()
-    if model_choice not in ("groups", "shrinkage"):
-        raise RobocalError(f"--model-choice {model_choice!r}: expected groups or shrinkage")
+    from pipeline.identify.route import check, resolve
+    from pipeline.systems.urdf_robot import is_tree
+
+    check(model_choice)
     path, out = Path(path), Path(out)
     rec = read_recording(path)
     system = detect(rec)
@@ -64,6 +66,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     gross = screen(model, table, rec.metadata.get(META_CAMPAIGN, {}), options)  # before any open-ended solve
     if gross["status"] == "fail":
         raise RobocalError(f"{path}: {gross['message']}")
+    route = resolve(model_choice, system.SYSTEM, model, rec.metadata.get(META_CAMPAIGN, {}),
+                   tree=system.SYSTEM == "urdf" and is_tree(rec))
+    model_choice = route["route"]
     if solver == "ga":
         from pipeline.identify.genetic import cross_validate_ga, fit_ga
         if not hasattr(model, "batch_cost_fn"):
@@ -120,6 +125,8 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         doc["model_selection"] = shrinkage_document(shrunk)
         if shrunk.per_group:
             doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
+    if solver == "lm" and system.SYSTEM == "urdf" and getattr(model, "groups", None) and model.groups():
+        doc["model_choice"] = route  # which route the model choice took, and why (auto resolves per recording)
     from pipeline.accuracy.stage import guarded_document
 
     from pipeline.identify.folds import design_folds
@@ -202,6 +209,8 @@ def summary_rows(doc: dict) -> list[tuple[str, str]]:
           if "new_measurement" in doc.get("accuracy", {}) else []),
         *([("status", doc["status"])] if "status" in doc else []),
         ("parameters identified / total", f"{doc['n_identifiable']} / {doc['n_parameters']}"),
+        *([("model choice", f"{doc['model_choice']['route']} (--model-choice {doc['model_choice']['asked']})")]
+          if "model_choice" in doc else []),
         ("solve time", f"{doc['solve_time_s']:.3f} s"),
     ]
 

@@ -4,8 +4,9 @@ Unit panda_2: fit on one placement (`front_center`: both sockets + their 50 mm d
 other eight placements without refitting, by the spread of the ball centres about their socket's mean
 (MUKCa's figure).  `--model-choice shrinkage` with the ball centre free (as MUKCa frees its ball joint)
 is compared with MUKCa's published calibrated URDF, evaluated by the same code: its mean over the other
-placements stays at or below MUKCa's (robocal 0.439 mm, MUKCa 0.441 mm), no placement more than 0.01 mm
-above MUKCa's, and every placement far better than the nominal robot.
+placements stays at or below MUKCa's (robocal 0.434 mm, MUKCa 0.441 mm), every placement at or below MUKCa's
+(the left-out sockets chose the registration free of its anchor), and every placement far better than the
+nominal robot.
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ def test_mukca_panda_2_protocol_at_or_below_mukca(tmp_path):
                   "coincidence"), recs[1:])])
     nominal = np.array([r["mean_3d_m"] for r in evaluate(
         from_urdf(d / "urdf" / "panda.urdf", "panda_link0", "ball_link", "coincidence"), recs[1:])])
-    assert ours.mean() <= theirs.mean() and ours.mean() <= 0.439e-3 + 0.005e-3, (ours.mean(), theirs.mean())
-    assert np.all(ours <= theirs + 0.01e-3), (ours, theirs)
+    assert ours.mean() <= theirs.mean() and ours.mean() <= 0.434e-3 + 0.003e-3, (ours.mean(), theirs.mean())
+    assert np.all(ours <= theirs), (ours, theirs)  # at or below MUKCa's calibrated URDF on every other placement
+    assert s.registration in ("anchored", "free")  # the left-out sockets judged the registration both ways
     assert np.all(ours < 0.2 * nominal), (ours, nominal)

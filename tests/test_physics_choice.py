@@ -102,7 +102,7 @@ def test_a_negative_compliance_is_not_admissible():
 @needs_real
 def test_figaroh_tiago_protocol_at_or_below_figaroh_full(tmp_path):
     """FIGAROH's frozen protocol (train on 2021-11-30 only; 11-26, 11-30 14:03, 11-30 15:04 held out, no
-    refit): `--model-choice shrinkage` keeps the joint-compliance family (the lateral family is refused:
+    refit): the default model choice (auto: shrinkage for an imported URDF robot) keeps the joint-compliance family (the lateral family is refused:
     negative compliances) and predicts every held-out session at or below FIGAROH's full model."""
     d = REAL / "figaroh_tiago_sessions"
     urdf_path = REAL / "figaroh_tiago_mocap" / "tiago_48_schunk.urdf"
@@ -114,9 +114,10 @@ def test_figaroh_tiago_protocol_at_or_below_figaroh_full(tmp_path):
                        "x1,y1,z1", "--out", out)
         assert proc.returncode == 0, proc.stderr
         recs.append(out)
-    proc = run_cli("calibrate", recs[0], "--model-choice", "shrinkage", "--out", tmp_path / "cal")
+    proc = run_cli("calibrate", recs[0], "--out", tmp_path / "cal")  # the default: auto takes shrinkage here
     assert proc.returncode == 0, proc.stderr
     doc = json.loads((tmp_path / "cal" / "results.json").read_text())
+    assert doc["model_choice"] == {"asked": "auto", "route": "shrinkage", "reason": doc["model_choice"]["reason"]}
     phys = doc["model_selection"]["physics_families"]
     assert phys["chosen"] == "joint-compliance", phys
     assert not phys["candidates"]["lateral-compliance"]["admissible"], phys

@@ -154,7 +154,7 @@ def test_real_dataset_calibrates_below_registration_only(tmp_path, name):
     rec = tmp_path / f"{name}.mcap"
     proc = run_cli("import", "csv", *_real_import(name, rec))
     assert proc.returncode == 0, proc.stderr
-    proc = run_cli("calibrate", rec, "--out", tmp_path / "cal")
+    proc = run_cli("calibrate", rec, "--model-choice", "groups", "--out", tmp_path / "cal")  # the group selection
     assert proc.returncode == 0, proc.stderr
     doc = json.loads((tmp_path / "cal" / "results.json").read_text())
     sel = doc["model_selection"]

@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 
 from pipeline.cli import CALIBRATE, app, console, err
-from pipeline.cli.run import (PAYLOAD, PHYSICS, PREVIOUS, PRIOR, STRICT, TARGETS, TOLERANCE, accuracy_params,
+from pipeline.cli.run import (MODEL_CHOICE_HELP, PAYLOAD, PHYSICS, PREVIOUS, PRIOR, STRICT, TARGETS, TOLERANCE, accuracy_params,
                               strict_exit)
 
 
@@ -30,10 +30,7 @@ def calibrate_cmd(
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
     registration: str = typer.Option("shared", "--registration", help="Several recordings: shared (one instrument "
                                                                       "frame) or per-recording."),
-    model_choice: str = typer.Option("groups", "--model-choice",
-                                     help="URDF robots: groups (keep groups that lower held-out error) or shrinkage "
-                                          "(every parameter pulled toward nominal by its prior; scale by leaving out "
-                                          "whole sessions/placements, else GCV)."),
+    model_choice: str = typer.Option("auto", "--model-choice", help=MODEL_CHOICE_HELP),
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""

@@ -52,6 +52,9 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
                      ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(s.get("holdout_kind", "")
                       ).startswith("whole") else "k-fold, within this recording") + ")", mm(s.get("holdout_rms_3d_m")))]
         rows[5:8] = [(f"{k} (per axis)", v) for k, v in rows[5:8]]
+    if isinstance(s.get("model_choice"), dict):  # URDF robots: which route the model choice took
+        mc = s["model_choice"]
+        rows.append(("model choice", f"{mc.get('route')} (--model-choice {mc.get('asked')})"))
     diag = doc.get("stages", {}).get("diagnose", {}).get("summary", {})
     if "findings" in diag:  # what the geometric model left out (the diagnosis)
         found = ", ".join(diag["findings"]) or "none"
@@ -163,6 +166,10 @@ def in_panel(option: typer.models.OptionInfo, panel: str) -> typer.models.Option
 
 
 IDENTIFY, VALIDATE = "Identify", "Validate"
+MODEL_CHOICE_HELP = ("auto (default): shrinkage for a URDF robot imported from CSV / ROS 2, groups for the seed "
+                     "systems, simulated campaigns and cameras; groups (keep groups that lower held-out error); "
+                     "shrinkage (every parameter pulled toward nominal by its prior; scale by leaving out whole "
+                     "sessions/placements, else GCV).")
 
 
 @app.command("run", rich_help_panel=CALIBRATE)
@@ -172,10 +179,7 @@ def run_cmd(
                                              "together (sessions)."),
     registration: str = typer.Option("shared", "--registration", rich_help_panel=IDENTIFY,
                                      help="Several recordings: shared (one instrument frame) or per-recording."),
-    model_choice: str = typer.Option("groups", "--model-choice", rich_help_panel=IDENTIFY,
-                                     help="URDF robots: groups (keep groups that lower held-out error) or shrinkage "
-                                          "(every parameter pulled toward nominal by its prior; scale by leaving out "
-                                          "whole sessions/placements, else GCV)."),
+    model_choice: str = typer.Option("auto", "--model-choice", rich_help_panel=IDENTIFY, help=MODEL_CHOICE_HELP),
     out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
     loss: Optional[str] = in_panel(LOSS, IDENTIFY), f_scale: Optional[float] = in_panel(F_SCALE, IDENTIFY),
     reject: Optional[float] = in_panel(REJECT, IDENTIFY), folds: Optional[int] = in_panel(FOLDS, IDENTIFY),
@@ -237,11 +241,9 @@ def run_cmd(
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
-    if model_choice != "groups":
-        from pipeline.errors import RobocalError
+    from pipeline.identify.route import check
 
-        if model_choice != "shrinkage":
-            raise RobocalError(f"--model-choice {model_choice!r}: expected groups or shrinkage")
+    if check(model_choice) != "auto":  # auto (default) is resolved by identify; no key: seed runs' caches unchanged
         params["identify"]["model_choice"] = model_choice
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]

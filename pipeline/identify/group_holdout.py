@@ -64,6 +64,32 @@ def held_out(model, data, groups: np.ndarray, solve, x_start: np.ndarray) -> np.
     return out
 
 
+def held_out_linear(model, data, groups: np.ndarray, x: np.ndarray, idx: np.ndarray, lam: np.ndarray,
+                    centre: np.ndarray) -> np.ndarray:
+    """`held_out` of the penalised fit min ‖r‖² + ‖lam·(x[idx] − centre[idx])‖² over x[idx], linearised at its
+    all-groups solution `x`: each group's training fit is one Gauss-Newton step from `x` on the other groups'
+    rows (its gradient there, (J_RᵀJ_R + lam²)⁻¹), then the group's own parameters are fitted to its rows by
+    linear least squares — no solve per group.  Residuals (n, residual_dim)."""
+    n, kd = len(data["joint_positions"]), model.residual_dim
+    J = np.asarray(model.jacobian(x, data), float).reshape(n * kd, -1)
+    r = np.asarray(model.residuals(x, data), float).ravel()
+    Jx, pen = J[:, idx], lam**2 * (np.asarray(x, float)[idx] - np.asarray(centre, float)[idx])
+    rows = lambda mask: (np.flatnonzero(mask)[:, None] * kd + np.arange(kd)).ravel()  # noqa: E731
+    linked = _linked(data, groups)
+    out = np.full((n, kd), np.nan)
+    for g in np.unique(groups):
+        te = groups == g
+        T, R = rows(te), rows(~te & ~linked(g))
+        A = Jx[R].T @ Jx[R] + np.diag(lam**2)
+        step = np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ (Jx[R].T @ r[R] + pen)
+        rt = r[T] - Jx[T] @ step
+        own = np.flatnonzero(np.any(J[T] != 0, axis=0) & ~np.any(J[R] != 0, axis=0))
+        if own.size:
+            rt = rt - J[T][:, own] @ np.linalg.lstsq(J[T][:, own], rt, rcond=None)[0]
+        out[te] = rt.reshape(-1, kd)
+    return out
+
+
 def _linked(data, groups: np.ndarray):
     """g → mask of the rows outside g that still tie to g's own parameters: a known distance row
     (coincidence, ``kind`` 1) between a socket of g and one of another group."""

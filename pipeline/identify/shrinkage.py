@@ -24,6 +24,8 @@ from pipeline.blas import single_threaded
 from pipeline.identify.plausibility import PLAUSIBLE
 
 GRID = (0.03, 0.1, 0.3, 1.0, 3.0)  # μ as multiples of the registration-only RMS residual (per axis)
+EXTEND = 4  # grid steps added beyond each end of GRID (candidates judged on the linearised problem)
+ROUNDS = 4  # at most this many solves after the first (each at the least linearised GCV)
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,9 @@ class Shrunk:
     per_group: dict = field(default_factory=dict)  # μ → {group: held-out RMS m} (choice by left-out groups)
     holdout: np.ndarray | None = None  # (n, residual_dim) held-out residuals at the chosen μ (left-out groups)
     physics: dict = field(default_factory=dict)  # {chosen, candidates: {label: {admissible, score_m2, …}}}
+    registration: str = "anchored"  # the registration anchored at its registration-only estimate, or "free"
+    other_registration: dict = field(default_factory=dict)  # μ → score (m²) with the registration the other way
+    multiple: float = float("nan")  # the chosen μ over the registration-only RMS (GCV route)
 
 
 def _registration(model, extra: tuple[str, ...] = ()) -> set[str]:
@@ -89,10 +94,18 @@ def map_solve(model, data, x: np.ndarray, idx: np.ndarray, lam: np.ndarray, nomi
 
 
 def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[str, ...] = (),
-           scale_m: float | None = None, grid=GRID, progress=None, extra: tuple[str, ...] = ()) -> Shrunk:
+           scale_m: float | None = None, grid=GRID, progress=None, extra: tuple[str, ...] = (),
+           extend: bool = True) -> Shrunk:
     """MAP estimate with μ chosen by GCV (module docstring).  `x0`: start (e.g. the registration-only
     fit); `scale_m`: the registration-only RMS residual per axis (default: at x0); `extra`: names
-    estimated with the registration (anchored at x0, not pulled toward nominal)."""
+    estimated with the registration (anchored at x0, not pulled toward nominal).
+
+    The ladder of candidates is the grid and, with `extend`, `EXTEND` more of its steps beyond each end (the
+    registration-only RMS sets the grid; a robot far off its instrument's frame — planes tens of mm off —
+    would otherwise never reach the μ its data support).  Few solves: one at the grid's middle, then GCV of
+    every candidate from the problem linearised there (one factorisation each: δ = −(JᵀJ + Λ²)⁻¹(Jᵀr +
+    Λ²(x − centre)), dof = tr((JᵀJ + Λ²)⁻¹JᵀJ)), a solve at the least, and again until the least is the
+    point solved (at most `ROUNDS`).  Scores of solved points are exact, the others linearised."""
     nominal = np.asarray(model.nominal(), float)
     free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
     wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
@@ -101,26 +114,49 @@ def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[st
     r0 = np.asarray(model.residuals(x0, data), float).ravel()
     m = r0.size
     scale = float(scale_m if scale_m is not None else np.sqrt(np.mean(r0**2)))
-    x = np.asarray(x0, float).copy()
     scores: dict[float, float] = {}
-    best = None
-    for i, g in enumerate(sorted(grid, reverse=True)):  # strong shrinkage first: each solve starts near the last
+    at: dict[float, tuple] = {}
+
+    def gcv(J, r, xi, g):
+        """(GCV m², dof) at multiple g, linearised at (J, r, xi = x[idx])."""
+        lam = g * scale * wa[idx]
+        Ai = np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True)  # unpenalised may be rank-deficient
+        rl = r - J @ (Ai @ (J.T @ r + lam**2 * (xi - centre[idx])))
+        dof = float(np.trace(Ai @ (J.T @ J)))
+        return m * float(rl @ rl) / max(m - dof, 1e-9) ** 2, dof
+
+    def solve(g, x):
         mu = g * scale
-        lam = mu * wa[idx]
-        x = map_solve(model, data, x, idx, lam, centre)
+        x = map_solve(model, data, x, idx, mu * wa[idx], centre)
         r = np.asarray(model.residuals(x, data), float).ravel()
         J = np.asarray(model.jacobian(x, data), float).reshape(m, -1)[:, idx]
-        A = J.T @ J + np.diag(lam**2)
-        dof = float(np.trace(np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ (J.T @ J)))  # unpenalised may be rank-deficient
-        rss = float(r @ r)
-        scores[mu] = m * rss / max(m - dof, 1e-9) ** 2
+        scores[mu], dof = gcv(J, r, x[idx], g)
+        at[g] = (mu, x, dof, J, r)
         if progress is not None:
-            progress(f"shrinkage μ = {mu * 1e3:.4g} mm ({i + 1}/{len(grid)}): GCV RMS "
-                     f"{np.sqrt(scores[mu]) * 1e3:.4g} mm, {dof:.1f} effective parameters")
-        if best is None or scores[mu] < best[1]:
-            best = (mu, scores[mu], x.copy(), dof)
-    mu, _, xb, dof = best
-    return Shrunk(xb, mu, scores, dof, _implausible(model, xb, idx, w, nominal), len(grid))
+            progress(f"shrinkage μ = {mu * 1e3:.4g} mm (solve {len(at)}): GCV RMS {np.sqrt(scores[mu]) * 1e3:.4g} mm, "
+                     f"{dof:.1f} effective parameters")
+        return x
+
+    g_sorted = sorted(grid)
+    step = (g_sorted[-1] / g_sorted[0]) ** (1 / (len(grid) - 1)) if len(grid) > 1 else 1.0
+    k = EXTEND if extend and len(grid) > 1 else 0
+    ladder = [g_sorted[0] / step**i for i in range(k, 0, -1)] + g_sorted + [g_sorted[-1] * step**i for i in range(1, k + 1)]
+    g = g_sorted[len(g_sorted) // 2]
+    solve(g, np.asarray(x0, float).copy())
+    for _ in range(ROUNDS if len(ladder) > 1 else 0):
+        _, x, _, J, r = at[g]
+        lin = {c: scores[at[c][0]] if c in at else gcv(J, r, x[idx], c)[0] for c in ladder}
+        for c, v in lin.items():
+            scores.setdefault(c * scale, v)
+        nxt = min(lin, key=lin.get)
+        if nxt in at:
+            g = min(at, key=lambda c: scores[at[c][0]])
+            break
+        solve(nxt, x)
+        g = nxt if scores[nxt * scale] <= scores[at[g][0]] else g
+    mu, xb, dof = at[g][:3]
+    return Shrunk(xb, mu, dict(sorted(scores.items())), dof, _implausible(model, xb, idx, w, nominal), len(at),
+                  multiple=g)
 
 
 def _implausible(model, x, idx, w, nominal) -> list[dict]:
@@ -134,73 +170,72 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
     """MAP estimate with μ chosen by leaving out whole groups (`group_holdout`): the candidates are the
     grid and μ = ∞ (registration only, the nominal robot); a μ is eligible only if no left-out group is
     predicted worse than by registration only, and the eligible μ of least held-out RMS is chosen, then
-    refined once by the same rule over the geometric midpoints either side of it (half a grid step)."""
-    from pipeline.identify.group_holdout import held_out, per_group_rms
+    refined once by the same rule over the geometric midpoints either side of it (half a grid step).
+    The registration is anchored at its registration-only estimate (`_anchor`); the same rule then judges
+    it free (unpenalised) at the chosen μ and its two midpoints, and keeps whichever predicts the left-out
+    groups better: what carries over to a group the fit did not see decides, not an assumption.  Each
+    candidate costs one solve on all groups, warm-started from the last; each group left out is linearised
+    about it (`group_holdout.held_out_linear`: one Gauss-Newton step on the others, its own parameters fitted
+    to its rows) instead of refitted."""
+    from pipeline.identify.group_holdout import held_out_linear, per_group_rms
 
     nominal = np.asarray(model.nominal(), float)
     free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
-    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
+    weights = {True: w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra), False: w}
     centre = np.where(w > 0, nominal, np.asarray(x0, float))
     idx = np.flatnonzero(free)
     reg = idx[w[idx] == 0]
     scale = float(np.sqrt(np.mean(np.asarray(model.residuals(x0, data), float) ** 2)))
     cands = [np.inf] + [g * scale for g in sorted(grid, reverse=True)]
     per, total, full, outs = {}, {}, {}, {}
+    INF = (True, np.inf)
 
-    def judge(mu, x, label):
+    def judge(key, x, label):
+        anchored, mu = key
         if np.isinf(mu):
             def solve(d, xs):
                 return map_solve(model, d, xs, reg, np.zeros(reg.size), nominal)
         else:
-            def solve(d, xs, lam=mu * wa[idx]):
+            def solve(d, xs, lam=mu * weights[anchored][idx]):
                 return map_solve(model, d, xs, idx, lam, centre)
-        r = held_out(model, data, groups, solve, x)
-        per[mu], total[mu], outs[mu] = per_group_rms(r, groups), float(np.sqrt(np.nanmean(r**2))), r
-        full[mu] = solve(data, x)
+        full[key] = solve(data, x)  # one solve on every group; each left out linearised about it (no refits)
+        cols, lam = (reg, np.zeros(reg.size)) if np.isinf(mu) else (idx, mu * weights[anchored][idx])
+        r = held_out_linear(model, data, groups, full[key], cols, lam, centre)
+        per[key], total[key], outs[key] = per_group_rms(r, groups), float(np.sqrt(np.nanmean(r**2))), r
         if progress is not None:
-            progress(f"model choice {label}: μ = {mu * 1e3:.4g} mm, held-out (whole groups left out) "
-                     f"RMS {total[mu] * 1e3:.4g} mm")
-        return full[mu]
+            progress(f"model choice {label}: μ = {mu * 1e3:.4g} mm{'' if anchored else ', registration free'}, "
+                     f"held-out (whole groups left out) RMS {total[key] * 1e3:.4g} mm")
+        return full[key]
 
-    def best():
-        ok = [m for m in per if all(per[m][g] <= per[np.inf][g] for g in per[np.inf])]
-        return min(ok, key=lambda m: total[m])
+    def best(anchored=(True, False)):
+        ok = [k for k in per if k[0] in anchored and all(per[k][g] <= per[INF][g] for g in per[INF])]
+        return min(ok, key=lambda k: total[k])
 
     x = np.asarray(x0, float).copy()
     for i, mu in enumerate(cands):
-        x = judge(mu, x, f"{i + 1}/{len(cands)}")
-    mu = best()
-    if not np.isinf(mu) and len(grid) > 1:  # refine: the geometric midpoints either side of the chosen grid point
+        x = judge((True, mu), x, f"{i + 1}/{len(cands)}")
+    key = best()
+    if not np.isinf(key[1]) and len(grid) > 1:  # refine: the geometric midpoints either side of the chosen grid point
         step = np.sqrt(max(grid) / min(grid)) ** (1 / max(len(grid) - 1, 1))
+        mu = key[1]
         for k, m in enumerate((mu * step, mu / step)):
-            judge(m, full[mu], f"refined {k + 1}/2")
-        mu = best()
-    cands = sorted(per, reverse=True)
-    xb = full[mu]
+            judge((True, m), full[key], f"refined {k + 1}/2")
+        key = best()
+        for k, m in enumerate((key[1] * step, key[1], key[1] / step)):  # the registration free, about the choice
+            judge((False, m), full[key], f"registration free {k + 1}/3")
+        key = best()
+    anchored, mu = key
+    cands = sorted((m for a, m in per if a == anchored or np.isinf(m)), reverse=True)
+    xb = full[key]
     J = np.asarray(model.jacobian(xb, data), float).reshape(-1, xb.size)[:, idx]
-    lam = (0.0 if np.isinf(mu) else mu) * wa[idx]
+    lam = (0.0 if np.isinf(mu) else mu) * weights[anchored][idx]
     dof = float(np.trace(np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True) @ (J.T @ J)))
-    return Shrunk(xb, float(mu), {float(m): total[m] ** 2 for m in cands}, dof,
-                  [] if np.isinf(mu) else _implausible(model, xb, idx, w, nominal), len(cands),
-                  per_group={float(m): per[m] for m in cands}, holdout=outs[mu])
-
-
-def _downhill(at, first: Shrunk) -> Shrunk:
-    """The `at(grid)` shrink of least GCV found by walking the GRID from the point `first` chose, each way
-    while the score falls (a few solves instead of the whole grid); its `gcv` holds every point tried."""
-    g = sorted(GRID, reverse=True)
-    i0 = list(first.gcv).index(first.mu_m)
-    seen = {i0: at((g[i0],))}
-    score = lambda s: s.gcv[s.mu_m]  # noqa: E731
-    for step in (-1, 1):
-        j = i0
-        while 0 <= j + step < len(g):
-            j += step
-            seen[j] = at((g[j],))
-            if score(seen[j]) >= score(seen[j - step]):
-                break
-    best = min(seen.values(), key=score)
-    return replace(best, gcv={s.mu_m: score(s) for _, s in sorted(seen.items())}, fits=len(seen))
+    at = lambda m: INF if np.isinf(m) else (anchored, m)  # noqa: E731
+    other = {float(m): total[(a, m)] ** 2 for a, m in per if a != anchored and not np.isinf(m)}
+    return Shrunk(xb, float(mu), {float(m): total[at(m)] ** 2 for m in cands}, dof,
+                  [] if np.isinf(mu) else _implausible(model, xb, idx, w, nominal), len(per),
+                  per_group={float(m): per[at(m)] for m in cands}, holdout=outs[key],
+                  registration="anchored" if anchored else "free", other_registration=other)
 
 
 @single_threaded
@@ -216,7 +251,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     from pipeline.identify.identifiability import analyse
     from pipeline.identify.folds import design_folds
     from pipeline.identify.least_squares import Fit, fit
-    from pipeline.identify.model import n_rows, take
+    from pipeline.identify.model import n_rows
 
     t0 = time.perf_counter()
     prior = options.prior_sigma
@@ -232,7 +267,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     registration = set(model.groups().get("registration", []))
     n, kd = n_rows(data), model.residual_dim
     groups_of_rows = row_groups(model, data)
-    best, tried, first = None, {}, None
+    best, tried = None, {}
     for chosen in pc.candidates(model):  # gravity-compliance families: none, each, all (physics_choice)
         on, off = pc.names_of(model, chosen)
         label = "+".join(chosen) or "rigid"
@@ -255,12 +290,10 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
             def at(grid, x0=f0.x, fixed=fixed + held, on=on):
                 return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid)
 
-            # later candidates: from the first one's chosen grid point, downhill along the grid only
-            s = at(GRID) if first is None else _downhill(at, first)
+            s = at(GRID)
             m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
             rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
             score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
-        first = s if first is None and groups_of_rows is None else first
         tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m)}
         if progress is not None and len(pc.candidates(model)) > 1:
             progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")
@@ -269,19 +302,17 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     _, s, f0, fixed, held, on, label = best
     if len(tried) > 1 or on:
         s = replace(s, physics={"chosen": label, "terms": list(on), "candidates": tried})
-    if groups_of_rows is not None:
-        holdout = s.holdout
-    else:
-        holdout = np.full((n, kd), np.nan)
-        for test in design_folds(n, k, seed, None, data):  # as `least_squares.cross_validate`
-            train = np.setdiff1d(np.arange(n), test)
-            sf = shrink(model, take(data, train), prior, s.x, fixed=fixed + held, grid=(s.mu_m,), scale_m=1.0,
-                        extra=on)
-            holdout[test] = np.asarray(model.residuals(sf.x, take(data, test)), float).reshape(len(test), kd)
     free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held, on)
     wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
     J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
     mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
+    if groups_of_rows is not None:
+        holdout = s.holdout
+    else:  # the folds of `least_squares.cross_validate`, each left out in closed form (no refit)
+        folds = design_folds(n, k, seed, None, data)
+        idx = np.flatnonzero(free_mask)
+        r = np.asarray(model.residuals(s.x, data), float).ravel()
+        holdout = fold_holdout(J[:, idx], r, mu_eff * wa[idx], folds, kd)
     est = free_mask & ~((w > 0) & np.isinf(s.mu_m))  # μ = ∞: the robot stays nominal
     ident = analyse(np.vstack([J, np.diag(mu_eff * wa)]), names, ~est, getattr(model, "priority", lambda: None)())
     r1 = np.asarray(model.residuals(s.x, data), float).reshape(n, kd)
@@ -300,6 +331,21 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     return out, s, holdout
 
 
+def fold_holdout(J: np.ndarray, r: np.ndarray, lam: np.ndarray, folds: list[np.ndarray], kd: int) -> np.ndarray:
+    """Held-out residuals (n, kd) of each fold left out of the penalised fit, linearised at its solution:
+    the rows T of min ‖r + J δ‖² + ‖Λ(x + δ − centre)‖² refitted without them predict e_T = (I − H_TT)⁻¹ r_T,
+    H_TT = J_T (JᵀJ + Λ²)⁻¹ J_Tᵀ (exact for a linear model; one factorisation for every fold).  `J`
+    (n·kd, p) the Jacobian of the estimated parameters, `r` (n·kd,) the residuals, `lam` (p,) Λ's diagonal."""
+    Ainv = np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True)
+    out = np.full((r.size // kd, kd), np.nan)
+    for test in folds:
+        rows = (np.asarray(test)[:, None] * kd + np.arange(kd)).ravel()
+        Jt = J[rows]
+        e = np.linalg.lstsq(np.eye(rows.size) - Jt @ Ainv @ Jt.T, r[rows], rcond=None)[0]
+        out[test] = e.reshape(len(test), kd)
+    return out
+
+
 def shrinkage_document(s: Shrunk) -> dict:
     """results.json → model_selection of a shrinkage fit (SI; μ = null: registration only chosen)."""
     mu = None if np.isinf(s.mu_m) else s.mu_m
@@ -312,5 +358,8 @@ def shrinkage_document(s: Shrunk) -> dict:
         doc["physics_families"] = s.physics
     if s.per_group:
         doc["holdout_per_group_m"] = {key(m): v for m, v in s.per_group.items()}
+        doc["registration"] = s.registration  # anchored at its registration-only estimate, or free
+        doc["score_m2_registration_" + ("free" if s.registration == "anchored" else "anchored")] = {
+            key(m): v for m, v in s.other_registration.items()}
     return doc
 

@@ -64,7 +64,7 @@ def histograms(before: np.ndarray, after: np.ndarray, floor_m: float | None) -> 
 def joints_before_after(joints: dict[str, np.ndarray], before: np.ndarray, after: np.ndarray,
                         prismatic: frozenset = frozenset()) -> str:
     """|residual| against each joint angle (deg; a prismatic joint's travel mm), before (top row)
-    and after (bottom row)."""
+    and after (bottom row); of a pose, its position part."""
     from pipeline.report.labels import joint_scale
 
     names = list(joints)
@@ -75,7 +75,7 @@ def joints_before_after(joints: dict[str, np.ndarray], before: np.ndarray, after
             q = np.asarray(joints[n], float) * scale
             for row, (r, col) in enumerate(((before, "#d62728"), (after, "#2ca02c"))):
                 a = ax[row, j]
-                for k in range(r.shape[1]):
+                for k in range(min(r.shape[1], 3)):  # a pose's position part (its rotation part is not mm)
                     a.scatter(q, r[:, k] * MM, s=5, color=AXIS_RGB[k] if r.shape[1] > 1 else col, linewidths=0)
                 a.axhline(0, color="k", lw=0.5)
                 if row == 1:

@@ -74,7 +74,16 @@ def run(run_dir: Path, params: dict) -> dict:
     selection = shrunk = None
     folds = int(params.get("folds", 5))
     grouped = bool(getattr(model, "groups", None) and model.groups())
-    if grouped and params.get("model_choice", "groups") == "shrinkage":  # every parameter, pulled toward nominal
+    from pipeline.identify.route import resolve
+    from pipeline.systems.urdf_robot import is_tree
+    from pipeline.recording.schemas import META_CAMPAIGN
+
+    route = resolve(str(params.get("model_choice", "auto")), system.SYSTEM, model, rec.metadata.get(META_CAMPAIGN, {}),
+                   tree=system.SYSTEM == "urdf" and is_tree(rec))
+    shown = grouped and system.SYSTEM == "urdf"  # seed systems: artefacts and output as they were
+    if shown:
+        _progress(f"model choice {route['route']} ({route['reason']})")
+    if grouped and route["route"] == "shrinkage":  # every parameter, pulled toward nominal
         from pipeline.identify.outliers import RobustFit
         from pipeline.identify.shrinkage import shrunk_fit
 
@@ -147,6 +156,8 @@ def run(run_dir: Path, params: dict) -> dict:
     physics = summarise(model, f, kept_data, opts, folds, int(params.get("seed", 0)), rms(holdout_kept))
     if physics is not None:  # geometry-only vs with-physics held-out, each kept term's reading
         doc["physics"] = physics
+    if shown:  # which route the model choice took, and why (auto resolves per recording)
+        doc["model_choice"] = route
     if shrunk is not None:
         doc["model_selection"] = shrinkage_document(shrunk)
         if shrunk.per_group:
@@ -167,7 +178,7 @@ def run(run_dir: Path, params: dict) -> dict:
         if doc["implausible"]:
             doc["warnings"] += warnings_of(doc["implausible"])
             doc["status"] = "warn"
-    keys += tuple(k_ for k_ in ("status", "residual_unit", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
+    keys += tuple(k_ for k_ in ("status", "model_choice", "residual_unit", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
     return {k_: doc[k_] for k_ in keys} | {k_: doc[k_] for k_ in ("extra", "physics") if k_ in doc}
 
 

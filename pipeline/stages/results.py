@@ -11,6 +11,7 @@ from pipeline.stages.registry import STAGES
 HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m",
             "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind",  # 3-D: URDF points/poses
+            "model_choice",  # URDF robots: {asked, route, reason}
             "residual_unit")  # px for a camera (its *_m residual figures are px); absent: m
 
 

@@ -86,10 +86,10 @@ def delta(seed: int) -> dict:
     return _evaluate(model, {"joint_positions": s.q, "point": s.point_t}, x_true)
 
 
-def urdf_robot(seed: int, n: int = 60) -> dict:
-    """The tests' r6 arm (URDF) measured by a tracker (3-D points, 0.02 mm): a random truth (1 mm / 0.2°
-    on every joint origin, a random instrument placement), n random configurations; the true and the
-    stated error compared at 100 new configurations within the measured joints' range."""
+def _r6_campaign(seed: int, salt: int, n: int, origin_m: float, origin_deg: float, noise_m: float):
+    """The tests' r6 arm (URDF) as a point model, a random truth (`origin_m` / `origin_deg` on every joint
+    origin, a random instrument placement), its campaign of n random configurations and 100 new
+    configurations within the measured joints' range: (model, table, truth, new)."""
     import sys
     from pathlib import Path
 
@@ -101,11 +101,19 @@ def urdf_robot(seed: int, n: int = 60) -> dict:
     from r6_robot import BARE_URDF
 
     model = PointModel(urdf_arm.UrdfArm(urdf.parse(BARE_URDF, "b", "l6")))
-    rng = np.random.default_rng(seed + 3_000_017)
-    truth = random_truth(model, rng, 1e-3, np.radians(0.2))
-    table, _ = campaign(model, truth, n, seed, "point", noise_m=2e-5)
+    rng = np.random.default_rng(seed + salt)
+    truth = random_truth(model, rng, origin_m, np.radians(origin_deg))
+    table, _ = campaign(model, truth, n, seed, "point", noise_m=noise_m)
     q = np.asarray(table["joint_positions"], float)
     new = {"joint_positions": rng.uniform(q.min(axis=0), q.max(axis=0), (100, q.shape[1]))}
+    return model, table, truth, new
+
+
+def urdf_robot(seed: int, n: int = 60) -> dict:
+    """The tests' r6 arm (URDF) measured by a tracker (3-D points, 0.02 mm): a random truth (1 mm / 0.2°
+    on every joint origin, a random instrument placement), n random configurations; the true and the
+    stated error compared at 100 new configurations within the measured joints' range."""
+    model, table, truth, new = _r6_campaign(seed, 3_000_017, n, 1e-3, 0.2, 2e-5)
     return _evaluate(model, table, truth, map_table=new)
 
 
@@ -114,24 +122,10 @@ def urdf_groups(seed: int, n: int = 60) -> dict:
     (0.05 mm / 0.01° on every joint origin, against 2 mm / 1°), the parameter groups chosen by held-out error as
     `robocal calibrate` does (`complexity.select`): the groups it holds at nominal are seen by the data, so the
     statement must follow the data (`accuracy.condition`), not the priors."""
-    import sys
-    from pathlib import Path
-
     from pipeline.identify.complexity import select
     from pipeline.identify.least_squares import FitOptions
-    from pipeline.measurements.point import PointModel
-    from pipeline.models import urdf, urdf_arm
-    from pipeline.simulate.urdf_robot import campaign, random_truth
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from r6_robot import BARE_URDF
-
-    model = PointModel(urdf_arm.UrdfArm(urdf.parse(BARE_URDF, "b", "l6")))
-    rng = np.random.default_rng(seed + 4_000_037)
-    truth = random_truth(model, rng, 5e-5, np.radians(0.01))
-    table, _ = campaign(model, truth, n, seed, "point", noise_m=3e-4)
-    q = np.asarray(table["joint_positions"], float)
-    new = {"joint_positions": rng.uniform(q.min(axis=0), q.max(axis=0), (100, q.shape[1]))}
+    model, table, truth, new = _r6_campaign(seed, 4_000_037, n, 5e-5, 0.01, 3e-4)
     sel = select(model, table, k=5, seed=0)
     return _evaluate(model, table, truth, map_table=new, options=FitOptions(fixed=tuple(sel.fixed)))
 

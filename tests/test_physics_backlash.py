@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import yaml
 from conftest import run_cli
+from humanoid_import import import_humanoid_run
 
 import independent_humanoid as hu
 
@@ -21,19 +22,13 @@ pytest.importorskip("pinocchio")
 PLAY = {"left_j2": 4e-3, "right_j4": 3e-3}  # rad: δq = b·d/2
 
 
-def _import(d, rec, csv="postures.csv"):
-    return run_cli("import", "csv", d / csv, "--urdf", d / "humanoid.urdf", "--root", "base",
-                   "--tip", "left_hand=lx,ly,lz", "--tip", "right_hand=rx,ry,rz",
-                   "--coupled", "torso_j3=-torso_j1-torso_j2", "--measure", "point", "--out", rec)
-
-
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("backlash")
     out = {}
     for name, kw in (("play", {"backlash": PLAY}), ("dirs", {"directions": True})):
         d = hu.write(tmp / name, seed=11, n=120, noise_m=2e-4, geometry=False, **kw)
-        r = _import(d, tmp / f"{name}.mcap")
+        r = import_humanoid_run(d, tmp / f"{name}.mcap")
         assert r.returncode == 0, r.stderr
         out[name] = (tmp / f"{name}.mcap", json.loads((d / "truth.json").read_text()), d)
     return tmp, out
@@ -96,7 +91,7 @@ def test_backlash_kept_recovered_and_at_the_noise_floor(recordings):
     assert by["left_j2.backlash"]["std"] == pytest.approx(p["left_j2.backlash"]["std"])
     # evaluate applies the play to a second session of the same robot (its own directions): noise floor
     d2 = hu.write(tmp / "play_s2", seed=11, n=60, noise_m=2e-4, geometry=False, session=2, backlash=PLAY)
-    assert _import(d2, tmp / "play_s2.mcap").returncode == 0
+    assert import_humanoid_run(d2, tmp / "play_s2.mcap").returncode == 0
     r = run_cli("evaluate", tmp / "out_play", tmp / "play_s2.mcap", "--out", tmp / "ev_play")
     assert r.returncode == 0, r.stderr
     (ev,) = json.loads((tmp / "ev_play" / "evaluation.json").read_text())["recordings"]
@@ -141,7 +136,7 @@ def test_bad_direction_column_one_line_exit_2(recordings, tmp_path, bad):
     row[k] = bad
     lines[5] = ",".join(row)
     (d / "bad.csv").write_text("\n".join(lines) + "\n")
-    r = _import(d, tmp_path / "bad.mcap", "bad.csv")
+    r = import_humanoid_run(d, tmp_path / "bad.mcap", "bad.csv")
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and "Traceback" not in r.stderr, r.stderr
     assert "bad.csv: row 6: column 'dir_left_j3'" in r.stderr, r.stderr

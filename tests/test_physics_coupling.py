@@ -11,20 +11,13 @@ import json
 import numpy as np
 import pytest
 from conftest import run_cli
+from humanoid_import import import_humanoid
 
 import independent_humanoid as hu
 
 pytest.importorskip("pinocchio")
 
 COUPLING = {"left_j3": ("left_j2", 8e-3), "right_j5": ("right_j4", -6e-3)}  # δq = κ·q(driver), rad/rad
-
-
-def _import(d, rec):
-    r = run_cli("import", "csv", d / "postures.csv", "--urdf", d / "humanoid.urdf", "--root", "base",
-                "--tip", "left_hand=lx,ly,lz", "--tip", "right_hand=rx,ry,rz",
-                "--coupled", "torso_j3=-torso_j1-torso_j2", "--measure", "point", "--out", rec)
-    assert r.returncode == 0, r.stderr
-    return rec
 
 
 def test_coupling_kept_recovered_and_at_the_noise_floor(tmp_path):
@@ -34,7 +27,7 @@ def test_coupling_kept_recovered_and_at_the_noise_floor(tmp_path):
     d = hu.write(tmp_path / "c", seed=5, n=150, noise_m=2e-4, geometry=False, coupling=COUPLING)
     truth = json.loads((d / "truth.json").read_text())
     assert truth["coupling"]["left_j3"] == ["left_j2", 8e-3]
-    rec = _import(d, tmp_path / "c.mcap")
+    rec = import_humanoid(d, tmp_path / "c.mcap")
     doc = calibrate(rec, tmp_path / "out", FitOptions(), k_folds=3, physics="auto", select_groups=True)
     assert "joint coupling" in doc["model_selection"]["kept_groups"], doc["model_selection"]
     p = {r["name"]: r for r in doc["parameters"]}
@@ -48,7 +41,7 @@ def test_coupling_kept_recovered_and_at_the_noise_floor(tmp_path):
     assert doc["holdout_rms_m"] < 1.3 * floor, doc["holdout_rms_m"]
     assert doc["physics"]["holdout_geometry_only_m"] > 1.5 * doc["physics"]["holdout_with_physics_m"], doc["physics"]
     d2 = hu.write(tmp_path / "c2", seed=5, n=60, noise_m=2e-4, geometry=False, session=2, coupling=COUPLING)
-    r = run_cli("evaluate", tmp_path / "out", _import(d2, tmp_path / "c2.mcap"), "--out", tmp_path / "ev")
+    r = run_cli("evaluate", tmp_path / "out", import_humanoid(d2, tmp_path / "c2.mcap"), "--out", tmp_path / "ev")
     assert r.returncode == 0, r.stderr
     (ev,) = json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"]
     assert ev["rms_3d_m"] < 1.3 * np.sqrt(3) * floor, ev["rms_3d_m"]

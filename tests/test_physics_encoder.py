@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import yaml
 from conftest import run_cli
+from humanoid_import import import_humanoid
 
 import independent_humanoid as hu
 
@@ -22,21 +23,13 @@ SCALE = {"left_j4": 4e-3, "right_j2": -3e-3}  # δq = s·q
 ENCODER_GROUPS = ("encoder eccentricity", "joint scale", "joint coupling")
 
 
-def _import(d, rec):
-    r = run_cli("import", "csv", d / "postures.csv", "--urdf", d / "humanoid.urdf", "--root", "base",
-                "--tip", "left_hand=lx,ly,lz", "--tip", "right_hand=rx,ry,rz",
-                "--coupled", "torso_j3=-torso_j1-torso_j2", "--measure", "point", "--out", rec)
-    assert r.returncode == 0, r.stderr
-    return rec
-
-
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("encoder")
     out = {}
     for name, kw in (("ecc", {"eccentricity": ECC}), ("scale", {"scale": SCALE}), ("none", {})):
         d = hu.write(tmp / name, seed=7, n=120, noise_m=2e-4, geometry=False, **kw)
-        out[name] = (_import(d, tmp / f"{name}.mcap"), json.loads((d / "truth.json").read_text()))
+        out[name] = (import_humanoid(d, tmp / f"{name}.mcap"), json.loads((d / "truth.json").read_text()))
     return tmp, out
 
 
@@ -133,7 +126,7 @@ def test_joint_scale_recovered_when_fitted(recordings):
         assert r["unit"] == "rad/rad"
     # evaluate applies the scale terms to a second session of the same robot (no refit): at the noise floor
     d2 = hu.write(tmp / "scale_s2", seed=7, n=60, noise_m=2e-4, geometry=False, session=2, scale=SCALE)
-    rec2 = _import(d2, tmp / "scale_s2.mcap")
+    rec2 = import_humanoid(d2, tmp / "scale_s2.mcap")
     r = run_cli("evaluate", tmp / "out_scale", rec2, "--out", tmp / "ev_scale")
     assert r.returncode == 0, r.stderr
     (ev,) = json.loads((tmp / "ev_scale" / "evaluation.json").read_text())["recordings"]

@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pytest
 from conftest import run_cli
+from humanoid_import import import_humanoid
 
 import independent_humanoid as hu
 
@@ -24,10 +25,7 @@ def run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("humanoid_run")
     d = hu.write(tmp / "data", seed=SEED, n=N, noise_m=2e-4, geometry=False)
     rec = tmp / "humanoid.mcap"
-    r = run_cli("import", "csv", d / "postures.csv", "--urdf", d / "humanoid.urdf", "--root", "base",
-                "--tip", "left_hand=lx,ly,lz", "--tip", "right_hand=rx,ry,rz",
-                "--coupled", "torso_j3=-torso_j1-torso_j2", "--measure", "point", "--out", rec)
-    assert r.returncode == 0, r.stderr
+    import_humanoid(d, rec)
     out = tmp / "run"
     r = run_cli("run", rec, "--out", out, "--physics", "joint-compliance", "--folds", "3")
     return out, r, json.loads((d / "truth.json").read_text())

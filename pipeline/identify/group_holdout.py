@@ -65,14 +65,15 @@ def held_out(model, data, groups: np.ndarray, solve, x_start: np.ndarray) -> np.
 
 
 def held_out_linear(model, data, groups: np.ndarray, x: np.ndarray, idx: np.ndarray, lam: np.ndarray,
-                    centre: np.ndarray) -> np.ndarray:
+                    centre: np.ndarray, J: np.ndarray | None = None, r: np.ndarray | None = None) -> np.ndarray:
     """`held_out` of the penalised fit min ‖r‖² + ‖lam·(x[idx] − centre[idx])‖² over x[idx], linearised at its
     all-groups solution `x`: each group's training fit is one Gauss-Newton step from `x` on the other groups'
     rows (its gradient there, (J_RᵀJ_R + lam²)⁻¹), then the group's own parameters are fitted to its rows by
-    linear least squares — no solve per group.  Residuals (n, residual_dim)."""
+    linear least squares — no solve per group.  `J` (n·residual_dim, P), `r` (n·residual_dim,): the Jacobian and
+    residuals at `x` when the caller has them (or a linearisation of them).  Residuals (n, residual_dim)."""
     n, kd = len(data["joint_positions"]), model.residual_dim
-    J = np.asarray(model.jacobian(x, data), float).reshape(n * kd, -1)
-    r = np.asarray(model.residuals(x, data), float).ravel()
+    J = np.asarray(model.jacobian(x, data) if J is None else J, float).reshape(n * kd, -1)
+    r = np.asarray(model.residuals(x, data) if r is None else r, float).ravel()
     Jx, pen = J[:, idx], lam**2 * (np.asarray(x, float)[idx] - np.asarray(centre, float)[idx])
     rows = lambda mask: (np.flatnonzero(mask)[:, None] * kd + np.arange(kd)).ravel()  # noqa: E731
     linked = _linked(data, groups)

@@ -165,79 +165,6 @@ def _implausible(model, x, idx, w, nominal) -> list[dict]:
              "z": float((x[i] - nominal[i]) * w[i])} for i in idx if w[i] > 0 and abs(x[i] - nominal[i]) * w[i] > PLAUSIBLE]
 
 
-def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, groups: np.ndarray,
-                     fixed: tuple[str, ...] = (), grid=GRID, progress=None, extra: tuple[str, ...] = ()) -> Shrunk:
-    """MAP estimate with μ chosen by leaving out whole groups (`group_holdout`): the candidates are the
-    grid and μ = ∞ (registration only, the nominal robot); a μ is eligible only if no left-out group is
-    predicted worse than by registration only, and the eligible μ of least held-out RMS is chosen, then
-    refined once by the same rule over the geometric midpoints either side of it (half a grid step).
-    The registration is anchored at its registration-only estimate (`_anchor`); the same rule then judges
-    it free (unpenalised) at the chosen μ and its two midpoints, and keeps whichever predicts the left-out
-    groups better: what carries over to a group the fit did not see decides, not an assumption.  Each
-    candidate costs one solve on all groups, warm-started from the last; each group left out is linearised
-    about it (`group_holdout.held_out_linear`: one Gauss-Newton step on the others, its own parameters fitted
-    to its rows) instead of refitted."""
-    from pipeline.identify.group_holdout import held_out_linear, per_group_rms
-
-    nominal = np.asarray(model.nominal(), float)
-    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
-    weights = {True: w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra), False: w}
-    centre = np.where(w > 0, nominal, np.asarray(x0, float))
-    idx = np.flatnonzero(free)
-    reg = idx[w[idx] == 0]
-    scale = float(np.sqrt(np.mean(np.asarray(model.residuals(x0, data), float) ** 2)))
-    cands = [np.inf] + [g * scale for g in sorted(grid, reverse=True)]
-    per, total, full, outs = {}, {}, {}, {}
-    INF = (True, np.inf)
-
-    def judge(key, x, label):
-        anchored, mu = key
-        if np.isinf(mu):
-            def solve(d, xs):
-                return map_solve(model, d, xs, reg, np.zeros(reg.size), nominal)
-        else:
-            def solve(d, xs, lam=mu * weights[anchored][idx]):
-                return map_solve(model, d, xs, idx, lam, centre)
-        full[key] = solve(data, x)  # one solve on every group; each left out linearised about it (no refits)
-        cols, lam = (reg, np.zeros(reg.size)) if np.isinf(mu) else (idx, mu * weights[anchored][idx])
-        r = held_out_linear(model, data, groups, full[key], cols, lam, centre)
-        per[key], total[key], outs[key] = per_group_rms(r, groups), float(np.sqrt(np.nanmean(r**2))), r
-        if progress is not None:
-            progress(f"model choice {label}: μ = {mu * 1e3:.4g} mm{'' if anchored else ', registration free'}, "
-                     f"held-out (whole groups left out) RMS {total[key] * 1e3:.4g} mm")
-        return full[key]
-
-    def best(anchored=(True, False)):
-        ok = [k for k in per if k[0] in anchored and all(per[k][g] <= per[INF][g] for g in per[INF])]
-        return min(ok, key=lambda k: total[k])
-
-    x = np.asarray(x0, float).copy()
-    for i, mu in enumerate(cands):
-        x = judge((True, mu), x, f"{i + 1}/{len(cands)}")
-    key = best()
-    if not np.isinf(key[1]) and len(grid) > 1:  # refine: the geometric midpoints either side of the chosen grid point
-        step = np.sqrt(max(grid) / min(grid)) ** (1 / max(len(grid) - 1, 1))
-        mu = key[1]
-        for k, m in enumerate((mu * step, mu / step)):
-            judge((True, m), full[key], f"refined {k + 1}/2")
-        key = best()
-        for k, m in enumerate((key[1] * step, key[1], key[1] / step)):  # the registration free, about the choice
-            judge((False, m), full[key], f"registration free {k + 1}/3")
-        key = best()
-    anchored, mu = key
-    cands = sorted((m for a, m in per if a == anchored or np.isinf(m)), reverse=True)
-    xb = full[key]
-    J = np.asarray(model.jacobian(xb, data), float).reshape(-1, xb.size)[:, idx]
-    lam = (0.0 if np.isinf(mu) else mu) * weights[anchored][idx]
-    dof = float(np.trace(np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True) @ (J.T @ J)))
-    at = lambda m: INF if np.isinf(m) else (anchored, m)  # noqa: E731
-    other = {float(m): total[(a, m)] ** 2 for a, m in per if a != anchored and not np.isinf(m)}
-    return Shrunk(xb, float(mu), {float(m): total[at(m)] ** 2 for m in cands}, dof,
-                  [] if np.isinf(mu) else _implausible(model, xb, idx, w, nominal), len(per),
-                  per_group={float(m): per[at(m)] for m in cands}, holdout=outs[key],
-                  registration="anchored" if anchored else "free", other_registration=other)
-
-
 @single_threaded
 def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     """(`Fit` of the MAP estimate, `Shrunk`, k-fold held-out residuals (n, residual_dim)).
@@ -261,6 +188,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
         prior = prior_sigma(model)[0]
     from pipeline.identify import physics_choice as pc
     from pipeline.identify.group_holdout import row_groups
+    from pipeline.identify.shrinkage_groups import shrink_by_groups
 
     names = model.parameter_names()
     groups = [g for g in model.groups() if not g.startswith("_")]

@@ -2,8 +2,9 @@
 
 The candidates — μ = ∞ (registration only, the nominal robot), the grid of μ with the registration anchored at its
 registration-only estimate, the half-steps either side of the best, and the registration free about it — are
-scored on the problem linearised at one solved point (`linearised_step`: one Gauss-Newton step of the penalised
-fit from that point, then each group left out as in `group_holdout.held_out_linear`), not each solved.  Only the
+scored on the problem linearised at one solved point, not each solved: each group's training fit is one
+Gauss-Newton step from that point, with the candidate's penalty, on the other groups' rows
+(`group_holdout.held_out_linear`; exact for a model linear in its parameters).  Only the
 winner is solved; if the problem linearised at the winner prefers another candidate, that one is solved in turn
 (at most `ROUNDS`).  Scores of solved candidates are exact (linearised at their own solution), the others
 linearised; μ = ∞ is always solved (warm from the registration-only fit: the rule compares every group with it).
@@ -15,18 +16,6 @@ import numpy as np
 
 from pipeline.identify.group_holdout import held_out_linear, per_group_rms
 from pipeline.identify.shrinkage import GRID, ROUNDS, Shrunk, _anchor, _implausible, _penalty, map_solve
-
-
-def linearised_step(J: np.ndarray, r: np.ndarray, x: np.ndarray, cols: np.ndarray, lam: np.ndarray,
-                    centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(x + δ, r + J δ): the solution of min ‖r + J δ‖² + ‖lam·(x + δ − centre)[cols]‖² over δ[cols] (one Gauss-Newton
-    step from `x`, J (m, P) the Jacobian and r (m,) the residuals there, SI)."""
-    Jc = J[:, cols]
-    A = Jc.T @ Jc + np.diag(lam**2)
-    d = -np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ (Jc.T @ r + lam**2 * (x[cols] - centre[cols]))
-    xs = np.asarray(x, float).copy()
-    xs[cols] += d
-    return xs, r + Jc @ d
 
 
 def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, groups: np.ndarray,
@@ -63,16 +52,14 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
         return key
 
     def judge_all(base):
-        """{key: (per-group RMS, total RMS, held-out residuals)} of the staged choice, linearised at `base`."""
+        """(chosen key, {key: per-group RMS}, {key: total RMS}, {key: held-out residuals}) of the staged choice,
+        every candidate not solved scored on the problem linearised at the solved candidate `base`."""
         xb, J, r = solved[base]
         per, total, outs = {}, {}, {}
 
         def judge(key, label):
             cols, lam = cols_lam(key)
-            if key in solved:  # exact: linearised at its own solution
-                xk, Jk, rk = solved[key]
-            else:
-                (xk, rk), Jk = linearised_step(J, r, xb, cols, lam, centre), J
+            xk, Jk, rk = solved.get(key, (xb, J, r))  # exact (at its own solution), else at the base's
             h = held_out_linear(model, data, groups, xk, cols, lam, centre, J=Jk, r=rk)
             per[key], total[key], outs[key] = per_group_rms(h, groups), float(np.sqrt(np.nanmean(h**2))), h
             if progress is not None:

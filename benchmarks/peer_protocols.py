@@ -118,7 +118,7 @@ def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
         cal = Calibrated(train_path, model.parameter_names(), x, np.ones(x.size, bool), dict(rec.metadata[META_URDF]),
                          dict(rec.metadata[META_CAMPAIGN]), str(train_path))
         out[c] = (cal, t_choice, t_fit, note)
-        print(f"  {c}: choice {t_choice:.1f} s CPU, one plain fit {t_fit:.1f} s CPU {note}", file=sys.stderr)
+        print(f"  {c}: choice {t_choice:.2f} s CPU, one plain fit {t_fit:.2f} s CPU {note}", file=sys.stderr)
     return out
 
 
@@ -147,7 +147,7 @@ def tiago(real: Path, tmp: Path, choices: tuple[str, ...], timing: bool = False)
     print("|---|---|---|---|---|---|---|---|---|")
     for c, (r, tc, tf, note) in tiago_figures(real, tmp, choices).items():
         ratio = f"{tc / tf:.1f}×" if tf > 0 else "—"
-        print(f"| robocal {c} | " + " | ".join(f"{v * 1e3:.2f}" for v in r) + f" | {tc:.1f} | {tf:.1f} | {ratio} | {note} |")
+        print(f"| robocal {c} | " + " | ".join(f"{v * 1e3:.2f}" for v in r) + f" | {tc:.2f} | {tf:.2f} | {ratio} | {note} |")
     for k, v in FIGAROH.items():
         print(f"| FIGAROH {k} (published) | — | " + " | ".join(f"{x:.2f}" for x in v) + " | | | | |")
     print("\nmm: norm of the 3-D error, RMS over postures (target: ≤ FIGAROH full on every held-out session)")
@@ -173,8 +173,8 @@ def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str, robot: st
     others = [r for j, r in enumerate(recs) if j != i]
     print(f"\n### MUKCa's protocol, {robot}: fit on placement {train}, evaluate on the other {len(others)}\n")
     print("| model | fit placement: mean / RMS | other placements: mean of per-placement mean 3-D | RMS 3-D over "
-          "all their rows | worst placement RMS | RMS socket-distance error | choice s CPU | one fit s CPU |")
-    print("|---|---|---|---|---|---|---|---|")
+          "all their rows | worst placement RMS | RMS socket-distance error | choice s CPU | one fit s CPU | choice / fit |")
+    print("|---|---|---|---|---|---|---|---|---|")
     published = real / "mukca_panda" / "calibrated_urdf" / robot / "panda_calibrated.urdf"
     mk = from_urdf(published, "panda_link0", "ball_link", "coincidence") if published.is_file() else None
     rows = [(f"robocal {c}", cal, tc, tf) for c, (cal, tc, tf, _) in models(paths[i], choices).items()]
@@ -185,7 +185,7 @@ def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str, robot: st
         n = np.array([d["n"] for d in rest])
         rms_all = np.sqrt(np.sum(n * np.array([d["rms_3d_m"] for d in rest]) ** 2) / n.sum())
         dist = np.sqrt(np.mean([d["rms_distance_error_m"] ** 2 for d in rest]))
-        t = f"{tc:.1f} | {tf:.1f}" if tc is not None else "— | —"
+        t = (f"{tc:.2f} | {tf:.2f} | " + (f"{tc / tf:.1f}×" if tf > 0 else "—")) if tc is not None else "— | — | —"
         print(f"| {name} | {own['mean_3d_m'] * 1e3:.3f} / {own['rms_3d_m'] * 1e3:.3f} | "
               f"{np.mean([d['mean_3d_m'] for d in rest]) * 1e3:.3f} | {rms_all * 1e3:.3f} | "
               f"{max(d['rms_3d_m'] for d in rest) * 1e3:.3f} | {dist * 1e3:.3f} | {t} |")

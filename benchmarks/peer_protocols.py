@@ -14,8 +14,9 @@ sockets where the recording has several, else GCV; with the gravity-compliance f
 offers by default, each kept only if admissible and of least score: `pipeline.identify.physics_choice`);
 ` rigid`: the same choice on the rigid model (no gravity terms); `+tool`: the tool point estimated too
 (MUKCa frees its ball joint).  Time: CPU seconds of the model choice and of one plain fit of the chosen
-model, and their ratio; `--run-timing`: wall and CPU seconds of the whole `robocal run` (every stage) on
-the TIAGo training session, default (auto: shrinkage) and `--model-choice groups`.
+model, and their ratio (shrinkage: the least of `REPEAT` runs); `--run-timing`: wall and CPU seconds of the
+whole `robocal run` (every stage) on the TIAGo training session, default (auto: shrinkage) and
+`--model-choice groups`.
 
     python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca [--mukca-train front_center] [--run-timing]
 """
@@ -41,6 +42,7 @@ from pipeline.systems.registry import detect
 SESSIONS = ("2021-11-30", "2021-11-26", "2021-11-30-1403", "2021-11-30-1504")
 FIGAROH = {"registration only (9)": (4.87, 4.58, 4.22), "joint offsets (14)": (4.23, 4.09, 3.83),
            "full (31)": (3.07, 2.83, 2.44)}
+REPEAT = 5  # runs of the shrinkage choice and of its plain fit timed (the least CPU s reported)
 PLACEMENTS = ("front_center", "back_left", "back_right", "front_left", "front_right", "high", "mid-high",
               "mid_left", "mid_right")
 
@@ -101,20 +103,25 @@ def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
             fixed, note = sel.fixed, "+".join(sel.kept[1:]) or "—"
         elif c.startswith("all"):
             fixed = fixed_for(model, groups)
-        if c.startswith("shrinkage"):
-            f, s, _ = shrunk_fit(model, data, FitOptions(prior_sigma=prior), k=2)
-            x, t_choice = f.x, time.process_time() - t0
+        if c.startswith("shrinkage"):  # a fraction of a second: CPU s the least of REPEAT runs (the box is shared)
+            t_choice, t_fit = np.inf, np.inf
+            for _ in range(REPEAT):
+                t0 = time.process_time()
+                f, s, _ = shrunk_fit(model, data, FitOptions(prior_sigma=prior), k=2)
+                t_choice = min(t_choice, time.process_time() - t0)
+                on = tuple((s.physics or {}).get("terms", ()))
+                t1 = time.process_time()
+                fit(model, data, FitOptions(fixed=tuple(n for n in fixed_for(model, groups) if n not in on),
+                                            before=False, prior_sigma=prior))
+                t_fit = min(t_fit, time.process_time() - t1)
+            x = f.x
             note = (f"μ {s.mu_m * 1e3:.3g} mm, {s.dof:.1f} eff. parameters, {len(s.implausible)} beyond 3σ"
                     + (f", physics: {s.physics['chosen']}" if s.physics else ""))
-            t1 = time.process_time()
-            on = tuple((s.physics or {}).get("terms", ()))
-            fit(model, data, FitOptions(fixed=tuple(n for n in fixed_for(model, groups) if n not in on), before=False,
-                                        prior_sigma=prior))
         else:
             t_choice = time.process_time() - t0
             t1 = time.process_time()
             x = fit(model, data, FitOptions(fixed=fixed, before=False, prior_sigma=prior)).x
-        t_fit = time.process_time() - t1
+            t_fit = time.process_time() - t1
         cal = Calibrated(train_path, model.parameter_names(), x, np.ones(x.size, bool), dict(rec.metadata[META_URDF]),
                          dict(rec.metadata[META_CAMPAIGN]), str(train_path))
         out[c] = (cal, t_choice, t_fit, note)
@@ -173,7 +180,8 @@ def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str, robot: st
     others = [r for j, r in enumerate(recs) if j != i]
     print(f"\n### MUKCa's protocol, {robot}: fit on placement {train}, evaluate on the other {len(others)}\n")
     print("| model | fit placement: mean / RMS | other placements: mean of per-placement mean 3-D | RMS 3-D over "
-          "all their rows | worst placement RMS | RMS socket-distance error | choice s CPU | one fit s CPU | choice / fit |")
+          "all their rows | worst placement RMS | RMS socket-distance error | choice s CPU | one fit s CPU | "
+          "choice / fit |")
     print("|---|---|---|---|---|---|---|---|---|")
     published = real / "mukca_panda" / "calibrated_urdf" / robot / "panda_calibrated.urdf"
     mk = from_urdf(published, "panda_link0", "ball_link", "coincidence") if published.is_file() else None
@@ -185,7 +193,8 @@ def mukca(real: Path, tmp: Path, choices: tuple[str, ...], train: str, robot: st
         n = np.array([d["n"] for d in rest])
         rms_all = np.sqrt(np.sum(n * np.array([d["rms_3d_m"] for d in rest]) ** 2) / n.sum())
         dist = np.sqrt(np.mean([d["rms_distance_error_m"] ** 2 for d in rest]))
-        t = (f"{tc:.2f} | {tf:.2f} | " + (f"{tc / tf:.1f}×" if tf > 0 else "—")) if tc is not None else "— | — | —"
+        ratio = f"{tc / tf:.1f}×" if tc is not None and tf > 0 else "—"
+        t = f"{tc:.2f} | {tf:.2f} | {ratio}" if tc is not None else "— | — | —"
         print(f"| {name} | {own['mean_3d_m'] * 1e3:.3f} / {own['rms_3d_m'] * 1e3:.3f} | "
               f"{np.mean([d['mean_3d_m'] for d in rest]) * 1e3:.3f} | {rms_all * 1e3:.3f} | "
               f"{max(d['rms_3d_m'] for d in rest) * 1e3:.3f} | {dist * 1e3:.3f} | {t} |")

@@ -52,19 +52,18 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
         return key
 
     def judge_all(base):
-        """(chosen key, {key: per-group RMS}, {key: total RMS}, {key: held-out residuals}) of the staged choice,
-        every candidate not solved scored on the problem linearised at the solved candidate `base`."""
+        """(chosen key, {key: per-group RMS}, {key: total RMS}, {key: held-out residuals}, progress lines) of the
+        staged choice, every candidate not solved scored on the problem linearised at the solved candidate `base`."""
         xb, J, r = solved[base]
-        per, total, outs = {}, {}, {}
+        per, total, outs, lines = {}, {}, {}, []
 
         def judge(key, label):
             cols, lam = cols_lam(key)
             xk, Jk, rk = solved.get(key, (xb, J, r))  # exact (at its own solution), else at the base's
             h = held_out_linear(model, data, groups, xk, cols, lam, centre, J=Jk, r=rk)
             per[key], total[key], outs[key] = per_group_rms(h, groups), float(np.sqrt(np.nanmean(h**2))), h
-            if progress is not None:
-                anchored, mu = key
-                progress(f"model choice {label}: μ = {mu * 1e3:.4g} mm{'' if anchored else ', registration free'}, "
+            anchored, mu = key
+            lines.append(f"model choice {label}: μ = {mu * 1e3:.4g} mm{'' if anchored else ', registration free'}, "
                          f"held-out (whole groups left out) RMS {total[key] * 1e3:.4g} mm"
                          + ("" if key in solved else " (linearised)"))
 
@@ -84,18 +83,23 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
             for k, mu in enumerate((key[1] * step, key[1], key[1] / step)):  # the registration free, about it
                 judge((False, mu), f"registration free {k + 1}/3")
             key = best()
-        return key, per, total, outs
+        return key, per, total, outs, lines
 
     solve(INF, np.asarray(x0, float).copy())
     base = solve((True, sorted(grid)[len(grid) // 2] * scale), solved[INF][0])
     for _ in range(ROUNDS + 1):
-        key, per, total, outs = judge_all(base)
+        key, per, total, outs, lines = judge_all(base)
         if key in solved:
             break
         base = solve(key, solved[base][0])  # warm from the point the choice was linearised at
     if key not in solved:  # rounds exhausted: the best of the solved candidates, each scored at its own solution
         ok = [k for k in solved if k in per and all(per[k][g] <= per[INF][g] for g in per[INF])]
         key = min(ok, key=lambda k: total[k])
+    for line in lines if progress is not None else ():  # the last round's scores
+        progress(line)
+    if progress is not None:
+        progress(f"model choice: {len(solved)} candidates solved, the others scored on the problem linearised at "
+                 f"the last solved")
     anchored, mu = key
     cands = sorted((m_ for a, m_ in per if a == anchored or np.isinf(m_)), reverse=True)
     xb, Jb, _ = solved[key]

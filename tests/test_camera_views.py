@@ -261,3 +261,20 @@ def test_dense_residual_field_is_drawn_as_cell_means():
     few = CameraFigures(np.zeros(50, int), np.full(50, "a"), np.arange(50), px[:50], after[:50], after[:50],
                         np.ones(50, bool), (640, 480))
     assert np.array_equal(field(few)[1], after[:50])  # every corner drawn
+
+
+def test_the_diagnosis_of_a_camera_run_speaks_px(cam_run):
+    """A camera's residuals are px: the diagnosis says so in its document, and neither its report section nor
+    `robocal diagnose`'s text turns them into mm."""
+    import json
+
+    from pipeline.report.html import diagnosis_section
+
+    doc = json.loads((cam_run.dir / "diagnose" / "diagnosis.json").read_text())
+    assert doc["residual_unit"] == "px"
+    section = diagnosis_section(_artefacts(cam_run.dir))
+    assert "held-out rms" in section.lower() and re.search(r"\d px\b", section)
+    assert not re.search(r"\d mm\b", section), re.findall(r".{40}\d mm\b", section)
+    r = run_cli("diagnose", cam_run.dir.parent / "rec.mcap", "--out", cam_run.dir.parent / "diag")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert re.search(r"held-out RMS [\d.]+ px → [\d.]+ px", r.stdout) and not re.search(r"\d mm\b", r.stdout), r.stdout

@@ -27,6 +27,7 @@ def diagnose_cmd(
     from pipeline.diagnose import Settings
     from pipeline.diagnose.stage import SUPPORTED, diagnose_recording
     from pipeline.errors import RobocalError
+    from pipeline.report.labels import residual_text
     from pipeline.recording.reader import read_recording
     from pipeline.stages.artefacts import write_json
     from pipeline.systems.registry import detect
@@ -40,7 +41,7 @@ def diagnose_cmd(
                                                    repeatability_3sigma_m=repeatability))
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "diagnosis.json", doc)
-    mm = lambda v: f"{v * 1e3:.4f} mm"  # noqa: E731
+    mm = lambda v: residual_text(v, doc.get("residual_unit"))  # noqa: E731 — mm, or px for a camera
     t = Table(title=f"robocal diagnose — {recording.name}")
     t.add_column("effect")
     t.add_column("location")

@@ -69,6 +69,8 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
         doc = diagnose(model, tab, x0=x0, settings=settings,
                        adapter=durdf.adapter(model, tab, held if keep and x0 is not None else None))
         doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
+        if getattr(model, "residual_unit", "m") != "m":  # a camera: every *_m figure of the document is px
+            doc["residual_unit"] = model.residual_unit
         return doc
     if detect(rec).SYSTEM == "delta-tracker":
         from pipeline.diagnose.adapters import delta as ddelta

@@ -115,6 +115,8 @@ def located_plots(doc: dict, measurements: dict[str, np.ndarray] | None, residua
     if not measurements or "record" not in measurements:
         return []
     cols = list(measurements)
+    unit = doc.get("residual_unit", "m")  # px for a camera: not a length, drawn as is
+    key = "geometric fit residual_m" if unit == "m" else f"geometric fit residual ({unit})"
     pos = {int(r): i for i, r in enumerate(measurements["record"])}
     idx = np.array([pos.get(int(r), -1) for r in residuals["record"]])
     ok = idx >= 0
@@ -136,13 +138,15 @@ def located_plots(doc: dict, measurements: dict[str, np.ndarray] | None, residua
             label = col
         out.append(PlotSpec(title=f"{f.get('effect', 'finding')}: residuals of the geometric fit against {label}",
                             x_label=label, x=x,
-                            series={"geometric fit residual_m": np.asarray(residuals["after_0"], float)[ok]}))
+                            series={key: np.asarray(residuals["after_0"], float)[ok]}))
     return out
 
 
 def finding_rows(doc: dict) -> list[dict[str, str]]:
-    """Display rows of the accepted findings (effect, location, parameters, evidence)."""
+    """Display rows of the accepted findings (effect, location, parameters, evidence); the evidence's
+    ``*_m`` figures in mm, or px where the document's residuals are px (a camera)."""
     rows = []
+    ru = doc.get("residual_unit", "m")
     for f in doc.get("findings", []) or []:
         if not isinstance(f, dict):
             continue
@@ -158,7 +162,7 @@ def finding_rows(doc: dict) -> list[dict[str, str]]:
         ev = f.get("evidence", {}) or {}
         rows.append({"effect": str(f.get("effect", f.get("name", "?"))), "location": _loc(f.get("location")),
                      "parameters": "; ".join(params),
-                     "evidence": "; ".join(f"{k} = {_fmt(v, 'm' if k.endswith('_m') else '')}"
+                     "evidence": "; ".join(f"{k} = {_fmt(v, ru if k.endswith('_m') else '')}"
                                            for k, v in ev.items()) if isinstance(ev, dict) else str(ev),
                      "absorbed_fraction": _fmt(f.get("absorbed_fraction"), ""),
                      "confidence": str(f.get("confidence", "")) + (f" ({f['note']})" if f.get("note") else "")

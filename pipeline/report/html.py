@@ -16,7 +16,7 @@ from pipeline.report import compensation
 from pipeline.report import diagnosis as dg
 from pipeline.report import figures as fg
 from pipeline.report import plots
-from pipeline.report.labels import joints_unit_phrase, residual_text
+from pipeline.report.labels import joints_unit_phrase, residual_display, residual_text
 from pipeline.report.markup import figure as _figure
 from pipeline.report.markup import section as _section
 from pipeline.report.markup import table as _table
@@ -206,15 +206,16 @@ def diagnosis_section(art) -> str:
                  "reported as findings): " + escape(", ".join(f"{d.get('effect')}@{d.get('location')}" for d in dropped))
                  + "</p>")
     b, a = doc.get("holdout_rms_before_m"), doc.get("holdout_rms_after_m")
+    k, ru = residual_display(doc.get("residual_unit"))  # mm, or px for a camera
     unit = "posture" if art.system == "urdf" else "jig face / pose"  # what the diagnosis's folds keep together
     if isinstance(b, (int, float)) and not rows:
         html += (f'<p class="note">Held-out RMS of the geometric model in the diagnosis\'s own cross-validation: '
-                 f"{b * 1e3:.4f} mm (its folds keep each {unit} together, so it differs from the summary's "
+                 f"{b * k:.4f} {ru} (its folds keep each {unit} together, so it differs from the summary's "
                  "k-fold figure).</p>")
     elif isinstance(b, (int, float)) and isinstance(a, (int, float)):
-        html += _figure(plots.bars(["before", "after"], [b * 1e3, a * 1e3], "held-out RMS (mm)",
+        html += _figure(plots.bars(["before", "after"], [b * k, a * k], f"held-out RMS ({ru})",
                                    "held-out RMS: geometry only vs with the findings"),
-                        f"Held-out RMS before {b * 1e3:.4f} mm, after modelling the findings {a * 1e3:.4f} mm "
+                        f"Held-out RMS before {b * k:.4f} {ru}, after modelling the findings {a * k:.4f} {ru} "
                         f"(the diagnosis's own cross-validation, folds grouped by {unit.removeprefix('jig ')}: it "
                         "differs from the "
                         "summary's k-fold figure).",

@@ -27,7 +27,7 @@ import numpy as np
 from pipeline.identify.complexity import fixed_for, select
 from pipeline.identify.least_squares import FitOptions, fit
 from pipeline.identify.model import n_rows, take
-from pipeline.identify.shrinkage import shrunk_fit
+from pipeline.identify.shrinkage_fit import shrunk_fit
 from pipeline.recording.reader import read_recording
 from pipeline.systems.registry import detect, load_with_physics
 

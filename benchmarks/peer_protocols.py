@@ -34,7 +34,7 @@ from pipeline.evaluate.apply import evaluate
 from pipeline.evaluate.calibrated import Calibrated, from_urdf
 from pipeline.identify.complexity import fixed_for, select
 from pipeline.identify.least_squares import FitOptions, fit
-from pipeline.identify.shrinkage import shrunk_fit
+from pipeline.identify.shrinkage_fit import shrunk_fit
 from pipeline.recording.reader import read_recording
 from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
 from pipeline.systems.registry import detect

@@ -76,7 +76,7 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         f = fit_ga(model, table)
         holdout = cross_validate_ga(model, table, k=k_folds, seed=seed)
     elif solver == "lm" and model_choice == "shrinkage" and getattr(model, "groups", None) and model.groups():
-        from pipeline.identify.shrinkage import shrunk_fit
+        from pipeline.identify.shrinkage_fit import shrunk_fit
 
         selection = None
         f, shrunk, holdout = shrunk_fit(model, table, options, k=k_folds, seed=seed)

@@ -21,7 +21,7 @@ from test_evaluate import REAL, needs_real
 from conftest import run_cli
 from pipeline.identify import physics_choice as pc
 from pipeline.identify.least_squares import FitOptions
-from pipeline.identify.shrinkage import shrunk_fit
+from pipeline.identify.shrinkage_fit import shrunk_fit
 from pipeline.measurements.tree_point import TreePointModel
 from pipeline.models import urdf
 from pipeline.models.urdf_arm import UrdfArm

@@ -85,7 +85,7 @@ def run(run_dir: Path, params: dict) -> dict:
         _progress(f"model choice {route['route']} ({route['reason']})")
     if grouped and route["route"] == "shrinkage":  # every parameter, pulled toward nominal
         from pipeline.identify.outliers import RobustFit
-        from pipeline.identify.shrinkage import shrunk_fit
+        from pipeline.identify.shrinkage_fit import shrunk_fit
 
         f, shrunk, holdout_kept = shrunk_fit(model, data, opts, k=folds, seed=int(params.get("seed", 0)),
                                              progress=_progress)

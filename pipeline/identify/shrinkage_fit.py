@@ -1,0 +1,107 @@
+"""The shrinkage model choice as one fit: every gravity-compliance family tried (`physics_choice`), each
+shrunk toward nominal by its prior — the scale chosen by GCV (`shrinkage.shrink`) or, where the rows come in
+sessions / placements / sockets, by leaving out whole groups (`shrinkage_groups.shrink_by_groups`) — the best
+family's MAP estimate returned as a `Fit` with its posterior covariance and its held-out residuals."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from pipeline.blas import single_threaded
+from pipeline.identify.shrinkage import GRID, _anchor, _penalty, fold_holdout, shrink
+from pipeline.identify.shrinkage_groups import shrink_by_groups
+
+
+@single_threaded
+def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
+    """(`Fit` of the MAP estimate, `Shrunk`, k-fold held-out residuals (n, residual_dim)).
+
+    Start: the registration-only fit.  The fit's covariance is the posterior σ̂²(JᵀJ + Λ²)⁻¹ over the
+    estimated parameters (registration ones the data cannot separate are held by the rank test);
+    each fold re-solves at the chosen μ, warm-started from the whole-data estimate."""
+    import time
+
+    from pipeline.identify.complexity import fixed_for
+    from pipeline.identify.identifiability import analyse
+    from pipeline.identify.folds import design_folds
+    from pipeline.identify.least_squares import Fit, fit
+    from pipeline.identify.model import n_rows
+
+    t0 = time.perf_counter()
+    prior = options.prior_sigma
+    if prior is None:
+        from pipeline.accuracy.prior import prior_sigma
+
+        prior = prior_sigma(model)[0]
+    from pipeline.identify import physics_choice as pc
+    from pipeline.identify.group_holdout import row_groups
+
+    names = model.parameter_names()
+    groups = [g for g in model.groups() if not g.startswith("_")]
+    registration = set(model.groups().get("registration", []))
+    n, kd = n_rows(data), model.residual_dim
+    groups_of_rows = row_groups(model, data)
+    best, tried = None, {}
+    for chosen in pc.candidates(model):  # gravity-compliance families: none, each, all (physics_choice)
+        on, off = pc.names_of(model, chosen)
+        label = "+".join(chosen) or "rigid"
+        reg_fixed = tuple((set(options.fixed) | set(fixed_for(model, ["registration", *on]))) | set(off))
+        f0 = fit(model, data, replace(options, fixed=reg_fixed))
+        bad = pc.inadmissible(f0, on) if not getattr(model, "forced", False) else []
+        if bad:
+            tried[label] = {"admissible": False, "negative": bad}
+            if progress is not None:
+                progress(f"physics {label}: not admissible (negative compliance {', '.join(bad)})")
+            continue
+        fixed = tuple(set(options.fixed) | set(fixed_for(model, groups)) | set(off))
+        # registration parameters the data cannot tell apart stay at their registration-only values
+        held = tuple(nm for i, nm in enumerate(names) if not f0.free[i] and nm in registration | set(on))
+        if groups_of_rows is not None:  # whole groups left out: what carries over to a new session / placement
+            s = shrink_by_groups(model, data, prior, f0.x, groups_of_rows, fixed=fixed + held, progress=progress,
+                                 extra=on)
+            score = s.gcv[s.mu_m]
+        else:
+            def at(grid, x0=f0.x, fixed=fixed + held, on=on):
+                return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid)
+
+            s = at(GRID)
+            m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
+            rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
+            score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
+        tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m)}
+        if progress is not None and len(pc.candidates(model)) > 1:
+            progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")
+        if best is None or score < best[0]:
+            best = (score, s, f0, fixed, held, on, label)
+    _, s, f0, fixed, held, on, label = best
+    if len(tried) > 1 or on:
+        s = replace(s, physics={"chosen": label, "terms": list(on), "candidates": tried})
+    free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held, on)
+    wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
+    J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
+    mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
+    if groups_of_rows is not None:
+        holdout = s.holdout
+    else:  # the folds of `least_squares.cross_validate`, each left out in closed form (no refit)
+        folds = design_folds(n, k, seed, None, data)
+        idx = np.flatnonzero(free_mask)
+        r = np.asarray(model.residuals(s.x, data), float).ravel()
+        holdout = fold_holdout(J[:, idx], r, mu_eff * wa[idx], folds, kd)
+    est = free_mask & ~((w > 0) & np.isinf(s.mu_m))  # μ = ∞: the robot stays nominal
+    ident = analyse(np.vstack([J, np.diag(mu_eff * wa)]), names, ~est, getattr(model, "priority", lambda: None)())
+    r1 = np.asarray(model.residuals(s.x, data), float).reshape(n, kd)
+    m, fr = r1.size, ident.free
+    sigma = float(np.sqrt(np.sum(r1**2) / max(m - s.dof, 1)))
+    A = J[:, fr].T @ J[:, fr] + np.diag((mu_eff * wa[fr]) ** 2)
+    cov = sigma**2 * np.linalg.pinv(A, rcond=1e-12, hermitian=True)
+    std = np.zeros(s.x.size)
+    std[fr] = np.sqrt(np.clip(np.diag(cov), 0, None))
+    for i in np.flatnonzero(free_mask & ~fr):
+        ident.reasons[int(i)] = ("not fitted: registration only predicted the left-out groups best"
+                                 if not est[i] else "not separable from the rest even with its prior")
+    out = Fit(names=names, units=model.parameter_units(), nominal=f0.nominal, x=s.x, identifiability=ident, std=std,
+              cov=cov, residuals_before=f0.residuals_before, residuals_after=r1, sigma=sigma,
+              nfev=f0.nfev, elapsed_s=time.perf_counter() - t0)
+    return out, s, holdout

@@ -23,3 +23,31 @@ def import_humanoid(d: Path, rec: Path, csv: str = "postures.csv") -> Path:
     r = import_humanoid_run(d, rec, csv)
     assert r.returncode == 0, r.stderr
     return rec
+
+
+def evaluate_at_noise_floor(run_dir: Path, rec: Path, out: Path, noise_m: float) -> float:
+    """`robocal evaluate` of calibration `run_dir` on another session `rec` (no refit): asserts its RMS of
+    the 3-D error is below 1.3 × the noise floor √3·`noise_m` (m); returns it."""
+    import json
+
+    import numpy as np
+
+    r = run_cli("evaluate", run_dir, rec, "--out", out)
+    assert r.returncode == 0, r.stderr
+    (ev,) = json.loads((out / "evaluation.json").read_text())["recordings"]
+    assert ev["rms_3d_m"] < 1.3 * np.sqrt(3) * noise_m, ev["rms_3d_m"]
+    return ev["rms_3d_m"]
+
+
+def calibrated_tree(rec: Path, physics: str, doc: dict):
+    """(tree model of recording `rec` with the `physics` terms, its calibrated parameter vector from the
+    run's results `doc`), the names checked to match."""
+    import numpy as np
+
+    from pipeline.recording.reader import read_recording
+    from pipeline.systems.registry import detect, load_with_physics
+
+    r = read_recording(rec)
+    model, _ = load_with_physics(detect(r), r, physics, None)
+    assert model.parameter_names() == [q["name"] for q in doc["parameters"]]
+    return model, np.array([q["estimate"] for q in doc["parameters"]])

@@ -72,3 +72,18 @@ def test_unseen_or_absorbed_columns_keep_their_prior(seed, scale):
     M = fixed_moment(J, free, prior, e)
     assert fixed_moment(J, free, prior, np.zeros(30)) is None  # no residual: nothing learnt, the prior unchanged
     assert np.allclose(M, np.diag([scale**2, 4 * scale**2]), rtol=1e-6, atol=1e-12 * scale**2)
+
+
+def test_thin_data_keeps_its_prior():
+    """From fewer than MIN_DOF residual degrees of freedom σ̂² may be small by chance: no conditioning (the
+    prior stands); from MIN_DOF on, a seen column is conditioned."""
+    from pipeline.accuracy.condition import MIN_DOF
+
+    rng = np.random.default_rng(5)
+    prior = np.r_[np.ones(3), 0.5, 0.5]
+    for m, conditioned in ((3 + MIN_DOF - 1, False), (3 + MIN_DOF, True)):
+        J, _, free = _problem(rng, m=m, nf=3, nx=2)
+        M = fixed_moment(J, free, prior, 1e-3 * rng.standard_normal(m))
+        assert (M is not None) == conditioned, m
+        if conditioned:
+            assert np.trace(M) < 0.5 * 2 * 0.25  # a 1 mm residual scatter rules out most of the 0.5 prior

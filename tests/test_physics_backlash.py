@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import yaml
 from conftest import run_cli
-from humanoid_import import import_humanoid_run
+from humanoid_import import calibrated_tree, evaluate_at_noise_floor, import_humanoid_run
 
 import independent_humanoid as hu
 
@@ -92,20 +92,12 @@ def test_backlash_kept_recovered_and_at_the_noise_floor(recordings):
     # evaluate applies the play to a second session of the same robot (its own directions): noise floor
     d2 = hu.write(tmp / "play_s2", seed=11, n=60, noise_m=2e-4, geometry=False, session=2, backlash=PLAY)
     assert import_humanoid_run(d2, tmp / "play_s2.mcap").returncode == 0
-    r = run_cli("evaluate", tmp / "out_play", tmp / "play_s2.mcap", "--out", tmp / "ev_play")
-    assert r.returncode == 0, r.stderr
-    (ev,) = json.loads((tmp / "ev_play" / "evaluation.json").read_text())["recordings"]
-    assert ev["rms_3d_m"] < 1.3 * np.sqrt(3) * truth["noise_m"], ev["rms_3d_m"]
+    evaluate_at_noise_floor(tmp / "out_play", tmp / "play_s2.mcap", tmp / "ev_play", truth["noise_m"])
     # compensate's kinematics (`TreeKinematics`, --approach): every joint approaching from above (+1), the
     # left tip lands on the generator's noise-free marker; taken as unknown (0, mid-play) it does not
     from pipeline.compensate.tree import TreeKinematics
-    from pipeline.recording.reader import read_recording
-    from pipeline.systems.registry import detect, load_with_physics
 
-    r2 = read_recording(rec)
-    model, _ = load_with_physics(detect(r2), r2, "auto", None)
-    assert model.parameter_names() == [q["name"] for q in doc["parameters"]]
-    x = np.array([q["estimate"] for q in doc["parameters"]])
+    model, x = calibrated_tree(rec, "auto", doc)
     t = hu.default_truth(np.random.default_rng(11), geometry=False)
     t.backlash = dict(PLAY)
     qd = hu.postures(np.random.default_rng(3), 20)

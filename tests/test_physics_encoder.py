@@ -11,8 +11,7 @@ import json
 import numpy as np
 import pytest
 import yaml
-from conftest import run_cli
-from humanoid_import import import_humanoid
+from humanoid_import import calibrated_tree, evaluate_at_noise_floor, import_humanoid
 
 import independent_humanoid as hu
 
@@ -127,21 +126,13 @@ def test_joint_scale_recovered_when_fitted(recordings):
     # evaluate applies the scale terms to a second session of the same robot (no refit): at the noise floor
     d2 = hu.write(tmp / "scale_s2", seed=7, n=60, noise_m=2e-4, geometry=False, session=2, scale=SCALE)
     rec2 = import_humanoid(d2, tmp / "scale_s2.mcap")
-    r = run_cli("evaluate", tmp / "out_scale", rec2, "--out", tmp / "ev_scale")
-    assert r.returncode == 0, r.stderr
-    (ev,) = json.loads((tmp / "ev_scale" / "evaluation.json").read_text())["recordings"]
-    assert ev["rms_3d_m"] < 1.3 * np.sqrt(3) * truth["noise_m"], ev["rms_3d_m"]
+    evaluate_at_noise_floor(tmp / "out_scale", rec2, tmp / "ev_scale", truth["noise_m"])
     # compensate's kinematics of the calibrated tree (`TreeKinematics`, what its inverse kinematics solves)
     # carry the reading terms: at the second session's readings the left tip lands on the generator's
     # noise-free marker; with the scale terms zeroed it does not
     from pipeline.compensate.tree import TreeKinematics
-    from pipeline.recording.reader import read_recording
-    from pipeline.systems.registry import detect, load_with_physics
 
-    r2 = read_recording(rec)
-    model, _ = load_with_physics(detect(r2), r2, "joint-compliance,lateral-compliance,joint-scale", None)
-    assert model.parameter_names() == [q["name"] for q in doc["parameters"]]
-    x = np.array([q["estimate"] for q in doc["parameters"]])
+    model, x = calibrated_tree(rec, "joint-compliance,lateral-compliance,joint-scale", doc)
     t = hu.default_truth(np.random.default_rng(7), geometry=False)
     t.scale = dict(SCALE)
     qd = hu.postures(np.random.default_rng(3), 20)

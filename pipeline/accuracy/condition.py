@@ -28,13 +28,17 @@ import numpy as np
 
 from pipeline.accuracy.holdout import basis
 
+MIN_DOF = 10  # residual degrees of freedom below which σ̂² is too uncertain to condition on: the prior stands
+
 
 def fixed_moment(Jm: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray,
                  residuals: np.ndarray) -> np.ndarray | None:
     """Second moment (n_fixed, n_fixed) of the held-at-nominal parameters' error given the run's data
     (module docstring).  Jm (m·k, P) measurement Jacobian at the estimate over all parameters, residuals
-    (m·k,) in-sample at the estimate.  None (the prior, diag σ_prior², unchanged) where the data carry no residual
-    degree of freedom or nothing is held at nominal."""
+    (m·k,) in-sample at the estimate.  None (the prior, diag σ_prior², unchanged) where nothing is held at
+    nominal or the data carry fewer than `MIN_DOF` residual degrees of freedom: the identity that keeps the
+    statement honest on average holds for a known σ²; from a handful of residuals σ̂² may be small by chance
+    and the conditioning would then claim what the data cannot support (thin data keeps its prior)."""
     free = np.asarray(free, bool)
     s = np.asarray(prior_sigma, float)[~free]
     e = np.asarray(residuals, float).reshape(-1)
@@ -44,7 +48,7 @@ def fixed_moment(Jm: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray,
     U = basis(Jm[:, free])
     dof = e.size - U.shape[1]
     Me = e - U @ (U.T @ e)
-    s2 = float(Me @ Me) / dof if dof > 0 else 0.0
+    s2 = float(Me @ Me) / dof if dof >= MIN_DOF else 0.0
     if s2 <= 0:
         return None
     Jx = Jm[:, ~free]

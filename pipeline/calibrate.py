@@ -66,8 +66,7 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     gross = screen(model, table, rec.metadata.get(META_CAMPAIGN, {}), options)  # before any open-ended solve
     if gross["status"] == "fail":
         raise RobocalError(f"{path}: {gross['message']}")
-    route = resolve(model_choice, system.SYSTEM, model, rec.metadata.get(META_CAMPAIGN, {}),
-                   tree=system.SYSTEM == "urdf" and is_tree(rec))
+    route = resolve(model_choice, system.SYSTEM, model, tree=system.SYSTEM == "urdf" and is_tree(rec))
     model_choice = route["route"]
     if solver == "ga":
         from pipeline.identify.genetic import cross_validate_ga, fit_ga

@@ -2,9 +2,10 @@
 
 A URDF robot imported from a CSV table (here: points of a perturbed six-joint arm measured by yourdfpy's
 forward kinematics, tests/test_evaluate.py's generator) takes shrinkage toward nominal, says so in
-results.json and the printed table, and recovers the arm to the noise floor; the seed papers' reference
-systems keep the group selection, as do simulated URDF campaigns, trees and cameras; an unknown choice is a
-one-line error (exit 2).  On real data: tests/test_physics_choice.py runs FIGAROH's TIAGo protocol through
+results.json and the printed table, and recovers the arm to the noise floor; the route depends on the data
+and the model only — a simulated campaign of the same robot takes shrinkage too — while the seed papers'
+reference systems keep the group selection, as do trees and cameras; an unknown choice is a one-line error
+(exit 2).  On real data: tests/test_physics_choice.py runs FIGAROH's TIAGo protocol through
 `robocal calibrate`'s default (shrinkage taken, every held-out session at or below FIGAROH's full model).
 """
 
@@ -35,20 +36,19 @@ class _Camera:
 
 @pytest.mark.parametrize("system", ["arc-welder", "scorbot-scanner", "delta-tracker"])
 def test_seed_systems_keep_the_group_selection(system):
-    r = resolve("auto", system, _Model(), {})
+    r = resolve("auto", system, _Model())
     assert r["route"] == "groups" and r["asked"] == "auto" and system in r["reason"]
 
 
-def test_imported_urdf_takes_shrinkage_simulated_and_cameras_keep_groups():
-    assert resolve("auto", "urdf", _Model(), {"source_files": ["a.csv"]})["route"] == "shrinkage"
-    assert resolve("auto", "urdf", _Model(), {"simulated": True})["route"] == "groups"
-    assert resolve("auto", "urdf", _Camera(), {})["route"] == "groups"
-    assert resolve("auto", "urdf", _Model(), {}, tree=True)["route"] == "groups"  # several tips / coupled joints
+def test_single_chain_urdf_takes_shrinkage_trees_and_cameras_keep_groups():
+    assert resolve("auto", "urdf", _Model())["route"] == "shrinkage"
+    assert resolve("auto", "urdf", _Camera())["route"] == "groups"
+    assert resolve("auto", "urdf", _Model(), tree=True)["route"] == "groups"  # several tips / coupled joints
     for asked in ("groups", "shrinkage"):  # asked for: taken as asked, whatever the system
-        assert resolve(asked, "arc-welder", _Model(), {})["route"] == asked
-        assert resolve(asked, "urdf", _Model(), {})["route"] == asked
+        assert resolve(asked, "arc-welder", _Model())["route"] == asked
+        assert resolve(asked, "urdf", _Model())["route"] == asked
     with pytest.raises(RobocalError, match="expected auto, groups, shrinkage"):
-        resolve("ridge", "urdf", _Model(), {})
+        resolve("ridge", "urdf", _Model())
 
 
 def test_unknown_model_choice_is_one_line(tmp_path):

@@ -166,8 +166,8 @@ def in_panel(option: typer.models.OptionInfo, panel: str) -> typer.models.Option
 
 
 IDENTIFY, VALIDATE = "Identify", "Validate"
-MODEL_CHOICE_HELP = ("auto (default): shrinkage for a URDF robot imported from CSV / ROS 2, groups for the seed "
-                     "systems, simulated campaigns and cameras; groups (keep groups that lower held-out error); "
+MODEL_CHOICE_HELP = ("auto (default): shrinkage for a single-chain URDF robot measured in lengths, groups for the "
+                     "seed systems, trees and cameras; groups (keep groups that lower held-out error); "
                      "shrinkage (every parameter pulled toward nominal by its prior; scale by leaving out whole "
                      "sessions/placements, else GCV).")
 

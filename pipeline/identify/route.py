@@ -3,12 +3,12 @@
 ``groups`` keeps the parameter groups that lower the k-fold held-out error (`pipeline.identify.complexity`);
 ``shrinkage`` estimates every parameter pulled toward nominal by its prior, the scale chosen by leaving out
 whole sessions / placements / sockets, else GCV (`pipeline.identify.shrinkage`).  ``auto`` (the default)
-takes ``shrinkage`` for a single-chain URDF robot measured by an instrument — a recording imported from a CSV
-table or a ROS 2 bag (not simulated), one tip and no coupled joints, whose residuals are lengths (not a
+decides from the data and the model only, never from where the recording came from (imported, simulated):
+``shrinkage`` for a single-chain URDF robot — one tip and no coupled joints, whose residuals are lengths (not a
 camera's pixels) — where it predicted whole held-out sessions and placements of real robots (TIAGo's arm,
 Panda) better than ``groups`` and at a fraction of the cost; and ``groups`` otherwise: the seed papers'
-reference systems (arc welder, scanner, Delta), whose figures rest on it, simulated URDF campaigns, trees
-(several tips, coupled joints: no real data has judged shrinkage there) and cameras.
+reference systems (arc welder, scanner, Delta), whose figures rest on it, trees (several tips, coupled joints:
+no real data has judged shrinkage there) and cameras.
 """
 
 from __future__ import annotations
@@ -25,9 +25,10 @@ def check(choice: str) -> str:
     return choice
 
 
-def resolve(choice: str, system: str, model, campaign: dict, tree: bool = False) -> dict:
+def resolve(choice: str, system: str, model, tree: bool = False) -> dict:
     """{asked, route: groups|shrinkage, reason} of `choice` for a recording of `system` (its name), its
-    measurement `model`, its campaign metadata and whether it is a tree (`urdf_robot.is_tree`)."""
+    measurement `model` and whether it is a tree (`urdf_robot.is_tree`); the campaign's provenance (imported,
+    simulated) is deliberately not an input."""
     check(choice)
     if choice != "auto":
         return {"asked": choice, "route": choice, "reason": f"--model-choice {choice}"}
@@ -36,11 +37,8 @@ def resolve(choice: str, system: str, model, campaign: dict, tree: bool = False)
         return {"asked": "auto", "route": "groups", "reason": why}
     if getattr(model, "residual_unit", "m") != "m":
         return {"asked": "auto", "route": "groups", "reason": "auto: camera residuals (px) keep the group selection"}
-    if campaign.get("simulated"):
-        return {"asked": "auto", "route": "groups", "reason": "auto: a simulated URDF campaign keeps the group selection"}
     if tree:
         return {"asked": "auto", "route": "groups",
                 "reason": "auto: a tree (several tips or coupled joints) keeps the group selection"}
     return {"asked": "auto", "route": "shrinkage",
-            "reason": "auto: a single-chain URDF robot measured by an instrument (imported) takes shrinkage "
-                      "toward nominal"}
+            "reason": "auto: a single-chain URDF robot (lengths measured) takes shrinkage toward nominal"}

@@ -76,10 +76,9 @@ def run(run_dir: Path, params: dict) -> dict:
     grouped = bool(getattr(model, "groups", None) and model.groups())
     from pipeline.identify.route import resolve
     from pipeline.systems.urdf_robot import is_tree
-    from pipeline.recording.schemas import META_CAMPAIGN
 
-    route = resolve(str(params.get("model_choice", "auto")), system.SYSTEM, model, rec.metadata.get(META_CAMPAIGN, {}),
-                   tree=system.SYSTEM == "urdf" and is_tree(rec))
+    route = resolve(str(params.get("model_choice", "auto")), system.SYSTEM, model,
+                    tree=system.SYSTEM == "urdf" and is_tree(rec))
     shown = grouped and system.SYSTEM == "urdf"  # seed systems: artefacts and output as they were
     if shown:
         _progress(f"model choice {route['route']} ({route['reason']})")

@@ -23,23 +23,27 @@ FIXTURE = stepped_block().to_dict()
 
 
 def _evaluate(model, table, x_true, poor: bool = False, folds: int = 5, map_table: dict | None = None,
-              options=None) -> dict:
+              options=None, fitted=None) -> dict:
     """One calibration as `robocal calibrate` does it: fit, 5-fold held-out residuals, the verdict
     (`map_table`: where to compare with the truth, default the system's accuracy map; `options`: the fit's,
-    e.g. the parameters a model choice held at nominal)."""
+    e.g. the parameters a model choice held at nominal; `fitted`: (fit, its k-fold held-out residuals, their
+    folds) of a model choice that fits on its own, e.g. shrinkage)."""
     from pipeline.identify.least_squares import FitOptions
 
     options = options or FitOptions()
-    f = fit(model, table, options)
+    f = fit(model, table, options) if fitted is None else fitted[0]
     sigma, _, _ = prior.prior_sigma(model)
     fixture = FIXTURE if model.system == "arc-welder" else None
     mt = map_table if map_table is not None else workspace.map_table(model, f.x, table, fixture=fixture)[0]
     n = len(table["joint_positions"])
     ho = None
-    if folds and n >= 2 * folds:
+    if fitted is not None:
+        ho = fitted[1:]
+    elif folds and n >= 2 * folds:
         ho = (cross_validate(model, table, k=folds, options=options), kfold_indices(n, folds))
     doc = assess.evaluate(model, f.x, f.free, f.cov, table, sigma, mt, uncalibrated(model, table),
-                          direction_advice=assess.touch_advice(fixture) if fixture else None, holdout=ho)
+                          direction_advice=assess.touch_advice(fixture) if fixture else None, holdout=ho,
+                          sigma_m=None if fitted is None else f.sigma)
     pt, _ = model.points(x_true, mt)
     pe, _ = model.points(f.x, mt)
     true = np.linalg.norm(pe - pt, axis=1)
@@ -130,6 +134,40 @@ def urdf_groups(seed: int, n: int = 60) -> dict:
     return _evaluate(model, table, truth, map_table=new, options=FitOptions(fixed=tuple(sel.fixed)))
 
 
+def _default_choice(model, table, truth, new, choice: str = "auto") -> dict:
+    """The campaign calibrated by `robocal calibrate`'s model choice (`choice`: auto — what the route takes for
+    this single-chain URDF robot —, groups or shrinkage), as `pipeline.calibrate` runs it: the prior σ on the
+    fit's options, the chosen route's fit and k-fold held-out residuals, the verdict over the new configurations."""
+    from dataclasses import replace
+
+    from pipeline.identify.folds import design_folds
+    from pipeline.identify.least_squares import FitOptions
+    from pipeline.identify.route import resolve
+
+    options = FitOptions(prior_sigma=prior.prior_sigma(model)[0])
+    if resolve(choice, "urdf", model)["route"] == "groups":
+        from pipeline.identify.complexity import select
+
+        sel = select(model, table, k=5, seed=0, options=options)
+        return _evaluate(model, table, truth, map_table=new,
+                         options=replace(options, fixed=tuple(sorted(set(options.fixed) | set(sel.fixed)))))
+    from pipeline.identify.shrinkage_fit import shrunk_fit
+
+    f, _, holdout = shrunk_fit(model, table, options, k=5, seed=0)
+    return _evaluate(model, table, truth, map_table=new,
+                     fitted=(f, holdout, design_folds(len(holdout), 5, 0, None, table)))
+
+
+def urdf_default(seed: int, n: int = 60, choice: str = "auto") -> dict:
+    """`urdf_robot`'s campaign (tracker, 0.02 mm; truth 1 mm / 0.2°) calibrated by the model choice."""
+    return _default_choice(*_r6_campaign(seed, 3_000_017, n, 1e-3, 0.2, 2e-5), choice)
+
+
+def urdf_mocap_default(seed: int, n: int = 60, choice: str = "auto") -> dict:
+    """`urdf_groups`'s campaign (mocap, 0.3 mm; truth 0.05 mm / 0.01°) calibrated by the model choice."""
+    return _default_choice(*_r6_campaign(seed, 4_000_037, n, 5e-5, 0.01, 3e-4), choice)
+
+
 def report(label: str, runs: list[dict], poor: bool) -> None:
     true = np.concatenate([r["true"] for r in runs])
     per = np.array([np.sqrt(np.mean(r["true"] ** 2)) / np.sqrt(np.mean(r["pred"] ** 2)) for r in runs])
@@ -153,7 +191,9 @@ def report(label: str, runs: list[dict], poor: bool) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
-    ap.add_argument("--systems", default="arc-welder,scanner,delta,urdf,urdf-groups,poor")
+    ap.add_argument("--systems", default="arc-welder,scanner,delta,urdf,urdf-groups,urdf-default,"
+                                          "urdf-mocap-default,poor")
+    ap.add_argument("--choice", default="auto", help="model choice of the *-default cases: auto, groups, shrinkage")
     a = ap.parse_args()
     which = a.systems.split(",")
     t0 = time.perf_counter()
@@ -173,6 +213,11 @@ def main() -> None:
         report("urdf r6 (60 points)", [urdf_robot(s) for s in range(a.seeds)], False)
     if "urdf-groups" in which:
         report("urdf r6, groups chosen (60 points)", [urdf_groups(s) for s in range(a.seeds)], False)
+    if "urdf-default" in which:
+        report(f"urdf r6, --model-choice {a.choice}", [urdf_default(s, choice=a.choice) for s in range(a.seeds)], False)
+    if "urdf-mocap-default" in which:
+        report(f"urdf r6 mocap, --model-choice {a.choice}", [urdf_mocap_default(s, choice=a.choice)
+                                                             for s in range(a.seeds)], False)
     if "poor" in which:
         for case in ("no x-facing face", "16 contacts", "8 of 100 contacts"):
             runs = [arc_welder(s, case) for s in range(a.seeds)]

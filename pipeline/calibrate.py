@@ -131,7 +131,8 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
     from pipeline.identify.folds import design_folds
 
     folds = design_folds(len(holdout), k_folds, seed, None, table)
-    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {}, (holdout, folds))
+    acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {}, (holdout, folds),
+                           f.sigma if "shrunk" in locals() else None)  # a shrinkage fit: its σ̂ is the scatter
     if (accuracy or {}).get("previous"):
         from pipeline.accuracy.previous import compare, read_parameters
 

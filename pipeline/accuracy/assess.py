@@ -167,11 +167,14 @@ def assess(inp: Inputs, tolerance_m: float | None = None, direction_advice=None)
 
 def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data: dict, prior_sigma: np.ndarray,
              map_data: dict, x_uncal: np.ndarray, tolerance_m: float | None = None, direction_advice=None,
-             holdout: tuple[np.ndarray, list[np.ndarray]] | None = None, robot_meta: dict | None = None) -> dict:
+             holdout: tuple[np.ndarray, list[np.ndarray]] | None = None, robot_meta: dict | None = None,
+             sigma_m: float | None = None) -> dict:
     """`assess` for a `MeasurementModel` at estimate x (data: the measurements the fit used).
     `holdout`: (held-out residuals (n, k) m of the run's cross-validation over `data`, the
     measurement indices of each fold), tested against σ̂ and the design (`holdout.consistency`).
-    `robot_meta`: the recording's robot model (its ``repeatability_3sigma_m``, `noise.repeatability`)."""
+    `robot_meta`: the recording's robot model (its ``repeatability_3sigma_m``, `noise.repeatability`).
+    `sigma_m`: the fit's σ̂ per axis where its covariance is not σ̂²-scaled by its effective parameters (a
+    shrinkage fit's, `condition.shrunk_moment`): one measurement's scatter is then √3·σ̂ itself."""
     J = model.jacobian(x, data)
     free = np.asarray(free, bool)
     Jf = J.reshape(-1, J.shape[-1])[:, free]
@@ -188,6 +191,7 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
                                 noise.repeatability(robot_meta or {}, getattr(model, "system", "")))
     if shared is not None and shared["tau_m"] > 0:  # an error shared by a configuration's measurements
         cov_free = noise.sandwich(Jf, shared["sigma_w_m"], shared["tau_m"], shared["B"])
+        sigma_m = None  # the scatter then follows the sandwich, as for any fit
     ho = None
     if holdout is not None:
         ho = consistency(Jf, e, holdout[0], holdout[1], model.residual_dim, groups=groups, shared=shared)
@@ -210,7 +214,7 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
                  Jp_full=Jp_full, residual_unit=getattr(model, "residual_unit", "m"), residuals=e.reshape(-1))
     doc = assess(inp, tolerance_m, direction_advice)
     if inp.residual_unit == "m" and model.residual_dim == 3:  # the residual is the 3-D point's error
-        doc["new_measurement"] = new_measurement(doc, Jf, cov_free, e)
+        doc["new_measurement"] = new_measurement(doc, Jf, cov_free, e, sigma_m)
     if shared is not None:
         doc["shared_error"] = {"sigma_w_m": shared["sigma_w_m"], "tau_m": shared["tau_m"],
                                "tau_source": shared["tau_source"],
@@ -221,16 +225,21 @@ def evaluate(model, x: np.ndarray, free: np.ndarray, cov_free: np.ndarray, data:
     return doc
 
 
-def new_measurement(doc: dict, Jf: np.ndarray, cov_free: np.ndarray, residuals: np.ndarray) -> dict:
+def new_measurement(doc: dict, Jf: np.ndarray, cov_free: np.ndarray, residuals: np.ndarray,
+                    sigma_m: float | None = None) -> dict:
     """The predicted RMS 3-D error of a new measurement at a new configuration, measured as in this
     campaign (what `robocal evaluate` reports for a new session, and what held-out residuals measure):
     the model's error over the map (`map_rms_1sigma_m`) plus the scatter of one measurement about the
     model, √3·σ̂ per point, σ̂² = (|e|² + tr J_f Σ_f J_fᵀ) / m — the residual mean square with the fit's
-    effective number of parameters (exact for least squares and for the shrinkage's penalised fit).
+    effective number of parameters (exact for least squares), or the fit's own σ̂ where given (`sigma_m`: a
+    shrinkage fit, whose Σ_f is its error's second moment under the stated prior, not σ̂²-scaled).
     That scatter is the instrument's noise and the robot's error the model does not carry (free play,
     non-repeatability); both inflated by the held-out check's factor like the map.  Residuals (m, 3) m."""
     e = np.asarray(residuals, float).reshape(-1)
-    s2 = (float(e @ e) + float(np.einsum("ij,jk,ik->", Jf, np.asarray(cov_free, float), Jf))) / max(e.size, 1)
+    if sigma_m is not None:
+        s2 = float(sigma_m) ** 2
+    else:
+        s2 = (float(e @ e) + float(np.einsum("ij,jk,ik->", Jf, np.asarray(cov_free, float), Jf))) / max(e.size, 1)
     ho = doc.get("holdout_check") or {}
     f = float(ho.get("inflation", 1.0)) if not ho.get("consistent", True) else 1.0
     scatter = float(np.sqrt(3.0 * s2)) * f

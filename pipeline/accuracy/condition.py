@@ -20,6 +20,15 @@ S again (E_r[Σ + μμᵀ] = S), so the stated accuracy stays honest where the p
 follows the data where the prior is too wide.  σ² is the fit's σ̂² (residual mean square, which
 also carries what the held-at-nominal parameters leave: conservative).  All in SI, the residuals'
 unit for J and r.
+
+An estimate shrunk toward nominal (`identify.shrinkage`) is the same question for every parameter at
+once: the penalty μ² Σ ((x − x_nominal)/σ_prior)² at the scale μ the data chose acts like a prior
+σ̂/μ·σ_prior, which is far narrower than the stated prior when μ is large (little taught, the robot
+kept near nominal), and its posterior σ̂²(JᵀJ + μ²W²)⁻¹ then claims the robot is known to that width.
+Under the stated prior S instead, given the data the parameters are N(x̂_S, C_S) with
+C_S = σ̂²(JᵀJ + σ̂²S⁻¹)⁻¹ and x̂_S one Gauss–Newton step from the shrunk estimate x̂ with that prior,
+so the shrunk estimate's error has the second moment C_S + (x̂ − x̂_S)(x̂ − x̂_S)ᵀ (`shrunk_moment`):
+again S on average over calibrations where S is right, and following the data where S is too wide.
 """
 
 from __future__ import annotations
@@ -57,3 +66,17 @@ def fixed_moment(Jm: np.ndarray, free: np.ndarray, prior_sigma: np.ndarray,
     Sz = (V / (1.0 + np.clip(w, 0, None))) @ V.T  # (I + KᵀK)⁻¹
     mz = Sz @ (K.T @ Me) / np.sqrt(s2)
     return (Sz + np.outer(mz, mz)) * np.outer(s, s)
+
+
+def shrunk_moment(J: np.ndarray, r: np.ndarray, offset: np.ndarray, inv_prior: np.ndarray,
+                  sigma: float) -> np.ndarray:
+    """Second moment (p, p) of a shrunk estimate's error given the run's data under the stated prior
+    (module docstring).  J (m·k, p) measurement Jacobian of the estimated parameters at the estimate, r (m·k,)
+    its residuals there, `offset` (p,) the estimate less the prior's centre (nominal; a registration
+    parameter's registration-only estimate), `inv_prior` (p,) 1/σ_prior (1/m, 1/rad, …; 0: no prior), `sigma`
+    the fit's σ̂ (the residuals' unit)."""
+    J, r = np.asarray(J, float), np.asarray(r, float).reshape(-1)
+    lam = float(sigma) * np.asarray(inv_prior, float)
+    Ci = np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True)
+    step = Ci @ (J.T @ r + lam**2 * np.asarray(offset, float))  # x̂ − x̂_S, linearised at x̂
+    return float(sigma) ** 2 * Ci + np.outer(step, step)

@@ -50,9 +50,10 @@ def read_targets(path: str | Path) -> np.ndarray:
     return np.array(rows)
 
 
-def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None) -> dict:
+def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None, sigma_m=None) -> dict:
     """Everything of the stage but the file writing (also used by `robocal calibrate`).
-    `holdout`: (held-out residuals (n, k) over `data`, fold indices) of the run's cross-validation."""
+    `holdout`: (held-out residuals (n, k) over `data`, fold indices) of the run's cross-validation; `sigma_m`:
+    a shrinkage fit's σ̂ (`assess.evaluate`)."""
     file_priors = rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {}
     sigma, kinds, source = prior.prior_sigma(model, file_priors, params.get("prior") or {})
     # a physics term held rigid (the held-out model selection did not keep it) is not part of the stated
@@ -69,7 +70,7 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None
     advise = assess.touch_advice(fixture) if fixture and "faces" in fixture else None
     doc = assess.evaluate(model, x, free, cov, data, sigma, map_data, uncalibrated(model, data),
                           None if tol is None else float(tol), advise, holdout,
-                          robot_meta=rec.metadata.get(META_ROBOT, {}))
+                          robot_meta=rec.metadata.get(META_ROBOT, {}), sigma_m=sigma_m)
     doc["map"]["description"] = what
     doc["priors"] = [{"name": n, "kind": k, "sigma": float(s), "source": src, "fixed": not bool(f)}
                      for n, k, s, src, f in zip(model.parameter_names(), kinds, sigma, source, free)]
@@ -81,11 +82,11 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None
     return doc
 
 
-def guarded_document(model, rec, x, free, cov, data, params: dict, holdout=None) -> dict:
+def guarded_document(model, rec, x, free, cov, data, params: dict, holdout=None, sigma_m=None) -> dict:
     """`accuracy_document`, but a model this module cannot map (a new measurement type) gives status
     `not_assessed` with the reason instead of losing the calibration; bad user input still raises."""
     try:
-        return accuracy_document(model, rec, x, free, cov, data, params, holdout)
+        return accuracy_document(model, rec, x, free, cov, data, params, holdout, sigma_m)
     except RobocalError:
         raise
     except Exception as e:  # noqa: BLE001 — reported in results.json, never silent
@@ -118,7 +119,9 @@ def run(run_dir: Path, params: dict) -> dict:
     used = res["used"].astype(bool)
     data = take(model_columns(table), used)
     x, free = np.asarray(fit["x"], float), np.asarray(fit["free"], bool)
-    doc = guarded_document(model, rec, x, free, fit["cov"], data, params, run_holdout(run_dir, res, used, fit, data))
+    shrunk = str((fit.get("model_selection") or {}).get("method", "")).startswith("shrinkage")
+    doc = guarded_document(model, rec, x, free, fit["cov"], data, params, run_holdout(run_dir, res, used, fit, data),
+                           fit.get("sigma_m") if shrunk else None)
     if params.get("previous"):
         doc["previous"] = {"run": str(params["previous"]),
                            **compare(fit["parameters"], read_parameters(Path(params["previous"])))}

@@ -18,11 +18,14 @@ from pipeline.identify.shrinkage_groups import shrink_by_groups
 def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     """(`Fit` of the MAP estimate, `Shrunk`, k-fold held-out residuals (n, residual_dim)).
 
-    Start: the registration-only fit.  The fit's covariance is the posterior σ̂²(JᵀJ + Λ²)⁻¹ over the
-    estimated parameters (registration ones the data cannot separate are held by the rank test);
+    Start: the registration-only fit.  The fit's covariance is the second moment of the estimate's error given
+    the data under the stated prior (`accuracy.condition.shrunk_moment`), not the posterior at the chosen scale,
+    which claims the robot is known to the much narrower width that scale implies, over the estimated
+    parameters (registration ones the data cannot separate are held by the rank test);
     each fold re-solves at the chosen μ, warm-started from the whole-data estimate."""
     import time
 
+    from pipeline.accuracy.condition import shrunk_moment
     from pipeline.identify.complexity import fixed_for
     from pipeline.identify.identifiability import analyse
     from pipeline.identify.folds import design_folds
@@ -94,8 +97,8 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     r1 = np.asarray(model.residuals(s.x, data), float).reshape(n, kd)
     m, fr = r1.size, ident.free
     sigma = float(np.sqrt(np.sum(r1**2) / max(m - s.dof, 1)))
-    A = J[:, fr].T @ J[:, fr] + np.diag((mu_eff * wa[fr]) ** 2)
-    cov = sigma**2 * np.linalg.pinv(A, rcond=1e-12, hermitian=True)
+    centre = np.where(w > 0, np.asarray(model.nominal(), float), f0.x)  # the prior's centre (registration: its own fit)
+    cov = shrunk_moment(J[:, fr], r1.ravel(), (s.x - centre)[fr], wa[fr], sigma)  # under the stated prior
     std = np.zeros(s.x.size)
     std[fr] = np.sqrt(np.clip(np.diag(cov), 0, None))
     for i in np.flatnonzero(free_mask & ~fr):

@@ -3,7 +3,11 @@ checked by Monte Carlo on independent linear problems (numpy least squares, no r
 * averaged over calibrations the conditioned second moment is the prior (E[Σ + μμᵀ] = S), and the
   stated point error is then the true one (honest where the prior is right);
 * with a prior 10× wider than the truth the stated error follows the data, not the prior;
-* a held-at-nominal column the fitted ones absorb exactly, or no measurement sees, keeps its prior."""
+* a held-at-nominal column the fitted ones absorb exactly, or no measurement sees, keeps its prior;
+* an estimate shrunk toward nominal (`shrunk_moment`): averaged over calibrations its stated second moment is
+  its true mean-square error whatever scale the shrinkage chose (σ re-estimated at the prior's scale: the
+  shrunk fit's σ̂ carries the robot's error), where the posterior at that scale understates a strong
+  shrinkage's error; at the prior's own scale, σ given, the two are one."""
 
 from __future__ import annotations
 
@@ -11,7 +15,7 @@ import numpy as np
 from hypothesis import given, settings, strategies as st
 
 from pipeline.accuracy import propagate as P
-from pipeline.accuracy.condition import fixed_moment
+from pipeline.accuracy.condition import fixed_moment, shrunk_moment
 
 
 def _problem(rng, m=60, nf=4, nx=3):
@@ -87,3 +91,48 @@ def test_thin_data_keeps_its_prior():
         assert (M is not None) == conditioned, m
         if conditioned:
             assert np.trace(M) < 0.5 * 2 * 0.25  # a 1 mm residual scatter rules out most of the 0.5 prior
+
+
+def _shrunk_runs(g: float, n: int, seed: int):
+    """Linear calibrations (2 unpenalised registration-like parameters, 5 with prior σ 0.05, truth drawn from
+    that prior, noise 0.1) shrunk at g× the prior's own scale: (true, stated, posterior-at-scale) mean-square
+    point errors at 20 new configurations, per calibration."""
+    rng = np.random.default_rng(seed)
+    J, Jp, _ = _problem(rng, m=60, nf=2, nx=5)
+    inv_prior = np.r_[0.0, 0.0, np.full(5, 1 / 0.05)]
+    out = []
+    for _ in range(n):
+        d = np.r_[rng.standard_normal(2), 0.05 * rng.standard_normal(5)]
+        y = J @ d + 0.1 * rng.standard_normal(60)
+        lam_mu = g * 0.1 * inv_prior  # the penalty at the chosen scale
+        A = J.T @ J + np.diag(lam_mu**2)
+        x = np.linalg.solve(A, J.T @ y)
+        r = J @ x - y  # residuals (model − measured), J their Jacobian
+        dof = np.trace(np.linalg.solve(A, J.T @ J))
+        sigma = np.sqrt(r @ r / (60 - dof))
+        M = shrunk_moment(J, r, x, inv_prior, sigma)
+        post = sigma**2 * np.linalg.inv(A)
+        err = np.einsum("nip,p->ni", Jp, x - d)
+        out.append([np.mean(np.sum(err**2, axis=1)), *(np.mean(np.einsum("nip,pq,niq->n", Jp, C, Jp)) for C in (M, post))])
+    return np.array(out).T
+
+
+def test_a_shrunk_estimate_states_its_true_error_at_any_scale():
+    for g, understated in ((10.0, True), (0.3, False)):  # ten times the prior's scale (strong), a third of it
+        true, stated, post = _shrunk_runs(g, 2000, 3)
+        assert 0.93 < np.mean(true) / np.mean(stated) < 1.07, g
+        if understated:  # the posterior at the chosen scale claims the robot is known ~10× better than the prior
+            assert np.mean(true) / np.mean(post) > 2.0
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 10_000))
+def test_at_the_priors_own_scale_the_moment_is_the_posterior(seed):
+    rng = np.random.default_rng(seed)
+    J, _, _ = _problem(rng, m=40, nf=2, nx=3)
+    inv_prior = np.r_[0.0, 0.0, rng.uniform(1, 100, 3)]
+    y, sigma = rng.standard_normal(40), float(rng.uniform(0.01, 1))
+    A = J.T @ J + np.diag((sigma * inv_prior) ** 2)
+    x = np.linalg.solve(A, J.T @ y)  # the MAP estimate under the stated prior: no step left
+    M = shrunk_moment(J, J @ x - y, x, inv_prior, sigma, rounds=0)  # σ as given
+    assert np.allclose(M, sigma**2 * np.linalg.inv(A), rtol=1e-8, atol=1e-14)

@@ -89,6 +89,8 @@ def run(run_dir: Path, params: dict) -> dict:
 
         f, shrunk, holdout_kept = shrunk_fit(model, data, opts, k=folds, seed=int(params.get("seed", 0)),
                                              progress=_progress)
+        if shrunk.tool == "free":  # the left-out groups freed the tool point: the model estimates it
+            model = replace(model, fit_tool=True)
         rf = RobustFit(f, np.ones(len(table["record"]), bool))
         kept_data = data
     else:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.identify.group_holdout import held_out_linear, per_group_rms
+from pipeline.identify.plausibility import PLAUSIBLE
 from pipeline.identify.shrinkage import GRID, ROUNDS, Shrunk, _anchor, _implausible, _penalty, map_solve
 
 
@@ -115,16 +116,19 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
         free_tool = tk["key"] is not None
         tool_state = "free" if free_tool else "known"
         if progress is not None:
-            best_free = min(tk["total"].values())
+            best_free = tk["best_free"]
             progress(f"model choice: the tool point {tool_state} ({', '.join(tool)}): held-out (whole groups left "
                      f"out) RMS {(tk['total'][tk['key']] if free_tool else beat) * 1e3:.4g} mm against "
                      f"{(beat if free_tool else best_free) * 1e3:.4g} mm with it "
-                     f"{'known' if free_tool else 'free (best candidate)'}")
+                     f"{'known' if free_tool else 'free (its best plausible candidate)'}")
         if free_tool:
             other_tool = {float(m_): total[(key[0], m_) if not np.isinf(m_) else INF] ** 2
                           for a, m_ in per if a == key[0] or np.isinf(m_)}
+            known_inf = per[INF], total[INF], outs[INF]
             key, per, total, outs, solved = tk["key"], tk["per"], tk["total"], tk["outs"], tk["solved"]
             idx, weights = tk["idx"], tk["weights"]
+            if key != INF:  # "registration only" stays the reference the rule compares with: the tool known
+                per[INF], total[INF], outs[INF] = known_inf
         else:
             other_tool = {float(m_): v ** 2 for (a, m_), v in tk["total"].items() if a == key[0] or np.isinf(m_)}
     anchored, mu = key
@@ -148,9 +152,10 @@ def _free_tool(model, data, groups, prior_sigma, tool, idx, reg, weights, centre
     (the nominal robot) and every μ of the tool-known choice, the registration anchored (the tool then pulled
     toward its nominal by its prior σ) and free, scored on the problem linearised at the tool-known winner
     `known` (x, J, r) — registration only at `nominal_robot` (x, J, r: the registration-only fit, the robot
-    nominal), as only the registration and the tool move from there; a candidate is eligible only if it predicts no left-out group worse than registration
-    only with the tool known (`ref`: group → RMS m), and it is taken only if its held-out RMS is below `beat`
-    (the tool-known winner's).  The best is solved and the scores linearised again there (at most `ROUNDS`),
+    nominal), as only the registration and the tool move from there; a candidate is eligible only if it predicts
+    no left-out group worse than registration only with the tool known (`ref`: group → RMS m), and it is taken only if its held-out RMS is below `beat`
+    (the tool-known winner's), and only if its tool point stays within `PLAUSIBLE` prior σ of nominal (a free
+    tool point can collapse onto a point no joint moves: far off, every socket fitted).  The best is solved and the scores linearised again there (at most `ROUNDS`),
     so the one taken is scored at its own solution.  Returns {key: (anchored, μ) or None (the tool stays
     known), per, total, outs, solved, idx, weights, lines}."""
     names = model.parameter_names()
@@ -166,15 +171,33 @@ def _free_tool(model, data, groups, prior_sigma, tool, idx, reg, weights, centre
     def cols_lam(k):
         return (reg_t, np.zeros(reg_t.size)) if np.isinf(k[1]) else (idx_t, k[1] * w_t[k[0]][idx_t])
 
+    sigma_t = np.asarray(prior_sigma, float)[tc]
+    beyond = set()  # candidates whose solved tool point left its prior (`PLAUSIBLE` σ): collapsed, not eligible
+
+    def tool_at(k, xk, Jk, rk):
+        """The tool point (m) of candidate k: solved, or one Gauss-Newton step of the whole-data fit from xk."""
+        if k in solved:
+            return xk[tc]
+        cols, lam = cols_lam(k)
+        A = Jk[:, cols].T @ Jk[:, cols] + np.diag(lam**2)
+        step = np.linalg.pinv(A, rcond=1e-12, hermitian=True) @ (Jk[:, cols].T @ rk + lam**2 * (xk[cols] - centre[cols]))
+        x = xk.copy()
+        x[cols] -= step
+        return x[tc]
+
+    def plausible(t):
+        return bool(np.all(np.abs(t - nominal[tc]) <= PLAUSIBLE * sigma_t))
+
     base = known
     for _ in range(ROUNDS + 1):
-        per, total, outs = {}, {}, {}
+        per, total, outs, tools = {}, {}, {}, {}
         for k in keys:
             cols, lam = cols_lam(k)
             xk, Jk, rk = solved.get(k, nominal_robot if np.isinf(k[1]) else base)
             h = held_out_linear(model, data, groups, xk, cols, lam, centre, J=Jk, r=rk)
             per[k], total[k], outs[k] = per_group_rms(h, groups), float(np.sqrt(np.nanmean(h**2))), h
-        ok = [k for k in keys if all(per[k][g] <= ref[g] for g in ref)]
+            tools[k] = tool_at(k, xk, Jk, rk)
+        ok = [k for k in keys if k not in beyond and plausible(tools[k]) and all(per[k][g] <= ref[g] for g in ref)]
         best = min(ok, key=total.get, default=None)
         if best is None or total[best] >= beat or best in solved:
             break
@@ -183,12 +206,20 @@ def _free_tool(model, data, groups, prior_sigma, tool, idx, reg, weights, centre
         x = map_solve(model, data, start[0], cols, lam, nominal if np.isinf(best[1]) else centre)
         solved[best] = (x, np.asarray(model.jacobian(x, data), float).reshape(m, -1),
                         np.asarray(model.residuals(x, data), float).ravel())
-        base = base if np.isinf(best[1]) else solved[best]  # the robot moves only at a finite μ
-    ok = [k for k in solved if all(per[k][g] <= ref[g] for g in ref)]  # scored at their own solutions
+        if not plausible(x[tc]):
+            beyond.add(best)
+        elif not np.isinf(best[1]):  # the robot moves only at a finite μ
+            base = solved[best]
+    ok = [k for k in solved if k not in beyond and all(per[k][g] <= ref[g] for g in ref)]  # at their own solutions
     win = min(ok, key=total.get, default=None)
     lines = ["model choice tool point free: " + ("registration only" if np.isinf(mu) else
              f"μ = {mu * 1e3:.4g} mm{'' if a else ', registration free'}")
              + f", held-out (whole groups left out) RMS {total[(a, mu)] * 1e3:.4g} mm"
-             + ("" if (a, mu) in solved else " (linearised)") for a, mu in keys]
+             + ("" if (a, mu) in solved else " (linearised)")
+             + ("" if (a, mu) not in beyond and plausible(tools[(a, mu)]) else
+                f", tool point {np.max(np.abs(tools[(a, mu)] - nominal[tc])) * 1e3:.4g} mm off nominal: beyond its "
+                f"prior, not eligible") for a, mu in keys]
+    fair = [total[k] for k in keys if k not in beyond and plausible(tools[k])]
     return {"key": win if win is not None and total[win] < beat else None, "per": per, "total": total,
+            "best_free": min(fair, default=float("nan")),
             "outs": outs, "solved": solved, "idx": idx_t, "weights": w_t, "lines": lines}

@@ -90,3 +90,22 @@ def test_calibrate_then_evaluate_applies_the_fitted_ball_centre(offset, tmp_path
     assert proc.returncode == 0, proc.stderr
     got = json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"][0]
     assert got["rms_3d_m"] < 5e-5, got["rms_3d_m"]  # the joint noise (1e-5 rad): the ball centre as fitted
+
+
+def test_diagnosis_times_count_from_the_first_contact_not_from_a_known_distance_row(tmp_path):
+    """A known socket distance is a row derived from the campaign (timestamp 0, no time of its own): the
+    diagnosis' time since start counts from the first contact (contacts 1 s apart from 0 s), the distance row 0 s."""
+    from pipeline.diagnose.adapters.urdf_robot import from_recording
+
+    data = ib.contacts(ib.ball_urdf(), sockets=2, per_socket=6, seed=4)
+    (tmp_path / "nominal.urdf").write_text(ib.ball_urdf())
+    d = float(np.linalg.norm(data[0][0] - data[1][0]))
+    out = tmp_path / "contacts.mcap"
+    proc = run_cli("import", "csv", *ib.write_sockets(tmp_path / "sockets", data), "--urdf", tmp_path / "nominal.urdf",
+                   "--root", "b", "--tip", "ball_link", "--measure", "coincidence", "--columns", ",".join(ib.JOINTS),
+                   "--distance", f"hole_0:hole_1:{d:.9f}", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    _, table, _ = from_recording(read_recording(out))
+    kind, t = np.asarray(table["kind"]), np.asarray(table["time_since_start_s"])
+    assert (kind == 1).sum() == 1 and np.all(t[kind == 1] == 0.0)
+    np.testing.assert_allclose(np.sort(t[kind == 0]), np.arange(12.0))  # the import's 1 s apart, from 0 s

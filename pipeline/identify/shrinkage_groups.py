@@ -154,11 +154,13 @@ def _free_tool(model, data, groups, prior_sigma, tool, idx, reg, weights, centre
     `known` (x, J, r) — registration only at `nominal_robot` (x, J, r: the registration-only fit, the robot
     nominal), as only the registration and the tool move from there; a candidate is eligible only if it predicts
     no left-out group worse than registration only with the tool known (`ref`: group → RMS m), and it is taken only if its held-out RMS is below `beat`
-    (the tool-known winner's), and only if its tool point stays within `PLAUSIBLE` prior σ of nominal (a free
+    (the tool-known winner's) — for a model whose tool is estimated by default (a ball's centre:
+    ``tool_estimated_by_default``) being eligible is enough — and only if its tool point stays within `PLAUSIBLE` prior σ of nominal (a free
     tool point can collapse onto a point no joint moves: far off, every socket fitted).  The best is solved and the scores linearised again there (at most `ROUNDS`),
     so the one taken is scored at its own solution.  Returns {key: (anchored, μ) or None (the tool stays
     known), per, total, outs, solved, idx, weights, lines}."""
     names = model.parameter_names()
+    by_default = bool(getattr(model, "tool_estimated_by_default", False))  # eligible is enough (a ball's centre)
     tc = np.array([names.index(t) for t in tool], int)
     idx_t, reg_t = np.union1d(idx, tc), np.union1d(reg, tc)
     anchor = np.zeros(nominal.size)
@@ -199,7 +201,7 @@ def _free_tool(model, data, groups, prior_sigma, tool, idx, reg, weights, centre
             tools[k] = tool_at(k, xk, Jk, rk)
         ok = [k for k in keys if k not in beyond and plausible(tools[k]) and all(per[k][g] <= ref[g] for g in ref)]
         best = min(ok, key=total.get, default=None)
-        if best is None or total[best] >= beat or best in solved:
+        if best is None or (total[best] >= beat and not by_default) or best in solved:
             break
         cols, lam = cols_lam(best)
         start = nominal_robot if np.isinf(best[1]) else base
@@ -220,6 +222,6 @@ def _free_tool(model, data, groups, prior_sigma, tool, idx, reg, weights, centre
                 f", tool point {np.max(np.abs(tools[(a, mu)] - nominal[tc])) * 1e3:.4g} mm off nominal: beyond its "
                 f"prior, not eligible") for a, mu in keys]
     fair = [total[k] for k in keys if k not in beyond and plausible(tools[k])]
-    return {"key": win if win is not None and total[win] < beat else None, "per": per, "total": total,
+    return {"key": win if win is not None and (total[win] < beat or by_default) else None, "per": per, "total": total,
             "best_free": min(fair, default=float("nan")),
             "outs": outs, "solved": solved, "idx": idx_t, "weights": w_t, "lines": lines}

@@ -27,6 +27,9 @@ class CoincidenceModel(Composed):
     fit_tool: bool | None = None
 
     residual_dim = 3
+    # a ball's centre is estimated like every robot parameter (as MUKCa frees its ball joint) wherever the model
+    # choice finds it plausible and no left-out group predicted worse than the nominal robot (`shrinkage_groups`)
+    tool_estimated_by_default = True
     fixes_frame = False  # the groups' points take up any rigid motion: accuracy is relative (`accuracy.propagate`)
 
     def extra_names(self) -> list[str]:

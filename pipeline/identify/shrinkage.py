@@ -41,6 +41,9 @@ class Shrunk:
     registration: str = "anchored"  # the registration anchored at its registration-only estimate, or "free"
     other_registration: dict = field(default_factory=dict)  # μ → score (m²) with the registration the other way
     multiple: float = float("nan")  # the chosen μ over the registration-only RMS (GCV route)
+    lam: np.ndarray | None = None  # (P,) MAP weights λ_i of the evidence route (else μ × 1/σ_prior)
+    scales: dict = field(default_factory=dict)  # family → prior scale of greatest evidence (evidence route)
+    log_evidence: float = float("nan")  # ln evidence of the linearised model at the estimate (evidence route)
 
 
 def _registration(model, extra: tuple[str, ...] = ()) -> set[str]:

@@ -13,6 +13,9 @@ from pipeline.blas import single_threaded
 from pipeline.identify.shrinkage import GRID, _anchor, _penalty, fold_holdout, shrink
 from pipeline.identify.shrinkage_groups import shrink_by_groups
 
+CRITERION = "evidence"  # diagnostic switch: gcv | evidence | evidence-single
+PHYSICS_SCORE = "gcv"  # gcv | evidence
+
 
 @single_threaded
 def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
@@ -66,10 +69,18 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
             def at(grid, x0=f0.x, fixed=fixed + held, on=on):
                 return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid)
 
-            s = at(GRID)
+            if CRITERION.startswith("evidence"):
+                from pipeline.identify.evidence import shrink_evidence
+
+                s = shrink_evidence(model, data, prior, f0.x, fixed=fixed + held, per_family=CRITERION == "evidence",
+                                    progress=progress, extra=on)
+            else:
+                s = at(GRID)
             m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
             rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
             score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
+            if PHYSICS_SCORE == "evidence" and np.isfinite(s.log_evidence):
+                score = -s.log_evidence
         tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m)}
         if progress is not None and len(pc.candidates(model)) > 1:
             progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")
@@ -82,19 +93,20 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
     J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
     mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
+    lam_all = s.lam if s.lam is not None else mu_eff * wa
     if groups_of_rows is not None:
         holdout = s.holdout
     else:  # the folds of `least_squares.cross_validate`, each left out in closed form (no refit)
         folds = design_folds(n, k, seed, None, data)
         idx = np.flatnonzero(free_mask)
         r = np.asarray(model.residuals(s.x, data), float).ravel()
-        holdout = fold_holdout(J[:, idx], r, mu_eff * wa[idx], folds, kd)
+        holdout = fold_holdout(J[:, idx], r, lam_all[idx], folds, kd)
     est = free_mask & ~((w > 0) & np.isinf(s.mu_m))  # μ = ∞: the robot stays nominal
-    ident = analyse(np.vstack([J, np.diag(mu_eff * wa)]), names, ~est, getattr(model, "priority", lambda: None)())
+    ident = analyse(np.vstack([J, np.diag(lam_all)]), names, ~est, getattr(model, "priority", lambda: None)())
     r1 = np.asarray(model.residuals(s.x, data), float).reshape(n, kd)
     m, fr = r1.size, ident.free
     sigma = float(np.sqrt(np.sum(r1**2) / max(m - s.dof, 1)))
-    A = J[:, fr].T @ J[:, fr] + np.diag((mu_eff * wa[fr]) ** 2)
+    A = J[:, fr].T @ J[:, fr] + np.diag(lam_all[fr] ** 2)
     cov = sigma**2 * np.linalg.pinv(A, rcond=1e-12, hermitian=True)
     std = np.zeros(s.x.size)
     std[fr] = np.sqrt(np.clip(np.diag(cov), 0, None))

@@ -93,7 +93,8 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
     J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
     mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
-    lam_all = s.lam if s.lam is not None else mu_eff * wa
+    lam_all = s.lam if s.lam is not None else np.where(free_mask, mu_eff * wa, 0.0)
+    s = replace(s, lam=lam_all)
     if groups_of_rows is not None:
         holdout = s.holdout
     else:  # the folds of `least_squares.cross_validate`, each left out in closed form (no refit)

@@ -28,7 +28,10 @@ import numpy as np
 SCALE_RANGE = (1e-3, 1e3)  # s_f is kept within these multiples of the stated prior 1σ
 ITERATIONS = 200
 LOOSE = 30.0  # the loose start of `maximise`: 30 × the stated prior 1σ
-TOLERANCE = 1e-6  # relative change of every log-scale and of log σ² at which the fixed point stops
+TOLERANCE = 1e-6
+FAMILIES = "group"  # experimental: group | kind
+SPREAD = None
+FLOOR = False  # experimental: hyperprior spread of the families' log-scales  # relative change of every log-scale and of log σ² at which the fixed point stops
 
 
 @dataclass(frozen=True)
@@ -116,6 +119,10 @@ def families_of(model, idx: np.ndarray, w: np.ndarray, per_family: bool = True) 
     model's groups (registration aside) with `per_family`, else one family 'all'."""
     names = model.parameter_names()
     group = {n: g for g, v in (model.groups() if hasattr(model, "groups") else {}).items() for n in v}
+    if FAMILIES == "kind":
+        from pipeline.accuracy.prior import kind_of
+
+        group = {n: kind_of(n, u) for n, u in zip(names, model.parameter_units())}
     labels: list[str] = []
     fam = np.full(len(idx), -1)
     for j, i in enumerate(idx):
@@ -157,6 +164,16 @@ def shrink_evidence(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed:
         J = np.asarray(model.jacobian(x, data), float).reshape(m, -1)[:, idx]
         ev = maximise(J[:, keep], r, x[idx][keep], centre[idx][keep], weight[keep], fam[keep],
                       None if ev is None else ev.scales, None if ev is None else ev.sigma2)
+        if FLOOR and per_family:
+            one = maximise(J[:, keep], r, x[idx][keep], centre[idx][keep], weight[keep], np.where(fam[keep] >= 0, 0, -1))
+            global SCALE_RANGE
+            old = SCALE_RANGE
+            SCALE_RANGE = (float(one.scales[0]), old[1])
+            ev = maximise(J[:, keep], r, x[idx][keep], centre[idx][keep], weight[keep], fam[keep],
+                          np.maximum(ev.scales, one.scales[0]), ev.sigma2)
+            SCALE_RANGE = old
+        if SPREAD is not None and per_family:
+            ev = pooled(J[:, keep], r, x[idx][keep], centre[idx][keep], weight[keep], fam[keep], ev, SPREAD)
         lam = np.zeros(idx.size)
         lam[keep] = ev.lam
         if progress is not None:
@@ -178,3 +195,31 @@ def shrink_evidence(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed:
     return Shrunk(x, mu, {mu: score}, dof, _implausible(model, x, idx, w, nominal), solves,
                   lam=lam_full, scales=dict(zip(labels, map(float, ev.scales))), log_evidence=ev.log_evidence,
                   multiple=mu / float(np.sqrt(np.mean(np.asarray(model.residuals(x0, data), float) ** 2))))
+
+
+def pooled(J, r, xbar, centre, weight, family, start: Evidence, spread: float) -> Evidence:
+    """Evidence maximised with the families' log-scales pulled toward their mean (a hyperprior
+    log s_f ~ N(mean, `spread`²)): partial pooling between one scale and a free scale per family."""
+    from scipy.optimize import minimize
+
+    family = np.asarray(family, int)
+    pen = family >= 0
+    w2 = np.asarray(weight, float) ** 2
+    F = start.scales.size
+
+    def prec_of(ls):
+        return np.where(pen, w2 * np.exp(-2 * ls[np.maximum(family, 0)]), w2)
+
+    def obj(z):
+        ls, lv = z[:F], z[F]
+        pen_h = np.sum((ls - ls.mean()) ** 2) / (2 * spread**2)
+        return -log_evidence(J, r, xbar, centre, prec_of(ls), np.exp(lv)) + pen_h
+
+    z0 = np.r_[np.log(start.scales), np.log(start.sigma2)]
+    lo, hi = np.log(SCALE_RANGE)
+    res = minimize(obj, z0, method="L-BFGS-B", bounds=[(lo, hi)] * F + [(None, None)])
+    ls, s2 = res.x[:F], float(np.exp(res.x[F]))
+    prec = prec_of(ls)
+    x, Ai, _, _ = _posterior(J, r, xbar, centre, prec, s2)
+    gamma = np.clip(1.0 - prec * np.diag(Ai), 0.0, 1.0)
+    return Evidence(np.exp(ls), s2, log_evidence(J, r, xbar, centre, prec, s2), gamma, x, np.sqrt(s2 * prec))

@@ -2,7 +2,7 @@
 
 ``groups`` keeps the parameter groups that lower the k-fold held-out error (`pipeline.identify.complexity`);
 ``shrinkage`` estimates every parameter pulled toward nominal by its prior, the scale chosen by leaving out
-whole sessions / placements / sockets, else GCV (`pipeline.identify.shrinkage`).  ``auto`` (the default)
+whole sessions / placements / sockets, else by the evidence (`pipeline.identify.evidence`).  ``auto`` (the default)
 takes ``shrinkage`` for a single-chain URDF robot measured by an instrument — a recording imported from a CSV
 table or a ROS 2 bag (not simulated), one tip and no coupled joints, whose residuals are lengths (not a
 camera's pixels) — where it predicted whole held-out sessions and placements of real robots (TIAGo's arm,

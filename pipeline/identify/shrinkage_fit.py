@@ -1,5 +1,6 @@
 """The shrinkage model choice as one fit: every gravity-compliance family tried (`physics_choice`), each
-shrunk toward nominal by its prior — the scale chosen by GCV (`shrinkage.shrink`) or, where the rows come in
+shrunk toward nominal by its prior — the prior's scale per parameter family chosen by the evidence
+(`evidence.shrink_evidence`) or, where the rows come in
 sessions / placements / sockets, by leaving out whole groups (`shrinkage_groups.shrink_by_groups`) — the best
 family's MAP estimate returned as a `Fit` with its posterior covariance and its held-out residuals."""
 
@@ -10,11 +11,9 @@ from dataclasses import replace
 import numpy as np
 
 from pipeline.blas import single_threaded
-from pipeline.identify.shrinkage import GRID, _anchor, _penalty, fold_holdout, shrink
+from pipeline.identify.evidence import shrink_evidence
+from pipeline.identify.shrinkage import _anchor, _penalty, fold_holdout
 from pipeline.identify.shrinkage_groups import shrink_by_groups
-
-CRITERION = "evidence"  # diagnostic switch: gcv | evidence | evidence-single
-PHYSICS_SCORE = "gcv"  # gcv | evidence
 
 
 @single_threaded
@@ -66,21 +65,10 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
                                  extra=on)
             score = s.gcv[s.mu_m]
         else:
-            def at(grid, x0=f0.x, fixed=fixed + held, on=on):
-                return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid)
-
-            if CRITERION.startswith("evidence"):
-                from pipeline.identify.evidence import shrink_evidence
-
-                s = shrink_evidence(model, data, prior, f0.x, fixed=fixed + held, per_family=CRITERION == "evidence",
-                                    progress=progress, extra=on)
-            else:
-                s = at(GRID)
+            s = shrink_evidence(model, data, prior, f0.x, fixed=fixed + held, progress=progress, extra=on)
             m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
             rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
             score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
-            if PHYSICS_SCORE == "evidence" and np.isfinite(s.log_evidence):
-                score = -s.log_evidence
         tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m)}
         if progress is not None and len(pc.candidates(model)) > 1:
             progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")

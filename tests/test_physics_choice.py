@@ -126,6 +126,6 @@ def test_figaroh_tiago_protocol_at_or_below_figaroh_full(tmp_path):
     assert proc.returncode == 0, proc.stderr
     got = [r["rms_3d_m"] for r in json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"]]
     figaroh_full = (3.07e-3, 2.83e-3, 2.44e-3)
-    measured = (2.799e-3, 2.606e-3, 2.350e-3)  # robocal, this method (README)
+    measured = (2.816e-3, 2.599e-3, 2.401e-3)  # robocal, this method (README): the scales by the evidence
     assert all(g <= f for g, f in zip(got, figaroh_full)), got
     assert all(g <= m + 0.05e-3 for g, m in zip(got, measured)), got

@@ -186,9 +186,10 @@ def shrink_evidence(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed:
     lam_full = np.zeros(x.size)
     lam_full[idx] = lam_used
     mu = float(np.sqrt(ev.sigma2)) / ev.common
+    scale = float(np.sqrt(np.mean(r0**2)))
     rl = np.asarray(model.residuals(x, data), float).ravel()
     dof = float(ev.gamma.sum())
     score = m * float(rl @ rl) / max(m - dof, 1e-9) ** 2  # GCV at the estimate: what the physics choice compares
     return Shrunk(x, mu, {mu: score}, dof, _implausible(model, x, idx, w, nominal), solves, lam=lam_full,
                   scales=dict(zip(labels, map(float, ev.scales))), log_evidence=ev.log_evidence,
-                  multiple=mu / float(np.sqrt(np.mean(r0**2))))
+                  multiple=mu / scale if scale > 0 else float("nan"))

@@ -22,9 +22,14 @@ from pipeline.measurements.composed import Composed
 class CoincidenceModel(Composed):
     groups_: tuple[str, ...] = field(default_factory=tuple)
     start: tuple[tuple[float, float, float], ...] = field(default_factory=tuple)
-    fit_tool: bool = False  # as for planes: a free tool point can sit where no joint moves it
+    # as for planes: a free tool point can sit where no joint moves it.  None: not said (held known, unless the
+    # model choice's left-out groups free it: `shrinkage_groups`); True / False: the campaign's explicit setting
+    fit_tool: bool | None = None
 
     residual_dim = 3
+    # a ball's centre is estimated like every robot parameter (as MUKCa frees its ball joint) wherever the model
+    # choice finds it plausible and no left-out group predicted worse than the nominal robot (`shrinkage_groups`)
+    tool_estimated_by_default = True
     fixes_frame = False  # the groups' points take up any rigid motion: accuracy is relative (`accuracy.propagate`)
 
     def extra_names(self) -> list[str]:

@@ -245,7 +245,9 @@ def from_recording(rec, stream=None, physics: dict | None = None):
         model, table = urdf_robot.load(rec)
     t = np.asarray(table["timestamp_ns"], np.int64)
     tab = dict(table)
-    tab["time_since_start_s"] = (t - t.min()) * 1e-9 if t.size else np.zeros(0)
+    own = np.asarray(table["kind"]) == 0 if "kind" in table else np.ones(t.size, bool)  # rows measured, not derived
+    t0 = int(t[own].min()) if own.any() else 0  # derived rows (known distances) carry no time of their own: 0 s
+    tab["time_since_start_s"] = np.where(own, (t - t0) * 1e-9, 0.0)
     if stream is None and rec.messages.raw.get(streams.JOINT_STATE):
         stream = streams.joint_stream(rec)
     if stream is not None:

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.stats import chi2, multivariate_normal
+from scipy.stats import multivariate_normal
 
-from pipeline.identify.evidence import SIGNIFICANCE, climb, log_evidence, maximise, scales
+from pipeline.identify.evidence import climb, log_evidence, maximise, scales
 
 SIGMA_PRIOR = 1e-3  # m: every parameter's stated prior 1σ
 
@@ -86,38 +86,21 @@ def test_per_family_scales_recover_the_loose_family_and_beat_one_scale(seed, rat
     assert np.mean(err_family) < np.mean(err_one)
 
 
-def test_two_stages_beat_one_scale_and_tighten_only_when_significant():
-    """`scales`: s₀ is the one-scale evidence's and the loose family gets more room; a family goes below s₀ only
-    where the likelihood ratio over the floored evidence passes `SIGNIFICANCE`; over many draws its estimate is
-    nearer the truth than the one-scale estimate."""
-    err_two, err_one, tightened = [], [], 0
+def test_two_stages_loosen_only_and_beat_one_scale_on_average():
+    """`scales`: s₀ is the one-scale evidence's, no family below it, the loose family above it; over many draws
+    its estimate is nearer the truth than the one-scale estimate (it keeps only the loosening half of the gain)."""
+    err_two, err_one = [], []
     for seed in range(60):
         J, r, xbar, centre, weight, family, x_true = _problem(seed, (3.0, 0.03), 1e-3, m=16)
         one = maximise(J, r, xbar, centre, weight, np.where(family >= 0, 0, -1))
         two = scales(J, r, xbar, centre, weight, family)
         assert np.isclose(two.common, one.scales[0], rtol=1e-3)
+        assert np.all(two.scales >= two.common * (1 - 1e-9))
         assert two.scales[0] > two.common
-        if np.any(two.scales < two.common * 0.999):
-            floored = climb(J, r, xbar, centre, weight, family, np.maximum(two.scales, two.common), floor=two.common)
-            k = int(np.sum(two.scales < two.common * 0.999))
-            assert 2 * (two.log_evidence - floored.log_evidence) > chi2.ppf(SIGNIFICANCE, k) - 1e-6
-            tightened += 1
         pen = family >= 0
         err_two.append(np.sum((two.x - x_true)[pen] ** 2))
         err_one.append(np.sum((one.x - x_true)[pen] ** 2))
     assert np.mean(err_two) < np.mean(err_one)
-    assert tightened >= 45  # a family spread 100 × less than the other is found tighter in most draws
-
-
-def test_families_of_one_spread_are_rarely_tightened():
-    """Both families drawn with the same scale: the likelihood-ratio test lets a family below s₀ in few draws
-    (near its level, 5 %; at most 20 % of 40 draws)."""
-    tightened = 0
-    for seed in range(40):
-        J, r, xbar, centre, weight, family, _ = _problem(1000 + seed, (1.0, 1.0), 1e-3, m=16)
-        two = scales(J, r, xbar, centre, weight, family)
-        tightened += bool(np.any(two.scales < two.common * 0.999))
-    assert tightened <= 8
 
 
 def test_collapsed_start_does_not_trap_the_evidence():

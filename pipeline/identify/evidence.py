@@ -16,13 +16,11 @@ sample.  MacKay's fixed point: with the posterior A = JᵀJ/σ² + diag(π), π_
     s_f² = Σ_{i∈f} ((x*_i − c_i)/σ_prior,i)² / Σ_{i∈f} γ_i,      σ² = ‖r + J(x* − x̄)‖² / (m − Σ_i γ_i).
 
 Two stages (`scales`): the common scale s₀ of every family together (one scale: the stated priors' proportions
-kept), then each family's own scale.  A family may be given more room than the rest where its own evidence asks
-for it (TIAGo's origin translations); it is made tighter than the rest only where that is significant: the
-evidence with the families free to go below s₀ must beat the one with none below it by a likelihood ratio
-2Δln p > χ²(k) at `SIGNIFICANCE` (k the families gone below).  The evidence of a family the rows barely determine
-is flat below s₀ and its fixed point slides toward zero ("pruning"); on a few dozen rows that alone says the
-family is not determined, not that it is built more precisely than its stated tolerance's proportion to the others.
-The MAP objective of `shrinkage.map_solve` is Σ r² + Σ λ_i² (x_i − c_i)²
+kept), then each family's own scale, never below s₀.  A family may be given more room than the rest where its
+own evidence asks for it (TIAGo's origin translations); it is not made tighter than the rest: the evidence of a
+family the rows barely determine is flat below s₀ and its fixed point slides toward zero ("pruning"), which on a
+few dozen rows says the family is not determined, not that it is built more precisely than its stated
+tolerance's proportion to the others.  The MAP objective of `shrinkage.map_solve` is Σ r² + Σ λ_i² (x_i − c_i)²
 with λ_i = σ √π_i.
 """
 
@@ -32,13 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
-from scipy.stats import chi2
 
 SCALE_RANGE = (1e-3, 1e3)  # s_f is kept within these multiples of the stated prior 1σ
 LOOSE = 30.0  # the loose start of `maximise`: 30 × the stated prior 1σ
 ITERATIONS = 300
-TOLERANCE = 1e-4
-SIGNIFICANCE = 0.95  # a family goes below the common scale only if the evidence's likelihood ratio passes this level  # change of every log-scale and of log σ² at which the fixed point stops
+TOLERANCE = 1e-4  # change of every log-scale and of log σ² at which the fixed point stops
 
 
 @dataclass(frozen=True)
@@ -122,8 +118,8 @@ def maximise(J, r, xbar, centre, weight, family, scales=None, sigma2=None, floor
 
 
 def scales(J, r, xbar, centre, weight, family, start: Evidence | None = None) -> Evidence:
-    """The two stages of the module docstring: s₀ of every family together, then each family's own scale, below
-    s₀ only where the likelihood ratio is significant (warm from `start`, the previous linearisation's answer)."""
+    """The two stages of the module docstring: s₀ of every family together, then each family's own scale
+    ≥ s₀ (warm from `start`, the previous linearisation's answer)."""
     family = np.asarray(family, int)
     one = maximise(J, r, xbar, centre, weight, np.where(family >= 0, 0, -1),
                    None if start is None else np.array([start.common]), None if start is None else start.sigma2)
@@ -131,10 +127,6 @@ def scales(J, r, xbar, centre, weight, family, start: Evidence | None = None) ->
     F = int(family.max()) + 1 if family.size and family.max() >= 0 else 0
     warm = np.full(F, s0) if start is None else np.maximum(start.scales, s0)
     ev = climb(J, r, xbar, centre, weight, family, warm, one.sigma2, floor=s0)
-    free = climb(J, r, xbar, centre, weight, family, ev.scales, ev.sigma2)  # no floor: may go below s₀
-    k = int(np.sum(free.scales < s0 * 0.999))
-    if k and 2 * (free.log_evidence - ev.log_evidence) > chi2.ppf(SIGNIFICANCE, k):
-        ev = free
     return Evidence(ev.scales, ev.sigma2, ev.log_evidence, ev.gamma, ev.x, ev.lam, s0)
 
 

@@ -42,6 +42,15 @@ from pipeline.systems.registry import detect
 SESSIONS = ("2021-11-30", "2021-11-26", "2021-11-30-1403", "2021-11-30-1504")
 FIGAROH = {"registration only (9)": (4.87, 4.58, 4.22), "joint offsets (14)": (4.23, 4.09, 3.83),
            "full (31)": (3.07, 2.83, 2.44)}
+# The protocol's posture groups of each held-out session, relative to the training postures: repeated (every
+# joint within 0.01 rad or m of a training posture), new (not repeated, every joint inside the training range
+# widened by 0.05), out of range (extrapolation).  FIGAROH's published figures per group (norm of the 3-D error,
+# RMS, mm; 11-26 / 11-30 14:03 / 11-30 15:04) and its posture counts, which the definition below reproduces.
+POSTURE_GROUPS = ("repeated", "new", "out of range")
+FIGAROH_GROUPS = {"registration only (9)": ((3.93, 3.48, 3.25), (5.12, 4.85, 4.73), (7.34, 7.23, 6.35)),
+                  "joint offsets (14)": ((3.31, 3.08, 2.84), (4.47, 4.29, 4.13), (6.53, 6.61, 6.21)),
+                  "full (31)": ((2.34, 2.03, 1.91), (2.84, 2.75, 2.64), (5.31, 5.01, 3.77))}
+FIGAROH_GROUP_COUNTS = ((37, 37, 35), (16, 17, 16), (9, 9, 8))
 REPEAT = 5  # runs of the shrinkage choice and of its plain fit timed (the least CPU s reported)
 PLACEMENTS = ("front_center", "back_left", "back_right", "front_left", "front_right", "high", "mid-high",
               "mid_left", "mid_right")
@@ -129,12 +138,32 @@ def models(train_path: Path, choices: tuple[str, ...], folds: int = 5):
     return out
 
 
-def tiago_figures(real: Path, tmp: Path, choices: tuple[str, ...]) -> dict[str, list[float]]:
-    """{choice: [fit session, 11-26, 11-30 14:03, 11-30 15:04]} norm of the 3-D error, RMS, m."""
+def posture_groups(q_train: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Index into `POSTURE_GROUPS` of each posture `q` (n, joints; rad or m) relative to the training postures
+    `q_train` (m, joints): 0 repeated, 1 new inside the training range, 2 out of range."""
+    repeated = (np.abs(q[:, None, :] - q_train[None, :, :]).max(axis=2) <= 0.01).any(axis=1)
+    lo, hi = q_train.min(axis=0) - 0.05, q_train.max(axis=0) + 0.05
+    inside = np.all((q >= lo) & (q <= hi), axis=1)
+    return np.where(repeated, 0, np.where(inside, 1, 2))
+
+
+def tiago_figures(real: Path, tmp: Path, choices: tuple[str, ...]) -> dict:
+    """{choice: ([fit session, 11-26, 11-30 14:03, 11-30 15:04] norm of the 3-D error RMS m, choice CPU s,
+    one fit CPU s, note, [per held-out session: RMS m of each posture group])}, and the posture-group counts."""
+    from pipeline.systems import urdf_robot
+
     paths = tiago_recordings(real, tmp)
     recs = [read_recording(p) for p in paths]
-    return {c: ([d["rms_3d_m"] for d in evaluate(cal, recs)], tc, tf, note)
-            for c, (cal, tc, tf, note) in models(paths[0], choices).items()}
+    qs = [np.asarray(urdf_robot.load(r)[1]["joint_positions"], float) for r in recs]
+    groups = [posture_groups(qs[0], q) for q in qs[1:]]
+    out = {}
+    for c, (cal, tc, tf, note) in models(paths[0], choices).items():
+        res = evaluate(cal, recs)
+        by_group = [[float(np.sqrt(np.mean(d["rows"].norm[g == k] ** 2))) if np.any(g == k) else float("nan")
+                     for k in range(len(POSTURE_GROUPS))] for d, g in zip(res[1:], groups)]
+        out[c] = ([d["rms_3d_m"] for d in res], tc, tf, note, by_group)
+    counts = [[int(np.sum(g == k)) for g in groups] for k in range(len(POSTURE_GROUPS))]
+    return out, counts
 
 
 def run_timing(train: Path, out: Path, *args: str) -> tuple[float, float]:
@@ -152,12 +181,23 @@ def tiago(real: Path, tmp: Path, choices: tuple[str, ...], timing: bool = False)
     print("\n### FIGAROH's frozen TIAGo protocol: fit on 2021-11-30, evaluate on the others without refitting\n")
     print("| model | fit session | 11-26 | 11-30 14:03 | 11-30 15:04 | choice s CPU | one fit s CPU | choice / fit | note |")
     print("|---|---|---|---|---|---|---|---|---|")
-    for c, (r, tc, tf, note) in tiago_figures(real, tmp, choices).items():
+    figures, counts = tiago_figures(real, tmp, choices)
+    for c, (r, tc, tf, note, _) in figures.items():
         ratio = f"{tc / tf:.1f}×" if tf > 0 else "—"
         print(f"| robocal {c} | " + " | ".join(f"{v * 1e3:.2f}" for v in r) + f" | {tc:.2f} | {tf:.2f} | {ratio} | {note} |")
     for k, v in FIGAROH.items():
         print(f"| FIGAROH {k} (published) | — | " + " | ".join(f"{x:.2f}" for x in v) + " | | | | |")
     print("\nmm: norm of the 3-D error, RMS over postures (target: ≤ FIGAROH full on every held-out session)")
+    print("\nBy the protocol's posture groups (11-26 / 11-30 14:03 / 11-30 15:04; postures in brackets, FIGAROH's "
+          "published counts " + ", ".join(f"{n}: {'/'.join(map(str, c))}" for n, c in
+                                          zip(POSTURE_GROUPS, FIGAROH_GROUP_COUNTS)) + "):\n")
+    print("| model | " + " | ".join(f"{n} ({'/'.join(map(str, c))})" for n, c in zip(POSTURE_GROUPS, counts))
+          + " |\n|---|---|---|---|")
+    for c, (*_, by_group) in figures.items():
+        print(f"| robocal {c} | " + " | ".join(" / ".join(f"{s[k] * 1e3:.2f}" for s in by_group)
+                                             for k in range(len(POSTURE_GROUPS))) + " |")
+    for k, v in FIGAROH_GROUPS.items():
+        print(f"| FIGAROH {k} (published) | " + " | ".join(" / ".join(f"{x:.2f}" for x in g) for g in v) + " |")
     if timing:
         train = tmp / f"tiago_{SESSIONS[0]}.mcap"
         for label, args in (("default (auto: shrinkage)", ()), ("--model-choice groups", ("--model-choice", "groups"))):

@@ -80,6 +80,10 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
 
         selection = None
         f, shrunk, holdout = shrunk_fit(model, table, options, k=k_folds, seed=seed)
+        if shrunk.tool == "free":  # the left-out groups freed the tool point: the model estimates it
+            from dataclasses import replace as _replace
+
+            model = _replace(model, fit_tool=True)
     elif solver == "lm":
         selection = None
         if select_groups and getattr(model, "groups", None) and model.groups():

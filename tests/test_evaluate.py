@@ -113,6 +113,23 @@ def test_calibration_predicts_new_configurations_to_the_noise_floor(calibrated):
     np.testing.assert_allclose(np.array(t["norm_m"])[rows], np.linalg.norm(e, axis=1), rtol=1e-12)
     assert abs(np.sqrt(np.mean(np.sum(e**2, 1))) - new["rms_3d_m"]) < 1e-12
     assert abs(np.sqrt(np.mean(e**2)) - new["rms_axis_m"]) < 1e-12
+    # posture groups relative to the training postures: the training recording is all "repeated"; the new
+    # campaign (other random configurations) has none repeated; errors.parquet carries each row's group
+    assert same["postures"] == {"repeated": {k: v for k, v in same.items() if k in same["postures"]["repeated"]}}
+    assert "repeated" not in new["postures"] and sum(d["n"] for d in new["postures"].values()) == 40
+    post = np.array(t["posture"], object)
+    assert set(post[rows]) <= {"new", "out_of_range"} and set(post[~rows]) == {"repeated"}
+    for g, d in new["postures"].items():
+        assert abs(np.sqrt(np.mean(np.array(t["norm_m"])[rows][post[rows] == g] ** 2)) - d["rms_3d_m"]) < 1e-12
+    # report.html: the evaluation as one page, rendered by a real browser
+    from reprocess_support import chromium
+
+    dom = chromium(["--dump-dom", (tmp / "ev" / "report.html").resolve().as_uri()], tmp)
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    sec = dom.stdout[dom.stdout.index('<section id="evaluation">'):]
+    sec = sec[:sec.index("</section>")]
+    assert "test.mcap" in sec and "repeated postures" in sec and "RMS of the 3-D error (mm)" in sec
+    assert f"{new['rms_3d_m'] * 1e3:.3f}" in sec and sec.count("<svg") == 1
 
 
 def test_moved_instrument_is_error_unless_the_registration_is_refitted(calibrated):

@@ -276,3 +276,30 @@ def test_robocal_run_on_a_camera_bag_imports_then_calibrates(small, tmp_path):
     assert camp["measure"] == "camera" and camp["ros2"]["image_topic"] == "/camera/image_raw"
     summary = json.loads((tmp_path / "run" / "results.json").read_text())["summary"]
     assert summary["residual_unit"] == "px" and summary["rms_after_m"] < 0.2  # px
+
+
+def test_a_camera_bag_cut_short_keeps_every_complete_image(small, tmp_path):
+    """A recorder killed mid-bag (the MCAP cut at 90 %, inside its last chunk, no footer): the images whose chunks are complete are
+    imported — their corners the very ones of the whole bag — and the import says, per topic, how many
+    messages were lost; the recording carries the loss (ingest's status is then warn, never pass)."""
+    import shutil
+
+    tmp = small["tmp"]
+    if not (tmp / "mono8.mcap").exists():
+        assert _cli(tmp / "mono8", tmp / "r6.urdf", tmp / "mono8.mcap").exit_code == 0
+    (tmp_path / "cut").mkdir()
+    shutil.copy(tmp / "mono8" / "metadata.yaml", tmp_path / "cut" / "metadata.yaml")
+    storage = next((tmp / "mono8").glob("*.mcap"))
+    whole = storage.read_bytes()
+    (tmp_path / "cut" / storage.name).write_bytes(whole[: len(whole) * 9 // 10])  # inside the last chunk
+    r = _run(tmp_path / "cut", tmp / "r6.urdf", tmp_path / "rec.mcap")
+    assert r.returncode == 0, r.stderr
+    assert "damaged ROS 2 bag" in r.stderr and "/camera/image_raw: " in r.stderr and " messages lost (" in r.stderr
+    camp = read_recording(tmp_path / "rec.mcap").metadata["robocal.campaign"]
+    full = read_recording(tmp / "mono8.mcap").metadata["robocal.campaign"]
+    assert 0 < len(camp["images"]) < len(full["images"]) and set(camp["images"]) <= set(full["images"])
+    assert any("messages lost" in w for w in camp["data_lost"])
+    px, ids = _pixels(tmp_path / "rec.mcap")
+    px0, ids0 = _pixels(tmp / "mono8.mcap")
+    n = len(ids)
+    assert np.array_equal(ids, ids0[:n]) and np.array_equal(px, px0[:n])  # the salvaged images lose nothing

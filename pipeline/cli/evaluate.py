@@ -21,7 +21,8 @@ def _claim(out: Path) -> None:
     if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
         raise RobocalError(f"{out}: a non-empty folder robocal evaluate did not write (choose a new --out)")
     out.mkdir(parents=True, exist_ok=True)
-    (out / MARKER).write_text("robocal evaluate output: evaluate may replace evaluation.json and errors.parquet\n")
+    (out / MARKER).write_text("robocal evaluate output: evaluate may replace evaluation.json, errors.parquet and "
+                              "report.html\n")
 
 
 def _mm(v) -> str:
@@ -53,6 +54,8 @@ def _table(results: list[dict], title: str) -> Table:
         if len(r.get("groups", {})) > 1:
             for g, d in r["groups"].items():
                 t.add_row(*row(f"  {g}", d))
+        for g, d in (r.get("postures") or {}).items():
+            t.add_row(*row(f"  {g.replace('_', ' ')} postures", d))
     return t
 
 
@@ -60,7 +63,7 @@ def _table(results: list[dict], title: str) -> Table:
 def evaluate_cmd(
     run_dir: Path = typer.Argument(..., help="Run folder of `robocal run` (or output folder of `robocal calibrate`)."),
     recordings: list[Path] = typer.Argument(..., help="Recording(s) (MCAP) of the same robot to evaluate it on."),
-    out: Path = typer.Option(..., "--out", help="Folder for evaluation.json and errors.parquet."),
+    out: Path = typer.Option(..., "--out", help="Folder for evaluation.json, errors.parquet and report.html."),
     refit: str = typer.Option("none", "--refit", help="none (apply as calibrated) or registration (re-estimate "
                                                       "only the instrument frame)."),
     registration: str = typer.Option("shared", "--registration",
@@ -69,6 +72,7 @@ def evaluate_cmd(
     """Apply a calibrated model to other recordings without refitting it: the error of every measurement."""
     from pipeline.evaluate.apply import error_table, evaluate
     from pipeline.evaluate.calibrated import read_calibrated
+    from pipeline.report.evaluation import POSTURES_NOTE, render
     from pipeline.recording.reader import read_recording
     from pipeline.stages.artefacts import sha256_file, write_json, write_table
 
@@ -77,16 +81,18 @@ def evaluate_cmd(
     with err.status(f"evaluating {run_dir} on {len(recs)} recording(s)…"):
         results = evaluate(cal, recs, refit=refit, registration=registration)
     _claim(out)
-    docs = [{k: v for k, v in r.items() if k not in ("rows", "record")} | {"sha256": sha256_file(r["path"])}
+    docs = [{k: v for k, v in r.items() if k not in ("rows", "record", "posture")} | {"sha256": sha256_file(r["path"])}
             for r in results]
-    write_json(out / "evaluation.json", {
+    doc = {
         "run": str(run_dir), "calibrated_on": cal.recording, "refit": refit,
         "registration": registration if refit == "registration" else "as calibrated",
         "note": ("rms_3d_m: RMS over measurements of the norm of the 3-D position error (points, poses, ball "
                  "centres about their socket's mean); rms_axis_m: RMS over the x, y, z components (= rms_3d_m/√3 "
                  "when isotropic); planes: distance along the normal"),
-        "recordings": docs})
+        "postures_note": POSTURES_NOTE, "recordings": docs}
+    write_json(out / "evaluation.json", doc)
     write_table(out / "errors.parquet", error_table(results))
+    (out / "report.html").write_text(render(doc, error_table(results)))
     console().print(_table(results, f"robocal evaluate — {run_dir} (calibrated on {Path(cal.recording).name}), "
                                     f"not refitted{'' if refit == 'none' else ' except the registration'}"))
-    print(f"evaluation: {out / 'evaluation.json'}\nerrors:     {out / 'errors.parquet'}")
+    print(f"evaluation: {out / 'evaluation.json'}\nerrors:     {out / 'errors.parquet'}\nreport:     {out / 'report.html'}")

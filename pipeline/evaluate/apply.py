@@ -22,7 +22,8 @@ import numpy as np
 
 from pipeline.errors import RobocalError
 from pipeline.evaluate.calibrated import Calibrated
-from pipeline.evaluate.errors import RowErrors, row_errors, summarise
+from pipeline.evaluate import postures
+from pipeline.evaluate.errors import RowErrors, by_label, row_errors, summarise
 from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
 
 REFITS = ("none", "registration")
@@ -155,17 +156,33 @@ def evaluate(cal: Calibrated, recs: list, refit: str = "none", registration: str
         errs = row_errors(model, x, table, measure)
         doc = {"path": str(rec.path), "measure": measure, **summarise(errs, measure),
                "registration": ("as calibrated" if not reg else f"refitted ({registration})")}
+        post = posture_labels(cal, table, errs, measure)
+        if post is not None:
+            doc["postures"] = by_label(errs, post, postures.GROUPS, measure)
         if reg:
             doc["registration_values"] = {n: float(x[model.parameter_names().index(n)]) for n in reg}
         if own:
             doc["own_parameters_fitted"] = own
-        out.append(doc | {"rows": errs, "record": np.asarray(table["record"], np.int64)})
+        out.append(doc | {"rows": errs, "record": np.asarray(table["record"], np.int64), "posture": post})
+    return out
+
+
+def posture_labels(cal: Calibrated, table: dict, errs: RowErrors, measure: str) -> np.ndarray | None:
+    """Each row's posture group relative to the calibration's training postures (`postures.GROUPS`; distance
+    rows ""), for point and pose data whose calibration knows its postures; else None."""
+    q = np.asarray(table["joint_positions"], float)
+    if measure not in ("point", "pose") or cal.q_train is None or q.ndim != 2 or cal.q_train.shape[1:] != q.shape[1:]:
+        return None
+    out = np.full(len(q), "", object)
+    m = errs.kind == 0
+    out[m] = postures.labels(cal.q_train, q[m])
     return out
 
 
 def error_table(results: list[dict]) -> dict[str, np.ndarray]:
-    """One row per measurement of every recording: recording, record, label, kind, e_0…, norm_m."""
-    cols: dict[str, list] = {"recording": [], "record": [], "label": [], "kind": [], "norm_m": []}
+    """One row per measurement of every recording: recording, record, label, kind, posture (its group relative
+    to the training postures, `postures.GROUPS`, or ""), e_0…, norm_m."""
+    cols: dict[str, list] = {"recording": [], "record": [], "label": [], "kind": [], "posture": [], "norm_m": []}
     k = max(r["rows"].error.shape[1] for r in results)
     for j in range(k):
         cols[f"e_{j}"] = []
@@ -176,6 +193,7 @@ def error_table(results: list[dict]) -> dict[str, np.ndarray]:
         cols["record"].append(r["record"])
         cols["label"].append(e.label.astype(str).astype(object))
         cols["kind"].append(e.kind.astype(np.int64))
+        cols["posture"].append(r["posture"] if r.get("posture") is not None else np.full(n, "", object))
         cols["norm_m"].append(e.norm)
         for j in range(k):
             cols[f"e_{j}"].append(e.error[:, j] if j < e.error.shape[1] else np.full(n, np.nan))

@@ -28,6 +28,8 @@ class Calibrated:
     urdf: dict  # robocal.urdf metadata: urdf text, root, tip
     campaign: dict  # robocal.campaign metadata of the calibration's (first) recording
     recording: str  # the calibration's recording (as given to run / calibrate)
+    q_train: np.ndarray | None = None  # (m, joints) rad / m: the postures it was fitted on, where known
+
 
     def values(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.names, self.x)}
@@ -44,7 +46,21 @@ def _from_run(run_dir: Path) -> Calibrated:
     _, _, rec = load_system(run_dir)
     return Calibrated(run_dir, list(fit["names"]), np.asarray(fit["x"], float), np.asarray(fit["free"], bool),
                       dict(rec.metadata.get(META_URDF) or {}), dict(rec.metadata.get(META_CAMPAIGN) or {}),
-                      str(info.get("source", {}).get("path", "")))
+                      str(info.get("source", {}).get("path", "")), training_postures(rec))
+
+
+def training_postures(rec) -> np.ndarray | None:
+    """(m, joints) rad / m: the joint positions of `rec`'s measurement rows (not distance rows), or None where
+    the recording's rows cannot be read as one URDF chain's table."""
+    from pipeline.systems import urdf_robot
+
+    try:
+        _, table = urdf_robot.load(rec)
+    except (RobocalError, KeyError, ValueError):
+        return None
+    q = np.asarray(table["joint_positions"], float)
+    kind = np.asarray(table.get("kind", np.zeros(len(q), int)), int)
+    return q[kind == 0] if q.ndim == 2 else None
 
 
 def _from_calibrate(run_dir: Path) -> Calibrated:
@@ -62,7 +78,7 @@ def _from_calibrate(run_dir: Path) -> Calibrated:
     rec = read_recording(path)
     return Calibrated(run_dir, [r["name"] for r in rows], np.array([r["estimate"] for r in rows], float),
                       np.array([r["identifiable"] for r in rows], bool), dict(rec.metadata.get(META_URDF) or {}),
-                      dict(rec.metadata.get(META_CAMPAIGN) or {}), path)
+                      dict(rec.metadata.get(META_CAMPAIGN) or {}), path, training_postures(rec))
 
 
 def read_calibrated(run_dir: str | Path) -> Calibrated:

@@ -92,6 +92,13 @@ def _figures(e: np.ndarray, norm: np.ndarray, measure: str) -> dict:
     return out
 
 
+def by_label(errs: RowErrors, labels: np.ndarray, order: tuple[str, ...], measure: str) -> dict:
+    """Figures of the measurement rows of each label in `order` (`labels`: one per row of `errs`) that has rows."""
+    m = errs.kind == 0
+    return {g: _figures(errs.error[m & (labels == g)], errs.norm[m & (labels == g)], measure)
+            for g in order if np.any(m & (labels == g))}
+
+
 def summarise(errs: RowErrors, measure: str) -> dict:
     """Figures of one recording (SI): the headline over every measurement row, the same per group,
     and for coincidences the known distances' errors."""

@@ -41,6 +41,8 @@ class Shrunk:
     registration: str = "anchored"  # the registration anchored at its registration-only estimate, or "free"
     other_registration: dict = field(default_factory=dict)  # μ → score (m²) with the registration the other way
     multiple: float = float("nan")  # the chosen μ over the registration-only RMS (GCV route)
+    tool: str = ""  # the tool point "free" or "known" as the left-out groups chose ("": not judged)
+    other_tool: dict = field(default_factory=dict)  # μ → score (m²) with the tool point the other way
 
 
 def _registration(model, extra: tuple[str, ...] = ()) -> set[str]:
@@ -194,5 +196,9 @@ def shrinkage_document(s: Shrunk) -> dict:
         doc["registration"] = s.registration  # anchored at its registration-only estimate, or free
         doc["score_m2_registration_" + ("free" if s.registration == "anchored" else "anchored")] = {
             key(m): v for m, v in s.other_registration.items()}
+    if s.tool:  # the tool point (a ball centre) judged free vs known by the same left-out groups
+        doc["tool"] = s.tool
+        doc["score_m2_tool_" + ("known" if s.tool == "free" else "free")] = {
+            key(m): v for m, v in s.other_tool.items()}
     return doc
 

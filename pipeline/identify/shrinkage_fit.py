@@ -43,6 +43,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     registration = set(model.groups().get("registration", []))
     n, kd = n_rows(data), model.residual_dim
     groups_of_rows = row_groups(model, data)
+    tool = tool_candidates(model, data) if groups_of_rows is not None else ()
     best, tried = None, {}
     for chosen in pc.candidates(model):  # gravity-compliance families: none, each, all (physics_choice)
         on, off = pc.names_of(model, chosen)
@@ -60,7 +61,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
         held = tuple(nm for i, nm in enumerate(names) if not f0.free[i] and nm in registration | set(on))
         if groups_of_rows is not None:  # whole groups left out: what carries over to a new session / placement
             s = shrink_by_groups(model, data, prior, f0.x, groups_of_rows, fixed=fixed + held, progress=progress,
-                                 extra=on)
+                                 extra=on, tool=tool)
             score = s.gcv[s.mu_m]
         else:
             def at(grid, x0=f0.x, fixed=fixed + held, on=on):
@@ -78,6 +79,9 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     _, s, f0, fixed, held, on, label = best
     if len(tried) > 1 or on:
         s = replace(s, physics={"chosen": label, "terms": list(on), "candidates": tried})
+    if s.tool == "free":  # the left-out groups freed the tool point: it is estimated like the registration
+        model = replace(model, fit_tool=True)
+        fixed = tuple(nm for nm in fixed if nm not in tool)
     free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held, on)
     wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
     J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
@@ -105,3 +109,15 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
               cov=cov, residuals_before=f0.residuals_before, residuals_after=r1, sigma=sigma,
               nfev=f0.nfev, elapsed_s=time.perf_counter() - t0)
     return out, s, holdout
+
+
+def tool_candidates(model, data) -> tuple[str, ...]:
+    """The tool point's parameters the model choice may free (`shrinkage_groups`): those of a model whose campaign
+    left ``fit_tool`` unsaid (None) that the measurements depend on (a ball centre's translation, not the
+    rotation of a point's frame); () for a model without that switch or with the campaign's explicit setting."""
+    if not hasattr(model, "fit_tool") or getattr(model, "fit_tool") is not None:
+        return ()
+    names = model.parameter_names()
+    known = set(model.groups().get("_known tool", []))
+    J = np.asarray(model.jacobian(model.nominal(), data), float).reshape(-1, len(names))
+    return tuple(nm for i, nm in enumerate(names) if nm in known and np.any(J[:, i] != 0))

@@ -32,7 +32,8 @@ import numpy as np
 from pipeline.camera.detect import MAX_EDGE_PX, Detection, detect_array, pool
 from pipeline.errors import RobocalError
 from pipeline.importers import standstill
-from pipeline.importers.ros2 import BagSpec, _open, _stream, _topics_line, choose_joint_topic, read_joint_states
+from pipeline.importers.ros2 import (BagSpec, _Damaged, _open, _stream, _topics_line, choose_joint_topic,
+                                     read_joint_states)
 from pipeline.importers.ros2_images import (CAMERA_INFO, IMAGE_TYPES, camera_info, decode_image, header_stamp,
                                             typestore)
 from pipeline.importers.ros2_messages import _times, at
@@ -161,16 +162,21 @@ def _detect_message(args) -> Detection:
     return detect_array(img, name, target, max_edge_px)
 
 
-def _detect(path: Path, topic: str, typename: str, wanted: dict[int, str], cam: CameraSpec, size, progress):
+def _detect(path: Path, topic: str, typename: str, wanted: dict[int, str], cam: CameraSpec, size, progress,
+            salvaged=None):
     """Second pass: the `wanted` records (index → name) of the image topic, detected in a process
-    pool with a bounded number of images in flight."""
-    reader = _open(path)
+    pool with a bounded number of images in flight (from `salvaged`'s messages when the bag is damaged)."""
+    reader = _open(path) if salvaged is None else None
     workers = cam.workers or min(os.cpu_count() or 1, max(1, len(wanted) // 4))
     out: dict[int, Detection] = {}
     try:
-        conns = [c for c in reader.connections if c.topic == topic]
+        if reader is not None:
+            conns = [c for c in reader.connections if c.topic == topic]
+            bodies = (data for _, _, data in reader.messages(connections=conns))
+        else:
+            bodies = (data for _, data in salvaged.messages.get(topic, []))
         jobs = ((i, (typename, bytes(data), wanted[i], cam.target, cam.max_edge_px, size))
-                for i, (_, _, data) in enumerate(reader.messages(connections=conns)) if i in wanted)
+                for i, data in enumerate(bodies) if i in wanted)
         if workers <= 1:
             for i, job in jobs:
                 out[i] = _detect_message(job)
@@ -185,7 +191,8 @@ def _detect(path: Path, topic: str, typename: str, wanted: dict[int, str], cam: 
                 raise RobocalError(f"{at(path, topic)}: a detection process died ({e}); --workers 1 detects in this "
                                    "process") from None
     finally:
-        reader.close()
+        if reader is not None:
+            reader.close()
     return out
 
 
@@ -221,16 +228,31 @@ def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: Cam
     if cam.clock_bound_s < 0:
         raise RobocalError(f"--clock-offset-bound {cam.clock_bound_s}: must be 0 or more (s)")
     warnings: list[str] = []
-    reader = _open(path)
+    sal = None
     try:
-        topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
+        reader = _open(path)
+        try:
+            topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
+            jt = choose_joint_topic(path, topics, spec.joint_topic)
+            it, ct = choose_camera_topics(path, topics, cam)
+            side = _Stamps(it)
+            js, jlog, Q, jreport, _ = read_joint_states(
+                path, jt, _stream(path, reader, jt, [it] + ([ct] if ct else []), side), joints)
+        finally:
+            reader.close()
+    except _Damaged as e:  # a bag cut short: calibrate from the images that can be read, saying what was lost
+        from pipeline.importers.ros2_salvage import salvage
+
+        sal = salvage(path, e.why, str(e))
+        topics = sal.topics
         jt = choose_joint_topic(path, topics, spec.joint_topic)
         it, ct = choose_camera_topics(path, topics, cam)
         side = _Stamps(it)
-        js, jlog, Q, jreport, _ = read_joint_states(path, jt, _stream(path, reader, jt, [it] + ([ct] if ct else []),
-                                                                      side), joints)
-    finally:
-        reader.close()
+        for topic in (it, ct) if ct else (it,):
+            for t, data in sal.messages.get(topic, []):
+                side.append((topic, t, data))
+        js, jlog, Q, jreport, _ = read_joint_states(path, jt, iter(sal.messages.get(jt, [])), joints)
+        warnings += sal.warnings
     if not side.stamp:
         raise RobocalError(f"{at(path, it)}: no messages")
     problems: list[str] = []
@@ -275,11 +297,13 @@ def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: Cam
                         "starts from OpenCV's calibrateCamera alone")
     if warnings:
         extras["import_warnings"] = warnings
+    if sal is not None:
+        extras["data_lost"] = sal.warnings  # the bag's damage: ingest's status is then warn, never pass
     if on_paired is not None:
         on_paired(extras)
     names = {int(i): f"{it}#{i}" for i in keep}
     size = info.size if info is not None else None
-    dets = _detect(path, it, topics[it], names, cam, size, progress)
+    dets = _detect(path, it, topics[it], names, cam, size, progress, sal)
     out = []
     for i in keep:
         d = dets[int(i)]

@@ -22,7 +22,9 @@ from pipeline.measurements.composed import Composed
 class CoincidenceModel(Composed):
     groups_: tuple[str, ...] = field(default_factory=tuple)
     start: tuple[tuple[float, float, float], ...] = field(default_factory=tuple)
-    fit_tool: bool = False  # as for planes: a free tool point can sit where no joint moves it
+    # as for planes: a free tool point can sit where no joint moves it.  None: not said (held known, unless the
+    # model choice's left-out groups free it: `shrinkage_groups`); True / False: the campaign's explicit setting
+    fit_tool: bool | None = None
 
     residual_dim = 3
     fixes_frame = False  # the groups' points take up any rigid motion: accuracy is relative (`accuracy.propagate`)

@@ -34,7 +34,9 @@ def _perp(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @dataclass(frozen=True)
 class PlaneModel(Composed):
     planes: tuple[Plane, ...] = field(default_factory=tuple)
-    fit_tool: bool = False  # a tool point free to move can collapse onto a point the joints cannot move
+    # a tool point free to move can collapse onto a point the joints cannot move.  None: not said (held known,
+    # unless the model choice's left-out groups free it: `shrinkage_groups`); True / False: the campaign's setting
+    fit_tool: bool | None = None
 
     residual_dim = 1
 

@@ -233,3 +233,28 @@ def bars(labels: Sequence[str], values: Sequence[float], y_label: str, title: st
         if title:
             a.set_title(title)
     return _svg(fig)
+
+
+def error_norms(recordings: Sequence[str], norms: Sequence[np.ndarray], kinds: Sequence[np.ndarray],
+                y_label: str) -> str:
+    """Each measurement's error (m; shown in mm) of each evaluated recording, one column per recording,
+    coloured by its kind (e.g. its posture group relative to the training postures)."""
+    with rc_context(RC):
+        fig, ax = _fig(6.4, 3.0)
+        a = ax[0, 0]
+        colors = group_colors([str(k) for ks in kinds for k in ks])
+        rng = np.random.default_rng(0)
+        seen = set()
+        for i, (v, ks) in enumerate(zip(norms, kinds)):
+            v, ks = np.asarray(v, float), np.asarray(ks).astype(str)
+            for k in sorted(set(ks)):
+                s = ks == k
+                a.scatter(i + rng.uniform(-0.25, 0.25, int(s.sum())), v[s] * MM, s=10, color=colors[k],
+                          label=None if k in seen or not k else k, alpha=0.8, linewidths=0)
+                seen.add(k)
+        a.set_xticks(range(len(recordings)), list(recordings), rotation=15, ha="right")
+        a.set_ylabel(y_label)
+        a.set_ylim(bottom=0)
+        if any(seen - {""}):
+            a.legend()
+    return _svg(fig)

@@ -72,6 +72,7 @@ def run(run_dir: Path, params: dict) -> dict:
     data = model_columns(table)
     opts = options_of(params, model, rec)
     selection = shrunk = None
+    reference = model  # "before": the nominal robot, registration fitted, the tool as the campaign has it
     folds = int(params.get("folds", 5))
     grouped = bool(getattr(model, "groups", None) and model.groups())
     from pipeline.identify.route import resolve
@@ -89,6 +90,8 @@ def run(run_dir: Path, params: dict) -> dict:
 
         f, shrunk, holdout_kept = shrunk_fit(model, data, opts, k=folds, seed=int(params.get("seed", 0)),
                                              progress=_progress)
+        if shrunk.tool == "free":  # the left-out groups freed the tool point: the model estimates it (the RMS
+            model = replace(model, fit_tool=True)  # before stays the tool as drawn: `reference`)
         rf = RobustFit(f, np.ones(len(table["record"]), bool))
         kept_data = data
     else:
@@ -106,7 +109,7 @@ def run(run_dir: Path, params: dict) -> dict:
     tip_sigma = point_accuracy(model, f, kept_data)
 
     n, k = len(table["record"]), model.residual_dim
-    before = model.residuals(uncalibrated(model, data), data).reshape(n, k)  # not the solver's start
+    before = model.residuals(uncalibrated(reference, data), data).reshape(n, k)  # not the solver's start
     after = model.residuals(f.x, data).reshape(n, k)
     holdout = np.full((n, k), np.nan)
     holdout[rf.kept] = holdout_kept

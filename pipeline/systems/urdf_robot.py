@@ -209,9 +209,16 @@ def model_for(arm: UrdfArm, measure: str, campaign: dict, labels: list[str] | No
         planes = tuple(Plane(str(p["name"]), tuple(float(v) for v in p.get("normal", (0, 0, 1))),
                              float(p.get("offset", 0.0)), bool(p.get("known", True)))
                        for p in campaign.get("planes", []))
-        return PlaneModel(arm, planes=planes, fit_tool=bool(campaign.get("fit_tool", False)))
+        return PlaneModel(arm, planes=planes, fit_tool=tool_setting(campaign))
     groups = tuple(labels or [str(g) for g in campaign.get("groups", [])])
-    return CoincidenceModel(arm, groups_=groups)
+    return CoincidenceModel(arm, groups_=groups, fit_tool=tool_setting(campaign))
+
+
+def tool_setting(campaign: dict) -> bool | None:
+    """The campaign's ``fit_tool`` (True: the tool point estimated, False: held known), None where it says
+    nothing (held known unless the left-out groups of the model choice free it)."""
+    v = campaign.get("fit_tool")
+    return None if v is None else bool(v)
 
 
 def _column(rec, topic, msgs, key, shape, dtype=float):

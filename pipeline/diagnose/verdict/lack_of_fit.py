@@ -220,10 +220,10 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         Bp = project_out(v.columns, QA)
         Qb = orthonormal(Bp, 1e-6)
         kb = Qb.shape[1]
-        if kb == 0 or dof_resid - kb < 2:
+        gain = float(np.sum((Qb.T @ res) ** 2)) if kb else 0.0
+        if kb == 0 or dof_resid - kb < 2 or rss - gain <= 1e-12 * rss:  # no residual left beside the basis: no test
             raw.append((v, np.nan, (0, 0), 1.0, None, None))
             continue
-        gain = float(np.sum((Qb.T @ res) ** 2))
         F = (gain / kb) / ((rss - gain) / (dof_resid - kb))
         p = float(scipy.stats.f.sf(F, kb, dof_resid - kb))
         raw.append((v, F, (kb, dof_resid - kb), p, Bp, Qb))

@@ -106,7 +106,7 @@ def test_figaroh_tiago_protocol_at_or_below_figaroh_full(tiago_frozen_protocol):
     """FIGAROH's frozen protocol (train on 2021-11-30 only; 11-26, 11-30 14:03, 11-30 15:04 held out, no
     refit): the default model choice (auto: shrinkage for an imported URDF robot) keeps the joint-compliance family (the lateral family is refused:
     negative compliances) and predicts every held-out session at or below FIGAROH's full model."""
-    _, _, cal_dir, _, ev_dir = tiago_frozen_protocol  # imported, calibrated (the default: auto takes
+    recs, _, cal_dir, _, ev_dir = tiago_frozen_protocol  # imported, calibrated (the default: auto takes
     doc = json.loads((cal_dir / "results.json").read_text())  # shrinkage here), evaluated once (conftest)
     assert doc["model_choice"] == {"asked": "auto", "route": "shrinkage", "reason": doc["model_choice"]["reason"]}
     phys = doc["model_selection"]["physics_families"]
@@ -120,7 +120,7 @@ def test_figaroh_tiago_protocol_at_or_below_figaroh_full(tiago_frozen_protocol):
     assert all(g <= m + 0.05e-3 for g, m in zip(got, measured)), got
     # the protocol's posture groups relative to the training postures: FIGAROH's published counts, and its
     # published registration-only figures per group (an independent check of the grouping and the evaluation)
-    ev = json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"]
+    ev = json.loads((ev_dir / "evaluation.json").read_text())["recordings"]
     groups = ("repeated", "new", "out_of_range")
     assert [[r["postures"][g]["n"] for r in ev] for g in groups] == [[37, 37, 35], [16, 17, 16], [9, 9, 8]]
     figaroh = {"registration only": ((3.93, 3.48, 3.25), (5.12, 4.85, 4.73), (7.34, 7.23, 6.35)),
@@ -132,7 +132,7 @@ def test_figaroh_tiago_protocol_at_or_below_figaroh_full(tiago_frozen_protocol):
     from pipeline.recording.reader import read_recording
     from pipeline.systems.registry import detect
 
-    cal = read_calibrated(tmp_path / "cal")
+    cal = read_calibrated(cal_dir)
     held = [read_recording(p) for p in recs[1:]]
     model, data = detect(read_recording(recs[0])).load(read_recording(recs[0]))
     reg = fit(model, data, FitOptions(fixed=fixed_for(model, ["registration"]), before=False))

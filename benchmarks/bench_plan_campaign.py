@@ -61,7 +61,7 @@ def one_pool(seed: int, a) -> dict:
     f_planned = fit(model, table_of(ex.sim))
     planned = err3d(xt, f_planned.x, test_q)
     # random campaigns: today's simulator — random targets, misses replaced, same number of landed contacts
-    R = touch.pool(nominal, jig, a.candidates, seed=seed + 11, margin_m=0.0)
+    R = touch.pool(nominal, jig, getattr(a, "random_pool", 0) or a.candidates, seed=seed + 11, margin_m=0.0)
     rng = np.random.default_rng(seed + 13)
     rand = []
     for _ in range(a.random):
@@ -90,6 +90,8 @@ def main() -> None:
     ap.add_argument("--total", type=int, default=50)
     ap.add_argument("--first", type=int, default=15)
     ap.add_argument("--random", type=int, default=20)
+    ap.add_argument("--random-pool", type=int, default=0,
+                    help="candidates of the pool the random campaigns are drawn from (default: --candidates)")
     ap.add_argument("--truth", choices=("random", "reference"), default="reference")
     ap.add_argument("--criterion", choices=("I", "D"), default="I", help="I-optimal (default) or Bayesian D-optimal")
     ap.add_argument("--prior-weight", type=float, default=1.0, help="weight of the prior in stage 2's criterion")

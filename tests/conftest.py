@@ -32,3 +32,33 @@ def arc_default(tmp_path_factory) -> tuple[Path, dict]:
 @pytest.fixture(scope="session")
 def arc_noise_free(tmp_path_factory) -> tuple[Path, dict]:
     return _simulate(tmp_path_factory.mktemp("arc"), "clean", "--seed", "4", "--noise-scale", "0")
+
+
+TIAGO_SESSIONS = ("2021-11-30", "2021-11-26", "2021-11-30-1403", "2021-11-30-1504")
+
+
+@pytest.fixture(scope="session")
+def tiago_frozen_protocol(tmp_path_factory):
+    """FIGAROH's frozen TIAGo protocol, run once for every test that checks it: the four real mocap sessions
+    imported (`robocal import csv`), `robocal calibrate` (default options) on the first, `robocal evaluate`
+    of that calibration on the other three without refitting.  Returns (recordings, calibrate's finished
+    process, its run folder, evaluate's finished process, its output folder); each test asserts its own
+    figures on these files.  The tests that use it skip before asking for it where the data are absent."""
+    real = Path(__file__).resolve().parents[1].parent / "shared" / "real-data"
+    if not real.is_dir():
+        real = Path("/work/shared/real-data")
+    d, urdf = real / "figaroh_tiago_sessions", real / "figaroh_tiago_mocap" / "tiago_48_schunk.urdf"
+    tmp = tmp_path_factory.mktemp("tiago_protocol")
+    recs = []
+    for s in TIAGO_SESSIONS:
+        out = tmp / f"{s}.mcap"
+        proc = run_cli("import", "csv", d / f"qualisys_{s}_static_postures.csv", "--urdf", urdf, "--root",
+                       "base_footprint", "--tip", "wrist_ft_tool_link", "--measure", "point", "--position-cols",
+                       "x1,y1,z1", "--out", out)
+        assert proc.returncode == 0, proc.stderr
+        recs.append(out)
+    cal = run_cli("calibrate", recs[0], "--out", tmp / "cal")
+    assert cal.returncode == 0, cal.stderr
+    ev = run_cli("evaluate", tmp / "cal", *recs[1:], "--out", tmp / "ev")
+    assert ev.returncode == 0, ev.stderr
+    return recs, cal, tmp / "cal", ev, tmp / "ev"

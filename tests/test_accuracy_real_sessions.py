@@ -15,13 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import run_cli
-
 REPO = Path(__file__).resolve().parents[1]
 REAL = REPO.parent / "shared" / "real-data"
 if not REAL.is_dir():
     REAL = Path("/work/shared/real-data")
-SESSIONS = ("2021-11-30", "2021-11-26", "2021-11-30-1403", "2021-11-30-1504")
 DATA = REAL / "figaroh_tiago_sessions"
 URDF = REAL / "figaroh_tiago_mocap" / "tiago_48_schunk.urdf"
 needs_tiago = pytest.mark.skipif(not (DATA.is_dir() and URDF.is_file()),
@@ -31,25 +28,14 @@ BAND = (0.8, 1.25)
 
 
 @needs_tiago
-def test_stated_accuracy_agrees_with_new_tiago_sessions(tmp_path):
-    recs = []
-    for s in SESSIONS:
-        out = tmp_path / f"{s}.mcap"
-        proc = run_cli("import", "csv", DATA / f"qualisys_{s}_static_postures.csv", "--urdf", URDF, "--root",
-                       "base_footprint", "--tip", "wrist_ft_tool_link", "--measure", "point", "--position-cols",
-                       "x1,y1,z1", "--out", out)
-        assert proc.returncode == 0, proc.stderr
-        recs.append(out)
-    cal = run_cli("calibrate", recs[0], "--out", tmp_path / "cal")
-    assert cal.returncode == 0, cal.stderr
-    doc = json.loads((tmp_path / "cal" / "results.json").read_text())
+def test_stated_accuracy_agrees_with_new_tiago_sessions(tiago_frozen_protocol):
+    _, cal, cal_dir, _, ev_dir = tiago_frozen_protocol  # the four sessions, calibrated on the first (conftest)
+    doc = json.loads((cal_dir / "results.json").read_text())
     acc = doc["accuracy"]
     stated = acc["new_measurement"]["rms_3d_m"]
     assert np.isclose(stated, np.hypot(acc["new_measurement"]["model_rms_3d_m"],
                                        acc["new_measurement"]["scatter_rms_3d_m"]))
-    proc = run_cli("evaluate", tmp_path / "cal", *recs[1:], "--out", tmp_path / "ev")
-    assert proc.returncode == 0, proc.stderr
-    measured = [r["rms_3d_m"] for r in json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"]]
+    measured = [r["rms_3d_m"] for r in json.loads((ev_dir / "evaluation.json").read_text())["recordings"]]
     ratio = float(np.mean(measured)) / stated
     assert BAND[0] <= ratio <= BAND[1], (stated, measured)
     # the figure is printed, labelled for a new session

@@ -245,21 +245,9 @@ def test_mukca_calibrated_panda_evaluated_as_yourdfpy_sees_it(tmp_path):
 
 
 @needs_real
-def test_tiago_calibration_carries_over_to_other_sessions(tmp_path):
+def test_tiago_calibration_carries_over_to_other_sessions(tiago_frozen_protocol):
     """FIGAROH's frozen protocol: train on 2021-11-30, evaluate on the other sessions without refitting;
     robocal's automatic model beats FIGAROH's registration-only figures (4.87 / 4.58 / 4.22 mm)."""
-    d = REAL / "figaroh_tiago_sessions"
-    urdf = REAL / "figaroh_tiago_mocap" / "tiago_48_schunk.urdf"
-    recs = []
-    for s in ("2021-11-30", "2021-11-26", "2021-11-30-1403", "2021-11-30-1504"):
-        out = tmp_path / f"{s}.mcap"
-        proc = run_cli("import", "csv", d / f"qualisys_{s}_static_postures.csv", "--urdf", urdf, "--root",
-                       "base_footprint", "--tip", "wrist_ft_tool_link", "--measure", "point", "--position-cols",
-                       "x1,y1,z1", "--out", out)
-        assert proc.returncode == 0, proc.stderr
-        recs.append(out)
-    assert run_cli("calibrate", recs[0], "--out", tmp_path / "cal").returncode == 0
-    proc = run_cli("evaluate", tmp_path / "cal", *recs[1:], "--out", tmp_path / "ev")
-    assert proc.returncode == 0, proc.stderr
-    got = [r["rms_3d_m"] for r in json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"]]
+    _, _, _, _, ev_dir = tiago_frozen_protocol  # imported, calibrated, evaluated once (conftest)
+    got = [r["rms_3d_m"] for r in json.loads((ev_dir / "evaluation.json").read_text())["recordings"]]
     assert all(g < f for g, f in zip(got, (4.87e-3, 4.58e-3, 4.22e-3))), got

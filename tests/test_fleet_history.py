@@ -1,7 +1,7 @@
 """Fleet history: steps, trends and tolerance on synthetic series (exact positions, false-flag control),
-and end to end on a simulated fleet — 5 robots × 12 monthly campaigns, one robot with a step in a joint
-offset at month 7, one with a slow drift of a link length — reprocessed on Dask, the page flags exactly
-those, rendered by headless Chromium."""
+and end to end on a simulated fleet — 3 robots × 9 monthly campaigns, one robot with a step in a joint
+offset at month 5, one with a slow drift of a link length, one unchanged — reprocessed on Dask, the page
+flags exactly those, rendered by headless Chromium."""
 
 from __future__ import annotations
 
@@ -91,8 +91,14 @@ def test_tolerance_failed_and_insufficient_rows():
 
 # ---- the simulated fleet, end to end ---------------------------------------------------------------
 
-STEP = ("arc-02", "J3.theta_offset", 7, 5e-3)  # 0.29° at month 7
-DRIFT = ("arc-04", "J2.a", 8e-5)  # 0.08 mm per month
+STEP = ("arc-02", "J3.theta_offset", 5, 5e-3)  # 0.29° at month 5
+DRIFT = ("arc-03", "J2.a", 8e-5)  # 0.08 mm per month
+# Three robots (the step, the drift, one unchanged control) over nine months, not a larger fleet over a
+# year: each robot's history is judged on its own, so more robots add only more clean controls, and the
+# false-flag rate is measured on hundreds of seeded robots above.  At 60 contacts and nine months the step
+# is ≈ 37σ (4 months before it, 5 after) and the drift's slope ≈ 17σ, so the end-to-end run still places
+# both exactly (simulating the campaigns is most of this fixture's time).
+ROBOTS, MONTHS = 3, 9
 
 
 @pytest.fixture(scope="module")
@@ -100,8 +106,8 @@ def fleet(tmp_path_factory):
     from pipeline.fleet.simulate import Change, FleetSpec, simulate_fleet
 
     root = tmp_path_factory.mktemp("fleet")
-    spec = FleetSpec(robots=5, months=12, contacts=60, seed=0,
-                     changes=(Change(1, STEP[1], STEP[3], "step", STEP[2]), Change(3, DRIFT[1], DRIFT[2], "drift")))
+    spec = FleetSpec(robots=ROBOTS, months=MONTHS, contacts=60, seed=0,
+                     changes=(Change(1, STEP[1], STEP[3], "step", STEP[2]), Change(2, DRIFT[1], DRIFT[2], "drift")))
     simulate_fleet(root / "archive", spec, workers=2)
     p = subprocess.run([str(BIN / "robocal"), "reprocess", root / "archive", "--out", root / "out", "--workers", "2",
                         "--stages", FAST], capture_output=True, text=True, env=ENV, timeout=900)
@@ -118,22 +124,22 @@ def test_the_fleet_page_flags_exactly_the_step_and_the_drift(fleet):
     doc = json.loads(page.with_suffix(".json").read_text())
     assert doc["generator"].startswith("robocal/")
     flags = doc["robots"]
-    assert sorted(flags) == [f"arc-0{i}" for i in range(1, 6)]
+    assert sorted(flags) == [f"arc-0{i}" for i in range(1, ROBOTS + 1)]
     for rid, f in flags.items():
-        assert f["calibrations"] == 12 and f["failed"] == [] and f["tolerance"] == []
+        assert f["calibrations"] == MONTHS and f["failed"] == [] and f["tolerance"] == []
         assert f["steps"] == [] or rid == STEP[0], (rid, f["steps"])
         assert f["trends"] == [] or rid == DRIFT[0], (rid, f["trends"])
     (step,) = flags[STEP[0]]["steps"]
-    assert step["param"] == STEP[1] and step["recording"] == "arc-02/2026-07/campaign.mcap"
+    assert step["param"] == STEP[1] and step["recording"] == "arc-02/2026-05/campaign.mcap"
     assert abs(step["delta"] - STEP[3]) < 4 * step["sigma"]
     (trend,) = flags[DRIFT[0]]["trends"]
     per_year = DRIFT[2] * 12  # campaigns one month apart
     assert trend["param"] == DRIFT[1] and abs(trend["slope_per_year"] - per_year) < 4 * trend["se_per_year"]
     html = page.read_text()
     assert "<script" not in html and not re.search(r'(src|href)="(https?:)?//', html)
-    assert re.search(r'<tr class="step" data-param="J3.theta_offset" data-date="2026-07-01">', html)
+    assert re.search(r'<tr class="step" data-param="J3.theta_offset" data-date="2026-05-01">', html)
     assert re.search(r'<tr class="trend" data-param="J2.a">', html)
-    for i in range(1, 6):
+    for i in range(1, ROBOTS + 1):
         assert f'<figure id="fig-params-arc-0{i}" class="plot"><svg' in html
         assert f'<figure id="fig-accuracy-arc-0{i}" class="plot"><svg' in html
 
@@ -143,8 +149,8 @@ def test_a_tight_tolerance_is_flagged(fleet):
 
     root, _ = fleet
     hs = fleet_history(read_results(root / "out").to_pylist(), tolerance_m=1e-5)
-    assert [len(h.tolerance) for h in hs] == [12] * 5
-    assert [len(h.steps) for h in hs] == [0, 1, 0, 0, 0] and [len(h.trends) for h in hs] == [0, 0, 0, 1, 0]
+    assert [len(h.tolerance) for h in hs] == [MONTHS] * ROBOTS
+    assert [len(h.steps) for h in hs] == [0, 1, 0] and [len(h.trends) for h in hs] == [0, 0, 1]
 
 
 def test_the_fleet_page_renders_in_chromium(fleet, tmp_path):
@@ -153,8 +159,7 @@ def test_the_fleet_page_renders_in_chromium(fleet, tmp_path):
     assert dom.returncode == 0, dom.stderr
     sections = re.findall(r'<section id="robot-(arc-\d+)" class="robot" data-robot="[^"]+" data-steps="(\d+)" '
                           r'data-trends="(\d+)"', dom.stdout)
-    assert sections == [("arc-01", "0", "0"), ("arc-02", "1", "0"), ("arc-03", "0", "0"), ("arc-04", "0", "1"),
-                        ("arc-05", "0", "0")]
+    assert sections == [("arc-01", "0", "0"), ("arc-02", "1", "0"), ("arc-03", "0", "1")]
     shot = tmp_path / "fleet.png"
     r = chromium(["--window-size=1200,2400", f"--screenshot={shot}", page.as_uri()], tmp_path)
     assert r.returncode == 0 and shot.stat().st_size > 50_000  # a rendered page, not a blank one

@@ -19,9 +19,8 @@ import independent_drive as gen
 import numpy as np
 import pytest
 from r6_robot import URDF
-from test_evaluate import REAL, needs_real
+from test_evaluate import needs_real
 
-from conftest import run_cli
 from pipeline.identify import physics_choice as pc
 from pipeline.identify.least_squares import FitOptions
 from pipeline.identify.shrinkage_fit import shrunk_fit
@@ -103,38 +102,25 @@ def test_a_negative_compliance_is_not_admissible():
 
 
 @needs_real
-def test_figaroh_tiago_protocol_at_or_below_figaroh_full(tmp_path):
+def test_figaroh_tiago_protocol_at_or_below_figaroh_full(tiago_frozen_protocol):
     """FIGAROH's frozen protocol (train on 2021-11-30 only; 11-26, 11-30 14:03, 11-30 15:04 held out, no
     refit): the default model choice (auto: shrinkage for an imported URDF robot) keeps the joint-compliance family (the lateral family is refused:
     negative compliances) and predicts every held-out session at or below FIGAROH's full model."""
-    d = REAL / "figaroh_tiago_sessions"
-    urdf_path = REAL / "figaroh_tiago_mocap" / "tiago_48_schunk.urdf"
-    recs = []
-    for s in ("2021-11-30", "2021-11-26", "2021-11-30-1403", "2021-11-30-1504"):
-        out = tmp_path / f"{s}.mcap"
-        proc = run_cli("import", "csv", d / f"qualisys_{s}_static_postures.csv", "--urdf", urdf_path, "--root",
-                       "base_footprint", "--tip", "wrist_ft_tool_link", "--measure", "point", "--position-cols",
-                       "x1,y1,z1", "--out", out)
-        assert proc.returncode == 0, proc.stderr
-        recs.append(out)
-    proc = run_cli("calibrate", recs[0], "--out", tmp_path / "cal")  # the default: auto takes shrinkage here
-    assert proc.returncode == 0, proc.stderr
-    doc = json.loads((tmp_path / "cal" / "results.json").read_text())
+    recs, _, cal_dir, _, ev_dir = tiago_frozen_protocol  # imported, calibrated (the default: auto takes
+    doc = json.loads((cal_dir / "results.json").read_text())  # shrinkage here), evaluated once (conftest)
     assert doc["model_choice"] == {"asked": "auto", "route": "shrinkage", "reason": doc["model_choice"]["reason"]}
     phys = doc["model_selection"]["physics_families"]
     assert phys["chosen"] == "joint-compliance", phys
     assert not phys["candidates"]["lateral-compliance"]["admissible"], phys
     assert not any(p["name"].endswith(".compliance") for p in doc["implausible"]), doc["implausible"]
-    proc = run_cli("evaluate", tmp_path / "cal", *recs[1:], "--out", tmp_path / "ev")
-    assert proc.returncode == 0, proc.stderr
-    got = [r["rms_3d_m"] for r in json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"]]
+    got = [r["rms_3d_m"] for r in json.loads((ev_dir / "evaluation.json").read_text())["recordings"]]
     figaroh_full = (3.07e-3, 2.83e-3, 2.44e-3)
-    measured = (2.799e-3, 2.606e-3, 2.350e-3)  # robocal, this method (README)
+    measured = (2.816e-3, 2.599e-3, 2.401e-3)  # robocal, this method (README): the scales by the evidence
     assert all(g <= f for g, f in zip(got, figaroh_full)), got
     assert all(g <= m + 0.05e-3 for g, m in zip(got, measured)), got
     # the protocol's posture groups relative to the training postures: FIGAROH's published counts, and its
     # published registration-only figures per group (an independent check of the grouping and the evaluation)
-    ev = json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"]
+    ev = json.loads((ev_dir / "evaluation.json").read_text())["recordings"]
     groups = ("repeated", "new", "out_of_range")
     assert [[r["postures"][g]["n"] for r in ev] for g in groups] == [[37, 37, 35], [16, 17, 16], [9, 9, 8]]
     figaroh = {"registration only": ((3.93, 3.48, 3.25), (5.12, 4.85, 4.73), (7.34, 7.23, 6.35)),
@@ -146,7 +132,7 @@ def test_figaroh_tiago_protocol_at_or_below_figaroh_full(tmp_path):
     from pipeline.recording.reader import read_recording
     from pipeline.systems.registry import detect
 
-    cal = read_calibrated(tmp_path / "cal")
+    cal = read_calibrated(cal_dir)
     held = [read_recording(p) for p in recs[1:]]
     model, data = detect(read_recording(recs[0])).load(read_recording(recs[0]))
     reg = fit(model, data, FitOptions(fixed=fixed_for(model, ["registration"]), before=False))

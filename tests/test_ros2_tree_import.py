@@ -57,6 +57,18 @@ def data(tmp_path_factory):
     return d, write_bag(tmp / "bag", q, y)
 
 
+@pytest.fixture(scope="module")
+def bag_import(data, tmp_path_factory):
+    """`robocal import ros2` of the bag, a measurement topic per tip (one run shared by the tests that read it)."""
+    d, bag = data
+    out = tmp_path_factory.mktemp("tree_bag_import") / "bag.mcap"
+    r = run_cli("import", "ros2", bag, "--urdf", d / "humanoid.urdf", "--root", "base",
+                "--coupled", "torso_j3=-torso_j1-torso_j2", "--measure-topic", f"left_hand={TOPICS['left']}",
+                "--measure-topic", f"right_hand={TOPICS['right']}", "--out", out)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
 def _table(rec: Path):
     from pipeline.recording.reader import read_recording
     from pipeline.systems import urdf_robot
@@ -66,16 +78,13 @@ def _table(rec: Path):
     return model, {k: np.asarray(table[k])[order] for k in ("joint_positions", "position", "target")}
 
 
-def test_bag_with_a_topic_per_tip_matches_the_csv_import(data, tmp_path):
-    d, bag = data
+def test_bag_with_a_topic_per_tip_matches_the_csv_import(data, bag_import, tmp_path):
+    d, _ = data
     common = ["--urdf", d / "humanoid.urdf", "--root", "base", "--coupled", "torso_j3=-torso_j1-torso_j2"]
-    r = run_cli("import", "ros2", bag, *common, "--measure-topic", f"left_hand={TOPICS['left']}",
-                "--measure-topic", f"right_hand={TOPICS['right']}", "--out", tmp_path / "bag.mcap")
-    assert r.returncode == 0, r.stderr
     c = run_cli("import", "csv", d / "postures.csv", *common, "--tip", "left_hand=lx,ly,lz",
                 "--tip", "right_hand=rx,ry,rz", "--measure", "point", "--out", tmp_path / "csv.mcap")
     assert c.returncode == 0, c.stderr
-    mb, tb = _table(tmp_path / "bag.mcap")
+    mb, tb = _table(bag_import)
     mc, tc = _table(tmp_path / "csv.mcap")
     assert mb.kin.tips == mc.kin.tips == ["left_hand", "right_hand"]
     assert mb.kin.coupling == mc.kin.coupling and "torso_j3" not in mb.kin.joint_names
@@ -103,7 +112,7 @@ def test_bad_tip_input_is_one_line(data, tmp_path, args, needle):
     assert not (tmp_path / "x.mcap").exists()
 
 
-def test_run_takes_the_whole_tree_bag_in_one_command(data, tmp_path):
+def test_run_takes_the_whole_tree_bag_in_one_command(data, bag_import, tmp_path):
     """`robocal run BAG` with a measurement topic per tip: imported into the run folder (the same rows
     as `import ros2`), then identified on both hands' points."""
     import json
@@ -114,12 +123,8 @@ def test_run_takes_the_whole_tree_bag_in_one_command(data, tmp_path):
                 "--measure-topic", f"left_hand={TOPICS['left']}", "--measure-topic", f"right_hand={TOPICS['right']}",
                 "--physics", "none", "--stages", "ingest,validate,identify", "--folds", "3", "--out", out)
     assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr[-3000:]
-    i = run_cli("import", "ros2", bag, "--urdf", d / "humanoid.urdf", "--root", "base",
-                "--coupled", "torso_j3=-torso_j1-torso_j2", "--measure-topic", f"left_hand={TOPICS['left']}",
-                "--measure-topic", f"right_hand={TOPICS['right']}", "--out", tmp_path / "bag.mcap")
-    assert i.returncode == 0, i.stderr
     m_run, t_run = _table(out / "import" / "recording.mcap")
-    _, t_imp = _table(tmp_path / "bag.mcap")
+    _, t_imp = _table(bag_import)
     assert m_run.kin.tips == ["left_hand", "right_hand"] and "torso_j3" in m_run.kin.coupling
     for k in t_run:
         np.testing.assert_array_equal(t_run[k], t_imp[k])

@@ -169,7 +169,7 @@ IDENTIFY, VALIDATE = "Identify", "Validate"
 MODEL_CHOICE_HELP = ("auto (default): shrinkage for a single-chain URDF robot measured in lengths, groups for the "
                      "seed systems, trees and cameras; groups (keep groups that lower held-out error); "
                      "shrinkage (every parameter pulled toward nominal by its prior; scale by leaving out whole "
-                     "sessions/placements, else GCV).")
+                     "sessions/placements, else by the evidence per parameter family).")
 
 
 @app.command("run", rich_help_panel=CALIBRATE)

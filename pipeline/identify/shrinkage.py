@@ -10,7 +10,9 @@ unpenalised.  μ (m) is the measurement noise divided by the prior's scale; it i
 data by generalised cross-validation, GCV(μ) = m·RSS / (m − dof)², dof = tr of the linearised hat
 matrix, over a grid of μ, each solve warm-started from the previous one (a few cheap fits instead of
 one per fold and candidate).  A parameter whose estimate is further from nominal than `PLAUSIBLE`
-prior σ is named in `implausible`: the caller warns of it.
+prior σ is named in `implausible`: the caller warns of it.  The model choice (`shrinkage_fit.shrunk_fit`) takes
+the prior's scales by the evidence instead (`pipeline.identify.evidence`: one scale per parameter family, the noise
+estimated); `shrink` remains the single-scale GCV choice it is compared with.
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ class Shrunk:
     registration: str = "anchored"  # the registration anchored at its registration-only estimate, or "free"
     other_registration: dict = field(default_factory=dict)  # μ → score (m²) with the registration the other way
     multiple: float = float("nan")  # the chosen μ over the registration-only RMS (GCV route)
+    lam: np.ndarray | None = None  # (P,) MAP weights λ_i of the evidence route (else μ × 1/σ_prior)
+    scales: dict = field(default_factory=dict)  # family → prior scale of greatest evidence (evidence route)
+    log_evidence: float = float("nan")  # ln evidence of the linearised model at the estimate (evidence route)
     tool: str = ""  # the tool point "free" or "known" as the left-out groups chose ("": not judged)
     other_tool: dict = field(default_factory=dict)  # μ → score (m²) with the tool point the other way
 
@@ -186,9 +191,11 @@ def shrinkage_document(s: Shrunk) -> dict:
     mu = None if np.isinf(s.mu_m) else s.mu_m
     key = lambda m: "registration only" if np.isinf(m) else f"{m:.6g}"  # noqa: E731
     doc = {"method": "shrinkage toward nominal (MAP), scale chosen by "
-                     + ("leaving out whole groups" if s.per_group else "GCV"),
+                     + ("leaving out whole groups" if s.per_group else "the evidence" if s.scales else "GCV"),
            "mu_m": mu, "effective_parameters": s.dof, "implausible": s.implausible,
            "score_m2": {key(m): v for m, v in s.gcv.items()}}
+    if s.scales:  # the evidence route: each family's prior scale (× its stated prior 1σ)
+        doc["prior_scale_per_family"] = s.scales
     if s.physics:
         doc["physics_families"] = s.physics
     if s.per_group:

@@ -1,5 +1,6 @@
 """The shrinkage model choice as one fit: every gravity-compliance family tried (`physics_choice`), each
-shrunk toward nominal by its prior — the scale chosen by GCV (`shrinkage.shrink`) or, where the rows come in
+shrunk toward nominal by its prior — the prior's scale per parameter family chosen by the evidence
+(`evidence.shrink_evidence`) or, where the rows come in
 sessions / placements / sockets, by leaving out whole groups (`shrinkage_groups.shrink_by_groups`) — the best
 family's MAP estimate returned as a `Fit` with its posterior covariance and its held-out residuals."""
 
@@ -10,7 +11,8 @@ from dataclasses import replace
 import numpy as np
 
 from pipeline.blas import single_threaded
-from pipeline.identify.shrinkage import GRID, _anchor, _penalty, fold_holdout, shrink
+from pipeline.identify.evidence import shrink_evidence
+from pipeline.identify.shrinkage import _anchor, _penalty, fold_holdout
 from pipeline.identify.shrinkage_groups import shrink_by_groups
 
 
@@ -67,10 +69,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
                                  extra=on, tool=tool)
             score = s.gcv[s.mu_m]
         else:
-            def at(grid, x0=f0.x, fixed=fixed + held, on=on):
-                return shrink(model, data, prior, x0, fixed=fixed, progress=progress, extra=on, grid=grid)
-
-            s = at(GRID)
+            s = shrink_evidence(model, data, prior, f0.x, fixed=fixed + held, progress=progress, extra=on)
             m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
             rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
             score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
@@ -89,15 +88,17 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
     J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
     mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
+    lam_all = s.lam if s.lam is not None else np.where(free_mask, mu_eff * wa, 0.0)
+    s = replace(s, lam=lam_all)
     if groups_of_rows is not None:
         holdout = s.holdout
     else:  # the folds of `least_squares.cross_validate`, each left out in closed form (no refit)
         folds = design_folds(n, k, seed, None, data)
         idx = np.flatnonzero(free_mask)
         r = np.asarray(model.residuals(s.x, data), float).ravel()
-        holdout = fold_holdout(J[:, idx], r, mu_eff * wa[idx], folds, kd)
+        holdout = fold_holdout(J[:, idx], r, lam_all[idx], folds, kd)
     est = free_mask & ~((w > 0) & np.isinf(s.mu_m))  # μ = ∞: the robot stays nominal
-    ident = analyse(np.vstack([J, np.diag(mu_eff * wa)]), names, ~est, getattr(model, "priority", lambda: None)())
+    ident = analyse(np.vstack([J, np.diag(lam_all)]), names, ~est, getattr(model, "priority", lambda: None)())
     r1 = np.asarray(model.residuals(s.x, data), float).reshape(n, kd)
     m, fr = r1.size, ident.free
     sigma = float(np.sqrt(np.sum(r1**2) / max(m - s.dof, 1)))

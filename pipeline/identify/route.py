@@ -2,15 +2,9 @@
 
 ``groups`` keeps the parameter groups that lower the k-fold held-out error (`pipeline.identify.complexity`);
 ``shrinkage`` estimates every parameter pulled toward nominal by its prior, the scale chosen by leaving out
-<<<<<<< HEAD
-whole sessions / placements / sockets, else GCV (`pipeline.identify.shrinkage`).  ``auto`` (the default)
-decides from the data and the model only, never from where the recording came from (imported, simulated):
-``shrinkage`` for a single-chain URDF robot — one tip and no coupled joints, whose residuals are lengths (not a
-=======
-whole sessions / placements / sockets, else by the evidence (`pipeline.identify.evidence`).  ``auto`` (the default)
-takes ``shrinkage`` for a single-chain URDF robot measured by an instrument — a recording imported from a CSV
-table or a ROS 2 bag (not simulated), one tip and no coupled joints, whose residuals are lengths (not a
->>>>>>> main
+whole sessions / placements / sockets, else by the evidence (`pipeline.identify.evidence`).  ``auto`` (the
+default) decides from the data and the model only, never from where the recording came from (imported,
+simulated): ``shrinkage`` for a single-chain URDF robot — one tip and no coupled joints, whose residuals are lengths (not a
 camera's pixels) — where it predicted whole held-out sessions and placements of real robots (TIAGo's arm,
 Panda) better than ``groups`` and at a fraction of the cost; and ``groups`` otherwise: the seed papers'
 reference systems (arc welder, scanner, Delta), whose figures rest on it, trees (several tips, coupled joints:

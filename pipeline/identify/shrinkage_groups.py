@@ -36,6 +36,7 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
     nominal = np.asarray(model.nominal(), float)
     free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
     weights = {True: w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra), False: w}
+    anchorable = bool(np.any(weights[True] != weights[False]))
     centre = np.where(w > 0, nominal, np.asarray(x0, float))
     idx = np.flatnonzero(free)
     reg = idx[w[idx] == 0]
@@ -85,9 +86,10 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
             for k, mu in enumerate((key[1] * step, key[1] / step)):
                 judge((True, mu), f"refined {k + 1}/2")
             key = best()
-            for k, mu in enumerate((key[1] * step, key[1], key[1] / step)):  # the registration free, about it
-                judge((False, mu), f"registration free {k + 1}/3")
-            key = best()
+            if anchorable:  # the registration free, about it (else anchored and free are one candidate)
+                for k, mu in enumerate((key[1] * step, key[1], key[1] / step)):
+                    judge((False, mu), f"registration free {k + 1}/3")
+                key = best()
         return key, per, total, outs, lines
 
     solve(INF, np.asarray(x0, float).copy())
@@ -142,7 +144,7 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
     return Shrunk(xb, float(mu), {float(m_): total[at(m_)] ** 2 for m_ in cands}, dof,
                   [] if np.isinf(mu) else _implausible(model, xb, idx, w, nominal), fits,
                   per_group={float(m_): per[at(m_)] for m_ in cands}, holdout=outs[key],
-                  registration="anchored" if anchored else "free", other_registration=other,
+                  registration="anchored" if anchored and anchorable else "free", other_registration=other,
                   tool=tool_state, other_tool=other_tool)
 
 

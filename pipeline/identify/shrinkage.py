@@ -1,4 +1,4 @@
-"""Shrinkage toward the nominal robot instead of choosing which groups to fix (MAP, scale by GCV).
+"""Shrinkage toward the nominal robot instead of choosing which groups to fix: the MAP solve and its parts.
 
 Every grouped parameter is estimated, each pulled toward its nominal value by its prior 1σ
 (`pipeline.accuracy.prior`): the solver minimises
@@ -6,13 +6,12 @@ Every grouped parameter is estimated, each pulled toward its nominal value by it
     Σ r(x)²  +  μ² Σ_i ((x_i − x_nominal,i) / σ_prior,i)²
 
 over all parameters, the registration group (instrument frame, tool, targets, sockets, planes)
-unpenalised.  μ (m) is the measurement noise divided by the prior's scale; it is chosen from the
-data by generalised cross-validation, GCV(μ) = m·RSS / (m − dof)², dof = tr of the linearised hat
-matrix, over a grid of μ, each solve warm-started from the previous one (a few cheap fits instead of
-one per fold and candidate).  A parameter whose estimate is further from nominal than `PLAUSIBLE`
-prior σ is named in `implausible`: the caller warns of it.  The model choice (`shrinkage_fit.shrunk_fit`) takes
-the prior's scales by the evidence instead (`pipeline.identify.evidence`: one scale per parameter family, the noise
-estimated); `shrink` remains the single-scale GCV choice it is compared with.
+unpenalised (anchored weakly at its registration-only estimate where an instrument frame is fitted).
+μ (m) is the measurement noise divided by the prior's scale.  It is chosen from the data elsewhere: by
+leaving out whole sessions / placements / sockets (`shrinkage_groups`), else by the evidence, one scale per
+parameter family (`evidence`); `shrinkage_fit.shrunk_fit` is the whole choice.  Here: the MAP solve, the
+penalty and anchor weights, k-fold held-out residuals in closed form, the plausibility list (a parameter
+further from nominal than `PLAUSIBLE` prior σ: the caller warns of it) and the results document.
 """
 
 from __future__ import annotations
@@ -25,7 +24,6 @@ from scipy.optimize import least_squares
 from pipeline.identify.plausibility import PLAUSIBLE
 
 GRID = (0.03, 0.1, 0.3, 1.0, 3.0)  # μ as multiples of the registration-only RMS residual (per axis)
-EXTEND = 4  # grid steps added beyond each end of GRID (candidates judged on the linearised problem)
 ROUNDS = 4  # at most this many solves after the first (each at the least linearised GCV)
 
 
@@ -102,72 +100,6 @@ def map_solve(model, data, x: np.ndarray, idx: np.ndarray, lam: np.ndarray, nomi
 
     sol = least_squares(fun, x[idx], jac=jac, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-10, gtol=1e-10)
     return full(sol.x)
-
-
-def shrink(model, data, prior_sigma: np.ndarray, x0: np.ndarray, fixed: tuple[str, ...] = (),
-           scale_m: float | None = None, grid=GRID, progress=None, extra: tuple[str, ...] = (),
-           extend: bool = True) -> Shrunk:
-    """MAP estimate with μ chosen by GCV (module docstring).  `x0`: start (e.g. the registration-only
-    fit); `scale_m`: the registration-only RMS residual per axis (default: at x0); `extra`: names
-    estimated with the registration (anchored at x0, not pulled toward nominal).
-
-    The ladder of candidates is the grid and, with `extend`, `EXTEND` more of its steps beyond each end (the
-    registration-only RMS sets the grid; a robot far off its instrument's frame — planes tens of mm off —
-    would otherwise never reach the μ its data support).  Few solves: one at the grid's middle, then GCV of
-    every candidate from the problem linearised there (one factorisation each: δ = −(JᵀJ + Λ²)⁻¹(Jᵀr +
-    Λ²(x − centre)), dof = tr((JᵀJ + Λ²)⁻¹JᵀJ)), a solve at the least, and again until the least is the
-    point solved (at most `ROUNDS`).  Scores of solved points are exact, the others linearised."""
-    nominal = np.asarray(model.nominal(), float)
-    free, w = _penalty(model, np.asarray(prior_sigma, float), fixed, extra)
-    wa = w + _anchor(model, np.asarray(prior_sigma, float), fixed, extra)
-    centre = np.where(w > 0, nominal, np.asarray(x0, float))
-    idx = np.flatnonzero(free)
-    r0 = np.asarray(model.residuals(x0, data), float).ravel()
-    m = r0.size
-    scale = float(scale_m if scale_m is not None else np.sqrt(np.mean(r0**2)))
-    scores: dict[float, float] = {}
-    at: dict[float, tuple] = {}
-
-    def gcv(J, r, xi, g):
-        """(GCV m², dof) at multiple g, linearised at (J, r, xi = x[idx])."""
-        lam = g * scale * wa[idx]
-        Ai = np.linalg.pinv(J.T @ J + np.diag(lam**2), rcond=1e-12, hermitian=True)  # unpenalised may be rank-deficient
-        rl = r - J @ (Ai @ (J.T @ r + lam**2 * (xi - centre[idx])))
-        dof = float(np.trace(Ai @ (J.T @ J)))
-        return m * float(rl @ rl) / max(m - dof, 1e-9) ** 2, dof
-
-    def solve(g, x):
-        mu = g * scale
-        x = map_solve(model, data, x, idx, mu * wa[idx], centre)
-        r = np.asarray(model.residuals(x, data), float).ravel()
-        J = np.asarray(model.jacobian(x, data), float).reshape(m, -1)[:, idx]
-        scores[mu], dof = gcv(J, r, x[idx], g)
-        at[g] = (mu, x, dof, J, r)
-        if progress is not None:
-            progress(f"shrinkage μ = {mu * 1e3:.4g} mm (solve {len(at)}): GCV RMS {np.sqrt(scores[mu]) * 1e3:.4g} mm, "
-                     f"{dof:.1f} effective parameters")
-        return x
-
-    g_sorted = sorted(grid)
-    step = (g_sorted[-1] / g_sorted[0]) ** (1 / (len(grid) - 1)) if len(grid) > 1 else 1.0
-    k = EXTEND if extend and len(grid) > 1 else 0
-    ladder = [g_sorted[0] / step**i for i in range(k, 0, -1)] + g_sorted + [g_sorted[-1] * step**i for i in range(1, k + 1)]
-    g = g_sorted[len(g_sorted) // 2]
-    solve(g, np.asarray(x0, float).copy())
-    for _ in range(ROUNDS if len(ladder) > 1 else 0):
-        _, x, _, J, r = at[g]
-        lin = {c: scores[at[c][0]] if c in at else gcv(J, r, x[idx], c)[0] for c in ladder}
-        for c, v in lin.items():
-            scores.setdefault(c * scale, v)
-        nxt = min(lin, key=lin.get)
-        if nxt in at:
-            g = min(at, key=lambda c: scores[at[c][0]])
-            break
-        solve(nxt, x)
-        g = nxt if scores[nxt * scale] <= scores[at[g][0]] else g
-    mu, xb, dof = at[g][:3]
-    return Shrunk(xb, mu, dict(sorted(scores.items())), dof, _implausible(model, xb, idx, w, nominal), len(at),
-                  multiple=g)
 
 
 def _implausible(model, x, idx, w, nominal) -> list[dict]:

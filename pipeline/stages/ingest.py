@@ -153,10 +153,10 @@ def read_encoder(run_dir: Path):
         raise RobocalError(f"{p}: does not match {Path(run_dir) / NAME / 'recording.json'} (re-run ingest)")
     q = np.stack([np.asarray(tab[f"q_{n}"], float) for n in names], axis=1)
     drive = [np.stack([np.asarray(tab[f"{prefix}_{n}"], float) for n in names], axis=1)
-             if all(f"{prefix}_{n}" in tab for n in names) else None for prefix in ("cmd", "effort", "current")]
+             if all(f"{prefix}_{n}" in tab for n in names) else None for prefix in ("cmd", "effort", "current", "vel")]
     return JointStream(t_ns=np.asarray(tab["t_ns"], np.int64), q=q, names=names,
                        message_index=np.asarray(tab["record"], np.int64), q_cmd=drive[0], effort=drive[1],
-                       current=drive[2])
+                       current=drive[2], velocity=drive[3])
 
 
 def write_messages(path: Path, rec) -> None:

@@ -66,6 +66,9 @@ class Fit:
     rms_cv: np.ndarray
     candidates: list[dict] = field(default_factory=list)
     timings: dict = field(default_factory=dict)
+    consistent: solve.Solution | None = None  # the physically consistent fit of the chosen structure (model.urdf)
+    rms_cv_consistent: np.ndarray | None = None
+    cv_residuals: np.ndarray | None = None  # (T, F) held-out residuals of the chosen model
 
 
 def structural_base(rb: RigidBody, fit: np.ndarray, terms: design.Terms, seed: int = 0, n: int = 120) -> B.BaseSet:
@@ -187,13 +190,18 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say) -> F
     score, choice, r = best
     all_rows = np.arange(P.X.shape[0])
     sol = _solve(rb, P, all_rows, choice, base, decimate)
+    cons = sol if choice.solver == "consistent" else _solve(rb, P, all_rows, replace(choice, solver="consistent"),
+                                                            base, decimate)
+    cv_cons = next((np.array(c["holdout_rms_joint"]) for c in rows
+                    if c["choice"] == replace(choice, solver="consistent").label() and "holdout_rms_joint" in c), None)
     names = rb.parameter_names() + design.extra_names(list(rb.joints), data.fit, choice.terms)[0]
     units = rb.parameter_units() + design.extra_names(list(rb.joints), data.fit, choice.terms)[1]
     Xb = P.X[:, :, base.independent]
     fit = Fit(choice=choice, names=names, units=units, theta=sol.theta, base=base, solution=sol,
               condition=float(np.linalg.cond(Xb.reshape(-1, Xb.shape[2]))),
               rms_train=rms(P.X @ sol.theta - P.raw, axis=0), rms_cv=rms(r, axis=0), candidates=rows,
-              timings={"choice_s": t_struct, "total_s": time.perf_counter() - t0})
+              timings={"choice_s": t_struct, "total_s": time.perf_counter() - t0}, consistent=cons,
+              rms_cv_consistent=cv_cons, cv_residuals=r)
     return fit
 
 
@@ -205,3 +213,25 @@ def predict(rb: RigidBody, fit: Fit, t: np.ndarray, q: np.ndarray, fitted: np.nd
     with one_thread():
         X = design.matrix(regressor(rb, qf, v, a), v, a, fitted, fit.choice.terms)
         return X @ fit.theta
+
+
+def from_document(doc: dict) -> Fit:
+    """The predictor a run saved (`pipeline.dynamics.stage`): choice and θ (enough for `predict`)."""
+    t = doc["terms"]
+    choice = Choice(cutoff_hz=float(doc["cutoff_hz"]), solver=str(doc["solver"]),
+                    terms=design.Terms(friction=tuple(t["friction"]), armature=bool(t["armature"]),
+                                       coulomb_width=float(t["coulomb_width"])))
+    theta = np.asarray(doc["theta"], float)
+    empty = B.BaseSet(np.arange(0), np.arange(0), np.zeros((0, 0)))
+    sol = solve.Solution(theta, np.zeros(0), np.zeros(0), np.zeros(0), choice.solver)
+    return Fit(choice, list(doc["names"]), list(doc.get("units", [])), theta, empty, sol, float("nan"),
+               np.zeros(0), np.zeros(0))
+
+
+def nominal_torques(rb: RigidBody, data: Data, fitted: np.ndarray, cutoff_hz: float = 4.0) -> np.ndarray:
+    """The URDF's own rigid-body torques (T, F) of the fitted joints (no friction, no armature)."""
+    from pipeline.blas import one_thread
+
+    qf, v, a = signals.derivatives(data.t, data.q, cutoff_hz)
+    with one_thread():
+        return regressor(rb, qf, v, a)[:, fitted] @ standard_parameters(rb)

@@ -74,16 +74,19 @@ def wls(X: np.ndarray, y: np.ndarray, base: BaseSet) -> Solution:
 
 
 def consistent(X: np.ndarray, y: np.ndarray, base: BaseSet, n_bodies: int, prior: np.ndarray,
-               carried: np.ndarray, nonneg: np.ndarray, ridge: float = 1e-4, margin: float = 1e-6) -> Solution:
+               carried: np.ndarray, nonneg: np.ndarray, ridge: float = 1e-4, margin: float = 1e-6,
+               weighted: bool = True) -> Solution:
     """min ‖X θ − y‖² + ridge·Σ_p e_p (θ_p − prior_p)²  s.t. pseudo_inertia(π_link,k) ⪰ margin·1 for every body
     k (π = π_link + carried, the locked subtrees at their URDF values) and θ_p ≥ 0 where `nonneg` (viscous,
-    Coulomb, armature); e_p the energy of column p.  Returns θ with π the bodies' whole parameters."""
+    Coulomb, armature); e_p the energy of column p; `weighted`: each joint's rows weighted by 1/σ_j of its
+    OLS residual, as `wls`.  Returns θ with π the bodies' whole parameters."""
     import cvxpy as cp
 
     T, F, P = X.shape
     n = 10 * n_bodies
-    A = X.reshape(T * F, P)
-    b = (y - X[:, :, :n] @ carried).reshape(T * F)  # fit the links' own parameters
+    w = 1.0 / np.maximum(ols(X, y, base).sigma, 1e-12) if weighted else np.ones(F)
+    A = (X * w[None, :, None]).reshape(T * F, P)
+    b = ((y - X[:, :, :n] @ carried) * w).reshape(T * F)  # fit the links' own parameters
     scale = np.sqrt(np.einsum("ij,ij->j", A, A))
     scale = np.where(scale > 0, scale, 1.0)
     As = A / scale

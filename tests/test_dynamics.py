@@ -203,3 +203,55 @@ def test_tiago_validation_run_beats_figaroh_published_figure(tmp_path):
     run_cli("evaluate", str(tmp_path / "run"), str(tmp_path / "slow.mcap"), "--out", str(tmp_path / "ev"), check=True)
     r = json.loads((tmp_path / "ev" / "evaluation.json").read_text())["recordings"][0]
     assert r["rms_pooled_Nm"] < 1.722
+
+
+def _effort_bag(out: Path, t, q, v, e, nan_at: int | None = None) -> Path:
+    """A rosbag2 (MCAP) written by rosbags' own Writer: /joint_states with positions, velocities, efforts of
+    the chain's joints plus one other, names in another order than the URDF's."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.LATEST)
+    T = store.types
+    names = ["j3", "other", "j1", "j2"]
+    order = [2, None, 0, 1]
+    with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        c = w.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
+        for i, ti in enumerate(t):
+            ns = 1_700_000_000_000_000_000 + int(round(ti * 1e9))
+            pick = lambda a: np.array([0.0 if k is None else a[i, k] for k in order])  # noqa: E731
+            eff = pick(e)
+            if i == nan_at:
+                eff[0] = np.nan
+            hdr = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9),
+                                           frame_id="")
+            msg = T["sensor_msgs/msg/JointState"](header=hdr, name=names, position=pick(q), velocity=pick(v),
+                                                  effort=eff)
+            w.write(c, ns, bytes(store.serialize_cdr(msg, "sensor_msgs/msg/JointState")))
+    return out
+
+
+def test_ros2_bag_with_efforts_imports_positions_velocities_and_efforts_by_name(logs, arm):
+    from pipeline.ingest.streams import joint_stream
+    from pipeline.recording.reader import read_recording
+    from pipeline.systems.urdf_dynamics import load
+
+    d, t, q = logs
+    t, q = t[:200], q[:200]
+    v = np.gradient(q, t, axis=0)
+    e = RB.torques(arm, q, v, np.gradient(v, t, axis=0))
+    bag = _effort_bag(d / "effort_bag", t, q, v, e)
+    r = run_cli("import", "ros2", str(bag), "--urdf", str(d / "arm.urdf"), "--root", "base", "--tip", "l3",
+                "--measure", "effort", "--effort-units", "Nm", "--out", str(d / "bag.mcap"))
+    assert r.returncode == 0, r.stderr
+    rec = read_recording(d / "bag.mcap")
+    s = joint_stream(rec)
+    np.testing.assert_array_equal(s.q, q)
+    np.testing.assert_array_equal(s.velocity, v)
+    model, table = load(rec)
+    np.testing.assert_array_equal(table["joint_torques"], e)
+    assert model.effort["unit"] == "N·m" and list(model.joints) == JOINTS
+    bad = _effort_bag(d / "effort_bag_nan", t, q, v, e, nan_at=37)
+    r = run_cli("import", "ros2", str(bad), "--urdf", str(d / "arm.urdf"), "--root", "base", "--tip", "l3",
+                "--measure", "effort", "--effort-units", "Nm", "--out", str(d / "bad.mcap"))
+    assert r.returncode == 2 and "record 37" in r.stderr and "effort is NaN" in r.stderr and "Traceback" not in r.stderr

@@ -77,10 +77,12 @@ def test_identify_recovers_a_known_model_to_the_noise_floor_and_is_physically_co
     meas = tau + rng.normal(0, noise, tau.shape)
     data = I.Data(t, q, meas, np.ones(3, bool))
     fit = I.identify(arm, data, candidates=(I.Choice(cutoff_hz=8.0),), solvers=("ols", "consistent"))
-    assert np.all(fit.rms_cv < 1.5 * noise)  # held out: at the noise floor
+    assert np.all(fit.rms_cv < 1.1 * noise)  # held out: at the noise floor
     pred = I.predict(arm, fit, t, q, np.ones(3, bool))
     inner = slice(100, -100)  # the filter's edges aside
-    assert np.sqrt(np.mean((pred - tau)[inner] ** 2)) < 0.8 * noise  # closer to the truth than the measurements
+    # unbiased: from the truth by about σ·√(parameters / samples) (0.05·√(42 / 18 000) ≈ 0.0024 N·m), no more —
+    # a bias near the velocity reversals (the Coulomb step) would show here at several times that
+    assert np.sqrt(np.mean((pred - tau)[inner] ** 2)) < 0.1 * noise
     from pipeline.dynamics.solve import is_consistent
 
     assert is_consistent(fit.consistent.theta[:30] - arm.carried).all()

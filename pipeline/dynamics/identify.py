@@ -32,7 +32,7 @@ class Data:
 
 @dataclass(frozen=True)
 class Choice:
-    """One candidate model: the positions' low-pass cut-off (Hz, also the training torques'), the per-joint
+    """One candidate model: the positions' low-pass cut-off (Hz), the per-joint
     terms, the solver (ols | wls | consistent) and, for the consistent solver, its ridge toward the URDF."""
 
     cutoff_hz: float = 4.0
@@ -85,12 +85,18 @@ def structural_base(rb: RigidBody, fit: np.ndarray, terms: design.Terms, seed: i
 @dataclass
 class _Prepared:
     X: np.ndarray  # (T, F, P)
-    y: np.ndarray  # (T, F) low-passed torques (training target)
+    y: np.ndarray  # (T, F) the training target: the raw torques
     raw: np.ndarray  # (T, F) raw torques (the score)
 
 
 def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = None) -> _Prepared:
-    """Regressor and torques of `data` under `choice` (the rigid-body regressor cached per cut-off)."""
+    """Regressor and torques of `data` under `choice` (the rigid-body regressor cached per cut-off).
+
+    The positions are low-passed at the cut-off (velocities and accelerations are their derivatives);
+    the torques are fitted raw, as they are scored.  Low-passing the torques without low-passing every
+    regressor column the same way biases each column that is not smooth at the cut-off — the Coulomb
+    step at each velocity reversal above all (the filtered torque rounds the step, the column keeps it
+    sharp); raw torques need no such care (their noise is what least squares averages)."""
     key = choice.cutoff_hz
     if Y_cache is not None and key in Y_cache:
         Y, v, a = Y_cache[key]
@@ -100,9 +106,8 @@ def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = No
         if Y_cache is not None:
             Y_cache[key] = (Y, v, a)
     X = design.matrix(Y, v, a, data.fit, choice.terms)
-    fs = signals.sample_rate(data.t)
-    y = signals.lowpass(data.tau, fs, choice.cutoff_hz)[:, data.fit]
-    return _Prepared(X, y, np.asarray(data.tau, float)[:, data.fit])
+    raw = np.asarray(data.tau, float)[:, data.fit]
+    return _Prepared(X, raw, raw)
 
 
 def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: B.BaseSet,

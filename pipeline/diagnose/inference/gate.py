@@ -65,14 +65,19 @@ def _explained(Sp: np.ndarray, Qo: np.ndarray) -> float:
     return _share(_unit(Sp), Qo)
 
 
-def absorbing_parameters(S: np.ndarray, Jf: np.ndarray, names: list[str], top: int = 3) -> str:
-    """The free geometric parameters that best reproduce signature S (first column), named."""
+def absorbing_parameters(S: np.ndarray, Jf: np.ndarray, names: list[str], top: int = 3,
+                         pinv: np.ndarray | None = None) -> str:
+    """The free geometric parameters that best reproduce signature S (first column), named; `pinv`: the
+    pseudo-inverse of the column-normalised Jf when the caller has it (one per gate, not one per candidate)."""
     if Jf.shape[1] == 0:
         return "nothing"
-    norms = np.linalg.norm(Jf, axis=0)
-    norms[norms == 0] = 1
     s = S[:, 0] / max(np.linalg.norm(S[:, 0]), 1e-300)
-    coef, *_ = np.linalg.lstsq(Jf / norms, s, rcond=None)
+    if pinv is not None:
+        coef = pinv @ s
+    else:
+        norms = np.linalg.norm(Jf, axis=0)
+        norms[norms == 0] = 1
+        coef, *_ = np.linalg.lstsq(Jf / norms, s, rcond=None)
     best = np.argsort(-np.abs(coef))[:top]
     return " + ".join(names[b] for b in best if abs(coef[b]) > 1e-3) or "nothing"
 
@@ -83,6 +88,8 @@ def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free
     smallest singular value of what the geometry and the confounder group leave)."""
     Q = orthonormal(Jf)
     m = len(effects)
+    norms = np.linalg.norm(Jf, axis=0)
+    pinv = np.linalg.pinv(Jf / np.where(norms > 0, norms, 1.0)) if Jf.shape[1] else None
     proj = [project_out(s, Q) for s in S]
     basis = [orthonormal(p) for p in proj]
     per = []
@@ -90,7 +97,7 @@ def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free
         e, s, sp = effects[i], S[i], proj[i]
         tot = float(np.sum(s**2))
         absorbed = 1.0 - float(np.sum(sp**2)) / tot if tot > 0 else 1.0
-        absorbed_by = absorbing_parameters(s, Jf, free_names) if tot > 0 else "nothing (no effect on these measurements)"
+        absorbed_by = absorbing_parameters(s, Jf, free_names, pinv=pinv) if tot > 0 else "nothing (no effect on these measurements)"
         hide = sp
         conf_label = ""
         # explicit confounders: the union of all candidates of the named kinds

@@ -3,20 +3,27 @@ drawn, per scored joint and pooled (N·m), on the frozen split and by contiguous
 and the speed of filter + regressor + fit on 8 000 samples × 8 joints.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics.py
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics.py --figaroh /work/figaroh-venv/bin/python \
+        --figaroh-examples FIGAROH_EXAMPLES_CHECKOUT            # FIGAROH run by FIGAROH, side by side (minutes)
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics.py --figaroh-json FIGAROH.json   # a FIGAROH run's figures
 
 Data: ../shared/real-data/figaroh_tiago_dynamics (training run `dynamic/`; the validation run
 `calibration_slow/` where present).  Efforts are converted exactly as FIGAROH does (reduction ratio × kmotor,
 the differential wrist τ6 = k(e7 − e6), τ7 = k(e6 + e7), the torso's 9.81 × subtree mass); arm_1–4 are fitted
-and scored.  FIGAROH's figures: the split's as FIGAROH 1.0.2 gave them when fitted on [921, 4900) and
-predicting [4900, 6791) without refitting, on the raw converted effort at the recorded rate (the issue's
-reproduction), and its published held-out figure on `calibration_slow` (its README).
+and scored.  FIGAROH's figures: run by FIGAROH itself where a Python with `figaroh` and a figaroh-examples
+checkout are given (`benchmarks/figaroh_tiago_dynamics.py`: its training fit on [921, 6791), the split, the same
+contiguous blocks as robocal's cross-validation), else the split's as FIGAROH 1.0.2 gave them (fitted on
+[921, 4900), predicting [4900, 6791) without refitting, raw converted effort at the recorded rate), and its
+published held-out figure on `calibration_slow` (its README).  Then robocal's dynamics diagnosis of the run, and
+the speed of filter + regressor + fit + diagnosis on 8 000 samples × 8 fitted joints.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import subprocess
 import time
 from pathlib import Path
 
@@ -67,10 +74,35 @@ def show(title: str, cols: dict[str, dict]) -> None:
         print(f"{name:18s}" + "".join(f"{d[k]:16.3f}" if d.get(k) is not None else f"{'—':>16s}" for k in keys))
 
 
+FIGAROH_PYTHON = Path("/work/figaroh-venv/bin/python")  # this box's FIGAROH venv (used when present)
+
+
+def figaroh_run(python: Path, examples: Path, *mode: str) -> dict:
+    """One mode of benchmarks/figaroh_tiago_dynamics.py run by FIGAROH's Python (its JSON line)."""
+    script = Path(__file__).with_name("figaroh_tiago_dynamics.py")
+    w0 = time.perf_counter()
+    r = subprocess.run([str(python), str(script), "--examples", str(examples), "--data", str(DATA), *mode],
+                       capture_output=True, text=True, check=False, env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    if r.returncode:
+        raise SystemExit(f"FIGAROH run {' '.join(mode)} failed:\n{r.stderr[-2000:]}")
+    doc = json.loads(r.stdout.strip().splitlines()[-1])
+    print(f"  FIGAROH {' '.join(mode)}: {time.perf_counter() - w0:.0f} s wall", flush=True)
+    return doc
+
+
+def figaroh_figures(doc: dict) -> dict:
+    return {**doc["per_joint"], "pooled": doc["pooled"], "pooled arm_2–4": doc["pooled_2_4"]}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--figaroh-json", type=Path, help="figures of a FIGAROH run: {split: {joint: RMS, pooled: …}, "
-                    "cv: {…}}")
+    ap.add_argument("--figaroh", type=Path, default=FIGAROH_PYTHON if FIGAROH_PYTHON.is_file() else None,
+                    help="a Python with figaroh installed: run FIGAROH side by side (default: this box's venv)")
+    ap.add_argument("--figaroh-examples", type=Path, default=os.environ.get("FIGAROH_EXAMPLES"),
+                    help="a figaroh-examples checkout (env FIGAROH_EXAMPLES): FIGAROH's TiagoIdentification")
+    ap.add_argument("--figaroh-json", type=Path, help="figures of an earlier FIGAROH run: {split: {per_joint, pooled, "
+                    "pooled_2_4}, cv: {…}}")
+    ap.add_argument("--no-diagnosis", action="store_true", help="skip the dynamics diagnosis of the run")
     args = ap.parse_args()
     if not (DATA / "dynamic" / "tiago_effort.csv").is_file():
         print(f"{DATA} is absent: nothing to compare")
@@ -79,6 +111,16 @@ def main() -> None:
     rb = RB.build(desc.urdf, desc.joint_names)
     t, q, tau, fit = load("dynamic", desc, rb)
     theirs = json.loads(args.figaroh_json.read_text()) if args.figaroh_json else {}
+    if args.figaroh is not None and args.figaroh_examples is not None and not theirs:
+        print("running FIGAROH (its own TIAGo identification, minutes per run) …", flush=True)
+        train = figaroh_run(args.figaroh, args.figaroh_examples, "train")
+        print(f"  FIGAROH training fit on [921, 6791): {train['train_rmse']:.3f} N·m pooled arm_1–4, "
+              f"{train['n_base']} base parameters (published 0.884, 57)")
+        theirs = {"split": figaroh_run(args.figaroh, args.figaroh_examples, "split"),
+                  "cv": figaroh_run(args.figaroh, args.figaroh_examples, "cv", "5", "50")}
+    elif args.figaroh is None or args.figaroh_examples is None:
+        print("FIGAROH not run here (give --figaroh PYTHON and --figaroh-examples CHECKOUT): its split figures as "
+              "FIGAROH 1.0.2 gave them")
 
     # the frozen split: fit [921, 4900), predict [4900, 6791) without refitting
     tr, te = slice(921, 4900), slice(4900, 6791)
@@ -89,8 +131,9 @@ def main() -> None:
     nominal = I.nominal_torques(rb, I.Data(t[te], q[te], tau[te], fit), fit)
     floor = tau[te][:, fit] - lowpass(tau[te][:, fit], sample_rate(t), 4.0)
     show("split: fitted on rows [921, 4900), predicting [4900, 6791), raw converted effort (N·m)",
-         {"robocal": figures(pred - tau[te][:, fit]), "FIGAROH (issue)": FIGAROH_SPLIT,
-          **({"FIGAROH (run)": theirs["split"]} if "split" in theirs else {}),
+         {"robocal": figures(pred - tau[te][:, fit]),
+          **({"FIGAROH (run)": figaroh_figures(theirs["split"])} if "split" in theirs else
+             {"FIGAROH (issue)": FIGAROH_SPLIT}),
           "URDF as drawn": figures(nominal - tau[te][:, fit]) | {},
           "effort > 4 Hz": figures(floor)})
     print(f"  FIGAROH's nominal pooled on the split: {FIGAROH_NOMINAL_SPLIT:.3f}; robocal's model: "
@@ -98,12 +141,13 @@ def main() -> None:
 
     # contiguous-block cross-validation over the excitation [921, 6791)
     w = slice(921, 6791)
-    g = I.identify(rb, I.Data(t[w], q[w], tau[w], fit))
+    data = I.Data(t[w], q[w], tau[w], fit)
+    g = I.identify(rb, data)
     cv = figures(g.cv_residuals)
     show("contiguous-block cross-validation on [921, 6791) (5 blocks, 0.5 s guard), raw converted effort (N·m)",
-         {"robocal": cv, **({"FIGAROH (run)": theirs["cv"]} if "cv" in theirs else {"FIGAROH": {}})})
+         {"robocal": cv, **({"FIGAROH (run)": figaroh_figures(theirs["cv"])} if "cv" in theirs else {"FIGAROH": {}})})
     if "cv" not in theirs:
-        print("  FIGAROH's cross-validated figures: not run here (give --figaroh-json)")
+        print("  FIGAROH's cross-validated figures: not run here (give --figaroh and --figaroh-examples)")
 
     if (DATA / "calibration_slow" / "tiago_effort.csv").is_file():
         ts, qs, taus, _ = load("calibration_slow", desc, rb)
@@ -116,20 +160,50 @@ def main() -> None:
         print("\nvalidation run calibration_slow: absent (listed in protocol.yaml, not shipped); FIGAROH's "
               "published 1.722 N·m pooled not compared")
 
-    # speed: 8 000 samples × 8 joints, filter + regressor + fit (one model), then the whole held-out choice
+    if not args.no_diagnosis:
+        from pipeline.diagnose.adapters.dynamics_diagnosis import diagnose
+
+        c0 = time.process_time()
+        doc = diagnose(rb, data, g)
+        print(f"\ndynamics diagnosis of [921, 6791) ({time.process_time() - c0:.1f} s CPU): {doc['status']} — "
+              f"{doc['status_reason']}")
+        print(f"  held-out (contiguous blocks) {doc['holdout_rms_before_m']:.3f} → {doc['holdout_rms_after_m']:.3f} N·m "
+              "pooled; per joint " + ", ".join(f"{j} {a:.3f} → {b:.3f}" for j, a, b in zip(
+                  doc["joints"], doc["holdout_rms_joint_before"], doc["holdout_rms_joint_after"])))
+        for fd in doc["findings"]:
+            pars = ", ".join(f"{p['name']} {p['value']:.4g} ± {p['std']:.2g} {p['unit']}" for p in fd["parameters"])
+            print(f"  found {fd['effect']}@{fd['location']}: {pars} ({fd['confidence']})")
+        for fd in doc["rejected_findings"]:
+            print(f"  rejected {fd['effect']}@{fd['location']}: {fd['note']}")
+        print("  not identifiable: " + "; ".join(f"{n['effect']}@{n['location']} ({n['reason']})"
+                                                 for n in doc["not_identifiable"]))
+        print("  drive scales: " + "; ".join(
+            f"{d['joint']} " + (f"relative scale detectable from {d['min_detectable_relative']:.1%}" if d["identifiable"]
+                                else "not identifiable") for d in doc["drive_scale"]["per_joint"]))
+
+    # speed: 8 000 samples × 8 fitted joints, filter + regressor + fit (one model), the held-out choice, the diagnosis
     n = 8000
     tt = np.arange(n) * 0.01
     qq = np.vstack([q, q[::-1]])[:n]
     yy = np.vstack([tau, tau[::-1]])[:n]
+    every = np.ones(len(desc.joint_names), bool)
+    d8 = I.Data(tt, qq, yy, every)
     w0, c0 = time.perf_counter(), time.process_time()
-    I.identify(rb, I.Data(tt, qq, yy, fit), candidates=(I.Choice(cutoff_hz=4.0),), solvers=("ols",), folds=2)
+    I.identify(rb, d8, candidates=(I.Choice(cutoff_hz=4.0),), solvers=("ols",), folds=2)
     one = (time.perf_counter() - w0, time.process_time() - c0)
     w0, c0 = time.perf_counter(), time.process_time()
-    I.identify(rb, I.Data(tt, qq, yy, fit))
+    g8 = I.identify(rb, d8)
     full = (time.perf_counter() - w0, time.process_time() - c0)
-    print(f"\nspeed, {n} samples × {len(desc.joint_names)} joints: filter + regressor + fit {one[0]:.2f} s wall "
-          f"({one[1]:.2f} s CPU); with the held-out model choice (6 structures × 5 blocks, 3 solvers) "
-          f"{full[0]:.2f} s wall ({full[1]:.2f} s CPU); target ≤ 30 s")
+    w0, c0 = time.perf_counter(), time.process_time()
+    if not args.no_diagnosis:
+        from pipeline.diagnose.adapters.dynamics_diagnosis import diagnose
+
+        diagnose(rb, d8, g8)
+    diag = (time.perf_counter() - w0, time.process_time() - c0)
+    print(f"\nspeed, {n} samples × {len(desc.joint_names)} fitted joints: filter + regressor + fit {one[0]:.2f} s wall "
+          f"({one[1]:.2f} s CPU); with the held-out model choice ({len(I.DEFAULT_CANDIDATES)} structures × 5 blocks, "
+          f"3 solvers) {full[0]:.2f} s wall ({full[1]:.2f} s CPU); diagnosis {diag[0]:.2f} s wall ({diag[1]:.2f} s CPU); "
+          f"choice + diagnosis {full[0] + diag[0]:.2f} s wall ({full[1] + diag[1]:.2f} s CPU); target ≤ 30 s")
 
 
 if __name__ == "__main__":

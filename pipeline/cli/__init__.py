@@ -75,7 +75,7 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
     """Log-centric robot calibration: record, calibrate, inspect."""
 
 
-SIMULATORS = ("simulate", "sim_camera", "sim_delta", "sim_scanner", "sim_urdf", "fleet")
+SIMULATORS = ("simulate", "sim_camera", "sim_delta", "sim_dynamics", "sim_scanner", "sim_urdf", "fleet")
 # The modules that register each command (and what it calls in-process): a command imports only
 # these, not all the others' dependencies (every command pays its own imports only).
 COMMAND_MODULES: dict[str, tuple[str, ...]] = {

@@ -74,9 +74,24 @@ def plan_cmd(
                                        "between the optical axis and the board's normal, rad."),
     margin_px: float = typer.Option(30.0, "--margin-px", min=0.0, help="System camera: every corner at least this far "
                                     "inside the image (nominal model), px."),
+    harmonics: int = typer.Option(5, "--harmonics", min=2, max=20, help="System excitation: Fourier harmonics per joint."),
+    period_s: float = typer.Option(10.0, "--period-s", min=0.5, help="System excitation: base period, s."),
+    periods: int = typer.Option(3, "--periods", min=1, help="System excitation: periods run (between rests)."),
+    rate_hz: float = typer.Option(100.0, "--rate-hz", min=5.0, help="System excitation: sample rate written, Hz."),
+    max_acceleration: float = typer.Option(2.0, "--max-acceleration", min=1e-3, help="System excitation: |q̈| limit of "
+                                           "every joint, rad/s² (m/s²) (a URDF states none)."),
+    velocity_scale: float = typer.Option(1.0, "--velocity-scale", min=0.01, max=1.0, help="System excitation: share "
+                                         "of the URDF's velocity limits used."),
+    effort_joints: str = typer.Option("", "--effort-joints", help="System excitation: joints whose torque will be "
+                                      "fitted, comma-separated (default every joint of the chain)."),
+    starts: int = typer.Option(3, "--starts", min=1, help="System excitation: random starts of the optimiser."),
+    iterations: int = typer.Option(60, "--iterations", min=1, help="System excitation: optimiser iterations per start."),
+    bag: Path = typer.Option(None, "--bag", help="System excitation: also write a ROS 2 bag (MCAP) of one "
+                             "trajectory_msgs/msg/JointTrajectory at this path."),
 ) -> None:
     """D-optimal pose selection: greedy + Fedorov exchange with rank-1 (Sherman–Morrison) updates.
-    For the arc welder the output is an executable campaign (schemas/campaign.schema.json)."""
+    For the arc welder the output is an executable campaign (schemas/campaign.schema.json).  `excitation`:
+    a Fourier trajectory for dynamics identification (a CSV, --bag a ROS 2 JointTrajectory)."""
     from pipeline.errors import at_most
 
     for option, value in (("--candidates", candidates), ("--select", select_m), ("--check", check), ("--first-stage", first_stage),):
@@ -94,6 +109,13 @@ def plan_cmd(
         opts = CameraOptions(target, camera_on, lens, n_dist, image_size, focal, home, distance_m, hand_eye,
                              fit_groups, max_tilt_rad, margin_px)
         return plan_camera(urdf, root, tip, opts, candidates, select_m, out, seed, check)
+    if system == "excitation":
+        from pipeline.cli.plan_excitation import ExcitationOptions, plan_excitation
+
+        at_most("--periods", periods)
+        opts = ExcitationOptions(harmonics, period_s, periods, rate_hz, max_acceleration, velocity_scale, effort_joints,
+                                 starts, iterations, bag)
+        return plan_excitation(urdf, root, tip, opts, out, seed)
     if system == "urdf":
         return plan_urdf(urdf, root, tip, measure, candidates, select_m, out, seed, check)
     if hasattr(candidate_module(system), "touch_campaign"):

@@ -105,13 +105,14 @@ def run(run_dir: Path, params: dict) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     from pipeline.dynamics.stage import is_dynamics_run
 
-    if is_dynamics_run(run_dir):  # the dynamics diagnosis has its own library (not yet): say so, find nothing
-        doc = {"system": "urdf", "family": "dynamics", "supported": False, "findings": [], "not_identifiable": [],
-               "unexplained": None, "unexplained_where": [], "holdout_rms_before_m": None,
-               "holdout_rms_after_m": None, "message": "no effect library for dynamics yet: the torque residuals "
-               "are in identify/torques.parquet and the report"}
+    if is_dynamics_run(run_dir):  # the dynamics library on the identified torque model
+        from pipeline.dynamics.stage import diagnose as diagnose_dynamics
+
+        doc = diagnose_dynamics(run_dir, params)
         write_json(out / "diagnosis.json", doc)
-        return {"status": "pass", "supported": False, "message": doc["message"]}
+        return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],
+                "unexplained": doc["unexplained"], "status": doc["status"], "family": "dynamics",
+                "holdout_rms_before_Nm": doc["holdout_rms_before_m"], "holdout_rms_after_Nm": doc["holdout_rms_after_m"]}
     stream = read_encoder(run_dir)
     system, model, rec = load_system(run_dir, with_stream=stream is None)
     if system.SYSTEM not in SUPPORTED:

@@ -138,9 +138,12 @@ def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet,
     return held_out(fit_predict, P.X.shape[0], folds, guard)
 
 
+COULOMB_WIDTHS = (0.0003, 0.003, 0.01, 0.03)  # rad/s (m/s): from a near-sign step to a smooth transition through zero speed
+CUTOFFS_HZ = (2.0, 4.0, 8.0, 16.0)  # the positions' low-pass cut-off: noisy encoders want a low one, clean ones a high one
 DEFAULT_CANDIDATES = tuple(
-    Choice(cutoff_hz=c, terms=design.Terms(friction=f, armature=True))
-    for c in (2.0, 4.0, 8.0) for f in (("viscous", "coulomb", "offset"), ("viscous", "offset")))
+    [Choice(cutoff_hz=c, terms=design.Terms(friction=("viscous", "coulomb", "offset"), armature=True, coulomb_width=w))
+     for c in CUTOFFS_HZ for w in COULOMB_WIDTHS]
+    + [Choice(cutoff_hz=c, terms=design.Terms(friction=("viscous", "offset"), armature=True)) for c in (4.0, 16.0)])
 
 
 def identify(rb: RigidBody, data: Data, candidates: tuple[Choice, ...] = DEFAULT_CANDIDATES,

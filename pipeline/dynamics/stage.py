@@ -10,6 +10,7 @@ predicted torque per fitted joint), ``model.urdf`` (the physically consistent in
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -104,6 +105,26 @@ def observe(run_dir: Path) -> dict:
                                 "correlation": float(corr[iu][k])} for k in worst]}
     write_json(Path(run_dir) / "observe" / "observe.json", doc)
     return {"status": "pass", "condition_number": fit["condition_number"], "n_identifiable": fit["n_identifiable"]}
+
+
+def diagnose(run_dir: Path, params: dict) -> dict:
+    """The diagnose stage of a dynamics recording: DIR/diagnose/diagnosis.json (the dynamics library on the
+    identified model: `pipeline.diagnose.adapters.dynamics_diagnosis`)."""
+    from pipeline.diagnose.adapters.dynamics_diagnosis import diagnose as run_diagnosis
+    from pipeline.diagnose.stage import settings_of
+    from pipeline.dynamics import identify as I
+    from pipeline.stages.artefacts import read_json
+    from pipeline.stages.ingest import read_measurements, recording_info
+
+    run_dir = Path(run_dir)
+    info = recording_info(run_dir)
+    model = model_of_metadata(info["metadata"], info["source"]["path"])
+    data = _data(model, read_measurements(run_dir), info["source"]["path"])
+    rb = model.rigid_body()
+    fit = I.from_document(read_json(run_dir / "identify" / DYNAMICS_JSON))
+    fit.base = I.structural_base(rb, model.fit_mask, fit.choice.terms)
+    say = lambda line: print(f"diagnose: {line}", file=sys.stderr, flush=True)  # noqa: E731
+    return run_diagnosis(rb, data, fit, settings_of(params), progress=say)
 
 
 def not_applicable(stage: str) -> dict:

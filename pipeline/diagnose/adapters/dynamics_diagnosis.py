@@ -11,7 +11,8 @@
 4. the held-out arbiter, in N·m on the raw torques: contiguous-block cross-validation with a guard band
    (`dynamics.crossval`, the arbiter of identification's own choices) of the base model, of the base
    model with the findings and of it without each finding — a finding that does not lower the held-out
-   error is rejected; if the findings together make it worse, every one is;
+   error by more than two standard errors (of the drop's mean over 2 s blocks) is rejected; if the findings
+   together make it worse, every one is;
 5. where the rest is: lack of fit against each joint's velocity, position, load and time
    (`verdict.lack_of_fit`, on the whitened rows), the held-out error per joint, velocity regime, load
    and time quarter (`locate`); grading of each name (`verdict.grading`, `verdict.arbiter`); the status
@@ -37,7 +38,8 @@ from pipeline.diagnose.verdict import arbiter, checks, grading, lack_of_fit
 from pipeline.dynamics import crossval
 
 GUARD_S = 0.5  # the held-out blocks' guard band (as identification's)
-BOOT_BLOCK_S = 2.0  # bootstrap resampling unit: time blocks of this length
+BOOT_BLOCK_S = 2.0  # bootstrap resampling unit and the held-out gain's blocks: time blocks of this length
+MIN_GAIN_Z = 2.0  # a finding is kept when it lowers the held-out error by more than 2 standard errors
 
 
 def _rows(samples: np.ndarray, F: int) -> np.ndarray:
@@ -63,6 +65,20 @@ def held_out(D: np.ndarray, y: np.ndarray, wr: np.ndarray, T: int, F: int, folds
         rs = slice(blk[0] * F, (blk[-1] + 1) * F)
         out[blk] = (y[rs] - D[rs] @ th).reshape(blk.size, F)
     return out
+
+
+def gain_z(before: np.ndarray, after: np.ndarray, fs: float) -> float:
+    """How surely a model lowers the held-out error: the mean over time blocks (`BOOT_BLOCK_S`) of the drop in
+    held-out mean square, over its standard error (block means: neighbouring samples' errors are not
+    independent).  Above `MIN_GAIN_Z` the drop is more than the blocks' own scatter."""
+    n = max(int(round(BOOT_BLOCK_S * fs)), 1)
+    d = np.mean(before**2 - after**2, axis=1)
+    m = d.size // n
+    if m < 3:
+        return float(np.sign(d.mean()) * np.inf) if d.mean() else 0.0
+    blocks = d[:m * n].reshape(m, n).mean(axis=1)
+    se = blocks.std(ddof=1) / np.sqrt(m)
+    return float(blocks.mean() / se) if se > 0 else float(np.sign(blocks.mean()) * np.inf)
 
 
 def _design(b: A.Built, idx: list[int]) -> np.ndarray:
@@ -205,7 +221,9 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
         col_of[i] = list(range(col, col + k))
         contributions.append((b.S[i].reshape(T * F, -1) @ th[col:col + k] * wr).reshape(T, F))
         col += k
-    rejected = [j for j, fd in enumerate(findings) if fd["evidence"]["cv_rms_after_m"] >= fd["evidence"]["cv_rms_before_m"]]
+    for fd, i in zip(findings, acc):
+        fd["evidence"]["cv_gain_z"] = gain_z(without[i], after, fs)
+    rejected = [j for j, fd in enumerate(findings) if fd["evidence"]["cv_gain_z"] < MIN_GAIN_Z]
     kept = [j for j in range(len(findings)) if j not in rejected]
     final_cv = after
     if rejected:
@@ -214,7 +232,7 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
     if worse:
         rejected, kept, final_cv = list(range(len(findings))), [], before
     why = ("the model with the selected terms is worse out of sample than the identified model alone" if worse
-           else "modelling it does not lower the held-out torque error")
+           else f"modelling it does not lower the held-out torque error by more than {MIN_GAIN_Z:g} standard errors")
     rejected_docs = [{**findings[j], "confidence": "rejected", "note": why} for j in rejected]
     acc_k = [acc[j] for j in kept]
     findings = [findings[j] for j in kept]

@@ -136,11 +136,13 @@ def efforts(seed: int, t, q, v, a, noise: float = 0.05, effects: dict | None = N
     rigid = rnea(truth, q, v, a, joints)
     if "joint_elasticity" in (effects or {}):  # the link lags the motor-side reading q by c·τ: solve τ = RNEA(q − c·τ)
         k, c, _ = effects["joint_elasticity"]
-        for _ in range(4):
-            ql = q.copy()
-            ql[:, k] = q[:, k] - c * rigid[:, k]
-            vl = np.gradient(ql, t, axis=0, edge_order=2)
-            rigid = rnea(truth, ql, vl, np.gradient(vl, t, axis=0, edge_order=2), joints)
+        for _ in range(4):  # the link's motion is the reading's less c·(τ, τ̇, τ̈): exact derivatives of the reading
+            d1 = np.gradient(rigid[:, k], t, edge_order=2)
+            ql, vl, al = q.copy(), v.copy(), a.copy()
+            ql[:, k] -= c * rigid[:, k]
+            vl[:, k] -= c * d1
+            al[:, k] -= c * np.gradient(d1, t, edge_order=2)
+            rigid = rnea(truth, ql, vl, al, joints)
     tau = rigid + np.asarray(FRICTION["fv"]) * v + np.asarray(FRICTION["fc"]) * np.tanh(v / PRESLIDING) + \
         np.asarray(FRICTION["f0"]) + np.asarray(FRICTION["ia"]) * a
     span = t[-1] - t[0]

@@ -55,8 +55,11 @@ def test_base_set_rank_equals_the_regressor_rank_and_dependent_columns_follow(ar
     rng = np.random.default_rng(7)
     q, v, a = rng.uniform(-2, 2, (200, 3)), rng.standard_normal((200, 3)), rng.standard_normal((200, 3))
     X = design.matrix(RB.regressor(arm, q, v, a), v, a, fit, design.Terms(coulomb_width=0.0)).reshape(600, -1)
-    assert base.rank == np.linalg.matrix_rank(X / B.column_scale(X), tol=1e-8 * np.linalg.norm(X / B.column_scale(X), 2))
-    np.testing.assert_allclose(X[:, base.dependent], X[:, base.independent] @ base.K, atol=1e-8 * np.abs(X).max())
+    Xs = X / B.column_scale(X)
+    assert base.rank == np.linalg.matrix_rank(Xs, tol=B.RANK_TOL * np.linalg.norm(Xs, 2))
+    # the URDF's 1.5708 for π/2 couples j2's rotor inertia with l2's Izz only through a 4e-6 tilt: one base parameter
+    assert base.rank == 26
+    np.testing.assert_allclose(X[:, base.dependent], X[:, base.independent] @ base.K, atol=1e-4 * np.abs(X).max())
 
 
 def _trajectory(t):

@@ -100,6 +100,13 @@ def plan_cmd(
 
     from pipeline.recording.output import check_output
 
+    if system == "excitation":  # a CSV trajectory and its JSON (their own check: the JSON names the CSV it wrote)
+        from pipeline.cli.plan_excitation import ExcitationOptions, plan_excitation
+
+        at_most("--periods", periods)
+        opts = ExcitationOptions(harmonics, period_s, periods, rate_hz, max_acceleration, velocity_scale, effort_joints,
+                                 starts, iterations, bag)
+        return plan_excitation(urdf, root, tip, opts, out, seed)
     check_output(out, "plan")  # before any work: never over a file robocal did not create
     if system == "camera":
         from pipeline.cli.plan_camera import CameraOptions, plan_camera
@@ -109,13 +116,6 @@ def plan_cmd(
         opts = CameraOptions(target, camera_on, lens, n_dist, image_size, focal, home, distance_m, hand_eye,
                              fit_groups, max_tilt_rad, margin_px)
         return plan_camera(urdf, root, tip, opts, candidates, select_m, out, seed, check)
-    if system == "excitation":
-        from pipeline.cli.plan_excitation import ExcitationOptions, plan_excitation
-
-        at_most("--periods", periods)
-        opts = ExcitationOptions(harmonics, period_s, periods, rate_hz, max_acceleration, velocity_scale, effort_joints,
-                                 starts, iterations, bag)
-        return plan_excitation(urdf, root, tip, opts, out, seed)
     if system == "urdf":
         return plan_urdf(urdf, root, tip, measure, candidates, select_m, out, seed, check)
     if hasattr(candidate_module(system), "touch_campaign"):

@@ -1,5 +1,7 @@
 """`robocal plan excitation`: a Fourier excitation trajectory for dynamics identification (the work of
-`pipeline.plan.excitation`), written as a CSV table and, with --bag, a ROS 2 bag of one JointTrajectory."""
+`pipeline.plan.excitation`), written as a CSV table (t and per joint position, velocity, acceleration), its
+coefficients and figures beside it (the same name, .json: period, a, b, per-joint scale and offset, the limits,
+the condition numbers) and, with --bag, a ROS 2 bag of one JointTrajectory."""
 
 from __future__ import annotations
 
@@ -26,6 +28,18 @@ class ExcitationOptions:
     rest_s: float = 2.0
 
 
+def _ours(csv: Path, sidecar: Path) -> bool:
+    """The table was written by robocal plan excitation: the robocal-marked JSON beside it names it."""
+    import json
+
+    from pipeline.recording.output import written_by_robocal
+
+    try:
+        return written_by_robocal(sidecar) and json.loads(sidecar.read_text()).get("csv") == csv.name
+    except (OSError, ValueError):
+        return False
+
+
 def plan_excitation(urdf: Path, root: str, tip: str, o: ExcitationOptions, out: Path, seed: int) -> None:
     from pipeline.dynamics import design
     from pipeline.dynamics.rigid_body import build
@@ -33,12 +47,20 @@ def plan_excitation(urdf: Path, root: str, tip: str, o: ExcitationOptions, out: 
     from pipeline.models import urdf as urdf_mod
     from pipeline.plan import excitation as X
     from pipeline.plan import excitation_files as XF
+    from pipeline.plan.campaign import write_document
     from pipeline.recording.output import check_output
 
     if urdf is None or root is None or tip is None:
         raise RobocalError("robocal plan excitation needs --urdf, --root and --tip")
-    if o.bag is not None:
-        check_output(o.bag, "bag")
+    sidecar = out.with_suffix(".json")
+    if sidecar.resolve() == out.resolve():
+        raise RobocalError(f"--out {out}: name the trajectory table .csv (its coefficients go beside it, .json)")
+    check_output(sidecar, "plan")
+    if out.exists() and out.stat().st_size and not _ours(out, sidecar):
+        raise RobocalError(f"{out}: exists and was not written by robocal plan excitation (its {sidecar.name} does "
+                           "not name it): not replaced")
+    if o.bag is not None and o.bag.exists():
+        raise RobocalError(f"--bag {o.bag}: exists (a ROS 2 bag is a new folder; robocal never replaces one)")
     if o.harmonics < 2:
         raise RobocalError("--harmonics: at least 2 (the last one keeps the trajectory starting at rest)")
     desc = urdf_mod.read(urdf, root, tip)
@@ -62,6 +84,16 @@ def plan_excitation(urdf: Path, root: str, tip: str, o: ExcitationOptions, out: 
     if bad:  # the scale is set on a dense grid; a sampled point beyond it is a defect, never written
         raise RobocalError(f"planned trajectory leaves its limits: {'; '.join(bad)}")
     XF.write_csv(out, joints, t, q, v, a)
+    write_document(sidecar, {"kind": "robocal.excitation", "version": 1, "joints": joints, "effort_joints": fitted,
+                             "period_s": f.period, "harmonics": o.harmonics, "a": f.a.tolist(), "b": f.b.tolist(),
+                             "scale": f.scale.tolist(), "q0": f.q0.tolist(), "periods": o.periods, "rest_s": o.rest_s,
+                             "rate_hz": o.rate_hz, "limits": {"lower": lim.lower.tolist(), "upper": lim.upper.tolist(),
+                                                              "velocity": lim.velocity.tolist(),
+                                                              "acceleration": lim.acceleration.tolist(),
+                                                              "margin": lim.margin},
+                             "condition_number": cond, "condition_number_random": cond_random,
+                             "self_collision": note, "seed": seed, "csv": out.name,
+                             **({"bag": str(o.bag)} if o.bag is not None else {})})
     if o.bag is not None:
         XF.write_bag(o.bag, joints, t, q, v, a)
     err.print(f"excitation of {', '.join(joints)}: {o.harmonics} harmonics of {o.period_s:g} s, {o.periods} periods "

@@ -61,9 +61,10 @@ def dynamics_cmd(
     effects = S.parse_effects(effect, joints, fitted)
     lim = XF.limits_of(desc.urdf, joints, max_acceleration, source=str(urdf))
     if trajectory is not None:
-        t, q = XF.read_csv(trajectory, joints)
-        v, a = np.gradient(q, t, axis=0, edge_order=2), None
-        a = np.gradient(v, t, axis=0, edge_order=2)
+        t, q, v, a = XF.read_csv(trajectory, joints)
+        if v is None or a is None:  # a table of positions only: its derivatives on its own clock
+            v = np.gradient(q, t, axis=0, edge_order=2)
+            a = np.gradient(v, t, axis=0, edge_order=2)
         if XF.violations(q, v, a, X.Limits(lim.lower, lim.upper, lim.velocity * 1.05, np.full(len(joints), np.inf))):
             raise RobocalError(f"{trajectory}: the trajectory leaves the URDF's position or velocity limits")
     else:

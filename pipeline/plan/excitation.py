@@ -131,9 +131,15 @@ def optimise(obj: Objective, lim: Limits, period: float, harmonics: int, starts:
     """(best feasible excitation, its condition number, the condition number of the first random start): from
     `starts` random shapes, each improved by L-BFGS-B on log cond over the free coefficients (the last
     harmonic's follow from the rest conditions)."""
+    from pipeline.blas import one_thread
+
+    with one_thread():  # small matrices: one BLAS thread is faster than a contended pool
+        return _optimise(obj, lim, period, harmonics, starts, iterations, seed, progress or (lambda s: None))
+
+
+def _optimise(obj, lim, period, harmonics, starts, iterations, seed, say):
     import scipy.optimize
 
-    say = progress or (lambda s: None)
     rng = np.random.default_rng(seed)
     J, L = lim.lower.size, harmonics
     base = obj.base()

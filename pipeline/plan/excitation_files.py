@@ -80,9 +80,10 @@ def write_csv(path: Path, joints: list[str], t, q, v, a) -> None:
         np.savetxt(fh, rows, delimiter=",", fmt="%.10g")
 
 
-def read_csv(path: Path, joints: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """(t (T,), q (T, J)) of a trajectory table (columns t and JOINT_position per joint); one line on
-    a missing column or a bad value."""
+def read_csv(path: Path, joints: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """(t (T,), q (T, J), q̇, q̈ (T, J) or None) of a trajectory table (columns t and JOINT_position per joint;
+    JOINT_velocity and JOINT_acceleration when every joint has them); one line on a missing column, a value
+    that is not a number or times that do not increase."""
     import csv
 
     with open(path, newline="", encoding="utf-8") as fh:
@@ -98,7 +99,12 @@ def read_csv(path: Path, joints: list[str]) -> tuple[np.ndarray, np.ndarray]:
     t = data[:, cols[0]]
     if np.any(np.diff(t) <= 0):
         raise RobocalError(f"{path}: row {int(np.flatnonzero(np.diff(t) <= 0)[0]) + 2}: times not increasing")
-    return t, data[:, cols[1:]]
+    out = [t, data[:, cols[1:]]]
+    for kind in ("velocity", "acceleration"):
+        names = [f"{j}_{kind}" for j in joints]
+        ok = all(n in header for n in names) and np.all(np.isfinite(data[:, [header.index(n) for n in names]]))
+        out.append(data[:, [header.index(n) for n in names]] if ok else None)
+    return tuple(out)
 
 
 def write_bag(path: Path, joints: list[str], t, q, v, a, topic: str = "/joint_trajectory") -> None:

@@ -54,7 +54,7 @@ def residual_plot(tab: dict, key: str, label: str) -> str:
     return _svg(fig)
 
 
-def render(fit: dict, tab: dict, observe: dict | None) -> str:
+def render(fit: dict, tab: dict, observe: dict | None, diagnosis: dict | None = None) -> str:
     js = fit["fit_joints"]
     f = lambda v: "—" if v is None else f"{v:.4f}"  # noqa: E731
     rows = [[escape(j), f(fit["nominal_rms_joint_Nm"][j]), f(fit["rms_after_joint_Nm"][j]),
@@ -87,6 +87,10 @@ def render(fit: dict, tab: dict, observe: dict | None) -> str:
         parts.append(section("consistent", "Physically consistent inertials (model.urdf)",
                              f"<p>{sum(ok)} of {len(ok)} bodies pass the pseudo-inertia check (positive mass, "
                              f"triangle inequalities); fit RMS {cons['rms_after_Nm']:.4f} N·m.</p>"))
+    if diagnosis and diagnosis.get("family") == "dynamics" and diagnosis.get("supported"):
+        from pipeline.report.dynamics_diagnosis import render as render_diagnosis
+
+        parts.append(render_diagnosis(diagnosis))
     return (f"<!doctype html><html><head><meta charset='utf-8'><title>robocal dynamics</title><style>{CSS}</style>"
             f"</head><body><h1>robocal — dynamics identification</h1>{''.join(parts)}</body></html>")
 
@@ -117,7 +121,9 @@ def write_report(run_dir: Path, params: dict, html_name: str, rrd_name: str) -> 
     obs = run_dir / "observe" / "observe.json"
     out: dict = {"files": {}, "family": "dynamics", "holdout_rms_Nm": fit["holdout_rms_Nm"]}
     if params.get("html", True):
-        (run_dir / html_name).write_text(render(fit, tab, read_json(obs) if obs.is_file() else None), encoding="utf-8")
+        dg = run_dir / "diagnose" / "diagnosis.json"
+        (run_dir / html_name).write_text(render(fit, tab, read_json(obs) if obs.is_file() else None,
+                                                read_json(dg) if dg.is_file() else None), encoding="utf-8")
         out["files"]["html"] = html_name
     if params.get("rrd", True):
         out["rrd_entities"] = write_rrd(tab, run_dir / rrd_name)

@@ -25,6 +25,7 @@ import pinocchio as pin
 from pipeline.dynamics.rigid_body import RigidBody, link_parameters, torques
 from pipeline.errors import RobocalError
 
+REST = 1e-6  # rad/s (m/s): slower than this the joint rests
 STRIBECK_VS = 0.05  # rad/s (m/s): the default Stribeck velocity of an injected bump
 EFFECTS = {
     "stribeck": "f_s N·m (v_s rad/s after /, default 0.05): f_s·exp(−(v/v_s)²)·sign(v) above Coulomb",
@@ -124,7 +125,7 @@ def efforts(rb: RigidBody, truth: Truth, fit: np.ndarray, t: np.ndarray, q: np.n
     tau = rigid.copy()
     span = max(float(t[-1] - t[0]), 1e-9)
     for f, j in enumerate(idx):
-        s = np.sign(v[:, j])
+        s = np.sign(v[:, j]) * (np.abs(v[:, j]) > REST)  # at rest (a table's rounding aside) no Coulomb friction
         tau[:, j] += truth.fv[f] * v[:, j] + truth.fc[f] * s + truth.f0[f] + truth.ia[f] * a[:, j]
     col = {name: list(rb.joints).index(name) for name in rb.joints}
     for name, j, val, opt in truth.effects:

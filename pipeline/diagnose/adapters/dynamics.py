@@ -6,8 +6,8 @@ torque minus the fitted model's.  The adapter builds, at the identification's ch
 terms):
 
 - the diagnosis table (`table`): times, filtered positions, velocities, accelerations of the fitted
-  joints, the fitted model's torque with its time derivatives, its rigid-body part (the load), each
-  joint's own inertia — everything the library's terms (`library.friction`, `library.drive`) read;
+  joints, the fitted model's torque with its time derivatives, its rigid-body part (the load), the
+  URDF's torque derivatives with respect to the joints' motion — everything the library's terms (`library.friction`, `library.drive`) read;
 - the rows' noise model: each joint's rows weighted by 1/σ_j (its noise σ, as in weighted least
   squares), then whitened along time by an autoregressive filter per joint (`Whitener`: a torque
   residual at 100 Hz is far from independent sample to sample, and the grouped F tests of the shared
@@ -50,25 +50,37 @@ def table(rb: RigidBody, data: I.Data, fit: I.Fit) -> dict:
     tau_rigid = P.X[:, :, :n_rb] @ fit.theta[:n_rb]
     t = np.asarray(data.t, float)
     dtau = np.gradient(tau_fit, t, axis=0, edge_order=2)
-    ddtau = np.gradient(dtau, t, axis=0, edge_order=2)
-    M = _own_inertia(rb, qf)[:, mask]
+    drigid = np.gradient(tau_rigid, t, axis=0, edge_order=2)
+    ddrigid = np.gradient(drigid, t, axis=0, edge_order=2)
+    dq, dv, M = _rnea_derivatives(rb, qf, v, a, mask)
     prismatic = np.array([rb.model.joints[int(b)].shortname().startswith("JointModelP") for b in rb.body_of])[mask]
     return {"time_s": t - t[0], "q": qf[:, mask], "v": v[:, mask], "a": a[:, mask], "tau": P.raw,
-            "tau_fit": tau_fit, "tau_rigid": tau_rigid, "dtau": dtau, "ddtau": ddtau, "inertia": M,
+            "tau_fit": tau_fit, "tau_rigid": tau_rigid, "dtau": dtau, "drigid": drigid, "ddrigid": ddrigid,
+            "dtau_dq": dq, "dtau_dv": dv,
+            "mass_matrix": M,
             "coulomb_width": fit.choice.terms.coulomb_width if "coulomb" in fit.choice.terms.friction else 0.01,
             "joints": [j for j, m in zip(rb.joints, mask) if m], "prismatic": prismatic,
             "X": P.X[:, :, fit.base.independent], "base_names": [fit.names[i] for i in fit.base.independent]}
 
 
-def _own_inertia(rb: RigidBody, q: np.ndarray) -> np.ndarray:
-    """M_jj(q) (T, J): each recorded joint's own generalised inertia (kg·m², kg) of the URDF (Pinocchio CRBA)."""
+def _rnea_derivatives(rb: RigidBody, q: np.ndarray, v: np.ndarray, a: np.ndarray, mask: np.ndarray):
+    """∂τ/∂q, ∂τ/∂q̇ and the mass matrix ∂τ/∂q̈ of the fitted joints' torques with respect to the fitted joints'
+    motion, (T, F, F) each, of the URDF's rigid bodies (Pinocchio's RNEA derivatives; first-order gains, where
+    the URDF's inertials are close enough)."""
     Q = _pin_q(rb, q)
+    V = np.zeros((Q.shape[0], rb.model.nv))
+    A = np.zeros_like(V)
+    V[:, rb.pin_v], A[:, rb.pin_v] = v, a
     d = rb.model.createData()
-    out = np.empty((Q.shape[0], rb.n_joints))
+    idx = rb.pin_v[mask]
+    F = idx.size
+    out = [np.empty((Q.shape[0], F, F)) for _ in range(3)]
     for i in range(Q.shape[0]):
-        M = pin.crba(rb.model, d, Q[i])
-        out[i] = np.diag(M)[rb.pin_v]
-    return out
+        pin.computeRNEADerivatives(rb.model, d, Q[i], V[i], A[i])
+        M = np.triu(d.M) + np.triu(d.M, 1).T
+        for o, D in zip(out, (d.dtau_dq, d.dtau_dv, M)):
+            o[i] = D[np.ix_(idx, idx)]
+    return tuple(out)
 
 
 def library(tab: dict) -> list:

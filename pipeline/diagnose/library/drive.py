@@ -2,8 +2,9 @@
 prismatic joint).  Same conventions as `friction`: a basis (T, F, k) of torque per unit parameter,
 linear, the measured torque being the model's plus B·θ.  Beyond `friction`'s keys the table holds
 the fitted joints' filtered positions ``q`` (T, F), the fitted model's torque ``tau_fit`` (T, F) with
-its first and second time derivatives ``dtau`` and ``ddtau`` (N·m/s, N·m/s²), and each joint's own
-inertia ``inertia`` (T, F), M_jj(q) of the URDF (kg·m², kg).
+its first time derivative ``dtau`` (N·m/s), the rigid-body part's first and second ``drigid``, ``ddrigid``
+(N·m/s, N·m/s²), and the URDF's torque
+derivatives ``dtau_dq``, ``dtau_dv``, ``mass_matrix`` (T, F, F): ∂τ_f/∂(q, q̇, q̈)_g of the fitted joints.
 
 - ``position_torque@J``: a torque periodic in the joint's angle, a·sin(nq) + b·cos(nq) (cogging of
   the motor seen through the gear, a cable or hose pulling at one side, an unbalanced seal); forms
@@ -16,8 +17,10 @@ inertia ``inertia`` (T, F), M_jj(q) of the URDF (kg·m², kg).
   parameters, can be seen — an absolute scale needs a known load;
 - ``time_offset``: the effort stream δ seconds behind the positions, τ_measured(t) = τ(t − δ), on every
   fitted joint (one δ for the stream): δ·(τ̂(t − δ_f) − τ̂(t))/δ_f, forms δ_f = ±5, ±10 and ±20 ms;
-- ``joint_elasticity@J``: a joint of finite stiffness K read on the motor side: the link lags by τ/K,
-  its acceleration by τ̈/K, the torque by −M_jj·τ̈·c with c = 1/K (rad/(N·m)).
+- ``joint_elasticity@J``: a joint of finite stiffness K read on the motor side: the link lags the reading
+  by c·τ_J (c = 1/K, rad/(N·m); τ_J the link side's rigid-body torque the spring carries, friction is on the
+  motor side), so every fitted joint's torque is the model's at the lagged link motion, to first order
+  −c·(∂τ/∂q_J·τ_J + ∂τ/∂q̇_J·τ̇_J + M_·J·τ̈_J) (the URDF's RNEA derivatives).
 """
 
 from __future__ import annotations
@@ -102,12 +105,15 @@ def joint_elasticity(table, f: int) -> Effect:
     pu = vu.split("/")[0]
 
     def basis(_arm, _x, t):
-        g = -np.asarray(t["inertia"], float)[:, f] * np.asarray(t["ddtau"], float)[:, f]
-        return on_joint(t, f, g[:, None])
+        tau = np.asarray(t["tau_rigid"], float)[:, f]  # the spring carries the link side's torque, not the friction
+        dtau, ddtau = np.asarray(t["drigid"], float)[:, f], np.asarray(t["ddrigid"], float)[:, f]
+        g = (np.asarray(t["dtau_dq"], float)[:, :, f] * tau[:, None] + np.asarray(t["dtau_dv"], float)[:, :, f]
+             * dtau[:, None] + np.asarray(t["mass_matrix"], float)[:, :, f] * ddtau[:, None])
+        return -g[:, :, None]
 
     return Effect("joint_elasticity", name, ("c",), (f"{pu}/{tu}",), COMPLIANCE_PLAUSIBLE, "torque", basis, 32,
-                  f"v_{name}", f"excite {name} with faster reversals (its resonance), or log the link-side encoder",
-                  data={"joint": f})
+                  f"load_{name}", f"excite {name} with faster reversals and under varied loads, or log its link-side "
+                  "encoder", data={"joint": f})
 
 
 def library(table) -> list[Effect]:

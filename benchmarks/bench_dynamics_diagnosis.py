@@ -29,7 +29,7 @@ from pipeline.dynamics import rigid_body as RB  # noqa: E402
 # (effect, joint index or None, the library location's joint, the generator's option): each injected alone
 FORMS = [("stribeck", 1, 0.05), ("asymmetric_coulomb", 2, None), ("load_friction", 1, None),
          ("friction_drift", 0, None), ("position_torque", 2, 2.0), ("cable_spring", 2, None),
-         ("drive_scale", 1, None), ("time_offset", None, None), ("joint_elasticity", 2, None)]
+         ("drive_scale", 1, None), ("time_offset", None, None), ("joint_elasticity", 1, None)]
 SIZE = 4.0  # × the minimum detectable size
 
 

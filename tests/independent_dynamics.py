@@ -136,8 +136,12 @@ def efforts(seed: int, t, q, v, a, noise: float = 0.05, effects: dict | None = N
     rigid = rnea(truth, q, v, a, joints)
     if "joint_elasticity" in (effects or {}):  # the link lags the motor-side reading q by c·τ: solve τ = RNEA(q − c·τ)
         k, c, _ = effects["joint_elasticity"]
-        for _ in range(4):  # the link's motion is the reading's less c·(τ, τ̇, τ̈): exact derivatives of the reading
-            d1 = np.gradient(rigid[:, k], t, edge_order=2)
+        from scipy.signal import butter, filtfilt
+
+        b, a_ = butter(2, 3.0, fs=1.0 / (t[1] - t[0]))
+        for _ in range(4):  # the link's motion is the reading's less c·(τ, τ̇, τ̈), quasi-static: the torque's
+            # derivatives from its content below 3 Hz (far below the joint's resonance, which this model leaves out)
+            d1 = np.gradient(filtfilt(b, a_, rigid[:, k]), t, edge_order=2)
             ql, vl, al = q.copy(), v.copy(), a.copy()
             ql[:, k] -= c * rigid[:, k]
             vl[:, k] -= c * d1

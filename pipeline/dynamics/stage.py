@@ -123,6 +123,11 @@ def diagnose(run_dir: Path, params: dict) -> dict:
     rb = model.rigid_body()
     fit = I.from_document(read_json(run_dir / "identify" / DYNAMICS_JSON))
     fit.base = I.structural_base(rb, model.fit_mask, fit.choice.terms)
+    cons = (read_json(run_dir / "identify" / "fit.json").get("consistent") or {}).get("theta")
+    if cons is not None:  # the physically consistent inertials: the diagnosis' first-order gains
+        from pipeline.dynamics.solve import Solution
+
+        fit.consistent = Solution(np.asarray(cons, float), np.zeros(0), np.zeros(0), np.zeros(0), "consistent")
     say = lambda line: print(f"diagnose: {line}", file=sys.stderr, flush=True)  # noqa: E731
     return run_diagnosis(rb, data, fit, settings_of(params), progress=say)
 

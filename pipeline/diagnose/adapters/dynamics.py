@@ -7,7 +7,7 @@ terms):
 
 - the diagnosis table (`table`): times, filtered positions, velocities, accelerations of the fitted
   joints, the fitted model's torque with its time derivatives, its rigid-body part (the load), the
-  URDF's torque derivatives with respect to the joints' motion — everything the library's terms (`library.friction`, `library.drive`) read;
+  identified model's torque derivatives with respect to the joints' motion — everything the library's terms (`library.friction`, `library.drive`) read;
 - the rows' noise model: each joint's rows weighted by 1/σ_j (its noise σ, as in weighted least
   squares), then whitened along time by an autoregressive filter per joint (`Whitener`: a torque
   residual at 100 Hz is far from independent sample to sample, and the grouped F tests of the shared
@@ -32,7 +32,7 @@ from pipeline.diagnose.library import drive, friction
 from pipeline.diagnose.verdict.lack_of_fit import Variable, smooth_variable
 from pipeline.dynamics import identify as I
 from pipeline.dynamics import signals
-from pipeline.dynamics.rigid_body import RigidBody, _pin_q
+from pipeline.dynamics.rigid_body import RigidBody, _pin_q, standard_parameters
 
 AR_MAX = 8  # the whitener's largest autoregressive order (chosen per joint by BIC)
 
@@ -52,7 +52,7 @@ def table(rb: RigidBody, data: I.Data, fit: I.Fit) -> dict:
     dtau = np.gradient(tau_fit, t, axis=0, edge_order=2)
     drigid = np.gradient(tau_rigid, t, axis=0, edge_order=2)
     ddrigid = np.gradient(drigid, t, axis=0, edge_order=2)
-    dq, dv, M = _rnea_derivatives(rb, qf, v, a, mask)
+    dq, dv, M = _rnea_derivatives(rb, qf, v, a, mask, _physical_rigid(rb, fit))
     prismatic = np.array([rb.model.joints[int(b)].shortname().startswith("JointModelP") for b in rb.body_of])[mask]
     return {"time_s": t - t[0], "q": qf[:, mask], "v": v[:, mask], "a": a[:, mask], "tau": P.raw,
             "tau_fit": tau_fit, "tau_rigid": tau_rigid, "dtau": dtau, "drigid": drigid, "ddrigid": ddrigid,
@@ -63,20 +63,34 @@ def table(rb: RigidBody, data: I.Data, fit: I.Fit) -> dict:
             "X": P.X[:, :, fit.base.independent], "base_names": [fit.names[i] for i in fit.base.independent]}
 
 
-def _rnea_derivatives(rb: RigidBody, q: np.ndarray, v: np.ndarray, a: np.ndarray, mask: np.ndarray):
+def _physical_rigid(rb: RigidBody, fit: I.Fit) -> np.ndarray:
+    """Rigid-body parameters π (J·10,) for the torque derivatives: the physically consistent fit's (every body a
+    body; a base parameter the trajectory hardly excites held near the URDF's), else the URDF's own."""
+    n_rb = 10 * rb.n_joints
+    if fit.consistent is not None and np.all(np.isfinite(fit.consistent.theta[:n_rb])):
+        return np.asarray(fit.consistent.theta[:n_rb], float)
+    return standard_parameters(rb)
+
+
+def _rnea_derivatives(rb: RigidBody, q: np.ndarray, v: np.ndarray, a: np.ndarray, mask: np.ndarray,
+                      pi: np.ndarray):
     """∂τ/∂q, ∂τ/∂q̇ and the mass matrix ∂τ/∂q̈ of the fitted joints' torques with respect to the fitted joints'
-    motion, (T, F, F) each, of the URDF's rigid bodies (Pinocchio's RNEA derivatives; first-order gains, where
-    the URDF's inertials are close enough)."""
+    motion, (T, F, F) each, with the identified rigid-body parameters π (J·10,) (Pinocchio's RNEA derivatives;
+    they are linear in π and depend on its base combinations only, so any π of the identified base parameters
+    gives them)."""
+    model = rb.model.copy()
+    for k, b in enumerate(rb.body_of):
+        model.inertias[int(b)] = pin.Inertia.FromDynamicParameters(np.asarray(pi[10 * k:10 * k + 10], float))
     Q = _pin_q(rb, q)
     V = np.zeros((Q.shape[0], rb.model.nv))
     A = np.zeros_like(V)
     V[:, rb.pin_v], A[:, rb.pin_v] = v, a
-    d = rb.model.createData()
+    d = model.createData()
     idx = rb.pin_v[mask]
     F = idx.size
     out = [np.empty((Q.shape[0], F, F)) for _ in range(3)]
     for i in range(Q.shape[0]):
-        pin.computeRNEADerivatives(rb.model, d, Q[i], V[i], A[i])
+        pin.computeRNEADerivatives(model, d, Q[i], V[i], A[i])
         M = np.triu(d.M) + np.triu(d.M, 1).T
         for o, D in zip(out, (d.dtau_dq, d.dtau_dv, M)):
             o[i] = D[np.ix_(idx, idx)]

@@ -78,7 +78,7 @@ def main() -> None:
         P = I.prepare(rb, I.Data(t, q, e, np.ones(4, bool)), fit.choice)
         from pipeline.dynamics.solve import ols
 
-        sol = ols(P.X, P.y, fit.base)
+        sol = ols(P.X, P.y, fit.base)  # the fit's own rows (slow samples left out)
         z = (sol.beta - beta_true) / sol.beta_std
         z_all.append(z)
         clean_false += len(doc["findings"])

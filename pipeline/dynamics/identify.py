@@ -84,9 +84,10 @@ def structural_base(rb: RigidBody, fit: np.ndarray, terms: design.Terms, seed: i
 
 @dataclass
 class _Prepared:
-    X: np.ndarray  # (T, F, P)
-    y: np.ndarray  # (T, F) the training target: the raw torques
+    X: np.ndarray  # (T, F, P) the training design: the regressor, rows left out of the fit zeroed
+    y: np.ndarray  # (T, F) the training target: the raw torques, the same rows zeroed
     raw: np.ndarray  # (T, F) raw torques (the score)
+    Xp: np.ndarray  # (T, F, P) the model's regressor at every sample (predicts the raw torques)
 
 
 def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = None) -> _Prepared:
@@ -107,7 +108,12 @@ def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = No
             Y_cache[key] = (Y, v, a)
     X = design.matrix(Y, v, a, data.fit, choice.terms)
     raw = np.asarray(data.tau, float)[:, data.fit]
-    return _Prepared(X, raw, raw)
+    use = np.ones(raw.shape)
+    if "coulomb" in choice.terms.friction and choice.terms.coulomb_width > 0:
+        # the Coulomb step is undefined where a joint starts, stops or reverses: its torque there is whatever
+        # stiction and presliding make it; those samples of that joint are left out of the fit (still scored)
+        use[np.abs(v[:, data.fit]) < SLOW_WIDTHS * choice.terms.coulomb_width] = 0.0
+    return _Prepared(X * use[:, :, None], raw * use, raw, X)
 
 
 def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: B.BaseSet,
@@ -133,11 +139,12 @@ def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet,
 
     def fit_predict(train, test):
         s = _solve(rb, P, train, choice, base, decimate)
-        return P.X[test] @ s.theta - P.raw[test]
+        return P.Xp[test] @ s.theta - P.raw[test]
 
     return held_out(fit_predict, P.X.shape[0], folds, guard)
 
 
+SLOW_WIDTHS = 3.0  # below this many Coulomb widths of speed a joint's sample is not fitted (its friction is stiction's)
 COULOMB_WIDTHS = (0.0003, 0.003, 0.01, 0.03)  # rad/s (m/s): from a near-sign step to a smooth transition through zero speed
 CUTOFFS_HZ = (2.0, 4.0, 8.0, 16.0)  # the positions' low-pass cut-off: noisy encoders want a low one, clean ones a high one
 DEFAULT_CANDIDATES = tuple(
@@ -204,10 +211,10 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say) -> F
                     if c["choice"] == replace(choice, solver="consistent").label() and "holdout_rms_joint" in c), None)
     names = rb.parameter_names() + design.extra_names(list(rb.joints), data.fit, choice.terms)[0]
     units = rb.parameter_units() + design.extra_names(list(rb.joints), data.fit, choice.terms)[1]
-    Xb = P.X[:, :, base.independent]
+    Xb = P.Xp[:, :, base.independent]
     fit = Fit(choice=choice, names=names, units=units, theta=sol.theta, base=base, solution=sol,
               condition=float(np.linalg.cond(Xb.reshape(-1, Xb.shape[2]))),
-              rms_train=rms(P.X @ sol.theta - P.raw, axis=0), rms_cv=rms(r, axis=0), candidates=rows,
+              rms_train=rms(P.Xp @ sol.theta - P.raw, axis=0), rms_cv=rms(r, axis=0), candidates=rows,
               timings={"choice_s": t_struct, "total_s": time.perf_counter() - t0}, consistent=cons,
               rms_cv_consistent=cv_cons, cv_residuals=r)
     return fit

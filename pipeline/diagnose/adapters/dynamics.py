@@ -46,8 +46,8 @@ def table(rb: RigidBody, data: I.Data, fit: I.Fit) -> dict:
     P = I.prepare(rb, data, fit.choice)
     mask = np.asarray(data.fit, bool)
     n_rb = 10 * rb.n_joints
-    tau_fit = P.X @ fit.theta
-    tau_rigid = P.X[:, :, :n_rb] @ fit.theta[:n_rb]
+    tau_fit = P.Xp @ fit.theta
+    tau_rigid = P.Xp[:, :, :n_rb] @ fit.theta[:n_rb]
     t = np.asarray(data.t, float)
     dtau = np.gradient(tau_fit, t, axis=0, edge_order=2)
     drigid = np.gradient(tau_rigid, t, axis=0, edge_order=2)
@@ -60,7 +60,7 @@ def table(rb: RigidBody, data: I.Data, fit: I.Fit) -> dict:
             "mass_matrix": M,
             "coulomb_width": fit.choice.terms.coulomb_width if "coulomb" in fit.choice.terms.friction else 0.01,
             "joints": [j for j, m in zip(rb.joints, mask) if m], "prismatic": prismatic,
-            "X": P.X[:, :, fit.base.independent], "base_names": [fit.names[i] for i in fit.base.independent]}
+            "X": P.Xp[:, :, fit.base.independent], "base_names": [fit.names[i] for i in fit.base.independent]}
 
 
 def _physical_rigid(rb: RigidBody, fit: I.Fit) -> np.ndarray:

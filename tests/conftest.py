@@ -62,3 +62,6 @@ def tiago_frozen_protocol(tmp_path_factory):
     ev = run_cli("evaluate", tmp / "cal", *recs[1:], "--out", tmp / "ev")
     assert ev.returncode == 0, ev.stderr
     return recs, cal, tmp / "cal", ev, tmp / "ev"
+
+
+from ci_time import pytest_collection_modifyitems  # noqa: E402,F401  (the suite on the machine's cores: ci_time.py)

@@ -1,24 +1,62 @@
-"""The suite's time on CI: how `make test` spreads the tests over the machine's cores (pytest-xdist).
+"""The suite's time on CI: how the tests share the machine's cores, and what each test file costs.
 
-`make test` runs ``pytest -n 2 --dist loadgroup``.  Each test file is one unit of work (its module
-fixtures are built once, on the worker that runs it); a file or test marked
-``pytest.mark.xdist_group("NAME")`` joins the unit NAME instead (tests that must never run at the same
-time as each other, whichever file they are in).  Each worker runs BLAS on one thread: two workers on
-two cores, each with OpenBLAS's default threads, would make four threads spin-wait for two cores.
+`make test` runs ``pytest -n 2 --dist loadgroup --no-loadscope-reorder`` (pytest-xdist: two worker
+processes, one per core of the CI machine).
+
+* **One unit of work per test file**: a file's tests run on one worker, one after the other, so its
+  module fixtures are built once.  A file or test marked ``pytest.mark.xdist_group("NAME")`` joins
+  the unit NAME instead (tests that must never run at the same time as each other, whichever file
+  they are in).  Session fixtures are built once per worker that asks for one.
+* **Heaviest units first**: units are handed to the workers in order of their recorded CPU cost
+  (``tests/ci_costs.json``), so that no long file starts last while the other worker sits idle.
+* **BLAS on one thread per worker** (and in every `robocal` the tests start): two workers with
+  OpenBLAS's default threads would make four threads spin-wait for two cores.
+* **Each file's CPU time** (user + sys, of the test process and of every process it started and
+  waited for) is summed and printed at the end, heaviest first, with the suite's total.  A file over
+  its allowance (``max(ALLOWANCE_S, 1.5 × its recorded cost)``) is named in a warning; with
+  ``CI=true``, a file over ``FAIL_FACTOR`` × its allowance fails the run: bound its sizes, share its
+  fixtures or move its sweep to ``benchmarks/`` (or, for a file that must cost that much, record its
+  cost: ``pytest --ci-costs-write``, which rewrites ``tests/ci_costs.json`` for the files that ran).
 """
 
 from __future__ import annotations
 
+import json
 import os
+import resource
+from collections import defaultdict
+from pathlib import Path
 
 import pytest
 
 WORKER = os.environ.get("PYTEST_XDIST_WORKER")  # "gw0", "gw1", … in an xdist worker; None otherwise
 ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+COSTS = Path(__file__).with_name("ci_costs.json")  # test file (as in a node id) → CPU s, measured
+ALLOWANCE_S = 30.0  # CPU s a test file may cost without a recorded cost (a new file's budget)
+HEADROOM = 1.5  # a file's allowance over its recorded cost (CPU time varies with the machine's load)
+FAIL_FACTOR = 2.0  # with CI=true, a file over this many times its allowance fails the run
+SHOWN = 20  # files listed in the summary
 
 if WORKER:  # before numpy loads its BLAS here, and inherited by every robocal the tests start
     for _k, _v in ONE_THREAD.items():
         os.environ.setdefault(_k, _v)
+
+
+def recorded_costs() -> dict[str, float]:
+    """The recorded CPU cost (s) of each test file ({} where the file is absent or damaged)."""
+    try:
+        return {str(k): float(v) for k, v in json.loads(COSTS.read_text()).items()}
+    except (OSError, ValueError, AttributeError):
+        return {}
+
+
+def allowance(file: str, costs: dict[str, float]) -> float:
+    """CPU seconds `file` may cost before the summary warns of it."""
+    return max(ALLOWANCE_S, HEADROOM * costs.get(file, 0.0))
+
+
+def _file(nodeid: str) -> str:
+    return nodeid.split("::", 1)[0]
 
 
 def _group(item: pytest.Item) -> str | None:
@@ -29,9 +67,99 @@ def _group(item: pytest.Item) -> str | None:
     return str(m.args[0] if m.args else m.kwargs.get("name", "default"))
 
 
+def pytest_addoption(parser):
+    parser.addoption("--ci-costs-write", action="store_true", default=False,
+                     help="Record the CPU time of each test file that ran in tests/ci_costs.json "
+                     "(their allowance and their order on the xdist workers).")
+
+
 @pytest.hookimpl(tryfirst=True)  # before xdist's own hook reads the groups
 def pytest_collection_modifyitems(config, items):
-    """Every test not in a named group is grouped with its file."""
+    """Every test not in a named group is grouped with its file; the units are ordered by recorded
+    cost, heaviest first (unrecorded files: ALLOWANCE_S), keeping each unit's own order of tests."""
+    costs = recorded_costs()
+    unit_of: dict[int, str] = {}
     for item in items:
-        if _group(item) is None:
-            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0]))
+        g = _group(item)
+        if g is None:
+            g = _file(item.nodeid)
+            item.add_marker(pytest.mark.xdist_group(g))
+        unit_of[id(item)] = g
+    cost: dict[str, float] = defaultdict(float)
+    for f in {_file(i.nodeid): unit_of[id(i)] for i in items}.items():
+        cost[f[1]] += costs.get(f[0], ALLOWANCE_S)
+    first = {}
+    for n, item in enumerate(items):
+        first.setdefault(unit_of[id(item)], n)
+    items.sort(key=lambda i: (-cost[unit_of[id(i)]], first[unit_of[id(i)]]))  # stable: a unit's order kept
+
+
+def _cpu() -> float:
+    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """Each phase's report carries the CPU time spent since the previous phase's (setup: since the
+    previous test's teardown; module fixtures count where they are built and torn down)."""
+    outcome = yield
+    now = _cpu()
+    last = getattr(item.session, "_ci_cpu_last", None)
+    item.session._ci_cpu_last = now
+    if last is not None:
+        outcome.get_result().user_properties.append(("ci_cpu_s", now - last))
+
+
+class _Tally:
+    """CPU per test file, summed from the reports (in the controller, under xdist or not)."""
+
+    def __init__(self):
+        self.cpu: dict[str, float] = defaultdict(float)
+
+    def pytest_runtest_logreport(self, report):
+        for k, v in getattr(report, "user_properties", ()):
+            if k == "ci_cpu_s":
+                self.cpu[_file(report.nodeid)] += float(v)
+
+
+def pytest_configure(config):
+    if not WORKER:
+        config.pluginmanager.register(_Tally(), "ci_time_tally")
+
+
+def _over(tally, costs) -> tuple[dict[str, float], dict[str, float]]:
+    """(files over their allowance, files over FAIL_FACTOR × their allowance): file → CPU s."""
+    over = {f: s for f, s in tally.cpu.items() if s > allowance(f, costs)}
+    return over, {f: s for f, s in over.items() if s > FAIL_FACTOR * allowance(f, costs)}
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """With CI=true, a file over FAIL_FACTOR × its allowance fails the run (the summary says which)."""
+    tally = session.config.pluginmanager.get_plugin("ci_time_tally")
+    if tally is None or os.environ.get("CI") != "true" or session.config.getoption("ci_costs_write"):
+        return
+    if _over(tally, recorded_costs())[1] and session.exitstatus == 0:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    tally = config.pluginmanager.get_plugin("ci_time_tally")
+    if tally is None or not tally.cpu:
+        return
+    costs, tr = recorded_costs(), terminalreporter
+    tr.write_sep("-", f"CPU time by test file (user+sys, with the processes it started): "
+                 f"{sum(tally.cpu.values()):.0f} s in all")
+    for f, s in sorted(tally.cpu.items(), key=lambda kv: -kv[1])[:SHOWN]:
+        tr.write_line(f"{s:8.1f} s  {f}  (allowance {allowance(f, costs):.0f} s)")
+    over, failing = _over(tally, costs)
+    for f, s in sorted(over.items(), key=lambda kv: -kv[1]):
+        tr.write_line(f"WARNING: {f} took {s:.0f} s CPU, over its allowance of {allowance(f, costs):.0f} s "
+                      "(bound its sizes, share fixtures, move sweeps to benchmarks/: tests/ci_time.py)")
+    if config.getoption("ci_costs_write"):
+        merged = {**costs, **{f: round(s, 1) for f, s in tally.cpu.items()}}
+        COSTS.write_text(json.dumps(dict(sorted(merged.items())), indent=0) + "\n")
+        tr.write_line(f"recorded the CPU time of {len(tally.cpu)} file(s) in {COSTS}")
+    elif failing and os.environ.get("CI") == "true":
+        tr.write_line(f"FAILED: {len(failing)} test file(s) over {FAIL_FACTOR:g}× their CPU allowance "
+                      f"(CI=true): {', '.join(sorted(failing))}", red=True)

@@ -6,7 +6,8 @@ processes, one per core of the CI machine).
 * **One unit of work per test file**: a file's tests run on one worker, one after the other, so its
   module fixtures are built once.  A file or test marked ``pytest.mark.xdist_group("NAME")`` joins
   the unit NAME instead (tests that must never run at the same time as each other, whichever file
-  they are in).  Session fixtures are built once per worker that asks for one.
+  they are in).  Session fixtures are built once per worker that asks for one; the files using one
+  of the costly ones (`SHARED`) form one unit, so it is built once.
 * **Heaviest units first**: units are handed to the workers in order of their recorded CPU cost
   (``tests/ci_costs.json``), so that no long file starts last while the other worker sits idle.
 * **BLAS on one thread per worker** (and in every `robocal` the tests start): two workers with
@@ -36,6 +37,8 @@ ALLOWANCE_S = 30.0  # CPU s a test file may cost without a recorded cost (a new 
 HEADROOM = 1.5  # a file's allowance over its recorded cost (CPU time varies with the machine's load)
 FAIL_FACTOR = 2.0  # with CI=true, a file over this many times its allowance fails the run
 SHOWN = 20  # files listed in the summary
+# Session fixtures too costly to build on both workers: the files whose tests use one form one unit.
+SHARED = ("tiago_frozen_protocol",)
 
 if WORKER:  # before numpy loads its BLAS here, and inherited by every robocal the tests start
     for _k, _v in ONE_THREAD.items():
@@ -78,11 +81,16 @@ def pytest_collection_modifyitems(config, items):
     """Every test not in a named group is grouped with its file; the units are ordered by recorded
     cost, heaviest first (unrecorded files: ALLOWANCE_S), keeping each unit's own order of tests."""
     costs = recorded_costs()
+    shared: dict[str, str] = {}  # file → the costly session fixture it shares
+    for item in items:
+        used = [f for f in SHARED if f in getattr(item, "fixturenames", ())]
+        if used:
+            shared.setdefault(_file(item.nodeid), used[0])
     unit_of: dict[int, str] = {}
     for item in items:
         g = _group(item)
         if g is None:
-            g = _file(item.nodeid)
+            g = shared.get(_file(item.nodeid), _file(item.nodeid))
             item.add_marker(pytest.mark.xdist_group(g))
         unit_of[id(item)] = g
     cost: dict[str, float] = defaultdict(float)

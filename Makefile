@@ -27,7 +27,7 @@ demo: $(STAMP) bytecode
 # first (tests/ci_time.py); TEST_WORKERS=0 runs it in this process alone
 TEST_WORKERS ?= 2
 test: $(STAMP) bytecode chromium lint
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # pyflakes rules only: undefined names, unused imports/variables, syntax errors
 lint: $(STAMP)

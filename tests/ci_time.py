@@ -1,13 +1,13 @@
 """The suite's time on CI: how the tests share the machine's cores, and what each test file costs.
 
-`make test` runs ``pytest -n 2 --dist loadgroup --no-loadscope-reorder`` (pytest-xdist: two worker
+`make test` runs ``pytest -n 2 --dist loadfile --no-loadscope-reorder`` (pytest-xdist: two worker
 processes, one per core of the CI machine).
 
 * **One unit of work per test file**: a file's tests run on one worker, one after the other, so its
-  module fixtures are built once.  A file or test marked ``pytest.mark.xdist_group("NAME")`` joins
-  the unit NAME instead (tests that must never run at the same time as each other, whichever file
-  they are in).  Session fixtures are built once per worker that asks for one; the files using one
-  of the costly ones (`SHARED`) form one unit, so it is built once.
+  module fixtures are built once.  A file that says ``pytestmark = pytest.mark.xdist_group("NAME")``
+  joins the unit NAME instead (files whose tests must never run at the same time as each other).
+  Session fixtures are built once per worker that asks for one; the files using one of the costly
+  ones (`SHARED`) form one unit, so it is built once.
 * **Heaviest units first**: units are handed to the workers in order of their recorded CPU cost
   (``tests/ci_costs.json``), so that no long file starts last while the other worker sits idle.
 * **BLAS on one thread per worker** (and in every `robocal` the tests start): two workers with
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import resource
 from collections import defaultdict
 from pathlib import Path
@@ -32,6 +33,7 @@ import pytest
 
 WORKER = os.environ.get("PYTEST_XDIST_WORKER")  # "gw0", "gw1", … in an xdist worker; None otherwise
 ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+ROOT = Path(__file__).resolve().parents[1]
 COSTS = Path(__file__).with_name("ci_costs.json")  # test file (as in a node id) → CPU s, measured
 ALLOWANCE_S = 30.0  # CPU s a test file may cost without a recorded cost (a new file's budget)
 HEADROOM = 1.5  # a file's allowance over its recorded cost (CPU time varies with the machine's load)
@@ -62,12 +64,24 @@ def _file(nodeid: str) -> str:
     return nodeid.split("::", 1)[0]
 
 
-def _group(item: pytest.Item) -> str | None:
-    marks = list(item.iter_markers("xdist_group"))
-    if not marks:
-        return None
-    m = marks[0]
-    return str(m.args[0] if m.args else m.kwargs.get("name", "default"))
+_GROUP = re.compile(r"""xdist_group\(\s*(?:name\s*=\s*)?["']([^"']+)["']""")
+_units: dict[str, str] = {}
+
+
+def unit_of_file(file: str) -> str:
+    """The unit of work of the test file `file` (a path as in a node id, relative to the repository):
+    the NAME of the first ``xdist_group("NAME")`` its text names, else the first costly session
+    fixture of SHARED it names, else the file itself.  Read from the file's text, so that the xdist
+    controller (which collects no test) and the workers agree."""
+    if file not in _units:
+        try:
+            text = (ROOT / file).read_text()
+        except OSError:
+            text = ""
+        m = _GROUP.search(text)
+        shared = [f for f in SHARED if f in text]
+        _units[file] = m.group(1) if m else shared[0] if shared else file
+    return _units[file]
 
 
 def pytest_addoption(parser):
@@ -76,30 +90,33 @@ def pytest_addoption(parser):
                      "(their allowance and their order on the xdist workers).")
 
 
-@pytest.hookimpl(tryfirst=True)  # before xdist's own hook reads the groups
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """With ``--dist loadfile``: xdist's scope scheduler, its scopes being `unit_of_file` (xdist's own
+    ``loadgroup`` relies on rewriting node ids, which pytest ≥ 9.2 no longer honours)."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class FileUnits(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return unit_of_file(_file(nodeid))
+
+    return FileUnits(config, log)
+
+
 def pytest_collection_modifyitems(config, items):
-    """Every test not in a named group is grouped with its file; the units are ordered by recorded
-    cost, heaviest first (unrecorded files: ALLOWANCE_S), keeping each unit's own order of tests."""
+    """The units in order of recorded cost, heaviest first (a file not recorded: ALLOWANCE_S), each
+    unit's tests in their own order (under xdist with ``--no-loadscope-reorder``: the order in which
+    the units are handed to the workers)."""
     costs = recorded_costs()
-    shared: dict[str, str] = {}  # file → the costly session fixture it shares
-    for item in items:
-        used = [f for f in SHARED if f in getattr(item, "fixturenames", ())]
-        if used:
-            shared.setdefault(_file(item.nodeid), used[0])
-    unit_of: dict[int, str] = {}
-    for item in items:
-        g = _group(item)
-        if g is None:
-            g = shared.get(_file(item.nodeid), _file(item.nodeid))
-            item.add_marker(pytest.mark.xdist_group(g))
-        unit_of[id(item)] = g
     cost: dict[str, float] = defaultdict(float)
-    for f in {_file(i.nodeid): unit_of[id(i)] for i in items}.items():
-        cost[f[1]] += costs.get(f[0], ALLOWANCE_S)
-    first = {}
+    for f in {_file(i.nodeid) for i in items}:
+        cost[unit_of_file(f)] += costs.get(f, ALLOWANCE_S)
+    first: dict[str, int] = {}
     for n, item in enumerate(items):
-        first.setdefault(unit_of[id(item)], n)
-    items.sort(key=lambda i: (-cost[unit_of[id(i)]], first[unit_of[id(i)]]))  # stable: a unit's order kept
+        first.setdefault(unit_of_file(_file(item.nodeid)), n)
+    items.sort(key=lambda i: (-cost[unit_of_file(_file(i.nodeid))], first[unit_of_file(_file(i.nodeid))]))
 
 
 def _cpu() -> float:

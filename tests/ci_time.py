@@ -110,17 +110,21 @@ def pytest_xdist_make_scheduler(config, log):
 
 
 def pytest_collection_modifyitems(config, items):
-    """The units in order of recorded cost, heaviest first (a file not recorded: ALLOWANCE_S), each
-    unit's tests in their own order (under xdist with ``--no-loadscope-reorder``: the order in which
-    the units are handed to the workers)."""
+    """The units in order of recorded cost, heaviest first (a file not recorded: ALLOWANCE_S; among
+    equal costs, the unit of more tests first, as xdist orders them), each unit's tests in their own
+    order (under xdist with ``--no-loadscope-reorder``: the order in which the units are handed to the
+    workers)."""
     costs = recorded_costs()
+    unit = {id(i): unit_of_file(_file(i.nodeid)) for i in items}
     cost: dict[str, float] = defaultdict(float)
     for f in {_file(i.nodeid) for i in items}:
         cost[unit_of_file(f)] += costs.get(f) or ALLOWANCE_S
+    size: dict[str, int] = defaultdict(int)
     first: dict[str, int] = {}
     for n, item in enumerate(items):
-        first.setdefault(unit_of_file(_file(item.nodeid)), n)
-    items.sort(key=lambda i: (-cost[unit_of_file(_file(i.nodeid))], first[unit_of_file(_file(i.nodeid))]))
+        size[unit[id(item)]] += 1
+        first.setdefault(unit[id(item)], n)
+    items.sort(key=lambda i: (-cost[unit[id(i)]], -size[unit[id(i)]], first[unit[id(i)]]))
 
 
 def _cpu() -> float:

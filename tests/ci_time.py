@@ -198,4 +198,6 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
         tr.write_line(f"recorded the CPU time of {len(tally.cpu)} file(s) in {COSTS}")
     elif failing and os.environ.get("CI") == "true":
         tr.write_line(f"FAILED: {len(failing)} test file(s) over {FAIL_FACTOR:g}× their CPU allowance "
-                      f"(CI=true): {', '.join(sorted(failing))}", red=True)
+                      f"(CI=true): {', '.join(sorted(failing))}. Bound the file's sizes or share its fixtures; "
+                      "a file that must cost this much records its cost in tests/ci_costs.json "
+                      "(pytest FILE --ci-costs-write; null there: warned of, never failed)", red=True)

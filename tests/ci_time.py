@@ -34,6 +34,10 @@ from pathlib import Path
 
 import pytest
 
+__all__ = ["pytest_addoption", "pytest_collection_finish", "pytest_collection_modifyitems", "pytest_configure",
+           "pytest_runtest_makereport", "pytest_sessionfinish", "pytest_terminal_summary",
+           "pytest_xdist_make_scheduler"]  # the hooks tests/conftest.py takes
+
 WORKER = os.environ.get("PYTEST_XDIST_WORKER")  # "gw0", "gw1", … in an xdist worker; None otherwise
 ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 ROOT = Path(__file__).resolve().parents[1]
@@ -130,6 +134,11 @@ def pytest_collection_modifyitems(config, items):
 def _cpu() -> float:
     s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
     return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
+
+
+def pytest_collection_finish(session):
+    """The CPU clock's start for the first test (its setup counts; the collection does not)."""
+    session._ci_cpu_last = _cpu()
 
 
 @pytest.hookimpl(hookwrapper=True)

@@ -64,7 +64,5 @@ def tiago_frozen_protocol(tmp_path_factory):
     return recs, cal, tmp / "cal", ev, tmp / "ev"
 
 
-# the suite on the machine's cores, and what each test file costs: tests/ci_time.py
-from ci_time import (pytest_addoption, pytest_collection_modifyitems, pytest_configure,  # noqa: E402,F401
-                     pytest_runtest_makereport, pytest_sessionfinish, pytest_terminal_summary,
-                     pytest_xdist_make_scheduler)
+# the suite on the machine's cores, and what each test file costs: tests/ci_time.py (its hooks, by its __all__)
+from ci_time import *  # noqa: E402,F401,F403

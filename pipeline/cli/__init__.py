@@ -61,6 +61,13 @@ def console(stderr: bool = False) -> Console:
 err = console(stderr=True)
 
 
+def force_option(what: str = "recording"):
+    """`--force` of a command writing a recording (or a simulation's truth): replace an existing one robocal
+    wrote, keeping it as NAME.bak (`pipeline.recording.output`; never a recording of real measurements)."""
+    return typer.Option(False, "--force", help=f"Replace an existing {what} robocal wrote, keeping the old one as "
+                        "NAME.bak (never a recording robocal acquire made; never over an existing .bak).")
+
+
 def _version(value: bool) -> None:
     if value:
         from pipeline import __version__

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli import IMPORT, app, err
+from pipeline.cli import IMPORT, app, err, force_option
 
 import_app = typer.Typer(help="Bring measurements of any URDF robot in: CSV tables (and ROS 2 bags) → a recording.",
                          no_args_is_help=True)
@@ -68,12 +68,14 @@ def import_csv(
     instrument: str = typer.Option("", "--instrument", help="Instrument identity (tracker serial, mocap room) stored "
                                                             "in the campaign: recordings sharing a registration "
                                                             "must name the same (robocal evaluate)."),
+    force: bool = force_option(),
 ) -> None:
     """Map CSV columns to the URDF's joints (by header name) and write a recording `robocal run` calibrates."""
     from pipeline.errors import RobocalError
     from pipeline.importers.csv_table import CsvSpec, read_table
     from pipeline.importers.recording import write_urdf_recording
     from pipeline.models import urdf as urdf_mod
+    from pipeline.recording.output import check_output, claim_output
 
     if measure not in ("point", "pose", "plane", "coincidence"):
         raise RobocalError(f"--measure {measure!r}: expected point, pose, plane or coincidence")
@@ -85,6 +87,7 @@ def import_csv(
         raise RobocalError("--measure pose needs --orientation-cols")
     if out.exists() and out.resolve() in {f.resolve() for f in files}:
         raise RobocalError(f"{out}: --out is one of the input files")
+    check_output(out, force=force)  # before any work: an existing recording only with --force
     tips = _tips(tip, measure, target)
     desc = urdf_mod.read(urdf, root, tip[0]) if tips is None and not coupled else _tree_desc(urdf, root, tips or
                                                                                             [(tip[0], None)], coupled)
@@ -120,6 +123,7 @@ def import_csv(
         campaign["distances"] = ds
     for w in extras.get("import_warnings", []):
         err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+    claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
     n = write_urdf_recording(out, desc, measure, campaign, table, tips=[t for t, _ in tips] if tips else None)
     err.print(f"imported {n} {measure} measurements of {len(desc.joint_names)} joints "
               f"({desc.root} → {', '.join(t for t, _ in tips) if tips else desc.tip}) into {out}",

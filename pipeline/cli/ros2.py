@@ -8,7 +8,7 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli import bag_options
+from pipeline.cli import bag_options, force_option
 from pipeline.cli.importer import import_app
 
 BAG = bag_options.options()
@@ -53,6 +53,7 @@ def import_ros2(
                                           "images`' pose chain): only camera, hand-eye and board are fitted."),
     skip_bad: bool = typer.Option(False, "--skip-bad", rich_help_panel=CAM, help="Leave out images that cannot be "
                                   "read, of an unsupported encoding or of another size than CameraInfo (listed)."),
+    force: bool = force_option(),
 ) -> None:
     """Pair each measurement with the joint state where the robot stood still around it and write a
     recording `robocal run` calibrates; measurements taken while moving are listed and left out."""
@@ -60,7 +61,9 @@ def import_ros2(
     from pipeline.importers.ros2 import BagSpec
 
     from pipeline.errors import RobocalError
+    from pipeline.recording.output import check_output
 
+    check_output(out, force=force)  # before any work: an existing recording only with --force
     if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
         from pipeline.cli.ros2_camera import import_camera
         from pipeline.importers.ros2_camera import CameraSpec
@@ -73,11 +76,11 @@ def import_ros2(
                          n_dist=n_dist or (8 if lens == "pinhole" else 4), max_edge_px=max_edge_px,
                          clock_bound_s=clock_bound, clock_offset_s=clock_offset, workers=workers, skip_bad=skip_bad,
                          kinematics_known=kinematics_known)
-        import_camera(bag, urdf, root, tip, out, spec, cam, robot_id)
+        import_camera(bag, urdf, root, tip, out, spec, cam, robot_id, force=force)
         return
     mt, tips = bag_options.measure_topics(measure_topic, tip)
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time, tips=tips)
     done = import_bag(bag, urdf, root, tip, out, spec, sigma_m, sigma_rad, robot_id, on_read=bag_options.print_read,
-                      coupled=tuple(coupled or ()))
+                      coupled=tuple(coupled or ()), force=force)
     bag_options.print_written(done)

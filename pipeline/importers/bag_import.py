@@ -34,18 +34,23 @@ class BagImport:
 
 def import_bag(bag: Path, urdf: Path, root: str, tip: str, out: Path, spec: BagSpec = BagSpec(),
                sigma_m: float = 1e-3, sigma_rad: float = 1e-3, robot_id: str = "",
-               on_read: Callable[[Path, dict], None] | None = None, coupled: tuple[str, ...] = ()) -> BagImport:
+               on_read: Callable[[Path, dict], None] | None = None, coupled: tuple[str, ...] = (),
+               force: bool = False) -> BagImport:
     """Read `bag` (the chain `root` → `tip` of `urdf`), pair each measurement with the joint state
     where the robot stood still around it, and write the recording `out`.  `on_read(bag, extras)`
     sees the read's extras (warnings, the ``ros2`` record) before anything is written.  Pose
     measurements carry `sigma_m` (m) and `sigma_rad` (rad).  A tree (`spec.tips`: (link, topic) pairs, or
-    `coupled`: ``J=EXPR`` texts): the chains root → each tip, the coupled joints driven by the others."""
+    `coupled`: ``J=EXPR`` texts): the chains root → each tip, the coupled joints driven by the others.
+    An existing recording at `out` is replaced only with `force` (kept as NAME.bak)."""
     from pipeline.importers.recording import write_urdf_recording
     from pipeline.importers.ros2 import read_bag
     from pipeline.models import urdf as urdf_mod
 
     if out.exists() and out.resolve() == bag.resolve():
         raise RobocalError(f"{out}: --out is the bag itself")
+    from pipeline.recording.output import check_output
+
+    check_output(out, force=force)  # before the bag is read
     tips = [link for link, _ in spec.tips] or None
     cp: dict = {}
     if tips or coupled:
@@ -64,6 +69,9 @@ def import_bag(bag: Path, urdf: Path, root: str, tip: str, out: Path, spec: BagS
     if on_read is not None:
         on_read(bag, extras)
     stream = table.pop("stream", None)
+    from pipeline.recording.output import claim_output
+
+    claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
     n = write_urdf_recording(out, desc, kind, campaign, table, stream=stream, tips=tips)
     return BagImport(out=out, n=n, kind=kind, n_joints=len(desc.joint_names), root=desc.root,
                      tip=", ".join(tips) if tips else desc.tip,

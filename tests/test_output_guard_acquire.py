@@ -50,13 +50,16 @@ def test_a_foreign_summary_report_or_truth_is_refused_before_any_work(tmp_path, 
 
 def test_robocal_replaces_its_own_summary_report_and_truth(tmp_path):
     """A real run over a pty pair (device-sim → acquire) with robocal-written files at every side
-    output: all three are replaced by this run's documents."""
+    output: the summary and report are replaced by this run's documents (a truth file, like its
+    recording, only with --force: the old one kept as .bak)."""
     direct, truth = tmp_path / "direct.mcap", tmp_path / "truth.json"
     run_cli("simulate", "arc-welder", "--contacts", "10", "--seed", "3", "--out", direct, "--truth", truth, check=True)
     first = truth.read_bytes()
     assert written_by_robocal(truth)
-    run_cli("simulate", "arc-welder", "--contacts", "12", "--seed", "3", "--out", direct, "--truth", truth, check=True)
+    run_cli("simulate", "arc-welder", "--contacts", "12", "--seed", "3", "--out", direct, "--truth", truth, "--force",
+            check=True)  # a recording and its truth are data: replaced with --force only, the old ones kept as .bak
     assert truth.read_bytes() != first and json.loads(truth.read_text())["campaign"]["contacts"] == 12
+    assert (tmp_path / "truth.json.bak").read_bytes() == first and (tmp_path / "direct.mcap.bak").is_file()
     for name in ("summary.json", "sim.json"):  # robocal's own JSON (a truth file) where acquire and device-sim write
         shutil.copy(truth, tmp_path / name)
     _, s, rep = record_over_pty(tmp_path, "arc-welder", ("--recording", str(direct), "--speed", "40"))

@@ -23,8 +23,11 @@ def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
                                       "topic (default: the bag's only one); a robot measured on several links: "
                                       "LINK=TOPIC, repeated (one PointStamped topic per tip).", **kw),
         "coupled": typer.Option(None, "--coupled", help="A joint driven by others, not in the JointStates: "
-                                "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2 (repeatable; URDF <mimic> joints are "
+                                "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2, lift=0.01[m/rad]*j1 (a factor between a "
+                                "prismatic and a revolute joint carries its unit; repeatable; URDF <mimic> joints are "
                                 "coupled already).", **kw),
+        "coupling_wins": typer.Option(False, "--coupling-wins", help="A --coupled joint the JointStates also carry: the "
+                                      "coupling replaces its readings (without this that is an error).", **kw),
         "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type).", **kw),
         "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window", min=1e-6,
                                  help="Standstill window around each measurement, s.", **kw),

@@ -46,13 +46,17 @@ def import_csv(
     tip: list[str] = typer.Option(..., "--tip", help="Tip link of the calibrated chain; a robot measured at several "
                                   "links: LINK=X,Y,Z (its position columns), repeatable (point)."),
     coupled: list[str] = typer.Option([], "--coupled", help="A joint driven by others, not in the CSV: "
-                                      "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2 (repeatable)."),
+                                      "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2, lift=0.01[m/rad]*j1 (a factor "
+                                      "between a prismatic and a revolute joint carries its unit; repeatable)."),
+    coupling_wins: bool = typer.Option(False, "--coupling-wins", help="A --coupled joint that has its own column: "
+                                       "the coupling replaces the column (without this that is an error)."),
     measure: str = typer.Option(..., "--measure", help="point | pose | plane | coincidence."),
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
     joint_units: str = typer.Option("rad", "--joint-units", help="Revolute joint columns in rad or deg."),
     length_units: str = typer.Option("m", "--length-units", help="Positions and prismatic joints in m or mm."),
     columns: str = typer.Option("", "--columns", help="Column names for files without a header, comma-separated."),
-    position: str = typer.Option("x,y,z", "--position-cols", help="Position columns (point, pose)."),
+    position: str = typer.Option("", "--position-cols", help="Position columns (point, pose; default x,y,z; not "
+                                 "with --tip LINK=X,Y,Z)."),
     target: list[str] = typer.Option([], "--target-cols", help="Further targets' x,y,z columns (point), repeatable."),
     orientation: str = typer.Option("", "--orientation-cols", help="Orientation columns (pose)."),
     orientation_kind: str = typer.Option("rpy", "--orientation", help="rpy (URDF roll,pitch,yaw, rad) or quat (x,y,z,w)."),
@@ -88,9 +92,16 @@ def import_csv(
     if out.exists() and out.resolve() in {f.resolve() for f in files}:
         raise RobocalError(f"{out}: --out is one of the input files")
     check_output(out, force=force)  # before any work: an existing recording only with --force
+    if orientation_kind not in ("rpy", "quat"):
+        raise RobocalError(f"--orientation {orientation_kind!r}: expected rpy or quat")
     tips = _tips(tip, measure, target)
+    if tips and position:
+        raise RobocalError(f"--position-cols {position!r} and --tip LINK=X,Y,Z cannot be combined: give each link's "
+                           "columns with --tip")
+    position = position or "x,y,z"
     desc = urdf_mod.read(urdf, root, tip[0]) if tips is None and not coupled else _tree_desc(urdf, root, tips or
                                                                                             [(tip[0], None)], coupled)
+    _column_use(measure, tips, position, target, orientation, orientation_kind, plane, desc.joint_names)
     if tips:
         position, target = ",".join(tips[0][1]), [",".join(c) for _, c in tips[1:]]
     planes = dict(parse_plane(p) for p in plane)
@@ -99,13 +110,13 @@ def import_csv(
     spec = CsvSpec(measure=measure, joint_units=joint_units, length_units=length_units, columns=_cols(columns),
                    position=_cols(position), targets=tuple(_cols(t) for t in target),
                    orientation=_cols(orientation), orientation_kind=orientation_kind, group_from=group_from,
-                   planes=planes)
+                   planes=planes, coupled=tuple(_coupled_names(coupled)), coupling_wins=coupling_wins)
     table, extras = read_table(files, desc, spec)
     campaign = {**extras, "source_files": [str(f) for f in files], "robot_id": robot_id or desc.name}
     if instrument:
         campaign["instrument"] = instrument
     if coupled:
-        from pipeline.models.urdf_tree import parse_coupling
+        from pipeline.models.coupling import parse_coupling
 
         campaign["coupled"] = {c: {"terms": t, "offset": o} for c, t, o in map(parse_coupling, coupled)}
     if measure == "pose":
@@ -150,6 +161,31 @@ def _tips(items: list[str], measure: str, target: list[str]) -> list[tuple[str, 
     if len({t for t, _ in out}) != len(out):
         raise RobocalError("--tip: a link is given twice")
     return out
+
+
+def _column_use(measure: str, tips, position: str, target: list[str], orientation: str, orientation_kind: str,
+                plane: list[str], joints: list[str]) -> None:
+    """One column, one quantity (`importers.column_use`): the options' columns as the user typed them."""
+    from pipeline.importers.column_use import check_column_use
+
+    groups: list = []
+    if tips:
+        groups += [(f"--tip {link}={','.join(c)}", "position", c) for link, c in tips]
+    elif measure in ("point", "pose"):
+        groups += [(f"--position-cols {position!r}", "position", _cols(position))]
+        groups += [(f"--target-cols {t!r}", "position", _cols(t)) for t in target]
+    if measure == "pose":
+        groups.append((f"--orientation-cols {orientation!r}", orientation_kind, _cols(orientation)))
+    if measure == "plane":
+        groups += [(f"--plane {p!r}", "offset", (pl["offset"],)) for p in plane
+                   for _, pl in [parse_plane(p)] if isinstance(pl["offset"], str)]
+    check_column_use(groups, joints)
+
+
+def _coupled_names(coupled: list[str]) -> list[str]:
+    from pipeline.models.coupling import parse_coupling
+
+    return [parse_coupling(c)[0] for c in coupled]
 
 
 def _tree_desc(urdf: Path, root: str, tips: list, coupled: list[str]):

@@ -25,6 +25,7 @@ def import_ros2(
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
     joint_topic: str = BAG["joint_topic"],
     measure_topic: Optional[list[str]] = BAG["measure_topic"], coupled: Optional[list[str]] = BAG["coupled"],
+    coupling_wins: bool = BAG["coupling_wins"],
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
@@ -82,5 +83,5 @@ def import_ros2(
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time, tips=tips)
     done = import_bag(bag, urdf, root, tip, out, spec, sigma_m, sigma_rad, robot_id, on_read=bag_options.print_read,
-                      coupled=tuple(coupled or ()), force=force)
+                      coupled=tuple(coupled or ()), force=force, coupling_wins=coupling_wins)
     bag_options.print_written(done)

@@ -200,6 +200,7 @@ def run_cmd(
                                       rich_help_panel=bag_options.RUN_PANEL),
     joint_topic: str = BAG["joint_topic"], measure_topic: Optional[list[str]] = BAG["measure_topic"],
     coupled: Optional[list[str]] = bag_options.options()["coupled"],
+    coupling_wins: bool = bag_options.options()["coupling_wins"],
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
@@ -237,7 +238,7 @@ def run_cmd(
         importer = lambda rec: import_camera(recording, urdf, root, tip, rec, spec, cam)  # noqa: E731
     recording = run_input(recording, out, urdf, root, tip, spec, sigma_m, sigma_rad,
                           on_read=bag_options.print_read, on_written=bag_options.print_written, importer=importer,
-                          coupled=tuple(coupled or ()))
+                          coupled=tuple(coupled or ()), coupling_wins=coupling_wins)
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)

@@ -22,7 +22,8 @@ from scipy.spatial.transform import Rotation
 
 from pipeline.compensate import serial
 from pipeline.errors import RobocalError
-from pipeline.importers.csv_text import check_bound, read_columns
+from pipeline.importers.bounds import check_bound
+from pipeline.importers.csv_text import read_columns
 from pipeline.importers.csv_text import numbers as parse_numbers
 
 QUAT = ("qw", "qx", "qy", "qz")

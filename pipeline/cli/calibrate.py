@@ -40,9 +40,11 @@ def calibrate_cmd(
 
     recording = merged_input(recordings, out, registration, run_folder=False)
     if physics is not None or payload:
-        from pipeline.systems.urdf_robot import check_physics_input
+        from rich.markup import escape
 
-        check_physics_input(recording, physics, payload)  # one line naming the element, before the fit
+        from pipeline.physics.payload import check_physics_input
+        for w in check_physics_input(recording, physics, payload):  # one line naming the element, before the fit
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,

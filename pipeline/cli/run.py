@@ -249,9 +249,11 @@ def run_cmd(
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
     if physics is not None or payload:  # the model's gravity terms (default auto), chosen at ingest for every stage
-        from pipeline.systems.urdf_robot import check_physics_input
+        from rich.markup import escape
 
-        check_physics_input(recording, physics, payload)  # one line before any stage, not a failed run
+        from pipeline.physics.payload import check_physics_input
+        for w in check_physics_input(recording, physics, payload):  # one line before any stage, not a failed run
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
         params.setdefault("ingest", {}).update({"physics": physics, "payload": list(payload or [])})
     try:
         outs = run_pipeline(recording, out, params, force=force, log=_log,

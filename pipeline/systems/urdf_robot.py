@@ -134,39 +134,6 @@ def physics_model(rec, table: dict, physics: str | None = None, payload: tuple =
                           encoder=reading, absent=("backlash",) if "backlash" in families and not carried else ())
 
 
-def check_physics_input(path, physics: str | None, payload) -> None:
-    """Before any stage runs (`robocal run`): the --physics value and the --payload items against the
-    recording's URDF — a payload on a link the URDF lacks, gravity terms asked by name or a payload on a
-    URDF without inertials — one `RobocalError` line naming the element.  Other systems: nothing."""
-    import xml.etree.ElementTree as ET
-
-    from pipeline.physics import compliance
-    from pipeline.physics.gravity import has_inertials
-    from pipeline.recording.reader import read_recording
-
-    mode, families = compliance.parse_spec(physics)
-    load = compliance.parse_payload(payload)
-    meta = read_recording(path, topics=set()).metadata.get(META_URDF)
-    if not (isinstance(meta, dict) and isinstance(meta.get("urdf"), str)):
-        return
-    try:
-        links = {lk.get("name") for lk in ET.fromstring(meta["urdf"]).iter("link")}
-    except ET.ParseError:
-        return  # the load says what is wrong with the description
-    for item, (_, link, _) in zip(payload or (), load):
-        if link not in links:
-            raise RobocalError(f"{path}: --payload {item!r}: link {link!r} is not in the URDF "
-                               f"(links: {', '.join(sorted(links)[:12])}{', …' if len(links) > 12 else ''})")
-    gravity = tuple(f for f in families if f in compliance.GRAVITY)
-    if load and not gravity:
-        raise RobocalError(f"{path}: --payload {payload[0]!r} needs gravity terms (--physics auto or a list with "
-                           f"{' or '.join(compliance.GRAVITY)})")
-    if (load or mode == "fixed" and gravity) and not has_inertials(meta["urdf"]):
-        what = f"gravity terms ({', '.join(gravity)})" if mode == "fixed" and gravity else f"--payload {payload[0]!r}"
-        raise RobocalError(f"{path}: metadata robocal.urdf: no link has an <inertial> mass, which {what} needs "
-                           "(use --physics none, no --payload)")
-
-
 def model_like(rec, names: list[str], payload: tuple = ()):
     """The `TreePointModel` of a point recording with the physics terms a calibration has (`names`: its
     parameter names — ``J.compliance``, ``J.lateral1``, ``J.ecc_sin`` …), whatever this recording's loads:

@@ -69,4 +69,4 @@ def check_joints(q: np.ndarray, names: list[str], lower, upper, angular, where, 
         lim = (f"limits [{lower[k]:.6g}, {upper[k]:.6g}]" if np.isfinite(upper[k] - lower[k])
                else f"±{MAX_ANGLE:.4g} rad (no limits)")
         hint = f" (degrees given as radians?{' ' + degrees_hint if degrees_hint else ''})" if angular[k] else ""
-        raise RobocalError(f"{where(int(i), int(k))}: {q[i, k]:.6g} is far outside joint {names[k]!r}'s {lim}{hint}")
+        raise RobocalError(f"{where(int(i), int(k))}: {q[i, k]:.6g} is far outside the {lim} of joint {names[k]!r}{hint}")

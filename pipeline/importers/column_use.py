@@ -22,8 +22,8 @@ def check_column_use(groups: list[tuple[str, str, tuple[str, ...]]], joints: lis
     """`groups`: (option as the user typed it, kind — a key of `AXES` —, its columns) in the order given;
     `joints`: the joints read from their own columns.  RobocalError (one line) when an option has the
     wrong number of columns or a column feeds two quantities."""
-    owner: dict[str, str] = {j: f"joint {j!r}'s reading" for j in joints}
-    owner |= {f"dir_{j}": f"joint {j!r}'s direction of approach" for j in joints}
+    owner: dict[str, str] = {j: f"the reading of joint {j!r}" for j in joints}
+    owner |= {f"dir_{j}": f"the direction of approach of joint {j!r}" for j in joints}
     for label, kind, cols in groups:
         axes = AXES[kind]
         if len(cols) != len(axes) or not all(cols):

@@ -28,6 +28,7 @@ import numpy as np
 JOINTS = ["torso_lift", "arm_1", "arm_2", "arm_3", "arm_4", "arm_5", "arm_6"]
 LIMITS = [(0, 0.35), (0, 2.7), (-1.5, 1.0), (-3.4, 1.5), (-0.3, 2.3), (-2.0, 2.0), (-1.4, 1.4)]
 TIP = ("--root", "base", "--tip", "flange", "--measure", "point")
+MARKER_ARGS = ("--position-cols", "x1,y1,z1")
 TWO = ("--root", "base", "--measure", "point")
 OPTIONS = [  # (command, its arguments after the files): each is nonsense
     ("csv", TIP + ("--position-cols", "x1,x1,z1")),

@@ -76,9 +76,6 @@ def import_csv(
 ) -> None:
     """Map CSV columns to the URDF's joints (by header name) and write a recording `robocal run` calibrates."""
     from pipeline.errors import RobocalError
-    from pipeline.importers.csv_table import CsvSpec, read_table
-    from pipeline.importers.recording import write_urdf_recording
-    from pipeline.models import urdf as urdf_mod
     from pipeline.recording.output import check_output, claim_output
 
     if measure not in ("point", "pose", "plane", "coincidence"):
@@ -99,6 +96,11 @@ def import_csv(
         raise RobocalError(f"--position-cols {position!r} and --tip LINK=X,Y,Z cannot be combined: give each link's "
                            "columns with --tip")
     position = position or "x,y,z"
+    _column_use(measure, tips, position, target, orientation, orientation_kind, plane, [])  # before the URDF is read
+    from pipeline.importers.csv_table import CsvSpec, read_table
+    from pipeline.importers.recording import write_urdf_recording
+    from pipeline.models import urdf as urdf_mod
+
     desc = urdf_mod.read(urdf, root, tip[0]) if tips is None and not coupled else _tree_desc(urdf, root, tips or
                                                                                             [(tip[0], None)], coupled)
     _column_use(measure, tips, position, target, orientation, orientation_kind, plane, desc.joint_names)

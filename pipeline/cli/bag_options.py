@@ -28,7 +28,8 @@ def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
                                 "coupled already).", **kw),
         "coupling_wins": typer.Option(False, "--coupling-wins", help="A --coupled joint the JointStates also carry: the "
                                       "coupling replaces its readings (without this that is an error).", **kw),
-        "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type).", **kw),
+        "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type) | effort (dynamics: "
+                                "every JointState with its efforts).", **kw),
         "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window", min=1e-6,
                                  help="Standstill window around each measurement, s.", **kw),
         "max_speed": typer.Option(standstill.DEFAULT_MAX_SPEED, "--still-speed", min=1e-12,

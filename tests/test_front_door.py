@@ -89,8 +89,9 @@ def test_a_payload_off_the_measured_chain_says_what_it_loads(tiago, tmp_path):
     assert len(warn) == 1 and "on no measured chain" in warn[0] and "loads torso_lift_joint" in warn[0], r.stderr
 
 
-def test_a_bag_measuring_1e300_is_refused_as_a_csv_is(tmp_path):
-    """`import ros2` applies the ±1e6 bound `import csv` does (one module, `importers.bounds`)."""
+def test_a_bag_measuring_1e300_or_coupling_a_joint_it_reads_is_refused(tmp_path):
+    """`import ros2` applies the ±1e6 bound `import csv` does (one module, `importers.bounds`), and the
+    rule that a --coupled joint has no readings of its own unless --coupling-wins."""
     pytest.importorskip("rosbags")
     import independent_joint_bag as jb
 
@@ -100,8 +101,13 @@ def test_a_bag_measuring_1e300_is_refused_as_a_csv_is(tmp_path):
     markers[3, 0] = 1e300
     bag = jb.write_bag(tmp_path / "bag", names, rows[:, 12:], np.ones((8, 8)), {"/mocap/tool": markers})
     out = tmp_path / "x.mcap"
-    refused(run_cli("import", "ros2", bag, "--urdf", URDF, *TIP[:2], "--tip", "wrist_ft_tool_link", "--out", out),
-            "topic /mocap/tool: record 3: position x: 1e+300 is beyond ±1e+06")
+    args = ("import", "ros2", bag, "--urdf", URDF, *TIP[:2], "--tip", "wrist_ft_tool_link", "--out", out)
+    refused(run_cli(*args), "topic /mocap/tool: record 3: position x: 1e+300 is beyond ±1e+06")
+    markers[3, 0] = rows[3, 0]
+    bag = jb.write_bag(tmp_path / "bag2", names, rows[:, 12:], np.ones((8, 8)), {"/mocap/tool": markers})
+    refused(run_cli(*args[:2], bag, *args[3:], "--coupled", "arm_7_joint=arm_6_joint"),
+            "topic /joint_states: joint 'arm_7_joint' is given to --coupled but the JointStates carry its readings",
+            "--coupling-wins")
     assert not out.exists()
 
 

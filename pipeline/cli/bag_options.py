@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 
 from pipeline.cli import err
 from pipeline.importers import standstill
@@ -67,7 +68,7 @@ def measure_topics(measure_topic: list[str] | None, tip: str | None, bag: bool =
 def print_read(bag: Path, extras: dict) -> None:
     """What the import read: its warnings, the topics and the standstill pairing, every excluded record."""
     for w in extras.get("import_warnings", []):
-        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
     r = extras["ros2"]
     p = r["pairing"]
     js = r["joint_states"]

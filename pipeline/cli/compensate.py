@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 
 from pipeline.cli import PLAN, app, err
 
@@ -50,7 +51,7 @@ def compensate_cmd(
         raise RobocalError(f"--physics {physics!r}: expected auto or none")
     load = parse_payload(payload)
     for w in pg.check_payload(run, load, payload or ()):
-        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
     t0 = time.perf_counter()
     c = pg.compensate_run(run, tg, load, physics == "auto", tip, approach)
     sigma = pg.predicted_sigma(run["model"], run["x"], run["free"], run["cov"], c.q)

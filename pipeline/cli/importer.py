@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 
 from pipeline.cli import IMPORT, app, err, force_option
 
@@ -159,7 +160,7 @@ def import_csv(
                 raise RobocalError(f"--distance {d!r}: expected A:B:METRES") from None
         campaign["distances"] = ds
     for w in extras.get("import_warnings", []):
-        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
     claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
     n = write_urdf_recording(out, desc, measure, campaign, table, tips=[t for t, _ in tips] if tips else None)
     err.print(f"imported {n} {measure} measurements of {len(desc.joint_names)} joints "

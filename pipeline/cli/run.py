@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from pipeline.cli import CALIBRATE, app, bag_options, console, err
@@ -83,7 +84,7 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
         t.add_row(k, str(v))
     console(stderr=True).print(t)
     for w in doc.get("warnings", []):
-        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
     if s.get("status_reason"):
         colour = "red" if s.get("status") in ("insufficient", "fail") else "yellow"
         err.print(f"[{colour}]{s.get('status')}:[/] {s['status_reason']}", highlight=False, soft_wrap=True)
@@ -258,9 +259,8 @@ def run_cmd(
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
     if physics is not None or payload:  # the model's gravity terms (default auto), chosen at ingest for every stage
-        from rich.markup import escape
-
         from pipeline.physics.payload import check_physics_input
+
         for w in check_physics_input(recording, physics, payload):  # one line before any stage, not a failed run
             err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
         params.setdefault("ingest", {}).update({"physics": physics, "payload": list(payload or [])})

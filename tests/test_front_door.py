@@ -81,14 +81,6 @@ def test_a_payload_beyond_the_robot_is_refused_before_any_stage(tiago, tmp_path,
     assert not (tmp_path / "run" / "ingest").exists()
 
 
-def test_a_payload_off_the_measured_chain_says_what_it_loads(tiago, tmp_path):
-    """The head hangs from the torso lift: physics the tree's gravity takes — one warning line, and the run goes on."""
-    r = run_cli("run", tiago, "--out", tmp_path / "run", "--payload", "2@head_2_link", "--stages", "ingest")
-    assert r.returncode == 0, r.stderr
-    warn = [ln for ln in r.stderr.splitlines() if "head_2_link" in ln]
-    assert len(warn) == 1 and "on no measured chain" in warn[0] and "loads torso_lift_joint" in warn[0], r.stderr
-
-
 def test_a_bag_measuring_1e300_or_coupling_a_joint_it_reads_is_refused(tmp_path):
     """`import ros2` applies the ±1e6 bound `import csv` does (one module, `importers.bounds`), and the
     rule that a --coupled joint has no readings of its own unless --coupling-wins."""
@@ -111,10 +103,14 @@ def test_a_bag_measuring_1e300_or_coupling_a_joint_it_reads_is_refused(tmp_path)
     assert not out.exists()
 
 
-def test_compensate_refuses_joints_in_degrees_and_unknown_columns(tiago, tmp_path):
+def test_payload_off_the_chain_is_one_warning_and_compensate_refuses_degrees_and_unknown_columns(tiago, tmp_path):
+    """The head hangs from the torso lift: physics the tree's gravity takes — one warning line, and the run
+    goes on; on that run, `compensate` refuses a target table with joints in degrees or an unknown column."""
     run = tmp_path / "run"
-    r = run_cli("run", tiago, "--out", run, "--stages", "ingest,validate,identify")
+    r = run_cli("run", tiago, "--out", run, "--stages", "ingest,validate,identify", "--payload", "2@head_2_link")
     assert r.returncode == 0, r.stderr
+    warn = [ln for ln in r.stderr.splitlines() if "head_2_link" in ln]
+    assert len(warn) == 1 and "on no measured chain" in warn[0] and "loads torso_lift_joint" in warn[0], r.stderr
     joints = ["torso_lift_joint"] + [f"arm_{i}_joint" for i in range(1, 8)]
     deg = tmp_path / "deg.csv"
     deg.write_text("x,y,z," + ",".join(f"q_{j}" for j in joints) + "\n0.4,0.5,0.4,0.2,70,-25,-38,116,-27,35,-29\n")

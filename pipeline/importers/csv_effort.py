@@ -20,7 +20,8 @@ import numpy as np
 
 from pipeline.errors import RobocalError
 from pipeline.importers.bounds import LIMIT_SLACK
-from pipeline.importers.csv_text import check_bound, numbers, read_columns
+from pipeline.importers.bounds import check_bound
+from pipeline.importers.csv_text import numbers, read_columns
 from pipeline.models.urdf import RobotDescription
 
 KINDS = ("position", "velocity", "effort")

@@ -52,6 +52,8 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
                      ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(s.get("holdout_kind", "")
                       ).startswith("whole") else "k-fold, within this recording") + ")", mm(s.get("holdout_rms_3d_m")))]
         rows[5:8] = [(f"{k} (per axis)", v) for k, v in rows[5:8]]
+    if isinstance(s.get("correction"), dict) and not s["correction"].get("applied", True):
+        rows.insert(2, ("correction", "NONE APPLIED: the nominal robot was kept"))
     if isinstance(s.get("model_choice"), dict):  # URDF robots: which route the model choice took
         mc = s["model_choice"]
         rows.append(("model choice", f"{mc.get('route')} (--model-choice {mc.get('asked')})"))

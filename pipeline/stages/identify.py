@@ -164,6 +164,15 @@ def run(run_dir: Path, params: dict) -> dict:
         doc["model_selection"] = shrinkage_document(shrunk)
         if shrunk.per_group:
             doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
+    if grouped:  # the nominal robot kept: said plainly, with the candidates tried and why none was kept
+        from pipeline.identify.correction import document as correction, line
+
+        corr = correction(model, f, selection, shrunk)
+        if corr is not None:
+            doc["correction"] = corr  # results.json: summary.correction and the status' reason (not a warning too)
+            doc["status"] = "warn"
+            if shown:
+                _progress(line(corr))
     if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
         doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
     out.mkdir(parents=True, exist_ok=True)
@@ -180,7 +189,7 @@ def run(run_dir: Path, params: dict) -> dict:
         if doc["implausible"]:
             doc["warnings"] += warnings_of(doc["implausible"])
             doc["status"] = "warn"
-    keys += tuple(k_ for k_ in ("status", "model_choice", "residual_unit", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
+    keys += tuple(k_ for k_ in ("status", "correction", "model_choice", "residual_unit", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
     return {k_: doc[k_] for k_ in keys} | {k_: doc[k_] for k_ in ("extra", "physics") if k_ in doc}
 
 

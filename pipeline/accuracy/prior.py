@@ -34,6 +34,7 @@ DEFAULTS: dict[str, float] = {
     "pixel": 10.0,  # px: principal point
     "target_offset": 1e-5,  # m: a measurement target's certified offset (a tracker SMR centred in its nest)
     "compliance": 2e-5,  # rad/(N·m): a joint held rigid may have a stiffness down to ≈ 5·10⁴ N·m/rad
+    "load_compliance": 2e-7,  # rad/(N·m)²: its compliance changing by 2·10⁻⁷ per N·m of load (10 % over 10 N·m)
 }
 RELATIVE_DEFAULT = 0.1  # any other unit: 10 % of |nominal| (1 where the nominal is 0)
 FRAME_PREFIXES = ("base.", "tool.", "tracker.", "registration.", "hand_eye.")
@@ -54,6 +55,8 @@ def kind_of(name: str, unit: str) -> str:
         return "frame_rotation" if frame else "angle"
     if unit == "px":
         return "pixel"
+    if unit.startswith("rad/(N") and unit.endswith("²"):
+        return "load_compliance"
     if unit.startswith("rad/(N"):
         return "compliance"
     return "relative"

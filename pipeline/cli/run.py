@@ -143,7 +143,7 @@ FORCE = typer.Option(False, "--force", help="Run even if cached.")
 MODEL = "Model (physics terms)"
 PHYSICS = typer.Option(None, "--physics", rich_help_panel=MODEL, help="Physics terms of a URDF robot (point data): "
                        "auto (default: each family kept when held-out error improves), none, or a list of "
-                       "joint-compliance, lateral-compliance, encoder-eccentricity, joint-scale, joint-coupling, backlash.")
+                       "joint-compliance, lateral-compliance, load-compliance, encoder-eccentricity, joint-scale, joint-coupling, backlash.")
 PAYLOAD = typer.Option(None, "--payload", rich_help_panel=MODEL, help="A mass carried besides the URDF's links: "
                        "KG@LINK or KG@LINK:X,Y,Z (m, link frame); repeatable.")
 ACCURACY = "Accuracy (predicted over the workspace)"

@@ -22,7 +22,8 @@ from itertools import combinations
 
 import numpy as np
 
-SUFFIXES = {"compliance": "joint-compliance", "lateral1": "lateral-compliance", "lateral2": "lateral-compliance"}
+SUFFIXES = {"compliance": "joint-compliance", "lateral1": "lateral-compliance", "lateral2": "lateral-compliance",
+            "compliance_load": "load-compliance"}
 NEGATIVE_SIGMA = 2.0
 
 

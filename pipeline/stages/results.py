@@ -12,6 +12,7 @@ HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m",
             "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m",
             "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind",  # 3-D: URDF points/poses
             "model_choice",  # URDF robots: {asked, route, reason}
+            "prior_class",  # robots with compliance terms: {class, asked, reason, compliance_sigma}
             "correction",  # present only when the nominal robot was kept: {applied: false, statement, reason, tried}
             "residual_unit")  # px for a camera (its *_m residual figures are px); absent: m
 

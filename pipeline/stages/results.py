@@ -14,7 +14,8 @@ HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m",
             "model_choice",  # URDF robots: {asked, route, reason}
             "prior_class",  # robots with compliance terms: {class, asked, reason, compliance_sigma}
             "correction",  # present only when the nominal robot was kept: {applied: false, statement, reason, tried}
-            "residual_unit")  # px for a camera (its *_m residual figures are px); absent: m
+            "residual_unit",  # px for a camera (its *_m residual figures are px); absent: m
+            "family", "rms_after_Nm", "holdout_rms_Nm", "condition_number", "model_choice_label")  # dynamics
 
 
 def _consistent(run_dir: Path, docs: dict[str, dict], doc: dict) -> bool:

@@ -92,7 +92,7 @@ def summarise(model, fit, data, options, folds: int, seed: int, holdout_m: float
         std[: s.size] = s if s.size == len(names) else np.nan
     tree = getattr(model, "kin", None)
     terms = [term(names[i], float(fit.x[i]), float(std[i]) if np.isfinite(std[i]) else None, tree) for i in kept]
-    label = {"compliance": "joint", "lateral1": "lateral", "lateral2": "lateral", "ecc_sin": "eccentricity",
+    label = {"compliance": "joint", "compliance_load": "load-dependent", "lateral1": "lateral", "lateral2": "lateral", "ecc_sin": "eccentricity",
              "ecc_cos": "eccentricity", "scale": "scale", "coupling": "coupling", "backlash": "backlash"}
     offered = sorted({f"{n.rsplit('.', 1)[0]} ({label[n.rsplit('.', 1)[1]]})" for n in phys})
     gain = 1.0 - float(holdout_m) / geometry if geometry > 0 else 0.0

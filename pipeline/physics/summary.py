@@ -47,6 +47,7 @@ def term(name: str, c: float, std: float | None, tree=None) -> dict:
     joint, kind = name.rsplit(".", 1)
     if kind == "compliance_load":  # the compliance's change per N·m of load: a stiffness that depends on it
         return {"joint": joint, "family": "load-compliance", "axis": "joint axis", "parameter": name,
+                "term": "compliance_load", "value": c, "std": std, "unit": "rad/(N·m)²",
                 "compliance_per_load_rad_per_Nm2": c, "compliance_per_load_std_rad_per_Nm2": std,
                 "reading": f"{joint}: compliance {'falls' if c < 0 else 'grows'} by {abs(c):.3g} rad/(N·m) per N·m "
                            f"of load ({'stiffens' if c < 0 else 'softens'} under load)"}

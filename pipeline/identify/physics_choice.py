@@ -61,8 +61,13 @@ def names_of(model, chosen: tuple[str, ...]) -> tuple[tuple[str, ...], tuple[str
     return on, off
 
 
-def inadmissible(fit, names: tuple[str, ...]) -> list[str]:
-    """The terms of `names` whose registration-stage estimate is negative beyond `NEGATIVE_SIGMA` σ."""
+def inadmissible(fit, names: tuple[str, ...], model=None) -> list[str]:
+    """The terms of `names` whose registration-stage estimate is negative beyond `NEGATIVE_SIGMA` σ — of those
+    the model says cannot be negative (``nonnegative``: a compliance; a load-dependent compliance may be)."""
+    hook = getattr(model, "nonnegative", None)
+    if hook is not None:
+        allowed = set(hook())
+        names = tuple(n for n in names if n in allowed)
     idx = {n: i for i, n in enumerate(fit.names)}
     std = np.asarray(fit.std, float) if fit.std is not None else np.zeros(len(fit.names))
     return [n for n in names if fit.x[idx[n]] < 0 and fit.x[idx[n]] < -NEGATIVE_SIGMA * std[idx[n]]]

@@ -22,8 +22,9 @@ from itertools import combinations
 
 import numpy as np
 
-SUFFIXES = {"compliance": "joint-compliance", "lateral1": "lateral-compliance", "lateral2": "lateral-compliance",
-            "compliance_load": "load-compliance"}
+SUFFIXES = {"compliance": "joint-compliance", "lateral1": "lateral-compliance", "lateral2": "lateral-compliance"}
+SECOND_ORDER = (".compliance_load",)  # not chosen here (held at 0 unless forced): a load-dependent compliance
+# anchored at a registration-stage estimate is the nominal geometry's error again; the group selection offers it
 NEGATIVE_SIGMA = 2.0
 
 
@@ -57,7 +58,7 @@ def names_of(model, chosen: tuple[str, ...]) -> tuple[tuple[str, ...], tuple[str
     on = tuple(n for f in chosen for n in fams[f])
     off = tuple(n for f, v in fams.items() if f not in chosen for n in v)
     if not getattr(model, "forced", False):  # reading errors are not chosen here: held at their nominal 0
-        off += tuple(n for n in model.parameter_names() if is_encoder(n))
+        off += tuple(n for n in model.parameter_names() if is_encoder(n) or n.endswith(SECOND_ORDER))
     return on, off
 
 

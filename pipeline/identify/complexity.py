@@ -67,7 +67,9 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
     whole = row_groups(model, data) if groups_of_rows is None else None
 
     def errors(groups: list[str]) -> np.ndarray:
-        opts = replace(options, fixed=tuple(set(options.fixed) | set(fixed_for(model, groups))))
+        # candidates scored without refusing negative compliances (a refit per fold); the model kept is refitted
+        # with the refusal and its held-out error measured so (`pipeline.stages.identify`)
+        opts = replace(options, fixed=tuple(set(options.fixed) | set(fixed_for(model, groups))), physical=False)
         if whole is not None:
             if progress is not None:
                 progress(f"model choice: {' + '.join(groups)}, {len(np.unique(whole))} groups left out in turn")

@@ -31,6 +31,7 @@ class FitOptions:
     x0: np.ndarray | None = None
     before: bool = True  # compute the "before" residuals at the model's uncalibrated parameters
     prior_sigma: np.ndarray | None = None  # (P,) SI: each parameter's prior 1σ (default: accuracy.prior's defaults)
+    physical: bool = True  # refuse (hold at 0) terms the model says cannot be negative, estimated negative
 
 
 @dataclass
@@ -80,7 +81,7 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
     on the smaller model (its chains shorter, its Jacobian narrower) and the result widened back."""
     f = _fit_once(model, data, options)
     hook = getattr(model, "nonnegative", None)
-    if hook is None:
+    if hook is None or not options.physical:
         return f
     allowed = set(hook())  # terms that cannot be negative (a compliance): refused, held at 0, the rest refitted
     refused: list[str] = []

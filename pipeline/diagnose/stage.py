@@ -108,7 +108,7 @@ def run(run_dir: Path, params: dict) -> dict:
     if is_dynamics_run(run_dir):  # the dynamics library on the identified torque model
         from pipeline.dynamics.stage import diagnose as diagnose_dynamics
 
-        doc = diagnose_dynamics(run_dir, params)
+        doc = diagnose_dynamics(run_dir, settings_of(params))
         write_json(out / "diagnosis.json", doc)
         return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],
                 "unexplained": doc["unexplained"], "status": doc["status"], "family": "dynamics",

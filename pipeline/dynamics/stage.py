@@ -107,11 +107,11 @@ def observe(run_dir: Path) -> dict:
     return {"status": "pass", "condition_number": fit["condition_number"], "n_identifiable": fit["n_identifiable"]}
 
 
-def diagnose(run_dir: Path, params: dict) -> dict:
-    """The diagnose stage of a dynamics recording: DIR/diagnose/diagnosis.json (the dynamics library on the
-    identified model: `pipeline.diagnose.adapters.dynamics_diagnosis`)."""
+def diagnose(run_dir: Path, settings) -> dict:
+    """The diagnose stage of a dynamics recording: the document of DIR/diagnose/diagnosis.json (the dynamics
+    library on the identified model: `pipeline.diagnose.adapters.dynamics_diagnosis`), `settings` the
+    diagnosis' (`pipeline.diagnose.method.Settings`)."""
     from pipeline.diagnose.adapters.dynamics_diagnosis import diagnose as run_diagnosis
-    from pipeline.diagnose.stage import settings_of
     from pipeline.dynamics import identify as I
     from pipeline.stages.artefacts import read_json
     from pipeline.stages.ingest import read_measurements, recording_info
@@ -129,7 +129,7 @@ def diagnose(run_dir: Path, params: dict) -> dict:
 
         fit.consistent = Solution(np.asarray(cons, float), np.zeros(0), np.zeros(0), np.zeros(0), "consistent")
     say = lambda line: print(f"diagnose: {line}", file=sys.stderr, flush=True)  # noqa: E731
-    return run_diagnosis(rb, data, fit, settings_of(params), progress=say)
+    return run_diagnosis(rb, data, fit, settings, progress=say)
 
 
 def not_applicable(stage: str) -> dict:

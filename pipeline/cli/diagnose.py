@@ -32,13 +32,19 @@ def diagnose_cmd(
     from pipeline.stages.artefacts import write_json
     from pipeline.systems.registry import detect
 
+    from pipeline.dynamics.stage import diagnose_recording as diagnose_dynamics
+    from pipeline.dynamics.stage import is_dynamics_recording
+
+    settings = Settings(alpha=alpha, folds=folds, n_boot=n_boot, repeatability_3sigma_m=repeatability)
     with err.status(f"diagnosing {recording}…"):
         rec = read_recording(recording)
-        system = detect(rec)
-        if system.SYSTEM not in SUPPORTED:
-            raise RobocalError(f"{recording}: diagnosis supports {', '.join(SUPPORTED)}; this is {system.SYSTEM}")
-        doc = diagnose_recording(rec, Settings(alpha=alpha, folds=folds, n_boot=n_boot,
-                                                   repeatability_3sigma_m=repeatability))
+        if is_dynamics_recording(rec):  # efforts: identify the dynamics, then its library
+            doc = diagnose_dynamics(rec, settings)
+        else:
+            system = detect(rec)
+            if system.SYSTEM not in SUPPORTED:
+                raise RobocalError(f"{recording}: diagnosis supports {', '.join(SUPPORTED)}; this is {system.SYSTEM}")
+            doc = diagnose_recording(rec, settings)
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "diagnosis.json", doc)
     mm = lambda v: residual_text(v, doc.get("residual_unit"))  # noqa: E731 — mm, or px for a camera
@@ -62,7 +68,8 @@ def diagnose_cmd(
                   f"{ev['p_value']:.2g}", f"{mm(ev['cv_rms_before_m'])} → {mm(ev['cv_rms_after_m'])}",
                   f"{ev['bootstrap_frequency']:.2f}")
     con = console()
-    con.print(t if doc["findings"] else "no effect found beyond the geometric model")
+    model_word = "identified dynamics model" if doc.get("family") == "dynamics" else "geometric model"
+    con.print(t if doc["findings"] else f"no effect found beyond the {model_word}")
     dropped = (doc.get("clustered_inference") or {}).get("dropped_by_check") or []
     if dropped:
         con.print("accepted by the F tests but not by the pose sign-flip check (not reported as findings): "
@@ -85,7 +92,8 @@ def diagnose_cmd(
                      if fl else ""), highlight=False)
     shown = [n for n in doc["not_identifiable"] if "no effect" not in n["reason"]]
     if shown:
-        con.print(f"{len(shown)} effect(s) this campaign cannot separate from the geometry, e.g.:")
+        con.print(f"{len(shown)} effect(s) this campaign cannot separate from the "
+                  f"{'base parameters' if doc.get('family') == 'dynamics' else 'geometry'}, e.g.:")
         for n in shown[:4]:
             con.print(f"  {n['effect']}@{n['location']}: {n['reason']} — {n['advice']}", highlight=False)
     con.print(f"held-out RMS {mm(doc['holdout_rms_before_m'])} → {mm(doc['holdout_rms_after_m'])} "

@@ -132,6 +132,25 @@ def diagnose(run_dir: Path, settings) -> dict:
     return run_diagnosis(rb, data, fit, settings, progress=say)
 
 
+def is_dynamics_recording(rec) -> bool:
+    """The recording's campaign measures efforts (``measure: effort``)."""
+    camp = rec.meta(META_CAMPAIGN)
+    return isinstance(camp, dict) and camp.get("measure") == "effort"
+
+
+def diagnose_recording(rec, settings, progress=None) -> dict:
+    """Identify a dynamics recording (the held-out model choice) and diagnose it: the diagnosis document."""
+    from pipeline.diagnose.adapters.dynamics_diagnosis import diagnose as run_diagnosis
+    from pipeline.dynamics import identify as I
+    from pipeline.systems.urdf_dynamics import load
+
+    model, table = load(rec)
+    data = _data(model, table, str(rec.path))
+    rb = model.rigid_body()
+    fit = I.identify(rb, data, progress=progress)
+    return run_diagnosis(rb, data, fit, settings, progress=progress)
+
+
 def not_applicable(stage: str) -> dict:
     return {"status": "pass", "applicable": False,
             "note": f"{stage}: not part of a dynamics identification (its held-out torque error is identify's)"}

@@ -61,8 +61,8 @@ def plain_log_ticks(ax, axis: str = "y") -> None:
 def residual_display(unit: str | None) -> tuple[float, str]:
     """(factor from the stored value, display unit) of a run's residual figures: lengths stored in m
     are shown in mm; a camera's pixel residuals (``residual_unit`` px in fit.json and the summary)
-    stay px."""
-    return (1.0, "px") if unit == "px" else (1e3, "mm")
+    stay px, a dynamics diagnosis' torques (``residual_unit`` N·m) N·m."""
+    return (1.0, unit) if unit in ("px", "N·m") else (1e3, "mm")
 
 
 def residual_text(v: float | None, unit: str | None, digits: int = 4, none: str = "–") -> str:

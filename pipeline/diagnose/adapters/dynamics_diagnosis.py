@@ -86,6 +86,11 @@ def _design(b: A.Built, idx: list[int]) -> np.ndarray:
     return np.hstack([b.X] + [b.S[i].reshape(T * F, -1) for i in idx])
 
 
+def _words(text: str) -> str:
+    """The shared gate's words for a dynamics model: what absorbs a term is the base parameters."""
+    return str(text).replace("by the geometry", "by the base parameters")
+
+
 def _one_form_per_family(lib: list, accepted: list[int]) -> list[int]:
     """The accepted terms with one form per family (the first selected): two forms of one term are one
     physics, and which form is the held-out choice's business (`inference.forms`)."""
@@ -150,7 +155,7 @@ def drive_scale(b: A.Built, gates: list, findings: list[dict]) -> dict:
         per.append({"joint": g.effect.location, "identifiable": g.identifiable,
                     "absorbed_fraction": g.absorbed_fraction,
                     "min_detectable_relative": g.min_detectable if np.isfinite(g.min_detectable) else None,
-                    "reason": g.reason or None,
+                    "reason": _words(g.reason) or None,
                     "found": None if fd is None else fd["parameters"][0]})
     return {"per_joint": per, "common_scale": "not identifiable from these recordings: a scale shared by every "
             "drive scales every inertial parameter with it (the fit absorbs it whole); a known load fixes it — "
@@ -273,7 +278,9 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
                               "maximal model's residual (feasible GLS): the F tests assume independent rows"},
         "status": status, "status_reason": reason, "noise_floor": None,
         "findings": findings, "rejected_findings": rejected_docs,
-        "not_identifiable": not_identifiable(sel.gates), "unexplained": bool(where), "unexplained_where": where,
+        "not_identifiable": [{**n, "reason": _words(n["reason"]), "absorbed_by": _words(n["absorbed_by"])}
+                             for n in not_identifiable(sel.gates)],
+        "unexplained": bool(where), "unexplained_where": where,
         "lack_of_fit": [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic, "dof": list(t.dof)}
                         for t in lof],
         "holdout_rms_before_m": crossval.rms(before), "holdout_rms_after_m": crossval.rms(final_cv),

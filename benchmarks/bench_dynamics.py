@@ -103,7 +103,11 @@ def main() -> None:
     ap.add_argument("--figaroh-json", type=Path, help="figures of an earlier FIGAROH run: {split: {per_joint, pooled, "
                     "pooled_2_4}, cv: {…}}")
     ap.add_argument("--no-diagnosis", action="store_true", help="skip the dynamics diagnosis of the run")
+    ap.add_argument("--quick", action="store_true", help="robocal on the split only (no FIGAROH run, no "
+                    "cross-validation, diagnosis or speed)")
     args = ap.parse_args()
+    if args.quick:
+        args.figaroh = None
     if not (DATA / "dynamic" / "tiago_effort.csv").is_file():
         print(f"{DATA} is absent: nothing to compare")
         return
@@ -138,6 +142,9 @@ def main() -> None:
           "effort > 4 Hz": figures(floor)})
     print(f"  FIGAROH's nominal pooled on the split: {FIGAROH_NOMINAL_SPLIT:.3f}; robocal's model: "
           f"{f.choice.label()}, {f.base.rank} base parameters; identify {wall:.2f} s wall, {cpu:.2f} s CPU")
+
+    if args.quick:
+        return
 
     # contiguous-block cross-validation over the excitation [921, 6791)
     w = slice(921, 6791)

@@ -26,10 +26,32 @@ COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e3
           "#bcbd22", "#17becf"]
 
 
+RASTER_POINTS = 3000  # an axes whose scatters and lines hold more points than this draws them as an image
+RASTER_DPI = 150
+
+
+def _raster_large(fig: Figure) -> bool:
+    """Rasterise the collections and lines of every (2-D) axes of `fig` that hold more than RASTER_POINTS
+    points together (axes, labels and text stay vector): thousands of SVG markers (a camera's corners)
+    cost minutes to write and to display."""
+    big = False
+    for ax in fig.axes:
+        if ax.name == "3d":  # matplotlib cannot rasterise 3-D collections
+            continue
+        arts = [*ax.collections, *ax.lines]
+        n = sum(len(a.get_xydata()) if hasattr(a, "get_xydata") else len(a.get_offsets()) for a in arts)
+        if n > RASTER_POINTS:
+            for a in arts:
+                a.set_rasterized(True)
+            big = True
+    return big
+
+
 def _svg(fig: Figure) -> str:
     buf = io.StringIO()
     with rc_context(RC):
-        fig.savefig(buf, format="svg", metadata={"Date": None})
+        big = _raster_large(fig)
+        fig.savefig(buf, format="svg", metadata={"Date": None}, **({"dpi": RASTER_DPI} if big else {}))
     s = buf.getvalue()
     return s[s.index("<svg"):]
 

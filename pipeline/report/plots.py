@@ -258,9 +258,9 @@ def bars(labels: Sequence[str], values: Sequence[float], y_label: str, title: st
 
 
 def error_norms(recordings: Sequence[str], norms: Sequence[np.ndarray], kinds: Sequence[np.ndarray],
-                y_label: str) -> str:
-    """Each measurement's error (m; shown in mm) of each evaluated recording, one column per recording,
-    coloured by its kind (e.g. its posture group relative to the training postures)."""
+                y_label: str, scale: float = MM) -> str:
+    """Each measurement's error (m, shown in mm; a camera's px with `scale` 1) of each evaluated recording,
+    one column per recording, coloured by its kind (e.g. its posture group relative to the training postures)."""
     with rc_context(RC):
         fig, ax = _fig(6.4, 3.0)
         a = ax[0, 0]
@@ -271,7 +271,7 @@ def error_norms(recordings: Sequence[str], norms: Sequence[np.ndarray], kinds: S
             v, ks = np.asarray(v, float), np.asarray(ks).astype(str)
             for k in sorted(set(ks)):
                 s = ks == k
-                a.scatter(i + rng.uniform(-0.25, 0.25, int(s.sum())), v[s] * MM, s=10, color=colors[k],
+                a.scatter(i + rng.uniform(-0.25, 0.25, int(s.sum())), v[s] * scale, s=10, color=colors[k],
                           label=None if k in seen or not k else k, alpha=0.8, linewidths=0)
                 seen.add(k)
         a.set_xticks(range(len(recordings)), list(recordings), rotation=15, ha="right")

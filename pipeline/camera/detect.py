@@ -66,11 +66,14 @@ def header_size(path) -> tuple[int, int] | None:
     Pillow cannot read the header."""
     from PIL import Image
 
+    limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # only the header is read: `too_large` judges it
     try:
         with Image.open(path) as im:
             return int(im.size[0]), int(im.size[1])
     except Exception:  # noqa: BLE001 — any header Pillow cannot parse: OpenCV decides when it decodes
         return None
+    finally:
+        Image.MAX_IMAGE_PIXELS = limit
 
 
 def too_large(size: tuple[int, int] | None) -> str | None:

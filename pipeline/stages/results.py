@@ -13,7 +13,8 @@ HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m",
             "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind",  # 3-D: URDF points/poses
             "model_choice",  # URDF robots: {asked, route, reason}
             "residual_unit",  # px for a camera (its *_m residual figures are px); absent: m
-            "hand_eye")  # a camera: the hand-eye transform, its stated σ (image jackknife) and the independent-corner σ
+            "hand_eye",  # a camera: the hand-eye transform, its stated σ (image jackknife) and the independent-corner σ
+            "family", "rms_after_Nm", "holdout_rms_Nm", "condition_number", "model_choice_label")  # dynamics
 
 
 def _consistent(run_dir: Path, docs: dict[str, dict], doc: dict) -> bool:

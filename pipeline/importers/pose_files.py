@@ -13,8 +13,8 @@
 
 A pose becomes the joint positions (x, y, z, yaw, pitch, roll) of the six-joint pose chain
 (`pipeline.importers.images.pose_chain`).  Refused with one line naming the file and the row (line) and
-column: a field that is not a number, an empty field or NaN, a value beyond ±`csv_text.BOUND` (the same
-bound as `robocal import csv`), a position beyond 100 m (mm given as m), an angle beyond ±2π (degrees
+column: a field that is not a number, an empty field or NaN, a value beyond ±`bounds.BOUND` (the bound
+of every importer), a joint reading far outside its URDF limits (`bounds.check_joints`), a position beyond 100 m (mm given as m), an angle beyond ±2π (degrees
 given as radians), both a quaternion and roll/pitch/yaw, a quaternion that is not a unit one, a
 matrix whose rotation is not orthonormal or whose last row is not 0 0 0 1, and one image given two
 different states (by name or stem).
@@ -30,7 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from pipeline.errors import RobocalError
-from pipeline.importers import csv_text
+from pipeline.importers import bounds, csv_text
 
 MAX_POSITION_M = 100.0
 ROTATION_TOL = 1e-3  # max |RᵀR − I| of a pose matrix's rotation
@@ -103,7 +103,7 @@ def _numbers(path: Path, cols: dict[str, list[str]], names: list[str]) -> np.nda
             text = cols[c][bad[0]].strip()
             raise RobocalError(f"{path}: row {bad[0] + 2}: column {c!r} is "
                                + (f"{text!r}: not a finite number" if text else "empty"))
-        csv_text.check_bound(path, c, v)
+        bounds.check_bound(path, c, v)
         out[:, j] = v
     return out
 
@@ -226,10 +226,16 @@ def read_poses(path: Path) -> States:
     return read_pose_csv(path)
 
 
-def read_joints(path: Path, joint_names: list[str], revolute: list[bool], joint_units: str = "rad") -> States:
-    """A joint CSV (module docstring) → States of the chain's joint positions (rad, m)."""
-    _, cols, _ = _table(Path(path), list(joint_names))
-    q = _numbers(Path(path), cols, list(joint_names))
+def read_joints(path: Path, desc, joint_units: str = "rad") -> States:
+    """A joint CSV (module docstring) → States of the chain `desc`'s joint positions (rad, m)."""
+    path, names = Path(path), list(desc.joint_names)
+    _, cols, _ = _table(path, names)
+    q = _numbers(path, cols, names)
+    revolute = np.array([j.type != "prismatic" for j in desc.movable])
     if joint_units == "deg":
         q[:, revolute] = np.deg2rad(q[:, revolute])
-    return States(Path(path), _by_name(Path(path), cols["image"], q, "joint state"))
+    lo = np.array([j.lower for j in desc.movable], float)
+    hi = np.array([j.upper for j in desc.movable], float)
+    bounds.check_joints(q, names, lo, hi, revolute, lambda i, k: f"{path}: row {i + 2}: column {names[k]!r}",
+                        "" if joint_units == "deg" else "use --joint-units deg")
+    return States(path, _by_name(path, cols["image"], q, "joint state"))

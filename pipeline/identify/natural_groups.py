@@ -56,7 +56,7 @@ def whole_groups(groups: np.ndarray, min_rows: int, min_groups: int = 1) -> np.n
     uniq, size = uniq[order], size[order]
     m = uniq.size
     for k in range(min(max(min_groups, 1), m), m + 1):
-        pick = np.unique(np.linspace(0, m - 1, k).round().astype(int))
+        pick = np.unique(np.linspace(0, m - 1, k).astype(int))  # single rows: the screen's subset as it always was
         if size[pick].sum() >= min_rows and pick.size >= min(min_groups, m):
             return np.flatnonzero(np.isin(groups, uniq[pick]))
     return np.arange(groups.size)

@@ -78,7 +78,7 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
         if diag.get("unexplained"):
             rows.append(("diagnosis: unexplained structure", "yes (see report)"))
         if diag["findings"] and diag.get("holdout_rms_after_m") is not None:
-            rows.append(("held-out RMS with the effects modelled", mm(diag["holdout_rms_after_m"])))
+            rows.append(("held-out RMS with the effects modelled", res(diag["holdout_rms_after_m"])))
     if s.get("predicted_map_rms_1sigma_m") is not None:
         rows.append(("predicted accuracy over the workspace (1σ RMS / worst 95 %)",
                      f"{mm(s['predicted_map_rms_1sigma_m'])} / {mm(s.get('predicted_map_max_bound95_m'))}"))

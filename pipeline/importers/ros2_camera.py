@@ -38,7 +38,7 @@ from pipeline.importers.ros2_images import (CAMERA_INFO, IMAGE_TYPES, camera_inf
                                             typestore)
 from pipeline.importers.ros2_messages import _times, at
 
-BAD = ("unreadable", "wrong size", "unsupported encoding")  # bad input: an error unless skip_bad
+BAD = ("unreadable", "too large", "wrong size", "unsupported encoding")  # bad input: an error unless skip_bad
 
 
 @dataclass(frozen=True)

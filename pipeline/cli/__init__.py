@@ -88,7 +88,7 @@ SIMULATORS = ("simulate", "sim_camera", "sim_delta", "sim_scanner", "sim_urdf", 
 COMMAND_MODULES: dict[str, tuple[str, ...]] = {
     "acquire": ("acquire",), "recover": ("acquire",), "device-sim": ("acquire", *SIMULATORS),
     "calibrate": ("calibrate",), "evaluate": ("evaluate",), "compensate": ("compensate",), "diagnose": ("diagnose",), "fleet": ("fleet",),
-    "import": ("importer", "images", "ros2"), "plan": ("plan",), "report": ("report",), "reprocess": ("reprocess",),
+    "import": ("importer", "images", "ros2"), "export": ("export",), "plan": ("plan",), "report": ("report",), "reprocess": ("reprocess",),
     "run": ("run",), "ingest": ("run",), "validate": ("run",), "identify": ("run",), "observe": ("run",),
     "simulate": SIMULATORS, "view": ("view",),
 }

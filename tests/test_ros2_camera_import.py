@@ -24,7 +24,7 @@ from pipeline.camera.uncertainty import clustered_fit  # noqa: E402
 from pipeline.cli import app, load_commands  # noqa: E402
 from pipeline.identify.complexity import fixed_for  # noqa: E402
 from pipeline.identify.least_squares import FitOptions  # noqa: E402
-from pipeline.importers.ros2_images import header_stamp, typestore  # noqa: E402
+from pipeline.ros2.images import header_stamp, typestore  # noqa: E402
 from pipeline.measurements.camera import CameraModel  # noqa: E402
 from pipeline.models.urdf import parse  # noqa: E402
 from pipeline.models.urdf_arm import UrdfArm  # noqa: E402

@@ -233,22 +233,21 @@ def run_cmd(
     from pipeline.importers.merge import merged_input
 
     recording = merged_input(recordings, out, registration)
-    from pipeline.importers.bag_import import run_input
-    from pipeline.importers.ros2 import BagSpec
+    from pipeline.ros2.importer import Robot, run_input
+    from pipeline.ros2.points import BagSpec
 
     mt, tips = bag_options.measure_topics(measure_topic, tip, bag=False)
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time_source, tips=tips)
-    importer = None
+    cam = None
     if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
-        from pipeline.cli.ros2_camera import import_camera
-        from pipeline.importers.ros2_camera import CameraSpec
+        from pipeline.ros2.camera import CameraSpec
 
         cam = CameraSpec(target=target, mount=camera_on, clock_bound_s=clock_bound)
-        importer = lambda rec: import_camera(recording, urdf, root, tip, rec, spec, cam)  # noqa: E731
-    recording = run_input(recording, out, urdf, root, tip, spec, sigma_m, sigma_rad,
-                          on_read=bag_options.print_read, on_written=bag_options.print_written, importer=importer,
-                          coupled=tuple(coupled or ()), coupling_wins=coupling_wins)
+    robot = None
+    if urdf or root or tip or coupled or coupling_wins:
+        robot = Robot(urdf, root or "", tip, tuple(coupled or ()), coupling_wins)
+    recording = run_input(recording, out, robot, spec, cam, sigma_m, sigma_rad, say=bag_options.say)
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)

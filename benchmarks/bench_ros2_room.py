@@ -46,7 +46,8 @@ def _count(argv: list[str], bag: Path) -> dict:
 
     from pipeline.cli import app, load_commands
 
-    c: dict = {"opens": 0, "reader_open": 0, "decodes": Counter(), "entries": 0, "climbs": 0, "entered": Counter()}
+    c: dict = {"opens": 0, "reader_open": 0, "decodes": Counter(), "entries": 0, "climbs": 0, "entered": Counter(),
+               "climbed": Counter()}
     bag_s = str(bag.resolve())
     watching = [True]
 
@@ -66,6 +67,7 @@ def _count(argv: list[str], bag: Path) -> dict:
             c["entered"][f"{Path(callee).stem}.{frame.f_code.co_name}"] += 1
         if CLI.search(callee) and PIPE.search(caller) and not CLI.search(caller):
             c["climbs"] += 1
+            c["climbed"][f"{Path(callee).stem}.{frame.f_code.co_name}"] += 1
 
     open0, deser0 = Reader.open, Typestore.deserialize_cdr
 
@@ -116,7 +118,9 @@ def _show(name: str, c: dict, held: Counter) -> None:
         print(f"  {ty}: {n} messages, {d} decodes ({d / n:.2f} per message)")
     print(f"  entries into the ROS 2 code from outside it: {c['entries']}   calls back up into the CLI: {c['climbs']}")
     for k, v in c["entered"].most_common():
-        print(f"    {v:3d} × {k}")
+        print(f"    {v:3d} × {k}  (entry)")
+    for k, v in c["climbed"].most_common():
+        print(f"    {v:3d} × {k}  (CLI code called from the pipeline)")
 
 
 def main() -> None:

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from scipy.spatial.transform import Rotation
 
 from conftest import run_cli
 from test_rerun_rrd import _read
@@ -46,6 +47,17 @@ def tiago_run(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def rrd(tiago_run) -> dict:
     return _read(tiago_run / "run.rrd")
+
+
+def _capsule_ends(e: dict, n_links: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Times (N,), capsule starts and ends (N, n_links, 3) of a Capsules3D entity logged per time (seed
+    000's D-H arm, drawn as capsules)."""
+    t = np.asarray(e["index"]["time"], np.int64)
+    tr = np.array(e["rows"]["Capsules3D:translations"], float).reshape(len(t), n_links, 3)
+    qt = np.array(e["rows"]["Capsules3D:quaternions"], float).reshape(len(t), n_links, 4)
+    L = np.array(e["rows"]["Capsules3D:lengths"], float).reshape(len(t), n_links)
+    z = Rotation.from_quat(qt.reshape(-1, 4)).apply([0, 0, 1]).reshape(len(t), n_links, 3)
+    return t, tr, tr + z * L[..., None]
 
 
 @needs_tiago

@@ -202,7 +202,8 @@ def run_cmd(
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
     urdf: Optional[Path] = typer.Option(None, "--urdf", rich_help_panel=bag_options.RUN_PANEL,
-                                        help="ROS 2 bag: the robot's URDF (docs/guide/import-ros2.md)."),
+                                        help="ROS 2 bag: the robot's URDF or .xacro (default: the bag's own "
+                                             "/robot_description; docs/guide/import-ros2.md)."),
     root: Optional[str] = typer.Option(None, "--root", help="ROS 2 bag: root link of the calibrated chain.",
                                        rich_help_panel=bag_options.RUN_PANEL),
     tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain (not with "
@@ -221,6 +222,9 @@ def run_cmd(
                                   help="ROS 2 camera bag: tip (eye-in-hand) or world (eye-to-hand)."),
     clock_bound: float = typer.Option(0.1, "--clock-offset-bound", min=0.0, rich_help_panel=bag_options.RUN_PANEL,
                                       help="ROS 2 camera bag: how far the camera's clock may be off the joints' (s)."),
+    mesh_path: Optional[list[Path]] = typer.Option(None, "--mesh-path", help="report: a folder where the URDF's "
+                                                    "package://PKG/… meshes are (repeatable; also ROS_PACKAGE_PATH, "
+                                                    "AMENT_PREFIX_PATH): run.rrd draws them, primitives otherwise."),
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached.  A ROS 2 bag is
@@ -251,6 +255,8 @@ def run_cmd(
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
+    if mesh_path:
+        params["report"] = {"mesh_path": [str(p.resolve()) for p in mesh_path]}
     from pipeline.identify.route import check
 
     if check(model_choice) != "auto":  # auto (default) is resolved by identify; no key: seed runs' caches unchanged

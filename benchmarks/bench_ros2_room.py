@@ -150,7 +150,7 @@ def main() -> None:
     write_camera_bag(tmp / "cam", model, x, q, tgt, rng, CameraBagLayout(dwell_s=3.0, clock_offset_s=OFFSET_S,
                                                                          moving=(4, 11), info_k=INFO_K[:9]))
     c = _count(["run", str(tmp / "cam"), "--urdf", str(tmp / "r6.urdf"), "--root", "b", "--tip", "l6", "--target",
-                TARGET, "--clock-offset-bound", "0.4", "--out", str(tmp / "run")], tmp / "cam")
+                TARGET, "--clock-offset-bound-s", "0.4", "--out", str(tmp / "run")], tmp / "cam")
     _show("camera bag: robocal run BAG --target … (up to the end of the import)", c, _held(tmp / "cam"))
     print(f"\n(bags in {tmp})")
     np.random.seed(0)

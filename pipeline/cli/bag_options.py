@@ -27,11 +27,11 @@ def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
                                 "coupled already).", **kw),
         "coupling_wins": typer.Option(False, "--coupling-wins", help="A --coupled joint the JointStates also carry: the "
                                       "coupling replaces its readings (without this that is an error).", **kw),
-        "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type) | effort (dynamics: "
-                                "every JointState with its efforts).", **kw),
-        "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window", min=1e-6,
+        "measure": typer.Option(None, "--measure", help="point, pose or effort (dynamics: every JointState with its "
+                                "efforts).", show_default="from the topic's type", **kw),
+        "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window-s", min=1e-6,
                                  help="Standstill window around each measurement, s.", **kw),
-        "max_speed": typer.Option(standstill.DEFAULT_MAX_SPEED, "--still-speed", min=1e-12,
+        "max_speed": typer.Option(standstill.DEFAULT_MAX_SPEED, "--still-speed-rad-s", min=1e-12,
                                   help="Largest joint speed (peak-to-peak over the window / window) still counted as "
                                        "standing still, rad/s (m/s for prismatic joints).", **kw),
         "time": typer.Option("header", "--time", help="Times from header (header.stamp; receive time for a topic "

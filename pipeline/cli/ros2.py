@@ -4,7 +4,7 @@ images: Image/CompressedImage + CameraInfo) → a robocal recording."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 import typer
 
@@ -28,8 +28,8 @@ def import_ros2(
     joint_topic: str = BAG["joint_topic"],
     measure_topic: Optional[list[str]] = BAG["measure_topic"], coupled: Optional[list[str]] = BAG["coupled"],
     coupling_wins: bool = BAG["coupling_wins"],
-    measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
-    time: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
+    measure: Optional[Literal["point", "pose", "effort"]] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
+    time: Literal["header", "log"] = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
     target: Optional[str] = typer.Option(None, "--target", rich_help_panel=CAM, help="A camera bag: the board the "
                                          "images show, as for `import images` (chessboard:COLSxROWS:SQUARE_M | "
@@ -38,17 +38,17 @@ def import_ros2(
                                               "CompressedImage topic (default: the bag's only one)."),
     info_topic: Optional[str] = typer.Option(None, "--camera-info-topic", rich_help_panel=CAM, help="CameraInfo topic "
                                              "(default: the one beside the image topic, or the bag's only one)."),
-    camera_on: str = typer.Option("tip", "--camera-on", rich_help_panel=CAM, help="tip (eye-in-hand; board fixed) or "
+    camera_on: Literal["tip", "world"] = typer.Option("tip", "--camera-on", rich_help_panel=CAM, help="tip (eye-in-hand; board fixed) or "
                                   "world (eye-to-hand; board on the tip)."),
-    lens: str = typer.Option("pinhole", "--lens", rich_help_panel=CAM, help="pinhole or fisheye."),
+    lens: Literal["pinhole", "fisheye"] = typer.Option("pinhole", "--lens", rich_help_panel=CAM, help="Lens model."),
     n_dist: int = typer.Option(0, "--distortion-terms", rich_help_panel=CAM, help="Pinhole: 4, 5 or 8 (default 8); "
                                "fisheye: 4."),
     max_edge_px: float = typer.Option(5.0, "--max-edge-px", rich_help_panel=CAM, help="A chessboard with edges wider "
                                       "than this (px) is blurred."),
-    clock_bound: float = typer.Option(0.1, "--clock-offset-bound", rich_help_panel=CAM, min=0.0, help="How far the "
+    clock_bound: float = typer.Option(0.1, "--clock-offset-bound-s", rich_help_panel=CAM, min=0.0, help="How far the "
                                       "camera's clock may be off the joint states' (s): an image is paired only where "
                                       "the robot stood still for ± this around its stamp."),
-    clock_offset: float = typer.Option(0.0, "--clock-offset", rich_help_panel=CAM, help="A known offset, camera clock "
+    clock_offset: float = typer.Option(0.0, "--clock-offset-s", rich_help_panel=CAM, help="A known offset, camera clock "
                                        "− joint clock (s), taken off the image stamps."),
     workers: int = typer.Option(0, "--workers", min=0, rich_help_panel=CAM, help="Detection processes (0: the CPU count)."),
     kinematics_known: bool = typer.Option(False, "--kinematics-known", rich_help_panel=CAM, help="The joint states "
@@ -65,8 +65,9 @@ def import_ros2(
                                          "combines, JOINT=EXPR (repeatable)."),
     effort_joints: str = typer.Option("", "--effort-joints", rich_help_panel=DYN, help="Joints whose torque is "
                                       "fitted and scored (default: all)."),
-    effort_units: Optional[str] = typer.Option(None, "--effort-units", rich_help_panel=DYN, help="Nm or raw "
-                                               "(default raw with a scale, else unknown)."),
+    effort_units: Optional[Literal["Nm", "raw"]] = typer.Option(None, "--effort-units", rich_help_panel=DYN,
+                                                                help="Nm (efforts are torques) or raw.",
+                                                                show_default="raw with a scale, else unknown"),
 ) -> None:
     """Pair each measurement with the joint state where the robot stood still around it and write a
     recording `robocal run` calibrates; measurements taken while moving are listed and left out."""

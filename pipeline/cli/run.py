@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 import typer
 from rich.markup import escape
@@ -143,8 +143,8 @@ def _params(loss: str | None, f_scale: float | None, reject: float | None, folds
     return p
 
 
-LOSS = typer.Option(None, "--loss", help="identify: loss linear, huber or soft_l1 (default linear).")
-F_SCALE = typer.Option(None, "--f-scale", help="identify: robust-loss scale, m (default 1e-4).")
+LOSS = typer.Option(None, "--loss", help="identify: robust loss.", show_default="linear")
+F_SCALE = typer.Option(None, "--f-scale-m", help="identify: robust-loss scale, m.", show_default="1e-4")
 REJECT = typer.Option(None, "--reject", help="identify: reject measurements beyond this many robust σ (MAD); 0 = off (default 5).")
 FOLDS = typer.Option(None, "--folds", min=2, help="identify: folds of the held-out cross-validation (default 5).")
 FORCE = typer.Option(False, "--force", help="Run even if cached.")
@@ -176,7 +176,7 @@ def in_panel(option: typer.models.OptionInfo, panel: str) -> typer.models.Option
 
 
 IDENTIFY, VALIDATE = "Identify", "Validate"
-MODEL_CHOICE_HELP = ("auto (default): shrinkage for a single-chain URDF robot measured in lengths, groups for the "
+MODEL_CHOICE_HELP = ("auto: shrinkage for a single-chain URDF robot measured in lengths, groups for the "
                      "seed systems, trees and cameras; groups (keep groups that lower held-out error); "
                      "shrinkage (every parameter pulled toward nominal by its prior; scale by leaving out whole "
                      "sessions/placements, else by the evidence per parameter family).")
@@ -187,11 +187,11 @@ def run_cmd(
     recordings: list[Path] = typer.Argument(..., metavar="REC", help="Recording (MCAP) of a calibration "
                                              "campaign, or a ROS 2 bag; several recordings of one robot are calibrated "
                                              "together (sessions)."),
-    registration: str = typer.Option("shared", "--registration", rich_help_panel=IDENTIFY,
+    registration: Literal["shared", "per-recording"] = typer.Option("shared", "--registration", rich_help_panel=IDENTIFY,
                                      help="Several recordings: shared (one instrument frame) or per-recording."),
-    model_choice: str = typer.Option("auto", "--model-choice", rich_help_panel=IDENTIFY, help=MODEL_CHOICE_HELP),
+    model_choice: Literal["auto", "groups", "shrinkage"] = typer.Option("auto", "--model-choice", rich_help_panel=IDENTIFY, help=MODEL_CHOICE_HELP),
     out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
-    loss: Optional[str] = in_panel(LOSS, IDENTIFY), f_scale: Optional[float] = in_panel(F_SCALE, IDENTIFY),
+    loss: Optional[Literal["linear", "huber", "soft_l1"]] = in_panel(LOSS, IDENTIFY), f_scale: Optional[float] = in_panel(F_SCALE, IDENTIFY),
     reject: Optional[float] = in_panel(REJECT, IDENTIFY), folds: Optional[int] = in_panel(FOLDS, IDENTIFY),
     flag: Optional[float] = typer.Option(None, "--flag-outliers", rich_help_panel=VALIDATE,
                                          help="validate: flag residuals beyond this many robust σ (default 6)."),
@@ -212,15 +212,15 @@ def run_cmd(
     joint_topic: str = BAG["joint_topic"], measure_topic: Optional[list[str]] = BAG["measure_topic"],
     coupled: Optional[list[str]] = bag_options.options()["coupled"],
     coupling_wins: bool = bag_options.options()["coupling_wins"],
-    measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
-    time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
+    measure: Optional[Literal["point", "pose", "effort"]] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
+    time_source: Literal["header", "log"] = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
     target: Optional[str] = typer.Option(None, "--target", rich_help_panel=bag_options.RUN_PANEL,
                                          help="ROS 2 camera bag: the board its images show (as `robocal import "
                                               "ros2 --target`; more camera options there)."),
-    camera_on: str = typer.Option("tip", "--camera-on", rich_help_panel=bag_options.RUN_PANEL,
+    camera_on: Literal["tip", "world"] = typer.Option("tip", "--camera-on", rich_help_panel=bag_options.RUN_PANEL,
                                   help="ROS 2 camera bag: tip (eye-in-hand) or world (eye-to-hand)."),
-    clock_bound: float = typer.Option(0.1, "--clock-offset-bound", min=0.0, rich_help_panel=bag_options.RUN_PANEL,
+    clock_bound: float = typer.Option(0.1, "--clock-offset-bound-s", min=0.0, rich_help_panel=bag_options.RUN_PANEL,
                                       help="ROS 2 camera bag: how far the camera's clock may be off the joints' (s)."),
     mesh_path: Optional[list[Path]] = typer.Option(None, "--mesh-path", help="report: a folder where the URDF's "
                                                     "package://PKG/… meshes are (repeatable; also ROS_PACKAGE_PATH, "

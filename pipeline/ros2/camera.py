@@ -217,7 +217,7 @@ def read_camera_bag(bag, joints: list[str], spec: BagSpec, cam: CameraSpec, prog
     if spec.time not in ("header", "log"):
         raise RobocalError(f"--time {spec.time!r}: expected header or log")
     if cam.clock_bound_s < 0:
-        raise RobocalError(f"--clock-offset-bound {cam.clock_bound_s}: must be 0 or more (s)")
+        raise RobocalError(f"--clock-offset-bound-s {cam.clock_bound_s}: must be 0 or more (s)")
     def one_pass(b):
         topics = b.topics
         jt = choose_joint_topic(path, topics, spec.joint_topic)

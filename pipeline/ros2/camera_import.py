@@ -58,8 +58,8 @@ def import_camera(bag, desc, out: Path, spec, cam, robot_id: str = "", force: bo
         raise RobocalError(f"{path}: topic {extras['ros2']['image_topic']}: none of the {pr['n_measurements']} images was "
                            f"taken while the robot stood still ({pr['n_moving']} moving, {pr['n_not_covered']} outside "
                            f"the joint states; window {pr['standstill_window_s']:g} s ± clock-offset bound "
-                           f"{extras['ros2']['clock_offset']['bound_s']:g} s; see --clock-offset, --clock-offset-bound, "
-                           "--still-window, --still-speed)")
+                           f"{extras['ros2']['clock_offset']['bound_s']:g} s; see --clock-offset-s, --clock-offset-bound-s, "
+                           "--still-window-s, --still-speed-rad-s)")
     if len(used) < 3:
         listed = "; ".join(f"{d.name}: {d.status}" for d in dets[:6]) + (" …" if len(dets) > 6 else "")
         raise RobocalError(f"{path}: the target {tgt.spec} was usable in {len(used)} of {len(dets)} paired images "

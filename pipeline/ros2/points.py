@@ -281,7 +281,7 @@ def read_bag(bag, desc: RobotDescription, spec: BagSpec = BagSpec()) -> tuple[di
     if not ok.any():
         raise RobocalError(f"{at(path, mt)}: none of the {len(tm)} measurements was taken while the robot stood "
                            f"still ({summ['n_moving']} moving, {summ['n_not_covered']} outside the joint states; "
-                           f"window {spec.window_s} s, max speed {spec.max_speed}; see --still-window, --still-speed)")
+                           f"window {spec.window_s} s, max speed {spec.max_speed}; see --still-window-s, --still-speed-rad-s)")
     keep = np.flatnonzero(ok)
     keep = keep[np.argsort(tm[keep], kind="stable")]  # recorded in time order (bag order is receive order)
     table: dict = {"joint_positions": pairing.q[keep], "position": P[keep], "timestamp_ns": tm[keep]}

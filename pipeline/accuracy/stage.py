@@ -58,7 +58,7 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None
     sigma, kinds, source = prior.prior_sigma(model, file_priors, params.get("prior") or {})
     # a physics term held rigid (the held-out model selection did not keep it) is not part of the stated
     # model: the data showed no sign of it, and the held-out check catches physics the model lacks
-    unkept = np.array([k == "compliance" for k in kinds]) & ~np.asarray(free, bool)
+    unkept = np.array([k in ("compliance", "load_compliance") for k in kinds]) & ~np.asarray(free, bool)
     sigma = np.where(unkept, 0.0, sigma)
     fixture = rec.metadata.get(META_FIXTURE)
     targets = read_targets(params["targets"]) if params.get("targets") else None

@@ -62,6 +62,12 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
                      ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(s.get("holdout_kind", "")
                       ).startswith("whole") else "k-fold, within this recording") + ")", mm(s.get("holdout_rms_3d_m")))]
         rows[5:8] = [(f"{k} (per axis)", v) for k, v in rows[5:8]]
+    if isinstance(s.get("correction"), dict) and not s["correction"].get("applied", True):
+        rows.insert(2, ("correction", "NONE APPLIED: the nominal robot was kept"))
+    if isinstance(s.get("prior_class"), dict):  # the robot class whose compliance prior judged the estimates
+        pc = s["prior_class"]
+        rows.append(("prior (robot class)", f"{pc.get('class')}: compliance σ {pc.get('compliance_sigma', 0):.3g} "
+                     f"rad/(N·m) ({'auto' if pc.get('asked') == 'auto' else '--robot-class'})"))
     if isinstance(s.get("model_choice"), dict):  # URDF robots: which route the model choice took
         mc = s["model_choice"]
         rows.append(("model choice", f"{mc.get('route')} (--model-choice {mc.get('asked')})"))
@@ -151,7 +157,7 @@ FORCE = typer.Option(False, "--force", help="Run even if cached.")
 MODEL = "Model (physics terms)"
 PHYSICS = typer.Option(None, "--physics", rich_help_panel=MODEL, help="Physics terms of a URDF robot (point data): "
                        "auto (default: each family kept when held-out error improves), none, or a list of "
-                       "joint-compliance, lateral-compliance, encoder-eccentricity, joint-scale, joint-coupling, backlash.")
+                       "joint-compliance, lateral-compliance, load-compliance, encoder-eccentricity, joint-scale, joint-coupling, backlash.")
 PAYLOAD = typer.Option(None, "--payload", rich_help_panel=MODEL, help="A mass carried besides the URDF's links: "
                        "KG@LINK or KG@LINK:X,Y,Z (m, link frame); repeatable.")
 ACCURACY = "Accuracy (predicted over the workspace)"
@@ -190,6 +196,9 @@ def run_cmd(
     registration: Literal["shared", "per-recording"] = typer.Option("shared", "--registration", rich_help_panel=IDENTIFY,
                                      help="Several recordings: shared (one instrument frame) or per-recording."),
     model_choice: Literal["auto", "groups", "shrinkage"] = typer.Option("auto", "--model-choice", rich_help_panel=IDENTIFY, help=MODEL_CHOICE_HELP),
+    robot_class: Literal["auto", "industrial", "collaborative", "torque-controlled"] = typer.Option(
+        "auto", "--robot-class", rich_help_panel=IDENTIFY, help="Prior of the compliances: industrial, collaborative "
+        "or torque-controlled (softer); auto: the stiffest class the estimates fit, said in the summary."),
     out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
     loss: Optional[Literal["linear", "huber", "soft_l1"]] = in_panel(LOSS, IDENTIFY), f_scale: Optional[float] = in_panel(F_SCALE, IDENTIFY),
     reject: Optional[float] = in_panel(REJECT, IDENTIFY), folds: Optional[int] = in_panel(FOLDS, IDENTIFY),
@@ -261,6 +270,10 @@ def run_cmd(
 
     if check(model_choice) != "auto":  # auto (default) is resolved by identify; no key: seed runs' caches unchanged
         params["identify"]["model_choice"] = model_choice
+    from pipeline.accuracy.prior import check_class
+
+    if check_class(robot_class) != "auto":  # auto (default): no key, caches unchanged
+        params["identify"]["robot_class"] = check_class(robot_class)
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
     if physics is not None or payload:  # the model's gravity terms (default auto), chosen at ingest for every stage

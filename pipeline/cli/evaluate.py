@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from typing import Literal
+
 import typer
 from rich.table import Table
 
@@ -73,9 +75,9 @@ def evaluate_cmd(
     run_dir: Path = typer.Argument(..., help="Run folder of `robocal run` (or output folder of `robocal calibrate`)."),
     recordings: list[Path] = typer.Argument(..., help="Recording(s) (MCAP) of the same robot to evaluate it on."),
     out: Path = typer.Option(..., "--out", help="Folder for evaluation.json, errors.parquet and report.html."),
-    refit: str = typer.Option("none", "--refit", help="none (apply as calibrated) or registration (re-estimate "
+    refit: Literal["none", "registration"] = typer.Option("none", "--refit", help="none (apply as calibrated) or registration (re-estimate "
                                                       "only the instrument frame)."),
-    registration: str = typer.Option("shared", "--registration",
+    registration: Literal["shared", "per-recording"] = typer.Option("shared", "--registration",
                                       help="With --refit registration: shared (one frame for all) or per-recording."),
 ) -> None:
     """Apply a calibrated model to other recordings without refitting it: the error of every measurement."""

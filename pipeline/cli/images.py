@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from typing import Literal
+
 import typer
 
 from pipeline.cli import err, force_option
@@ -25,10 +27,10 @@ def import_images(
     urdf: Path = typer.Option(None, "--urdf", help="Robot description (with --joints)."),
     root: str = typer.Option("", "--root", help="Root link of the chain (with --joints)."),
     tip: str = typer.Option("", "--tip", help="Tip link of the chain, where the camera or board is (with --joints)."),
-    joint_units: str = typer.Option("rad", "--joint-units", help="Revolute joint columns in rad or deg."),
-    camera_on: str = typer.Option("tip", "--camera-on", help="tip (eye-in-hand; board fixed) or world "
+    joint_units: Literal["rad", "deg"] = typer.Option("rad", "--joint-units", help="Revolute joint columns in rad or deg."),
+    camera_on: Literal["tip", "world"] = typer.Option("tip", "--camera-on", help="tip (eye-in-hand; board fixed) or world "
                                   "(eye-to-hand; board on the tip)."),
-    lens: str = typer.Option("pinhole", "--lens", help="pinhole (OpenCV k1..k6, p1, p2) or fisheye (equidistant)."),
+    lens: Literal["pinhole", "fisheye"] = typer.Option("pinhole", "--lens", help="pinhole (OpenCV k1..k6, p1, p2) or fisheye (equidistant)."),
     n_dist: int = typer.Option(0, "--distortion-terms", help="Pinhole: 4, 5 or 8 terms fitted at most "
                                "(default 8: k3 and k4–k6 only where held-out error supports them); fisheye: 4."),
     max_edge_px: float = typer.Option(5.0, "--max-edge-px", help="A chessboard with edges wider than this (px) is blurred."),

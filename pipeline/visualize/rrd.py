@@ -308,7 +308,8 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
         x_after = np.asarray(art.fit["x"], float)
         x_before = robot.nominal_registered(model, table, np.asarray(art.fit["nominal"], float), warnings)
         entities += log_points(rec, model, table, x_before, x_after, residual_matrix(art.residuals, "after"))
-        entities += robot.log_robots(rec, model, table, x_before, x_after, art.encoder, warnings)
+        entities += robot.log_robots(rec, model, table, x_before, x_after, art.encoder, warnings,
+                                     mesh_path=tuple((params or {}).get("mesh_path") or ()))
         arm = getattr(model, "arm", None)
         if arm is not None and hasattr(arm, "joints") and "joint_positions" in table:
             x_arm = arm_vector(model, arm, x_after)

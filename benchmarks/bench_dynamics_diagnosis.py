@@ -6,6 +6,7 @@ detectable size the clean campaign's gate states for it (is it named, at its joi
 base parameters against the truth's (|β̂ − β| / σ).  Prints the rates and the CPU time.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics_diagnosis.py --seeds 20
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics_diagnosis.py --seeds 1 --boot 0 --forms stribeck  # bounded
 """
 
 from __future__ import annotations
@@ -64,7 +65,12 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--first", type=int, default=0)
     ap.add_argument("--boot", type=int, default=20, help="bootstrap resamples of each diagnosis")
+    ap.add_argument("--forms", default=",".join(f[0] for f in FORMS),
+                    help="the forms injected, comma-separated (default: every form of the library)")
     args = ap.parse_args()
+    forms = [f for f in FORMS if f[0] in args.forms.split(",")]
+    if not forms or len(forms) != len(set(args.forms.split(","))):
+        raise SystemExit(f"--forms: choose among {', '.join(f[0] for f in FORMS)}")
     settings = Settings(n_boot=args.boot)
     rb = RB.build(G.ARM, G.JOINTS)
     clean_false, hits, tried, z_all = 0, {f[0]: 0 for f in FORMS}, {f[0]: 0 for f in FORMS}, []
@@ -83,7 +89,7 @@ def main() -> None:
         z_all.append(z)
         clean_false += len(doc["findings"])
         line = [f"seed {seed}: clean {doc['status']} ({len(doc['findings'])} finding(s)); base |z| max {np.abs(z).max():.2f}"]
-        for name, k, opt in FORMS:
+        for name, k, opt in forms:
             joint = None if k is None else G.JOINTS[k]
             m = mds(doc, name, joint, opt)
             if m is None:
@@ -100,7 +106,7 @@ def main() -> None:
         print("; ".join(line), flush=True)
     z = np.concatenate(z_all)
     print(f"\n{args.seeds} seeds, {SIZE:g}× the minimum detectable size, each form alone:")
-    for name, _, _ in FORMS:
+    for name, _, _ in forms:
         print(f"  {name:20s} named in {hits[name]}/{tried[name]} ({100 * hits[name] / max(tried[name], 1):.0f} %)")
     print(f"  clean campaigns: {clean_false} finding(s) in {args.seeds}")
     print(f"  base parameters: {z.size} z-scores, RMS {np.sqrt(np.mean(z**2)):.2f}, share |z| < 2: {np.mean(np.abs(z) < 2):.3f}, "

@@ -6,6 +6,7 @@ and the speed of filter + regressor + fit on 8 000 samples × 8 joints.
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics.py --figaroh /work/figaroh-venv/bin/python \
         --figaroh-examples FIGAROH_EXAMPLES_CHECKOUT            # FIGAROH run by FIGAROH, side by side (minutes)
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics.py --figaroh-json FIGAROH.json   # a FIGAROH run's figures
+    (--figaroh-modes train,split,cv chooses FIGAROH's runs; --figaroh-save FIGAROH.json keeps their figures)
 
 Data: ../shared/real-data/figaroh_tiago_dynamics (training run `dynamic/`; the validation run
 `calibration_slow/` where present).  Efforts are converted exactly as FIGAROH does (reduction ratio × kmotor,
@@ -102,6 +103,9 @@ def main() -> None:
                     help="a figaroh-examples checkout (env FIGAROH_EXAMPLES): FIGAROH's TiagoIdentification")
     ap.add_argument("--figaroh-json", type=Path, help="figures of an earlier FIGAROH run: {split: {per_joint, pooled, "
                     "pooled_2_4}, cv: {…}}")
+    ap.add_argument("--figaroh-modes", default="train,split,cv",
+                    help="FIGAROH runs to make, comma-separated: train (its published fit), split, cv (5 fits)")
+    ap.add_argument("--figaroh-save", type=Path, help="write the FIGAROH runs' figures here (for --figaroh-json)")
     ap.add_argument("--no-diagnosis", action="store_true", help="skip the dynamics diagnosis of the run")
     ap.add_argument("--quick", action="store_true", help="robocal on the split only (no FIGAROH run, no "
                     "cross-validation, diagnosis or speed)")
@@ -117,11 +121,17 @@ def main() -> None:
     theirs = json.loads(args.figaroh_json.read_text()) if args.figaroh_json else {}
     if args.figaroh is not None and args.figaroh_examples is not None and not theirs:
         print("running FIGAROH (its own TIAGo identification, minutes per run) …", flush=True)
-        train = figaroh_run(args.figaroh, args.figaroh_examples, "train")
-        print(f"  FIGAROH training fit on [921, 6791): {train['train_rmse']:.3f} N·m pooled arm_1–4, "
-              f"{train['n_base']} base parameters (published 0.884, 57)")
-        theirs = {"split": figaroh_run(args.figaroh, args.figaroh_examples, "split"),
-                  "cv": figaroh_run(args.figaroh, args.figaroh_examples, "cv", "5", "50")}
+        modes = args.figaroh_modes.split(",")
+        if "train" in modes:
+            theirs["train"] = train = figaroh_run(args.figaroh, args.figaroh_examples, "train")
+            print(f"  FIGAROH training fit on [921, 6791): {train['train_rmse']:.3f} N·m pooled arm_1–4, "
+                  f"{train['n_base']} base parameters (published 0.884, 57)")
+        if "split" in modes:
+            theirs["split"] = figaroh_run(args.figaroh, args.figaroh_examples, "split")
+        if "cv" in modes:
+            theirs["cv"] = figaroh_run(args.figaroh, args.figaroh_examples, "cv", "5", "50")
+        if args.figaroh_save:
+            args.figaroh_save.write_text(json.dumps(theirs, indent=1))
     elif args.figaroh is None or args.figaroh_examples is None:
         print("FIGAROH not run here (give --figaroh PYTHON and --figaroh-examples CHECKOUT): its split figures as "
               "FIGAROH 1.0.2 gave them")
@@ -140,7 +150,11 @@ def main() -> None:
              {"FIGAROH (issue)": FIGAROH_SPLIT}),
           "URDF as drawn": figures(nominal - tau[te][:, fit]) | {},
           "effort > 4 Hz": figures(floor)})
-    print(f"  FIGAROH's nominal pooled on the split: {FIGAROH_NOMINAL_SPLIT:.3f}; robocal's model: "
+    nominal_theirs = theirs["split"]["nominal_pooled"] if "split" in theirs else FIGAROH_NOMINAL_SPLIT
+    if "split" in theirs:
+        print(f"  FIGAROH's fit on [921, 4900): {theirs['split']['n_base']} base parameters, training RMSE "
+              f"{theirs['split']['train_rmse']:.3f} N·m (its low-passed, decimated effort)")
+    print(f"  FIGAROH's nominal pooled on the split: {nominal_theirs:.3f}; robocal's model: "
           f"{f.choice.label()}, {f.base.rank} base parameters; identify {wall:.2f} s wall, {cpu:.2f} s CPU")
 
     if args.quick:

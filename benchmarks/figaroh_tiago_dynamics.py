@@ -14,7 +14,8 @@ copy: the meshes are not shipped).  MODE:
 - ``split``: fit [921, 4900), FIGAROH's own validation path on rows [4900, 6791) written to their own folder;
 - ``cv K GUARD``: contiguous-block cross-validation over [921, 6791) — block k masked out of the fit with GUARD
   samples either side (FIGAROH's TrajectoryData mask), then scored through its validation path with a mask
-  keeping only the block.
+  keeping only the block (``--folds 0,1``: only those blocks; ``merge A.json B.json`` pools runs of disjoint
+  blocks into one cross-validation).
 
 Prints one JSON line: per fitted joint and pooled held-out RMS (N·m), base parameters, training RMSE.
 """
@@ -123,8 +124,21 @@ def main() -> None:
     ap.add_argument("--examples", type=Path, required=True, help="figaroh-examples checkout (the repository root)")
     ap.add_argument("--data", type=Path, required=True, help="the shared figaroh_tiago_dynamics folder")
     ap.add_argument("mode", nargs="+", help="train | split | cv K GUARD")
+    ap.add_argument("--folds", help="cv: only these blocks (comma-separated, from 0); `merge` pools such runs")
     args = ap.parse_args()
     mode = args.mode[0]
+    if mode == "merge":  # merge FILE…: cv runs of disjoint blocks pooled as one cross-validation (no FIGAROH run)
+        out = {}
+        folds = [fd for path in args.mode[1:] for fd in json.loads(Path(path).read_text())["folds"]]
+        n = {tuple(fd["rows"]): fd["rows"][1] - fd["rows"][0] for fd in folds}
+        if len(n) != len(folds):
+            raise SystemExit("merge: a block appears in two runs")
+        per = {j: float(np.sqrt(sum(fd["per_joint"][j] ** 2 * n[tuple(fd["rows"])] for fd in folds) / sum(n.values())))
+               for j in FIT}
+        out.update(mode="cv", k=len(folds), per_joint=per, pooled=pooled(per, FIT), pooled_2_4=pooled(per, FIT[1:]),
+                   folds=sorted(folds, key=lambda fd: fd["rows"]))
+        print(json.dumps(out))
+        return
     Masked, configure = identification(args.examples.resolve())
     src = args.data.resolve() / "dynamic"
     out: dict = {"mode": mode}
@@ -147,12 +161,13 @@ def main() -> None:
                        nominal_pooled=float(m["rmse_nominal"]))
         elif mode == "cv":
             k, guard = int(args.mode[1]), int(args.mode[2])
+            only = [int(x) for x in args.folds.split(",")] if args.folds else list(range(k))
             n = HI - LO
             edges = np.linspace(0, n, k + 1).round().astype(int)
             total = len(pd.read_csv(src / "tiago_position.csv", usecols=[0]))
             write_rows(src, Path(tmp) / "held", LO, HI)
             sq, count, folds = {j: 0.0 for j in FIT}, 0, []
-            for f in range(k):
+            for f in only:
                 a, b = int(edges[f]), int(edges[f + 1])
                 train = np.zeros(total, bool)
                 train[LO:HI] = True
@@ -172,7 +187,7 @@ def main() -> None:
             out.update(k=k, guard=guard, per_joint=per, pooled=pooled(per, FIT), pooled_2_4=pooled(per, FIT[1:]),
                        folds=folds)
         else:
-            raise SystemExit(f"unknown mode {mode!r}: train | split | cv K GUARD")
+            raise SystemExit(f"unknown mode {mode!r}: train | split | cv K GUARD | merge FILE…")
     print(json.dumps(out))
 
 

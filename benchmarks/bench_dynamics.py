@@ -111,7 +111,7 @@ def main() -> None:
                     "cross-validation, diagnosis or speed)")
     args = ap.parse_args()
     if args.quick:
-        args.figaroh = None
+        args.figaroh = None  # FIGAROH's figures only from --figaroh-json
     if not (DATA / "dynamic" / "tiago_effort.csv").is_file():
         print(f"{DATA} is absent: nothing to compare")
         return
@@ -132,7 +132,9 @@ def main() -> None:
             theirs["cv"] = figaroh_run(args.figaroh, args.figaroh_examples, "cv", "5", "50")
         if args.figaroh_save:
             args.figaroh_save.write_text(json.dumps(theirs, indent=1))
-    elif args.figaroh is None or args.figaroh_examples is None:
+    elif theirs:
+        print(f"FIGAROH's figures from {args.figaroh_json} (a run of benchmarks/figaroh_tiago_dynamics.py)")
+    else:
         print("FIGAROH not run here (give --figaroh PYTHON and --figaroh-examples CHECKOUT): its split figures as "
               "FIGAROH 1.0.2 gave them")
 

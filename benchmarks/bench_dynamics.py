@@ -107,6 +107,7 @@ def main() -> None:
                     help="FIGAROH runs to make, comma-separated: train (its published fit), split, cv (5 fits)")
     ap.add_argument("--figaroh-save", type=Path, help="write the FIGAROH runs' figures here (for --figaroh-json)")
     ap.add_argument("--no-diagnosis", action="store_true", help="skip the dynamics diagnosis of the run")
+    ap.add_argument("--no-speed", action="store_true", help="skip the speed section (8 000 samples × 8 joints)")
     ap.add_argument("--quick", action="store_true", help="robocal on the split only (no FIGAROH run, no "
                     "cross-validation, diagnosis or speed)")
     args = ap.parse_args()
@@ -204,6 +205,8 @@ def main() -> None:
             f"{d['joint']} " + (f"relative scale detectable from {d['min_detectable_relative']:.1%}" if d["identifiable"]
                                 else "not identifiable") for d in doc["drive_scale"]["per_joint"]))
 
+    if args.no_speed:
+        return
     # speed: 8 000 samples × 8 fitted joints, filter + regressor + fit (one model), the held-out choice, the diagnosis
     n = 8000
     tt = np.arange(n) * 0.01

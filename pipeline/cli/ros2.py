@@ -73,22 +73,11 @@ def import_ros2(
     recording `robocal run` calibrates; measurements taken while moving are listed and left out."""
     from pipeline.errors import RobocalError
     from pipeline.recording.output import check_output
+    from pipeline.importers.effort_recording import EffortSpec
     from pipeline.ros2.importer import Robot, import_bag
     from pipeline.ros2.points import BagSpec
 
     check_output(out, force=force)  # before any work: an existing recording only with --force
-    if measure == "effort":  # dynamics: the joint states' positions, velocities and efforts
-        if tip is None or measure_topic or target is not None:
-            raise RobocalError("--measure effort needs --tip LINK and takes no --measure-topic or --target")
-        from pipeline.cli.import_effort import write_effort_recording
-        from pipeline.recording.output import claim_output
-        from pipeline.ros2.effort import read_effort_bag
-
-        desc, source, log = read_effort_bag(bag, urdf, root, tip, joint_topic, time)
-        claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
-        write_effort_recording(out, desc, log, source, effort_scale, effort_offset, effort_mix, effort_joints,
-                               effort_units, {"source_files": [str(bag)]}, robot_id)
-        return
     cam = None
     if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
         from pipeline.ros2.camera import CameraSpec
@@ -104,4 +93,6 @@ def import_ros2(
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time, tips=tips)
     robot = Robot(urdf, root, tip, tuple(coupled or ()), coupling_wins)
-    import_bag(bag, robot, out, spec, cam, sigma_m, sigma_rad, robot_id, force=force, say=bag_options.say)
+    effort = EffortSpec(tuple(effort_scale), tuple(effort_offset), tuple(effort_mix), effort_joints, effort_units)
+    import_bag(bag, robot, out, spec, cam, sigma_m, sigma_rad, robot_id, force=force, say=bag_options.say,
+               effort=effort)

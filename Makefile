@@ -47,7 +47,7 @@ chromium:
 	  echo "warning: could not install Debian chromium; the report's browser test will be skipped"
 	@command -v xvfb-run >/dev/null 2>&1 && ls /usr/share/vulkan/icd.d/lvp_icd.* >/dev/null 2>&1 || \
 	  (export DEBIAN_FRONTEND=noninteractive; apt-get install -y -qq xvfb xauth mesa-vulkan-drivers >/dev/null) || \
-	  echo "warning: could not install xvfb and mesa-vulkan-drivers; the rerun viewer screenshot test will be skipped"
+	  echo "warning: could not install xvfb and mesa-vulkan-drivers; the rerun viewer tests will be skipped"
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache

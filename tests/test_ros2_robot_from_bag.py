@@ -156,3 +156,10 @@ def test_an_effort_bag_goes_through_the_one_import_entry(tmp_path, monkeypatch):
     assert lines and lines[-1].startswith("imported 40 samples of 6 joints' position and effort")
     with pytest.raises(Exception, match="apply to --measure effort only"):
         import_bag(tmp_path / "eff", Robot(None, "b", "tcp"), tmp_path / "p.mcap", effort=EffortSpec(units="Nm"))
+    # `robocal run BAG --measure effort` imports through the same entry, with the effort declaration's options
+    p = run_cli("run", tmp_path / "eff", "--root", "b", "--tip", "tcp", "--measure", "effort", "--effort-units", "Nm",
+                "--out", tmp_path / "run", "--stages", "ingest")
+    assert p.returncode == 0, p.stderr
+    assert "imported 40 samples of 6 joints' position and effort" in p.stderr
+    campaign = read_recording(tmp_path / "run" / "import" / "recording.mcap").metadata["robocal.campaign"]
+    assert campaign["measure"] == "effort" and campaign["effort"]["unit"] == "N·m"

@@ -200,10 +200,10 @@ def run_input(recording: Path, out: Path, robot: Robot | None, spec: BagSpec = B
     given = [] if robot is None else [f"--{k}" for k, v in (("urdf", robot.urdf), ("root", robot.root),
                                                           ("tip", robot.tip or spec.tips)) if v]
     if ros2_kind(recording) is None:
-        if given or spec.measure_topic or camera is not None or (robot is not None and (robot.coupled or
-                                                                                        robot.coupling_wins)):
+        if given or spec.measure_topic or camera is not None or effort is not None or (
+                robot is not None and (robot.coupled or robot.coupling_wins)):
             raise RobocalError(f"{recording}: is not a ROS 2 bag; --urdf/--root/--tip/--measure-topic/--target/"
-                               "--coupled apply to ROS 2 bags only")
+                               "--coupled/--effort-* apply to ROS 2 bags only")
         return recording
     if robot is None or not robot.root or not (robot.tip or spec.tips):
         raise RobocalError(f"{recording}: is a ROS 2 bag: give the robot's chain as --root LINK --tip LINK (and "

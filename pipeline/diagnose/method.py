@@ -95,7 +95,8 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
               if sel.accepted else {})
     # 4. joint refit, 5. evidence per finding (ablation CV, ΔBIC, bootstrap)
     before_cv = resampling.holdout(p.Jf, p.r, folds)
-    rf = refit.joint_refit(model, table, f, ad, adapter, p.lib, sel.accepted, p.Jf, p.r, p.dof, nz.cl, nz.nm, nz.src)
+    rf = refit.joint_refit(model, table, f, ad, adapter, p.lib, sel.accepted, p.Jf, p.r, p.dof, nz.cl, nz.nm, nz.src,
+                           p.S)
     after_cv = resampling.holdout(rf.A, rf.r_final, folds)
     boot = (resampling.bootstrap_frequency(sel.Jf_w, sel.r_w, sel.Sp, sel.tols, groups, s.alpha, s.n_boot, s.seed)
             if sel.accepted and s.n_boot else np.zeros(len(sel.testable)))

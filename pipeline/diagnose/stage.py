@@ -20,6 +20,7 @@ from pipeline.diagnose.method import Settings
 NAME = "diagnose"
 PHYSICS_SUFFIXES = (".compliance", ".lateral1", ".lateral2")
 SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner", "urdf")
+PROGRESS_LOG = "progress.log"  # DIR/diagnose/progress.log: the progress lines when stderr is not a terminal
 
 
 def settings_of(params: dict) -> Settings:
@@ -133,8 +134,13 @@ def run(run_dir: Path, params: dict) -> dict:
         physics = recording_info(run_dir).get("physics")
         if physics is None and x0 is not None and any(n.endswith(PHYSICS_SUFFIXES) for n in fj.get("names", [])):
             physics = {"physics": "auto"}  # identify's default gravity terms: the same model, not selected again
-        doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=stream,
-                                 physics=physics, held=held, chosen=chosen, identified=fj)
+        from pipeline.progress import Ticker, reporting
+
+        tick = Ticker(NAME, log=out / PROGRESS_LOG, count=False)
+        with reporting(tick):
+            doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=stream,
+                                     physics=physics, held=held, chosen=chosen, identified=fj)
+        tick.done()
         doc["supported"] = True
     write_json(out / "diagnosis.json", doc)
     return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],

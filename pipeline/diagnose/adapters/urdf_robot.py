@@ -30,6 +30,7 @@ from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.urdf_gravity import gravity_torques
 from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.physics.gravity import has_inertials
+from pipeline.progress import step
 
 PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3, "joint_compliance": 1e-4,
              "joint_compliance_per_ampere": 1e-2}  # rad/A: 1e-4 rad/(N·m) × a torque constant up to 100 N·m/A
@@ -45,7 +46,9 @@ def joint_derivative(model, x: np.ndarray, data) -> np.ndarray:
     """d residual / d joint reading, (n, residual_dim, n_joints), by central differences."""
     q = np.asarray(data["joint_positions"], float)
     out = np.empty((q.shape[0], model.residual_dim, q.shape[1]))
+    names = list(model.kin.joint_names)
     for j in range(q.shape[1]):
+        step(f"signatures: joint {j + 1} of {q.shape[1]} ({names[j] if j < len(names) else j})")
         dq = np.zeros_like(q)
         dq[:, j] = _H
         hi = model.residuals(x, {**data, "joint_positions": q + dq})

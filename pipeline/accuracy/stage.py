@@ -58,7 +58,7 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None
     sigma, kinds, source = prior.prior_sigma(model, file_priors, params.get("prior") or {})
     # a physics term held rigid (the held-out model selection did not keep it) is not part of the stated
     # model: the data showed no sign of it, and the held-out check catches physics the model lacks
-    unkept = np.array([k == "compliance" for k in kinds]) & ~np.asarray(free, bool)
+    unkept = np.array([k in ("compliance", "load_compliance") for k in kinds]) & ~np.asarray(free, bool)
     sigma = np.where(unkept, 0.0, sigma)
     fixture = rec.metadata.get(META_FIXTURE)
     targets = read_targets(params["targets"]) if params.get("targets") else None
@@ -112,6 +112,10 @@ def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict, data: dic
 
 def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
+    from pipeline.dynamics.stage import is_dynamics_run, not_applicable
+
+    if is_dynamics_run(run_dir):
+        return not_applicable(NAME)
     _, model, rec = load_system(run_dir)
     fit = read_fit(run_dir)
     table = read_measurements(run_dir)

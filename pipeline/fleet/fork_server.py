@@ -26,7 +26,7 @@ TASK_IMPORTS = ("pipeline.stages.reprocess", "pipeline.stages.results", "pipelin
                 "pyarrow.dataset", "dateutil.relativedelta", "pipeline.physics.compliance",
                 "pipeline.physics.gravity", "pipeline.physics.summary", "pipeline.validate.plausibility",
                 "threadpoolctl", "pipeline.identify.folds", "pipeline.identify.physics_choice",
-                "pipeline.physics.encoder", "pipeline.identify.route")
+                "pipeline.physics.encoder", "pipeline.identify.route", "pipeline.dynamics.stage")
 _started = False  # this module started the forkserver running now
 _lock = threading.Lock()
 

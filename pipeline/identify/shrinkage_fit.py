@@ -57,7 +57,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
         label = "+".join(chosen) or "rigid"
         reg_fixed = tuple((set(options.fixed) | set(fixed_for(model, ["registration", *on]))) | set(off))
         f0 = fit(model, data, replace(options, fixed=reg_fixed))
-        bad = pc.inadmissible(f0, on) if not getattr(model, "forced", False) else []
+        bad = pc.inadmissible(f0, on, model) if not getattr(model, "forced", False) else []
         if bad:
             tried[label] = {"admissible": False, "negative": bad}
             if progress is not None:

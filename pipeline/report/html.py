@@ -95,6 +95,14 @@ def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
     html += (f'<p class="note">System <b>{escape(s["system"])}</b>; loss <code>{escape(str(s["loss"]))}</code>; '
              f'{s["solver_evaluations"]} solver evaluations. Held-out: each measurement predicted by a fit without it '
              f"(cross-validation).</p>")
+    corr = s.get("correction")
+    if isinstance(corr, dict) and not corr.get("applied", True):  # the nominal robot kept: said first, with why
+        tried = "".join(f"<li>{escape(str(t['candidate']))}: held-out {_mm(t.get('holdout_rms_m'))}"
+                        + (f" — {escape(str(t['reason']))}" if t.get("reason") else "") + "</li>"
+                        for t in corr.get("tried", []))
+        html = (f'<p class="correction" id="no-correction"><b>No correction applied</b>: the nominal robot was kept '
+                f'(registration only). {escape(str(corr.get("reason", "")))}</p>'
+                + (f'<ul class="tried">{tried}</ul>' if tried else "")) + html
     if warnings:
         html += "<h3>Warnings</h3><ul class=\"warnings\">" + "".join(f"<li>{escape(w)}</li>" for w in warnings) + "</ul>"
     return _section("summary", "Summary", html)
@@ -301,6 +309,8 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     s = fg.summary(art)
     if art.fit.get("residual_unit"):  # a camera's residuals: px
         s["residual_unit"] = art.fit["residual_unit"]
+    if art.fit.get("correction"):  # the nominal robot kept (`pipeline.identify.correction`)
+        s["correction"] = art.fit["correction"]
     if isinstance(art.accuracy, dict) and art.accuracy.get("map_rms_1sigma_m") is not None:
         s["accuracy_map_rms_1sigma_m"] = art.accuracy["map_rms_1sigma_m"]
     series = fg.residual_series(art)

@@ -53,7 +53,8 @@ def options_of(params: dict, model=None, rec=None) -> FitOptions:
         from pipeline.accuracy.prior import prior_sigma
 
         file_priors = (rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {}) if rec is not None else {}
-        prior = prior_sigma(model, file_priors, params.get("prior") or {})[0]
+        asked = str(params.get("robot_class", "auto"))
+        prior = prior_sigma(model, file_priors, params.get("prior") or {}, None if asked == "auto" else asked)[0]
     return FitOptions(loss=str(params.get("loss", "linear")), f_scale=float(params.get("f_scale_m", 1e-4)),
                       prior_sigma=prior)
 
@@ -66,6 +67,10 @@ def _progress(line: str) -> None:
 
 def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
+    from pipeline.dynamics.stage import identify as identify_dynamics, is_dynamics_run
+
+    if is_dynamics_run(run_dir):  # effort recordings: the dynamics model family (pipeline.dynamics)
+        return identify_dynamics(run_dir, params)
     out = run_dir / NAME
     system, model, rec = load_system(run_dir)
     table = read_measurements(run_dir)
@@ -164,6 +169,15 @@ def run(run_dir: Path, params: dict) -> dict:
         doc["model_selection"] = shrinkage_document(shrunk)
         if shrunk.per_group:
             doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
+    if grouped:  # the nominal robot kept: said plainly, with the candidates tried and why none was kept
+        from pipeline.identify.correction import document as correction, line
+
+        corr = correction(model, f, selection, shrunk)
+        if corr is not None:
+            doc["correction"] = corr  # results.json: summary.correction and the status' reason (not a warning too)
+            doc["status"] = "warn"
+            if shown:
+                _progress(line(corr))
     if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
         doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
     out.mkdir(parents=True, exist_ok=True)
@@ -174,13 +188,24 @@ def run(run_dir: Path, params: dict) -> dict:
     keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
             "loss", "function_evaluations", "predicted_point_sigma_rms_m", "warnings")
-    if opts.prior_sigma is not None and grouped:  # robot parameters beyond their prior: named, never a silent pass
+    prior = opts.prior_sigma
+    if prior is not None and grouped:  # the robot class whose compliance prior the estimates are judged by
+        from pipeline.accuracy.prior import choose_class, prior_sigma
+
+        cls = choose_class(model, f.x, f.free, str(params.get("robot_class", "auto")))
+        if cls is not None:
+            doc["prior_class"] = cls
+            file_priors = rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {}
+            prior = prior_sigma(model, file_priors, params.get("prior") or {}, cls["class"])[0]
+            if shown:
+                _progress(f"prior: robot class {cls['class']} ({cls['reason']})")
+    if prior is not None and grouped:  # robot parameters beyond their prior: named, never a silent pass
         by_sign = tuple((shrunk.physics or {}).get("terms", ())) if shrunk is not None else ()
-        doc["implausible"] = implausible(model, f.x, f.free, opts.prior_sigma, by_sign)
+        doc["implausible"] = implausible(model, f.x, f.free, prior, by_sign)
         if doc["implausible"]:
             doc["warnings"] += warnings_of(doc["implausible"])
             doc["status"] = "warn"
-    keys += tuple(k_ for k_ in ("status", "model_choice", "residual_unit", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
+    keys += tuple(k_ for k_ in ("status", "correction", "prior_class", "model_choice", "residual_unit", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
     return {k_: doc[k_] for k_ in keys} | {k_: doc[k_] for k_ in ("extra", "physics") if k_ in doc}
 
 

@@ -100,8 +100,10 @@ def run(run_dir: Path, params: dict) -> dict:
         kept_data = data
     else:
         if grouped:  # keep only groups that improve held-out error
+            # URDF robots measured in lengths (trees by default): candidates scored in closed form, the best solved
+            closed = system.SYSTEM == "urdf" and getattr(model, "residual_unit", "m") == "m"
             selection = select(model, data, k=folds, seed=int(params.get("seed", 0)), options=opts, progress=_progress,
-                               groups_of_rows=holdout_groups(model, data))
+                               groups_of_rows=holdout_groups(model, data), closed_form=closed)
             opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
         rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
         f = rf.fit

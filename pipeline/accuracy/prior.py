@@ -6,7 +6,9 @@ from, in increasing precedence:
 
 1. the default of its *kind* (`kind_of`: from its unit and name, so new models work too);
 2. a model that states bounds (``lower``/``upper`` attributes, e.g. the scanner's Table 2):
-   uniform within them, σ = (upper − lower)/√12;
+   uniform within them, σ = (upper − lower)/√12; a model whose kinematics were measured, not
+   read from joints (a camera campaign's flange poses from the controller: its ``_known
+   kinematics`` group), has σ = 0 for them — the pose chain's geometry is exact by construction;
 3. the robot model file's ``prior_sigma`` object (recording metadata): keys are parameter
    names, shell patterns (``J*.beta``) or kinds, values SI;
 4. the command line (``--prior KEY=VALUE``, VALUE with an optional unit: ``0.5mm``, ``0.2deg``).
@@ -124,6 +126,10 @@ def prior_sigma(model, overrides_file: Mapping[str, float] | None = None,
         k = min(lo.size, len(names))
         sigma[:k] = (hi[:k] - lo[:k]) / np.sqrt(12.0)
         source[:k] = ["model bounds (uniform)"] * k
+    groups = model.groups() if callable(getattr(model, "groups", None)) else {}
+    for n in groups.get("_known kinematics", ()):
+        i = names.index(n)
+        sigma[i], source[i] = 0.0, "known (measured poses)"
     _apply(sigma, source, names, kinds, overrides_file or {}, "robot model file prior_sigma")
     _apply(sigma, source, names, kinds, overrides_cli or {}, "--prior")
     return sigma, kinds, source

@@ -342,10 +342,13 @@ def holdout_warning(n: int, k: int, residual_dim: int, n_free: int) -> str | Non
 def cross_validate(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0,
                    options: FitOptions = FitOptions(), groups: np.ndarray | None = None) -> np.ndarray:
     """Held-out residuals (n, residual_dim) m: each fold predicted by a fit on the others; the folds
-    keep every face, placement and joint range of the design in every training set (`folds.design_folds`)."""
+    keep every face, placement and joint range of the design in every training set (`folds.design_folds`) and,
+    without `groups`, the rows the model keeps together (`natural_groups.holdout_groups`: a camera's images)."""
     from pipeline.identify.folds import design_folds
+    from pipeline.identify.natural_groups import holdout_groups
 
     n = n_rows(data)
+    groups = holdout_groups(model, data) if groups is None else groups
     out = np.full((n, model.residual_dim), np.nan)
     for test in design_folds(n, k, seed, groups, data):
         train = np.setdiff1d(np.arange(n), test)

@@ -130,12 +130,17 @@ def residual_section(art, series: fg.ResidualSeries) -> str:
 
 def parameter_section(fit: dict) -> str:
     rows = fg.parameter_rows(fit)
+    iid = fit.get("std_independent") is not None  # the stated σ is a resampling σ (a camera: image jackknife)
     body = [[f"<code>{escape(r['name'])}</code>", escape(r["unit"]), _sig(r["nominal"]), _sig(r["estimate"]),
-             _sig(r["change"]), _sig(r["std"]), "yes" if r["free"] else "fixed", escape(r["reason"])] for r in rows]
-    html = ('<p class="note">Lengths in mm, angles in deg. σ: 1σ standard deviation from the covariance '
-            "(residual σ²·(JᵀJ)⁻¹). Fixed parameters stay at their nominal value; the reason says why.</p>")
-    html += _table(["parameter", "unit", "nominal", "estimate", "change", "σ", "identified", "reason"], body,
-                   {2, 3, 4, 5}, row_class=lambda i: "" if rows[i]["free"] else "fixed")
+             _sig(r["change"]), _sig(r["std"])] + ([_sig(r["std_independent"])] if iid else []) +
+            ["yes" if r["free"] else "fixed", escape(r["reason"])] for r in rows]
+    how = (f"by the {escape(str(fit.get('std_kind', 'resampling')))}; σ independent: what σ²·(JᵀJ)⁻¹ would state, "
+           "too small where measurements share errors" if iid else "from the covariance (residual σ²·(JᵀJ)⁻¹)")
+    html = (f'<p class="note">Lengths in mm, angles in deg. σ: 1σ standard deviation {how}. '
+            "Fixed parameters stay at their nominal value; the reason says why.</p>")
+    heads = ["parameter", "unit", "nominal", "estimate", "change", "σ"] + (["σ independent"] if iid else [])
+    html += _table(heads + ["identified", "reason"], body, {2, 3, 4, 5} | ({6} if iid else set()),
+                   row_class=lambda i: "" if rows[i]["free"] else "fixed")
     return _section("parameters", "Parameters", html)
 
 

@@ -15,6 +15,7 @@ HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m",
             "prior_class",  # robots with compliance terms: {class, asked, reason, compliance_sigma}
             "correction",  # present only when the nominal robot was kept: {applied: false, statement, reason, tried}
             "residual_unit",  # px for a camera (its *_m residual figures are px); absent: m
+            "hand_eye",  # a camera: the hand-eye transform, its stated σ (image jackknife) and the independent-corner σ
             "family", "rms_after_Nm", "holdout_rms_Nm", "condition_number", "model_choice_label")  # dynamics
 
 

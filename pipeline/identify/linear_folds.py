@@ -47,6 +47,7 @@ def free_at(J: np.ndarray, names: list[str], fixed: np.ndarray, priority: np.nda
     return analyse(J, names, fixed, priority).free
 
 
+CLOSED_FORM_PARAMETERS = 120  # a model this wide (a whole robot's tree) has its model choice scored in closed form
 SOLVES = 3  # candidates solved per round of a selection at most (the best linearised, then any still better)
 
 

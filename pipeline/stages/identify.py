@@ -12,6 +12,7 @@ from pipeline.accuracy.propagate import fixture_covariance
 from pipeline.identify.complexity import explain, relabel, select
 from pipeline.identify.exports import describe, write_exports
 from pipeline.identify.least_squares import FitOptions, cross_validate, holdout_warning, point_accuracy
+from pipeline.identify.linear_folds import CLOSED_FORM_PARAMETERS
 from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.natural_groups import holdout_groups
 from pipeline.identify.outliers import fit_rejecting
@@ -94,8 +95,9 @@ def run(run_dir: Path, params: dict) -> dict:
         kept_data = data
     else:
         if grouped:  # keep only groups that improve held-out error
-            # URDF robots measured in lengths (trees by default): candidates scored in closed form, the best solved
-            closed = system.SYSTEM == "urdf" and getattr(model, "residual_unit", "m") == "m"
+            # whole URDF robots measured in lengths: candidates scored in closed form, the best solved
+            closed = (system.SYSTEM == "urdf" and getattr(model, "residual_unit", "m") == "m"
+                      and len(model.parameter_names()) >= CLOSED_FORM_PARAMETERS)
             selection = select(model, data, k=folds, seed=int(params.get("seed", 0)), options=opts, progress=_progress,
                                groups_of_rows=holdout_groups(model, data), closed_form=closed)
             opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from pipeline.identify.complexity import select
-from pipeline.identify.linear_folds import kfold_linear, scaled_basis
+from pipeline.identify.least_squares import cross_validate, fit
+from pipeline.identify.linear_folds import kfold_at, kfold_linear, scaled_basis
 
 GROUPS = {"registration": ["reg.x", "reg.y", "reg.z"], "upper": ["up.0", "up.1", "up.2"],
           "lower": ["lo.0", "lo.1"], "wrist": ["wr.0", "wr.1", "wr.2"]}
@@ -68,6 +69,9 @@ def test_kfold_linear_equals_a_fit_per_fold():
         d = np.linalg.lstsq(J[train], -r[train], rcond=None)[0]
         np.testing.assert_allclose(got[test].ravel(), r[rows] + J[rows] @ d, rtol=1e-9, atol=1e-12)
     assert scaled_basis(np.c_[J, 2 * J[:, :1]]).shape[1] == p  # a repeated direction is one direction
+    U = scaled_basis(np.c_[J[:, 2:], J[:, :1]], base=scaled_basis(J[:, :2]))  # grown from a smaller model's
+    assert U.shape[1] == p
+    np.testing.assert_allclose(kfold_linear(None, r, folds, kd, U=U), got, rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.parametrize("seed", [0, 3])
@@ -84,3 +88,10 @@ def test_closed_form_choice_equals_refitting_every_fold(seed):
         assert a["holdout_rms_m"] == pytest.approx(b["holdout_rms_m"], rel=1e-7), (a, scores)
     assert any(r.get("linearised") for r in got.rounds)  # not every candidate solved
     assert got.holdout_rms_m == pytest.approx(ref.holdout_rms_m, rel=1e-7)
+
+
+def test_kept_models_kfold_in_closed_form_equals_cross_validation():
+    model, data = _campaign(5)
+    ref = cross_validate(model, data, k=5, seed=2)
+    got = kfold_at(model, data, 5, 2, solution=fit(model, data))
+    np.testing.assert_allclose(got, ref, rtol=1e-7, atol=1e-12)

@@ -17,29 +17,68 @@ import numpy as np
 from pipeline.identify.identifiability import analyse
 
 
-def scaled_basis(J: np.ndarray, rel_tol: float = 1e-10) -> np.ndarray:
+def scaled_basis(J: np.ndarray, rel_tol: float = 1e-10, base: np.ndarray | None = None) -> np.ndarray:
     """Orthonormal basis (m, rank) of J's columns, each scaled to unit norm first (units do not matter);
-    directions below `rel_tol` of the largest singular value are left out."""
+    directions below `rel_tol` of the largest left out.  With `base` (m, b), an orthonormal basis of some of
+    J's columns already: those columns' share is `base`, and only what of the others it does not span is added
+    (a candidate's basis from the model it extends, at the price of its own columns)."""
+    J = np.asarray(J, float)
     norms = np.linalg.norm(J, axis=0)
     keep = norms > 0
     if not keep.any():
-        return np.zeros((J.shape[0], 0))
-    U, s, _ = np.linalg.svd(J[:, keep] / norms[keep], full_matrices=False)
-    return U[:, s > rel_tol * s[0]]
+        return np.zeros((J.shape[0], 0)) if base is None else base
+    Js = J[:, keep] / norms[keep]
+    if base is not None:
+        Js = Js - base @ (base.T @ Js)
+        nr = np.linalg.norm(Js, axis=0)
+        Js = Js[:, nr > rel_tol ** 0.5]  # columns base spans (its own) drop out here
+        if Js.shape[1] == 0:
+            return base
+        Js = Js - base @ (base.T @ Js)  # twice is enough (Gram–Schmidt re-orthogonalised)
+    Q, R = np.linalg.qr(Js)
+    d = np.abs(np.diag(R))
+    if d.min() <= rel_tol ** 0.5 * d.max():  # nearly dependent columns: the rank from the singular values
+        U, sv, _ = np.linalg.svd(Js, full_matrices=False)
+        Q = U[:, sv > rel_tol * sv[0]]
+    return Q if base is None else np.hstack([base, Q])
 
 
-def kfold_linear(J: np.ndarray, r: np.ndarray, folds: list[np.ndarray], kd: int) -> np.ndarray:
+def kfold_linear(J: np.ndarray | None, r: np.ndarray, folds: list[np.ndarray], kd: int,
+                 U: np.ndarray | None = None) -> np.ndarray:
     """Held-out residuals (n, kd) of the linearised model (module docstring); `folds` hold measurement indices
-    (each measurement's kd rows go together); measurements in no fold are NaN."""
-    U = scaled_basis(np.asarray(J, float))
+    (each measurement's kd rows go together); measurements in no fold are NaN.  `U`: the orthonormal basis of
+    J's columns when known (`scaled_basis`), J then unused.  Each fold by the push-through identity
+    (I − UₜUₜᵀ)⁻¹e = e + Uₜ(I − UₜᵀUₜ)⁻¹Uₜᵀe: a rank × rank solve."""
+    U = scaled_basis(np.asarray(J, float)) if U is None else U
     r = np.asarray(r, float).ravel()
     e = r - U @ (U.T @ r)
     out = np.full((r.size // kd, kd), np.nan)
+    eye = np.eye(U.shape[1])
     for test in folds:
         rows = (np.asarray(test, int)[:, None] * kd + np.arange(kd)).ravel()
-        Ut = U[rows]
-        out[test] = np.linalg.lstsq(np.eye(rows.size) - Ut @ Ut.T, e[rows], rcond=None)[0].reshape(len(test), kd)
+        Ut, et = U[rows], e[rows]
+        try:
+            h = et + Ut @ np.linalg.solve(eye - Ut.T @ Ut, Ut.T @ et)
+            if not np.all(np.isfinite(h)):
+                raise np.linalg.LinAlgError
+        except np.linalg.LinAlgError:  # the fold alone carries a direction: the least-squares answer
+            h = np.linalg.lstsq(np.eye(rows.size) - Ut @ Ut.T, et, rcond=None)[0]
+        out[test] = h.reshape(len(test), kd)
     return out
+
+
+def kfold_at(model, data, k: int, seed: int, options=None, groups: np.ndarray | None = None, *,
+             solution) -> np.ndarray:
+    """Held-out residuals (n, residual_dim) m of `solution` (a `Fit` of `model` on `data`) by k-fold
+    cross-validation in closed form (module docstring): the folds of `least_squares.cross_validate`, each
+    predicted by the model linearised at the solution with its free set, instead of a refit per fold.
+    `options` is accepted for the same call as `cross_validate` (the solution already holds its effect)."""
+    from pipeline.identify.folds import design_folds
+
+    r = np.asarray(model.residuals(solution.x, data), float)
+    n, kd = r.shape
+    J = np.asarray(model.jacobian(solution.x, data), float).reshape(n * kd, -1)[:, np.asarray(solution.free, bool)]
+    return kfold_linear(J, r.ravel(), design_folds(n, k, seed, groups, data), kd)
 
 
 def free_at(J: np.ndarray, names: list[str], fixed: np.ndarray, priority: np.ndarray | None) -> np.ndarray:
@@ -65,6 +104,7 @@ class Linearised:
         self.priority = getattr(model, "priority", lambda: None)()
         self.solved: dict[tuple, tuple] = {}  # groups → (x, flat J (m, P), r (m,), free (P,), R (P, P) of J)
         self._factor = triangular_factor
+        self._basis: dict[tuple, np.ndarray] = {}  # solved groups → orthonormal basis of their free columns
 
     def solve(self, groups: list[str], x0: np.ndarray | None = None) -> np.ndarray:
         """Fit the candidate (from `x0`, else the model's start) and keep its point; its x."""
@@ -82,13 +122,19 @@ class Linearised:
         """Squared held-out error per measurement (n,) of the candidate: at its own solution when solved, else
         linearised at the solved `base`'s."""
         own = self.solved.get(tuple(groups))
+        kd = self.model.residual_dim
         if own is not None:
             _, J, r, free, _ = own
-        else:
-            _, J, r, _, R = self.solved[tuple(base)]
-            fixed = np.array([n in set(self.options_for(groups).fixed) for n in self.names])
-            free = free_at(R, self.names, fixed, self.priority)
-        h = kfold_linear(J[:, free], r, self.folds, self.model.residual_dim)
+            return np.nansum(kfold_linear(J[:, free], r, self.folds, kd) ** 2, axis=1)
+        _, J, r, free_b, R = self.solved[tuple(base)]
+        fixed = np.array([n in set(self.options_for(groups).fixed) for n in self.names])
+        free = free_at(R, self.names, fixed, self.priority)
+        U = None
+        if free[free_b].all():  # it extends the base's free set: the base's basis and its own columns
+            if tuple(base) not in self._basis:
+                self._basis[tuple(base)] = scaled_basis(J[:, free_b])
+            U = scaled_basis(J[:, free & ~free_b], base=self._basis[tuple(base)])
+        h = kfold_linear(J[:, free], r, self.folds, kd, U=U)
         return np.nansum(h**2, axis=1)
 
     def settle(self, trial: dict, kept: list[str], rms) -> tuple[str, set]:

@@ -71,7 +71,8 @@ def one(seed: int, n: int, noise: float, tmp: Path, physics: str | None) -> dict
     fit = json.loads((out / "identify" / "fit.json").read_text())
     refused = [p["name"] for p in fit["parameters"] if "estimated negative" in str(p.get("reason", ""))]
     kept = (fit.get("model_selection") or {}).get("kept_groups", [])
-    return {"seed": seed, "mean": ev["mean_3d_m"], "rms": ev["rms_3d_m"], "stated": s.get("predicted_new_measurement_rms_3d_m"),
+    return {"seed": seed, "mean": ev["mean_3d_m"], "rms": ev["rms_3d_m"], "stated": s.get("predicted_new_measurement_rms_3d_m") or ((res.get("stages") or {}).get("accuracy") or {})
+            .get("summary", {}).get("new_measurement_rms_3d_m"),
             "floor_mean": np.sqrt(8 / np.pi) * noise, "floor_rms": np.sqrt(3) * noise, "wall": wall, "cpu": cpu,
             "stages": stages, "kept": kept, "refused": refused, "prior": (s.get("prior_class") or {}).get("class"),
             "physics": [t["parameter"] for t in (res.get("physics") or {}).get("terms", [])],

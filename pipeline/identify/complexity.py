@@ -84,22 +84,23 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
         lin = Linearised(model, data, design_folds(len(next(iter(data.values()))), k, seed, groups_of_rows, data),
                          options_for)
 
-    def errors(groups: list[str], base: list[str] | None = None) -> np.ndarray:
+    def errors(groups: list[str], base: list[str] | None = None, which: str = "") -> np.ndarray:
         opts = options_for(groups)
+        head = f"model choice{which}: {' + '.join(groups)}"
         if lin is not None:  # scored on the problem linearised at `base`'s solution (or solved: registration)
             if base is None:
                 lin.solve(groups)
             if progress is not None:
-                progress(f"model choice: {' + '.join(groups)}, {k}-fold in closed form"
+                progress(f"{head}, {k}-fold in closed form"
                          + (f", linearised at {' + '.join(base)}" if base is not None else ""))
             return lin.errors(groups, base or groups)
         if whole is not None:
             if progress is not None:
-                progress(f"model choice: {' + '.join(groups)}, {len(np.unique(whole))} groups left out in turn")
+                progress(f"{head}, {len(np.unique(whole))} groups left out in turn")
             r = held_out(model, data, whole, lambda d, _: fit(model, d, replace(opts, before=False)).x, None)
         else:
             if progress is not None:
-                progress(f"model choice: {' + '.join(groups)}, {k}-fold")
+                progress(f"{head}, {k}-fold")
             r = cross_validate(model, data, k=k, seed=seed, options=opts, groups=groups_of_rows)
         return np.nansum(r**2, axis=1)  # squared held-out error per row
 
@@ -129,7 +130,8 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
 
     def grow(pool: list[str], label=lambda c: c) -> str | None:
         nonlocal e_best
-        trial = {c: errors(kept + [c], list(kept) if lin is not None else None) for c in pool}
+        trial = {c: errors(kept + [c], list(kept) if lin is not None else None, f" (candidate {i} of {len(pool)})")
+                 for i, c in enumerate(pool, 1)}
         if lin is not None:  # the best solved and rescored at their own solution; the others stay linearised
             c, exact = lin.settle(trial, kept, rms)
             if progress is not None:

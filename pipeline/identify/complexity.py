@@ -35,6 +35,7 @@ class Selection:
     rounds: list[dict]  # [{"candidate": group, "holdout_rms_m": …, "kept": bool}, …]
     holdout_registration_m: float
     holdout_rms_m: float
+    x: np.ndarray | None = None  # the kept model's solution where the choice solved it (closed form), else None
 
 
 def _rms(r: np.ndarray) -> float:
@@ -164,8 +165,9 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
         singles.remove(n)
     while late and (g := grow(late)) is not None:  # second-order groups, against the model chosen without them
         late.remove(g)
+    solved = lin.solved.get(tuple(kept)) if lin is not None else None
     return Selection(kept=kept, fixed=fixed_for(model, kept), rounds=rounds, holdout_registration_m=reg,
-                     holdout_rms_m=rms(e_best))
+                     holdout_rms_m=rms(e_best), x=None if solved is None else solved[0])
 
 
 def _screen(model: MeasurementModel, data: Table, kept: list[str], singles: list[str],

@@ -101,7 +101,13 @@ def run(run_dir: Path, params: dict) -> dict:
             selection = select(model, data, k=folds, seed=int(params.get("seed", 0)), options=opts, progress=_progress,
                                groups_of_rows=holdout_groups(model, data), closed_form=closed)
             opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
-        rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
+        # the kept model, warm from its solution where the choice solved it (the start stays the model's own)
+        warm = selection is not None and selection.x is not None
+        rf = fit_rejecting(model, data, replace(opts, x0=selection.x) if warm else opts,
+                           threshold=float(params.get("outlier_threshold", 5.0)))
+        if warm:
+            start = model.initial_guess(data) if hasattr(model, "initial_guess") else model.nominal()
+            rf = replace(rf, fit=replace(rf.fit, nominal=np.asarray(start, float)))
         f = rf.fit
         if selection is not None:
             relabel(f, selection)

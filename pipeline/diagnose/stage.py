@@ -42,7 +42,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
     identify's model selection held, for a URDF tree or a model with physics terms (the same model as
     identify's, not selected again) or, `chosen`, whenever identify made a model choice (its groups, or
     after a shrinkage fit what it did not estimate); `identified`: identify's fit.json, whose least-squares
-    solution is the diagnosis' geometric fit where it is the same problem (`reuse.identify_fit`)."""
+    solution is the diagnosis' geometric fit where it is the same problem (`inference.reuse.identify_fit`)."""
     from pipeline.diagnose.adapters import touch_table as dtable
     from pipeline.diagnose.method import diagnose
     from pipeline.identify.model import take
@@ -71,7 +71,7 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
         keep = hasattr(model, "deflected") or chosen
         gf = None
         if keep and x0 is not None and identified is not None:  # identify's own fit: not solved again
-            from pipeline.diagnose.reuse import identify_fit
+            from pipeline.diagnose.inference.reuse import identify_fit
 
             gf = identify_fit(identified, model, tab)
         doc = diagnose(model, tab, x0=x0, settings=settings, geometry_fit=gf,

@@ -6,6 +6,7 @@ compensated under a payload checked on the generator's true robot."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -44,6 +45,8 @@ def test_diagnose_progress_in_the_run_folder_log_off_a_terminal(run):
     assert any(ln.startswith("diagnose: lack of fit and verdict") for ln in log)
     assert log[-1].startswith("diagnose: done, ")
     assert "diagnose: signatures: joint 1 of 14 (torso_j1)" in r.stderr and "diagnose: done, " in r.stderr
+    # identify's model choice names each candidate it scores, k of n
+    assert re.search(r"^identify: model choice \(candidate 1 of \d+\): registration \+ ", r.stderr, re.M), r.stderr[-2000:]
 
 
 def test_run_every_stage_on_a_tree_with_physics(run):

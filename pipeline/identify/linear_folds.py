@@ -104,7 +104,7 @@ class Linearised:
         self.priority = getattr(model, "priority", lambda: None)()
         self.solved: dict[tuple, tuple] = {}  # groups → (x, flat J (m, P), r (m,), free (P,), R (P, P) of J)
         self._factor = triangular_factor
-        self._basis: dict[tuple, np.ndarray] = {}  # solved groups → orthonormal basis of their free columns
+        self._basis: dict[tuple, tuple] = {}  # solved groups → (free set by the rank test, basis of those columns)
 
     def solve(self, groups: list[str], x0: np.ndarray | None = None) -> np.ndarray:
         """Fit the candidate (from `x0`, else the model's start) and keep its point; its x."""
@@ -126,14 +126,16 @@ class Linearised:
         if own is not None:
             _, J, r, free, _ = own
             return np.nansum(kfold_linear(J[:, free], r, self.folds, kd) ** 2, axis=1)
-        _, J, r, free_b, R = self.solved[tuple(base)]
+        _, J, r, _, R = self.solved[tuple(base)]
         fixed = np.array([n in set(self.options_for(groups).fixed) for n in self.names])
         free = free_at(R, self.names, fixed, self.priority)
-        U = None
-        if free[free_b].all():  # it extends the base's free set: the base's basis and its own columns
-            if tuple(base) not in self._basis:
-                self._basis[tuple(base)] = scaled_basis(J[:, free_b])
-            U = scaled_basis(J[:, free & ~free_b], base=self._basis[tuple(base)])
+        if tuple(base) not in self._basis:  # the base's free set by the same rank test at this point, its basis
+            fb = free_at(R, self.names, np.array([n in set(self.options_for(base).fixed) for n in self.names]),
+                         self.priority)
+            self._basis[tuple(base)] = (fb, scaled_basis(J[:, fb]))
+        free_b, U_b = self._basis[tuple(base)]
+        # a candidate that extends the base's free set: the base's basis and its own columns
+        U = scaled_basis(J[:, free & ~free_b], base=U_b) if free[free_b].all() else None
         h = kfold_linear(J[:, free], r, self.folds, kd, U=U)
         return np.nansum(h**2, axis=1)
 

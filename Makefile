@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv demo test lint bench reprocess clean chromium bytecode
+.PHONY: venv demo test test-extended test-all lint bench reprocess clean chromium bytecode
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,10 +24,18 @@ demo: $(STAMP) bytecode
 	$(BIN)/robocal run recordings/arc-welder-touch.mcap --out runs/demo
 
 # the suite on TEST_WORKERS processes (pytest-xdist), one test file per unit of work, the heaviest
-# first (tests/ci_time.py); TEST_WORKERS=0 runs it in this process alone
+# first (tests/ci_time.py); TEST_WORKERS=0 runs it in this process alone.  `make test` is CI's suite:
+# tests marked `extended` (full-size runs whose bounded twins stay in it) run with `make test-extended`.
 TEST_WORKERS ?= 2
+PYTEST := $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 test: $(STAMP) bytecode chromium lint
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
+	$(PYTEST) -m "not extended"
+
+test-extended: $(STAMP) bytecode chromium
+	$(PYTEST) -m extended
+
+test-all: $(STAMP) bytecode chromium lint
+	$(PYTEST)
 
 # pyflakes rules only: undefined names, unused imports/variables, syntax errors
 lint: $(STAMP)
@@ -47,7 +55,7 @@ chromium:
 	  echo "warning: could not install Debian chromium; the report's browser test will be skipped"
 	@command -v xvfb-run >/dev/null 2>&1 && ls /usr/share/vulkan/icd.d/lvp_icd.* >/dev/null 2>&1 || \
 	  (export DEBIAN_FRONTEND=noninteractive; apt-get install -y -qq xvfb xauth mesa-vulkan-drivers >/dev/null) || \
-	  echo "warning: could not install xvfb and mesa-vulkan-drivers; the rerun viewer screenshot test will be skipped"
+	  echo "warning: could not install xvfb and mesa-vulkan-drivers; the rerun viewer tests will be skipped"
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache

@@ -221,7 +221,7 @@ def test_run_strict_on_thin_data_reports_insufficient_everywhere(thin_recording,
 
 
 def test_rerun_viewer_renders_the_panels(thin_run, tmp_path):
-    """The real rerun viewer, headless under Xvfb with Mesa's software Vulkan (Debian xvfb,
+    """The real rerun viewer, headless with Mesa's software Vulkan (Debian
     mesa-vulkan-drivers): its screenshot shows the 3-D scene with the accuracy map (viridis
     spheres), the robot (blue), and drawn time-series panels on the right."""
     from viewer_support import viewer_screenshot

@@ -178,7 +178,7 @@ def test_rrd_camera_frusta_board_and_images(cam_run):
 
 
 def test_rerun_viewer_shows_the_image_with_its_board(cam_run, tmp_path):
-    """The real viewer (Xvfb + Mesa): the camera run's 2-D image view shows the rendered board
+    """The real viewer (headless, Mesa): the camera run's 2-D image view shows the rendered board
     (dark and light squares) and the 3-D view holds the robot."""
     from viewer_support import viewer_screenshot
 

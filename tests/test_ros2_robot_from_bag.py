@@ -108,3 +108,58 @@ def test_the_bag_is_opened_once_and_each_message_decoded_once(bags, tmp_path, mo
         held = {c.msgtype: c.msgcount for c in r.connections}
     assert opens[0] == 1 + 1  # the import's one open, and the count just above
     assert dict(decodes) == held and done.n == 8
+
+
+def test_an_effort_bag_goes_through_the_one_import_entry(tmp_path, monkeypatch):
+    """`--measure effort` through the same entry as every bag import (`import_bag`): the robot from the bag's
+    /robot_description, the bag opened once, each JointState and the description decoded once (the point
+    topic not at all), the recording's encoder stream the bag's positions and efforts in the chain's order
+    (the bag names them in another order, with an extra joint)."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys.store import Typestore
+
+    from pipeline.importers.effort_recording import EffortSpec
+    from pipeline.ingest.streams import joint_stream
+    from pipeline.recording.reader import read_recording
+    from pipeline.ros2.importer import Robot, import_bag
+    from pipeline.ros2.points import BagSpec
+    from pipeline.simulate.ros2_bag import write_bag
+
+    desc = urdf.parse(R6T, "b", "tcp")
+    J = len(desc.joint_names)
+    rng = np.random.default_rng(7)
+    t = np.arange(40) * 0.02
+    q, e = rng.uniform(-1, 1, (40, J)), rng.normal(0, 5, (40, J))
+    layout = BagLayout(description=R6T, name_order=tuple(reversed(range(J))), extra_joints={"gripper": 0.01})
+    write_bag(tmp_path / "eff", desc.joint_names, t, q, np.array([0.1]), np.zeros((1, 3)), None, layout, effort=e)
+    opens, decodes = [0], Counter()
+    open0, deser0 = Reader.open, Typestore.deserialize_cdr
+
+    def counting_open(self, *a, **k):
+        opens[0] += 1
+        return open0(self, *a, **k)
+
+    def counting_deserialize(self, raw, typename, *a, **k):
+        decodes[typename] += 1
+        return deser0(self, raw, typename, *a, **k)
+
+    monkeypatch.setattr(Reader, "open", counting_open)
+    monkeypatch.setattr(Typestore, "deserialize_cdr", counting_deserialize)
+    lines = []
+    done = import_bag(tmp_path / "eff", Robot(None, "b", "tcp"), tmp_path / "e.mcap", BagSpec(measure="effort"),
+                      effort=EffortSpec(units="Nm"), say=lines.append)
+    assert opens[0] == 1 and dict(decodes) == {"sensor_msgs/msg/JointState": 40, "std_msgs/msg/String": 1}
+    assert done.kind == "effort" and done.n == 40 and done.robot_from.endswith("#/robot_description")
+    s = joint_stream(read_recording(tmp_path / "e.mcap"))
+    np.testing.assert_array_equal(s.q, q)
+    np.testing.assert_array_equal(s.effort, e)
+    assert lines and lines[-1].startswith("imported 40 samples of 6 joints' position and effort")
+    with pytest.raises(Exception, match="apply to --measure effort only"):
+        import_bag(tmp_path / "eff", Robot(None, "b", "tcp"), tmp_path / "p.mcap", effort=EffortSpec(units="Nm"))
+    # `robocal run BAG --measure effort` imports through the same entry, with the effort declaration's options
+    p = run_cli("run", tmp_path / "eff", "--root", "b", "--tip", "tcp", "--measure", "effort", "--effort-units", "Nm",
+                "--out", tmp_path / "run", "--stages", "ingest")
+    assert p.returncode == 0, p.stderr
+    assert "imported 40 samples of 6 joints' position and effort" in p.stderr
+    campaign = read_recording(tmp_path / "run" / "import" / "recording.mcap").metadata["robocal.campaign"]
+    assert campaign["measure"] == "effort" and campaign["effort"]["unit"] == "N·m"

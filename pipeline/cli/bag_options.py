@@ -41,6 +41,31 @@ def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
     }
 
 
+def effort_options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
+    """The effort declaration's options of a ``--measure effort`` bag (as `import csv --measure effort`), by
+    parameter name, under help panel `panel`."""
+    kw = {"rich_help_panel": panel}
+    return {
+        "effort_scale": typer.Option([], "--effort-scale", help="N·m (N) per raw effort unit, JOINT=K,… (as "
+                                     "`import csv --measure effort`).", **kw),
+        "effort_offset": typer.Option([], "--effort-offset", help="N·m (N) added, JOINT=C,…; C = weight: g × the "
+                                      "mass the joint carries.", **kw),
+        "effort_mix": typer.Option([], "--effort-mix", help="Raw efforts a joint's torque combines, JOINT=EXPR "
+                                   "(repeatable).", **kw),
+        "effort_joints": typer.Option("", "--effort-joints", help="Joints whose torque is fitted and scored "
+                                      "(default: all).", **kw),
+        "effort_units": typer.Option(None, "--effort-units", help="Nm (efforts are torques) or raw.",
+                                     show_default="raw with a scale, else unknown", **kw),
+    }
+
+
+def effort_spec(scale, offset, mix, joints, units):
+    """The `pipeline.importers.effort_recording.EffortSpec` of the effort options' values."""
+    from pipeline.importers.effort_recording import EffortSpec
+
+    return EffortSpec(tuple(scale or ()), tuple(offset or ()), tuple(mix or ()), joints or "", units)
+
+
 def measure_topics(measure_topic: list[str] | None, tip: str | None, bag: bool = True
                    ) -> tuple[str | None, tuple[tuple[str, str], ...]]:
     """(the one measurement topic or None, ((tip link, topic), …)) of the repeated --measure-topic values:

@@ -14,6 +14,7 @@ from pipeline.cli.importer import import_app
 BAG = bag_options.options()
 CAM = "Camera (a bag with images: --target)"
 DYN = "Dynamics (--measure effort: every JointState with its efforts)"
+EFF = bag_options.effort_options(DYN)
 
 
 @import_app.command("ros2")
@@ -57,17 +58,9 @@ def import_ros2(
     skip_bad: bool = typer.Option(False, "--skip-bad", rich_help_panel=CAM, help="Leave out images that cannot be "
                                   "read, of an unsupported encoding or of another size than CameraInfo (listed)."),
     force: bool = force_option(),
-    effort_scale: list[str] = typer.Option([], "--effort-scale", rich_help_panel=DYN, help="N·m (N) per raw effort "
-                                           "unit, JOINT=K,… (as `import csv --measure effort`)."),
-    effort_offset: list[str] = typer.Option([], "--effort-offset", rich_help_panel=DYN, help="N·m (N) added, "
-                                            "JOINT=C,…; C = weight: g × the mass the joint carries."),
-    effort_mix: list[str] = typer.Option([], "--effort-mix", rich_help_panel=DYN, help="Raw efforts a joint's torque "
-                                         "combines, JOINT=EXPR (repeatable)."),
-    effort_joints: str = typer.Option("", "--effort-joints", rich_help_panel=DYN, help="Joints whose torque is "
-                                      "fitted and scored (default: all)."),
-    effort_units: Optional[Literal["Nm", "raw"]] = typer.Option(None, "--effort-units", rich_help_panel=DYN,
-                                                                help="Nm (efforts are torques) or raw.",
-                                                                show_default="raw with a scale, else unknown"),
+    effort_scale: list[str] = EFF["effort_scale"], effort_offset: list[str] = EFF["effort_offset"],
+    effort_mix: list[str] = EFF["effort_mix"], effort_joints: str = EFF["effort_joints"],
+    effort_units: Optional[Literal["Nm", "raw"]] = EFF["effort_units"],
 ) -> None:
     """Pair each measurement with the joint state where the robot stood still around it and write a
     recording `robocal run` calibrates; measurements taken while moving are listed and left out."""
@@ -77,18 +70,6 @@ def import_ros2(
     from pipeline.ros2.points import BagSpec
 
     check_output(out, force=force)  # before any work: an existing recording only with --force
-    if measure == "effort":  # dynamics: the joint states' positions, velocities and efforts
-        if tip is None or measure_topic or target is not None:
-            raise RobocalError("--measure effort needs --tip LINK and takes no --measure-topic or --target")
-        from pipeline.cli.import_effort import write_effort_recording
-        from pipeline.recording.output import claim_output
-        from pipeline.ros2.effort import read_effort_bag
-
-        desc, source, log = read_effort_bag(bag, urdf, root, tip, joint_topic, time)
-        claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
-        write_effort_recording(out, desc, log, source, effort_scale, effort_offset, effort_mix, effort_joints,
-                               effort_units, {"source_files": [str(bag)]}, robot_id)
-        return
     cam = None
     if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
         from pipeline.ros2.camera import CameraSpec
@@ -104,4 +85,6 @@ def import_ros2(
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time, tips=tips)
     robot = Robot(urdf, root, tip, tuple(coupled or ()), coupling_wins)
-    import_bag(bag, robot, out, spec, cam, sigma_m, sigma_rad, robot_id, force=force, say=bag_options.say)
+    effort = bag_options.effort_spec(effort_scale, effort_offset, effort_mix, effort_joints, effort_units)
+    import_bag(bag, robot, out, spec, cam, sigma_m, sigma_rad, robot_id, force=force, say=bag_options.say,
+               effort=effort)

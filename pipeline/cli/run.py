@@ -13,6 +13,7 @@ from rich.table import Table
 from pipeline.cli import CALIBRATE, app, bag_options, console, err
 
 BAG = bag_options.options(bag_options.RUN_PANEL)
+EFF = bag_options.effort_options(bag_options.RUN_PANEL)
 
 
 def _log(line: str) -> None:
@@ -223,6 +224,9 @@ def run_cmd(
     coupling_wins: bool = bag_options.options()["coupling_wins"],
     measure: Optional[Literal["point", "pose", "effort"]] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time_source: Literal["header", "log"] = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
+    effort_scale: list[str] = EFF["effort_scale"], effort_offset: list[str] = EFF["effort_offset"],
+    effort_mix: list[str] = EFF["effort_mix"], effort_joints: str = EFF["effort_joints"],
+    effort_units: Optional[Literal["Nm", "raw"]] = EFF["effort_units"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
     target: Optional[str] = typer.Option(None, "--target", rich_help_panel=bag_options.RUN_PANEL,
                                          help="ROS 2 camera bag: the board its images show (as `robocal import "
@@ -260,7 +264,9 @@ def run_cmd(
     robot = None
     if urdf or root or tip or coupled or coupling_wins:
         robot = Robot(urdf, root or "", tip, tuple(coupled or ()), coupling_wins)
-    recording = run_input(recording, out, robot, spec, cam, sigma_m, sigma_rad, say=bag_options.say)
+    effort = bag_options.effort_spec(effort_scale, effort_offset, effort_mix, effort_joints, effort_units)
+    recording = run_input(recording, out, robot, spec, cam, sigma_m, sigma_rad, say=bag_options.say,
+                          effort=None if effort == bag_options.effort_spec((), (), (), "", None) else effort)
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)

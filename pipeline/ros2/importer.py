@@ -4,9 +4,10 @@ DIR/import/recording.mcap).
 
 The bag is opened once (`pipeline.ros2.bag.Bag`) and each of its messages decoded once: the robot's
 description where the bag carries it, then one pass over the joint states and the measurement topics
-(point / pose: `pipeline.ros2.points`; several measured tips: `pipeline.ros2.tips`) or, for a camera bag,
-the joint states, CameraInfo and image stamps, and a second pass over the same open bag decoding only the
-paired images (`pipeline.ros2.camera`, `pipeline.ros2.camera_import`).
+(point / pose: `pipeline.ros2.points`; several measured tips: `pipeline.ros2.tips`); for a dynamics bag
+(``--measure effort``) one pass over the joint states with their efforts (`pipeline.ros2.effort`); for a
+camera bag, the joint states, CameraInfo and image stamps, and a second pass over the same open bag decoding
+only the paired images (`pipeline.ros2.camera`, `pipeline.ros2.camera_import`).
 
 The robot: `Robot.urdf` a URDF file, a ``.xacro`` (expanded by the xacro package, its ``$(find …)`` and
 ``package://`` resolved through ROS_PACKAGE_PATH / AMENT_PREFIX_PATH where set), or None — the bag's own
@@ -41,7 +42,7 @@ class Robot:
 
 @dataclass(frozen=True)
 class BagImport:
-    """What one import wrote: `n` measurements of `kind` (point | pose | camera) of `n_joints` joints
+    """What one import wrote: `n` measurements of `kind` (point | pose | camera; effort: `n` joint states) of `n_joints` joints
     (`root` → `tip`) into `out`; `ros2` the campaign's ROS 2 record (topics, frame, pairing);
     `n_stream` joint states whose efforts were kept in the encoder stream (None: no efforts); `robot_from`
     where the URDF came from."""
@@ -103,18 +104,27 @@ def describe(text: str, source: str, robot: Robot, spec: BagSpec):
 
 
 def import_bag(path: Path, robot: Robot, out: Path, spec: BagSpec = BagSpec(), camera=None, sigma_m: float = 1e-3,
-               sigma_rad: float = 1e-3, robot_id: str = "", force: bool = False, say: Say = quiet) -> BagImport:
+               sigma_rad: float = 1e-3, robot_id: str = "", force: bool = False, say: Say = quiet,
+               effort=None) -> BagImport:
     """Read the bag `path` (module docstring), pair each measurement with the joint state where the robot
     stood still around it, and write the recording `out`.  `camera`: a `pipeline.ros2.camera.CameraSpec`
-    for a camera bag.  Pose measurements carry `sigma_m` (m) and `sigma_rad` (rad).  A coupled joint the
-    JointStates carry too is an error unless `robot.coupling_wins` (the coupling replaces its readings).  An
-    existing recording at `out` is replaced only with `force` (kept as NAME.bak)."""
+    for a camera bag.  ``spec.measure == "effort"``: every joint state with its efforts, a dynamics recording
+    declared by `effort` (a `pipeline.importers.effort_recording.EffortSpec`).  Pose measurements carry
+    `sigma_m` (m) and `sigma_rad` (rad).  A coupled joint the JointStates carry too is an error unless
+    `robot.coupling_wins` (the coupling replaces its readings).  An existing recording at `out` is replaced
+    only with `force` (kept as NAME.bak)."""
+    from pipeline.importers.effort_recording import EffortSpec
     from pipeline.recording.output import check_output
 
     path, out = Path(path), Path(out)
     if out.exists() and out.resolve() == path.resolve():
         raise RobocalError(f"{out}: --out is the bag itself")
+    if spec.measure != "effort" and effort is not None and effort != EffortSpec():
+        raise RobocalError("--effort-scale/--effort-offset/--effort-mix/--effort-joints/--effort-units apply to "
+                           "--measure effort only")
     check_output(out, force=force)  # before the bag is read
+    if spec.measure == "effort":
+        return _import_effort(path, robot, out, spec, camera, effort or EffortSpec(), robot_id, force, say)
     if camera is not None:
         from pipeline.ros2.camera_import import check_camera
 
@@ -131,6 +141,25 @@ def import_bag(path: Path, robot: Robot, out: Path, spec: BagSpec = BagSpec(), c
 
         table, extras = read_bag(bag, desc, spec)
     return _write(path, out, desc, cp, spec, table, extras, robot, sigma_m, sigma_rad, robot_id, force, say, source)
+
+
+def _import_effort(path, robot, out, spec, camera, effort, robot_id, force, say) -> BagImport:
+    """A dynamics recording of every joint state of the bag with its positions, velocities and efforts."""
+    from pipeline.importers.effort_recording import write_effort_recording
+    from pipeline.models import urdf as urdf_mod
+    from pipeline.recording.output import claim_output
+    from pipeline.ros2.effort import read_efforts
+
+    if robot.tip is None or spec.measure_topic or spec.tips or camera is not None or robot.coupled:
+        raise RobocalError("--measure effort needs --tip LINK and takes no --measure-topic, --target or --coupled")
+    with Bag(path) as bag:
+        text, source = urdf_text(bag, robot.urdf)
+        desc = urdf_mod.parse(text, robot.root, robot.tip, source=source)
+        logs = read_efforts(bag, desc, spec.joint_topic, spec.time)
+    claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
+    write_effort_recording(out, desc, logs, source, effort, {"source_files": [str(path)]}, robot_id, say)
+    return BagImport(out, len(logs["t_ns"]), "effort", len(desc.joint_names), desc.root, desc.tip,
+                     robot_from=source)
 
 
 def _write(path, out, desc, cp, spec, table, extras, robot, sigma_m, sigma_rad, robot_id, force, say, source):
@@ -162,7 +191,7 @@ def _write(path, out, desc, cp, spec, table, extras, robot, sigma_m, sigma_rad, 
 
 
 def run_input(recording: Path, out: Path, robot: Robot | None, spec: BagSpec = BagSpec(), camera=None,
-              sigma_m: float = 1e-3, sigma_rad: float = 1e-3, say: Say = quiet) -> Path:
+              sigma_m: float = 1e-3, sigma_rad: float = 1e-3, say: Say = quiet, effort=None) -> Path:
     """What `robocal run` reads: `recording` itself, or — for a ROS 2 bag — the recording imported from it
     into DIR/import/recording.mcap (re-imported each run: bit-identical, so the stages after it stay
     cached).  Bag options without a bag, or a bag without its chain, are one-line errors."""
@@ -171,10 +200,10 @@ def run_input(recording: Path, out: Path, robot: Robot | None, spec: BagSpec = B
     given = [] if robot is None else [f"--{k}" for k, v in (("urdf", robot.urdf), ("root", robot.root),
                                                           ("tip", robot.tip or spec.tips)) if v]
     if ros2_kind(recording) is None:
-        if given or spec.measure_topic or camera is not None or (robot is not None and (robot.coupled or
-                                                                                        robot.coupling_wins)):
+        if given or spec.measure_topic or camera is not None or effort is not None or (
+                robot is not None and (robot.coupled or robot.coupling_wins)):
             raise RobocalError(f"{recording}: is not a ROS 2 bag; --urdf/--root/--tip/--measure-topic/--target/"
-                               "--coupled apply to ROS 2 bags only")
+                               "--coupled/--effort-* apply to ROS 2 bags only")
         return recording
     if robot is None or not robot.root or not (robot.tip or spec.tips):
         raise RobocalError(f"{recording}: is a ROS 2 bag: give the robot's chain as --root LINK --tip LINK (and "
@@ -185,7 +214,7 @@ def run_input(recording: Path, out: Path, robot: Robot | None, spec: BagSpec = B
         d = fresh_stage_dir(out, "import")
         rec = d / "recording.mcap"
         try:
-            import_bag(recording, robot, rec, spec, camera, sigma_m, sigma_rad, say=say)
+            import_bag(recording, robot, rec, spec, camera, sigma_m, sigma_rad, say=say, effort=effort)
         finally:
             record_manifest(d)  # what robocal wrote there, so a rerun replaces only that
     return rec

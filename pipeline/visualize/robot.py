@@ -8,8 +8,10 @@ Geometry (pure numpy, frames in the run's ``world``: the instrument / jig frame,
 - `segments(frames)`: the capsules between consecutive frame origins (links), as translations,
   unit quaternions (x, y, z, w) turning +z onto the link and lengths.
 
-The real robots' URDFs ship meshes robocal does not have, so each link is drawn as a capsule
-between its joint frames — the kinematic skeleton the calibration actually changed.
+A URDF robot is drawn through rerun's URDF support (`pipeline.visualize.urdf_scene`); seed 000's D-H
+arm, which has no URDF visuals, as capsules between its joint frames — the kinematic skeleton the
+calibration changed: the calibrated arm a translucent blue body, the nominal one a thinner red
+skeleton inside it (`urdf_scene.STYLE`, `urdf_scene.SKELETON`), filled solid.
 
 Logged (rerun-sdk 0.41), on the recording's ``time`` timeline, one step per posture of the
 campaign (the measurement postures, or the encoder stream at a few Hz where the recording has one):
@@ -33,9 +35,10 @@ import numpy as np
 import rerun as rr
 
 from pipeline.models import serial_arm
+from pipeline.visualize.urdf_scene import SKELETON, STYLE
 
 TIMELINE = "time"
-COLORS = {"nominal": (220, 80, 60, 255), "calibrated": (60, 110, 200, 150)}  # the nominal shows through
+COLORS = STYLE  # calibrated translucent blue, nominal red: the nominal shows through
 LINK_RADIUS_M = 0.02
 AXIS_RGB = [(220, 40, 40), (40, 180, 40), (40, 80, 220)]
 PALETTE = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
@@ -105,7 +108,8 @@ def log_urdf_robots(rec: rr.RecordingStream, kin, x_kin: dict[str, np.ndarray], 
                     mesh_path: list[str] | tuple = (), base=None) -> list[str]:
     """A URDF robot (a chain or a tree) through rerun's URDF support (`pipeline.visualize.urdf_scene`): each
     of `x_kin` ("nominal"/"calibrated" → parameter vector) from its own calibrated URDF text, placed at its
-    registration, its joints moving at postures q (N, read joints) on `time` t_ns (N,)."""
+    registration, its joints moving at postures q (N, read joints) on `time` t_ns (N,).  With both, the
+    nominal robot is the red skeleton inside the calibrated robot's translucent blue body."""
     from pipeline.visualize.urdf_scene import log_urdf_robot, mesh_dirs
 
     q = np.atleast_2d(np.asarray(q, float))
@@ -116,7 +120,9 @@ def log_urdf_robots(rec: rr.RecordingStream, kin, x_kin: dict[str, np.ndarray], 
     joints = [j.name for j in kin.all_joints] if tree else list(kin.joint_names)
     for which, x in x_kin.items():
         names, F = kin.link_frames(x, q[:1], 0) if tree else kin.link_frames(x, q[:1])
-        p, _ = log_urdf_robot(rec, which, kin.urdf_text(x), names[0], F[0, 0], joints, qf, t_ns, dirs, base)
+        skeleton = which == "nominal" and "calibrated" in x_kin  # the red core inside the blue body
+        p, _ = log_urdf_robot(rec, which, kin.urdf_text(x), names[0], F[0, 0], joints, qf, t_ns, dirs, base,
+                              skeleton=skeleton)
         paths += p
     o, v = axes(np.eye(4), 0.2)
     rec.log("world/instrument", rr.Arrows3D(origins=o, vectors=v, colors=AXIS_RGB, radii=[0.004],
@@ -146,7 +152,7 @@ def log_robot(rec: rr.RecordingStream, kin, x_kin: dict[str, np.ndarray], q: np.
                 reach = float(np.max(np.linalg.norm(F[:, :, :3, 3] - F[:, :1, :3, 3], axis=-1)))
                 scale_m = scale_m or max(reach, 0.05)
             base = f"world/robot/{which}"
-            radius = LINK_RADIUS_M * scale_m if which == "calibrated" else 0.45 * LINK_RADIUS_M * scale_m
+            radius = LINK_RADIUS_M * scale_m * (1.0 if which == "calibrated" else SKELETON)
             chain = f"{base}/{tips[k]}" if tips else base
             own = [n not in drawn or n == "tool" for n in names]
             paths += _log_chain(rec, chain, names, follows, F, t, own, which, radius, scale_m, which == primary)
@@ -174,7 +180,7 @@ def _log_chain(rec, base: str, names: list[str], follows: list[str], F: np.ndarr
     paths = []
     labels = [f"{names[i]} → {names[i + 1]}" for i in keep]
     rec.log(f"{base}/links", rr.Capsules3D.from_fields(radii=[radius], colors=[rgba], labels=labels,
-                                                       show_labels=False), static=True)
+                                                       show_labels=False, fill_mode="solid"), static=True)
     rec.send_columns(f"{base}/links", indexes=[_times(t)], columns=_partitioned(rr.Capsules3D.columns(
         translations=tr.reshape(-1, 3), quaternions=quat.reshape(-1, 4), lengths=L.reshape(-1)), n, len(keep)))
     paths.append(f"{base}/links")

@@ -4,12 +4,16 @@ robot's own URDF loaded by rerun's URDF loader — its links by their URDF names
 recording's ``time`` timeline, one entity per joint; ``nominal`` and ``calibrated`` side by side, each
 from its own URDF (the calibrated one is model.urdf).
 
-What is drawn (`display_urdf`): a visual mesh whose file resolves — ``package://PKG/…`` through the
-``--mesh-path`` folders, ROS_PACKAGE_PATH (``DIR/PKG`` or ``DIR`` named PKG) and AMENT_PREFIX_PATH
-(``PREFIX/share/PKG``); a relative path beside the URDF file the recording names — as that mesh;
-otherwise (a mesh that does not resolve, or a link without visuals) primitives: a cylinder from the link's
-origin to each child joint's origin and a sphere at the origin, sized to the robot's reach.  Collision
-geometry is left out.  Lengths m; the robot placed in the run's ``world`` (the instrument frame) by one
+What is drawn (`display_urdf`): the robot's body — a visual mesh whose file resolves (``package://PKG/…``
+through the ``--mesh-path`` folders, ROS_PACKAGE_PATH (``DIR/PKG`` or ``DIR`` named PKG) and AMENT_PREFIX_PATH
+(``PREFIX/share/PKG``); a relative path beside the URDF file the recording names) as that mesh, the URDF's
+own primitive visuals as they are, and otherwise (a mesh that does not resolve, or a link without visuals)
+primitives: a cylinder from the link's origin to each child joint's origin and a sphere at the origin,
+sized to the robot's reach — or its skeleton (those primitives only, thinner).  Every visual takes the
+robot's colour (`STYLE`): the calibrated robot's body translucent blue, the nominal robot opaque red — a
+skeleton inside the calibrated body when both are drawn (where the calibration moved a link, the red core
+leaves the blue body's axis), its body when it is drawn alone (`robocal view` of a raw recording).
+Collision geometry is left out.  Lengths m; the robot placed in the run's ``world`` (the instrument frame) by one
 static transform ``tf#/world`` → its top link (the instrument → root registration of that robot's
 parameters, times the URDF's own frames from its top link down to the root).
 
@@ -29,7 +33,17 @@ import numpy as np
 
 from pipeline.models.urdf import matrix_of_rpy, rpy_of
 
-COLORS = {"nominal": "0.86 0.31 0.24 1", "calibrated": "0.24 0.43 0.78 0.6"}
+# sRGB 0…255 and alpha as the viewer shows them (the D-H capsules too); URDF <color rgba> is linear (rerun's
+# loader converts it).  The nominal robot shows through the calibrated body.
+STYLE = {"nominal": (220, 80, 60, 255), "calibrated": (60, 110, 220, 100)}
+SKELETON = 0.45  # a skeleton's cylinder radius, as a fraction of the body's
+
+
+def urdf_rgba(srgba: tuple[int, int, int, int]) -> str:
+    """URDF ``rgba`` (linear 0…1) of an sRGB colour with alpha (0…255)."""
+    c = np.asarray(srgba[:3], float) / 255.0
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    return " ".join(f"{v:.4f}" for v in (*lin, srgba[3] / 255.0))
 
 
 def mesh_dirs(extra: list[str | Path] | tuple = ()) -> list[Path]:
@@ -91,38 +105,42 @@ def _axis_angle(a: np.ndarray, t: float) -> np.ndarray:
     return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
 
 
-def display_urdf(text: str, which: str, dirs: list[Path], base: Path | None = None) -> tuple[str, dict]:
+def display_urdf(text: str, which: str, dirs: list[Path], base: Path | None = None,
+                 skeleton: bool = False) -> tuple[str, dict]:
     """(the URDF rerun loads for robot `which`, {"meshes": n resolved, "primitives": [links drawn as
-    primitives]}): meshes resolved to absolute paths or replaced by primitives, collisions dropped, the
-    robot renamed ``robot_<which>`` (its entity under ``world``)."""
+    primitives]}): meshes resolved to absolute paths or replaced by primitives — or, with `skeleton`,
+    every visual replaced by thin primitives —, every visual coloured as `STYLE[which]`, collisions
+    dropped, the robot renamed ``robot_<which>`` (its entity under ``world``)."""
     robot = ET.fromstring(text.encode())
     robot.set("name", f"robot_{which}")
+    for m in robot.findall("material"):
+        robot.remove(m)
     joints = robot.findall("joint")
     child_origins: dict[str, list[np.ndarray]] = {}
     for j in joints:
         if j.find("parent") is not None:
             child_origins.setdefault(j.find("parent").get("link"), []).append(_origin(j)[:3, 3])
     reach = sum(float(np.linalg.norm(p)) for ps in child_origins.values() for p in ps)
-    radius = max(0.004, 0.015 * min(reach, 3.0))
-    rgba = COLORS.get(which, "0.5 0.5 0.5 1")
+    radius = max(0.004, 0.015 * min(reach, 3.0)) * (SKELETON if skeleton else 1.0)
+    rgba = urdf_rgba(STYLE.get(which, (128, 128, 128, 255)))
     stats = {"meshes": 0, "primitives": []}
     for link in robot.findall("link"):
         for c in link.findall("collision"):
             link.remove(c)
-        visuals = link.findall("visual")
         kept = 0
-        for v in visuals:
+        for v in link.findall("visual"):
             m = v.find("geometry/mesh")
-            if m is None:
-                kept += 1
-                continue
-            found = resolve_mesh(m.get("filename", ""), dirs, base)
-            if found is None:
+            found = None if skeleton or m is None else resolve_mesh(m.get("filename", ""), dirs, base)
+            if skeleton or (m is not None and found is None):
                 link.remove(v)
-            else:
+                continue
+            if m is not None:
                 m.set("filename", str(found))
-                kept += 1
                 stats["meshes"] += 1
+            for old in v.findall("material"):
+                v.remove(old)
+            ET.SubElement(ET.SubElement(v, "material", {"name": f"robocal_{which}"}), "color", {"rgba": rgba})
+            kept += 1
         if kept == 0:
             _primitives(link, child_origins.get(link.get("name"), []), radius, rgba)
             stats["primitives"].append(link.get("name"))
@@ -144,15 +162,17 @@ def _top_to(text: str, link: str) -> tuple[str, np.ndarray]:
 
 
 def log_urdf_robot(rec, which: str, urdf_text: str, root: str, root_in_world: np.ndarray, joints: list[str],
-                   q: np.ndarray, t_ns: np.ndarray, dirs: list[Path], base: Path | None = None) -> tuple[list[str], dict]:
-    """Log robot `which` (nominal | calibrated) from its URDF: the loader's links, the placement (the `root`
-    link's pose in the world, 4×4, `root_in_world`) and the movable `joints`' transforms at readings q
-    (N, J) rad / m on `time` t_ns (N,).  Returns (entity paths, `display_urdf`'s stats)."""
+                   q: np.ndarray, t_ns: np.ndarray, dirs: list[Path], base: Path | None = None,
+                   skeleton: bool = False) -> tuple[list[str], dict]:
+    """Log robot `which` (nominal | calibrated) from its URDF: the loader's links (its body, or with
+    `skeleton` its thin primitives), the placement (the `root` link's pose in the world, 4×4, `root_in_world`)
+    and the movable `joints`' transforms at readings q (N, J) rad / m on `time` t_ns (N,).  Returns (entity
+    paths, `display_urdf`'s stats)."""
     import rerun as rr
     from rerun.urdf import UrdfTree
     from scipy.spatial.transform import Rotation
 
-    text, stats = display_urdf(urdf_text, which, dirs, base)
+    text, stats = display_urdf(urdf_text, which, dirs, base, skeleton)
     base_path = f"world/robot_{which}"
     with tempfile.TemporaryDirectory(prefix="robocal_urdf_") as d:
         f = Path(d) / f"robot_{which}.urdf"
@@ -165,7 +185,12 @@ def log_urdf_robot(rec, which: str, urdf_text: str, root: str, root_in_world: np
     rec.log(f"{base_path}/placement", rr.Transform3D(translation=P[:3, 3], quaternion=Rotation.from_matrix(
         P[:3, :3]).as_quat(), parent_frame="tf#/world", child_frame=f"{which}/{top}"), static=True)
     paths = [f"{base_path}/placement", f"{base_path}/tf_static"]
-    paths += [p.lstrip("/") for link in _links(text) for p in tree.get_visual_geometry_paths(link)]
+    solid = {"cylinder": rr.Cylinders3D, "sphere": rr.Ellipsoids3D, "box": rr.Boxes3D}
+    for link, geoms in _visuals(text).items():
+        for p, g in zip(tree.get_visual_geometry_paths(link), geoms):
+            paths.append(p.lstrip("/"))
+            if g in solid:  # the loader's primitives are wireframes by default: a body is filled
+                rec.log(paths[-1], solid[g].from_fields(fill_mode="solid"), static=True)
     time = rr.TimeColumn("time", timestamp=np.asarray(t_ns, np.int64).astype("datetime64[ns]"))
     q = np.atleast_2d(np.asarray(q, float))
     for k, name in enumerate(joints):
@@ -178,5 +203,10 @@ def log_urdf_robot(rec, which: str, urdf_text: str, root: str, root_in_world: np
     return paths, stats
 
 
-def _links(text: str) -> list[str]:
-    return [link.get("name") for link in ET.fromstring(text.encode()).findall("link")]
+def _visuals(text: str) -> dict[str, list[str]]:
+    """Link name → the geometry tag of each of its visuals, in order (the loader's ``visual_<k>``)."""
+    out = {}
+    for link in ET.fromstring(text.encode()).findall("link"):
+        out[link.get("name")] = [next(iter(g), None).tag if len(g) else "" for g in
+                                 (v.find("geometry") for v in link.findall("visual")) if g is not None]
+    return out

@@ -38,7 +38,8 @@ def dynamics_cmd(
 ) -> None:
     """Random truth and an excitation run on it; the efforts written in N·m (N) as `robocal import csv
     --measure effort --effort-units Nm` would; the truth only in TRUTH.json."""
-    from pipeline.cli.import_effort import T0_NS, write_effort_recording
+    from pipeline.cli.import_effort import T0_NS
+    from pipeline.importers.effort_recording import EffortSpec, write_effort_recording
     from pipeline.dynamics.rigid_body import build
     from pipeline.errors import RobocalError
     from pipeline.models import urdf as urdf_mod
@@ -76,7 +77,7 @@ def dynamics_cmd(
     tr = S.Truth(base.pi, base.fv, base.fc, base.f0, base.ia, effects)
     tau = S.efforts(rb, tr, fit, t, q, v, a, effort_noise, seed, (lim.lower, lim.upper))
     logs = {"t_ns": T0_NS + np.round(t * 1e9).astype(np.int64), "q": q, "v": v, "effort": tau}
-    write_effort_recording(out, desc, logs, str(urdf), [], [], [], ",".join(fitted), "Nm",
+    write_effort_recording(out, desc, logs, str(urdf), EffortSpec(joints=",".join(fitted), units="Nm"),
                            {"simulated": True, **({"trajectory_file": str(trajectory)} if trajectory else {})},
                            f"{desc.name}-sim-{seed}")
     if truth is not None:

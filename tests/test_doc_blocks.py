@@ -1,0 +1,144 @@
+"""Every shell block of README.md and docs/**/*.md runs as the page shows it (the convention: tests/doc_pages.py).
+
+One test per ```sh block, in page order, in one scratch folder per page (a block runs the page's earlier blocks
+first when they have not run in this process, so any selection or split of the tests keeps the page's order).
+A block fails on a non-zero exit. Where a page's blocks leave files a user would look at, `EXPECT` checks them
+too (the figures a capability must reach on real data). The pages are also checked for shell blocks that escape
+the runner, templates without a runnable twin, and absolute paths to the data.
+
+Set `DOC_BLOCK_TIMES=FILE` to append one line per block (page, line, wall s, CPU s of its processes).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+from doc_pages import REPO, SHELL_LANGS, Outcome, blocks, is_setup, needs_real_data, pages, run_block, \
+    scratch_root, shown_commands, twins_missing, ABSOLUTE
+
+PAGES = {p.relative_to(REPO).as_posix(): blocks(p) for p in pages()}
+RUNNABLE = [b for bs in PAGES.values() for b in bs if b.lang == "sh" and not is_setup(b)]
+
+try:  # keep a page's blocks on one worker when the suite runs under pytest-xdist (--dist loadgroup)
+    import xdist  # noqa: F401
+    HAVE_XDIST = True
+except ImportError:
+    HAVE_XDIST = False
+
+
+def _marks(page: str) -> list:
+    return [pytest.mark.xdist_group(page)] if HAVE_XDIST else []
+
+
+def test_every_page_is_read():
+    assert "README.md" in PAGES and any(p.startswith("docs/guide/") for p in PAGES)
+    assert RUNNABLE, "no ```sh block found"
+
+
+def test_readme_has_the_setup_block_first():
+    first = next(b for b in PAGES["README.md"] if b.lang == "sh")
+    assert is_setup(first) and shown_commands(first.body) == ["make demo", "make test"]
+
+
+def test_setup_targets_exist():
+    targets = sorted({line.split()[1] for bs in PAGES.values() for b in bs if b.lang == "sh" and is_setup(b)
+                      for line in shown_commands(b.body)})
+    r = subprocess.run(["make", "-n", "-f", str(REPO / "Makefile"), *targets], cwd=REPO, capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+
+
+def test_no_shell_block_escapes_the_runner():
+    bad = []
+    for bs in PAGES.values():
+        for b in bs:
+            if b.lang in SHELL_LANGS:
+                bad.append(f"{b.name}: ```{b.lang} block: write ```sh (run by this test) or mark a ```text template")
+            elif b.lang != "sh" and not b.marker and shown_commands(b.body):
+                bad.append(f"{b.name}: a ```{b.lang or '(unlabelled)'} block shows `{shown_commands(b.body)[0]}`: "
+                           "make it ```sh, or mark it <!-- doc-test: template --> / <!-- doc-test: benchmark -->")
+            elif b.marker and b.lang != "text":
+                bad.append(f"{b.name}: a {b.marker} block must be ```text")
+    assert not bad, "\n".join(bad)
+
+
+def test_every_template_has_a_runnable_twin():
+    missing = [m for bs in PAGES.values() for m in twins_missing(bs)]
+    assert not missing, "\n".join(missing)
+
+
+def test_no_absolute_data_paths():
+    bad = [f"{p}:{i}: {m.group(0)}" for p in PAGES for i, line in enumerate((REPO / p).read_text().splitlines(), 1)
+           for m in ABSOLUTE.finditer(line)]
+    assert not bad, "name data relative to the repository (../shared/real-data/…):\n" + "\n".join(bad)
+
+
+def test_convention_detects_what_it_must():
+    """The checks above can fail: a console block, an unmarked command, a template without a twin, a /work path."""
+    from doc_pages import Block, command_key
+    assert command_key(".venv/bin/robocal import csv M.csv --urdf R.urdf") == ("robocal", "import", "csv")
+    assert command_key("robocal run REC.mcap --out runs/x") == ("robocal", "run")
+    assert command_key("python benchmarks/bench_x.py --seeds 20") == ("python", "benchmarks/bench_x.py")
+    t = Block("p.md", 1, "text", "robocal plan arc-welder --select N --out C.json\n", "template")
+    s = Block("p.md", 5, "sh", "robocal plan arc-welder --select 30 --out c.json\n", "")
+    assert twins_missing([t]) and not twins_missing([t, s])
+    assert shown_commands("$ robocal run x.mcap\nprose robocal\n") == ["robocal run x.mcap"]
+    assert ABSOLUTE.search("--poses /work/shared/real-data/x") and not ABSOLUTE.search("../shared/real-data/x")
+    assert not ABSOLUTE.search("/joint_states /dev/pts/3 /tmp/…/bridge")
+
+
+# ----- running the blocks ------------------------------------------------------------------------------------
+
+_ran: dict[tuple[str, int], Outcome] = {}
+
+
+@pytest.fixture(scope="module")
+def scratch(tmp_path_factory):
+    return tmp_path_factory.mktemp("docs")
+
+
+def _run(block, base: Path) -> Outcome:
+    key = (block.page, block.line)
+    if key not in _ran:
+        _ran[key] = out = run_block(block, scratch_root(base, block.page))
+        if os.environ.get("DOC_BLOCK_TIMES"):
+            with open(os.environ["DOC_BLOCK_TIMES"], "a") as f:
+                f.write(json.dumps({"page": block.page, "line": block.line, "exit": out.returncode,
+                                    "wall_s": round(out.wall_s, 2), "cpu_s": round(out.cpu_s, 2)}) + "\n")
+    return _ran[key]
+
+
+def _failure(block, out: Outcome) -> str:
+    return (f"{block.name}: the block exits {out.returncode}:\n{block.body}--- stdout (end)\n{out.stdout[-3000:]}\n"
+            f"--- stderr (end)\n{out.stderr[-3000:]}")
+
+
+@pytest.mark.parametrize("block", [pytest.param(b, id=b.name, marks=_marks(b.page)) for b in RUNNABLE])
+def test_block_runs_as_printed(scratch, block):
+    page = [b for b in RUNNABLE if b.page == block.page]
+    upto = page[:page.index(block) + 1]
+    if any(needs_real_data(b) for b in upto) and not (scratch_root(scratch, block.page).parent / "shared").is_dir():
+        pytest.skip(f"{block.page} names ../shared/real-data, which is absent (real datasets not shipped)")
+    for earlier in upto[:-1]:
+        out = _run(earlier, scratch)
+        if out.returncode != 0:
+            pytest.fail(f"an earlier block of the page failed, so this one cannot run as printed:\n"
+                        f"{_failure(earlier, out)}")
+    out = _run(block, scratch)
+    assert out.returncode == 0, _failure(block, out)
+    last = block is page[-1]
+    if last and block.page in EXPECT:
+        EXPECT[block.page](scratch_root(scratch, block.page))
+
+
+# ----- what the pages' runs must reach (real data; checked after a page's last block) ---------------------------
+
+def _results(run: Path) -> dict:
+    return json.loads((run / "results.json").read_text())
+
+
+EXPECT: dict = {}

@@ -163,6 +163,19 @@ class Outcome:
     cpu_s: float
 
 
+def group_cpu_s(pgid: int) -> float:
+    """CPU seconds (user + system, with their reaped children) of the live processes of process group `pgid`."""
+    total, tick = 0.0, os.sysconf("SC_CLK_TCK")
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if int(fields[2]) == pgid:  # fields after the name: state ppid pgrp … utime(11) stime(12) cutime cstime
+            total += sum(int(v) for v in fields[11:15]) / tick
+    return total
+
+
 def run_block(block: Block, cwd: Path, timeout: float = 900) -> Outcome:
     """Run `block` with bash (-e, pipefail) in `cwd`, `.venv/bin` first on PATH; its output in files beside `cwd`
     (a block may leave a process in the background: the whole process group is ended when the block ends)."""
@@ -181,11 +194,12 @@ def run_block(block: Block, cwd: Path, timeout: float = 900) -> Outcome:
             code = -1
             fe.write(f"\n[doc test] block timed out after {timeout:.0f} s\n")
         finally:
+            left = group_cpu_s(proc.pid)  # processes the block left running (a simulator in the background)
             try:
                 os.killpg(proc.pid, signal.SIGTERM)
             except ProcessLookupError:
                 pass
             proc.wait()
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime) + left
     return Outcome(code, out.read_text(), err.read_text(), time.perf_counter() - t0, cpu)

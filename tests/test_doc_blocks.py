@@ -11,6 +11,7 @@ Set `DOC_BLOCK_TIMES=FILE` to append one line per block (page, line, wall s, CPU
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import subprocess
@@ -137,8 +138,32 @@ def test_block_runs_as_printed(scratch, block):
 
 # ----- what the pages' runs must reach (real data; checked after a page's last block) ---------------------------
 
-def _results(run: Path) -> dict:
-    return json.loads((run / "results.json").read_text())
+def _json(path: Path) -> dict:
+    return json.loads(path.read_text())
 
 
-EXPECT: dict = {}
+def _findings(diagnosis: Path) -> list[tuple[str, str]]:
+    return [(f["effect"], f["location"]) for f in _json(diagnosis)["findings"]]
+
+
+def _acquire(repo: Path):
+    """The acquired drive-state recording diagnoses as its source: the true compliance, measured torque."""
+    values = []
+    for d in ("d_src", "d_acq"):
+        (f,) = _json(repo / d / "diagnosis.json")["findings"]
+        assert (f["effect"], f["location"], f["source"]) == ("joint_compliance", "shoulder_lift_joint", "measured torque")
+        values.append(f["parameters"][0]["value"])
+    assert abs(values[0] - 3e-6) < 3e-7 and abs(values[1] - values[0]) < 1e-4 * values[0], values
+    assert (repo / "restored.mcap").stat().st_size > 0 and (repo / "runs/x/results.json").is_file()
+
+
+def _compensate(repo: Path):
+    rows = list(csv.DictReader((repo / "program.csv").open()))
+    assert [r["status"] for r in rows] == ["ok"] * 3, rows
+    assert max(float(r["correction_m"]) for r in rows) > 1e-3  # the calibrated robot needs its program corrected
+
+
+EXPECT: dict = {
+    "docs/guide/acquire.md": _acquire,
+    "docs/guide/compensate.md": _compensate,
+}

@@ -163,7 +163,15 @@ def _compensate(repo: Path):
     assert max(float(r["correction_m"]) for r in rows) > 1e-3  # the calibrated robot needs its program corrected
 
 
+def _diagnose(repo: Path):
+    """Each example's injected effects found and named, nothing else."""
+    assert _findings(repo / "DIR/diagnosis.json") == [("joint_compliance", "J2")]
+    assert _findings(repo / "WARM/diagnosis.json") == [("thermal_drift", "temperature link2")]
+    assert sorted(_findings(repo / "DELTA/diagnosis.json")) == [("backlash", "A2"), ("thermal_drift", "campaign")]
+
+
 EXPECT: dict = {
+    "docs/guide/diagnose.md": _diagnose,
     "docs/guide/acquire.md": _acquire,
     "docs/guide/compensate.md": _compensate,
 }

@@ -170,7 +170,16 @@ def _diagnose(repo: Path):
     assert sorted(_findings(repo / "DELTA/diagnosis.json")) == [("backlash", "A2"), ("thermal_drift", "campaign")]
 
 
+def _fleet(repo: Path):
+    """Exactly the injected step flagged, on the robot and month it was injected; the cluster ran arc-01's three."""
+    robots = _json(repo / "fleet.json")["robots"]
+    steps = {r: [(s["param"], s["recording"]) for s in f["steps"]] for r, f in robots.items()}
+    assert steps == {"arc-01": [], "arc-02": [("J3.theta_offset", "arc-02/2026-02/campaign.mcap")]}, steps
+    assert len((repo / "out-cluster/summary.csv").read_text().splitlines()) == 1 + 3
+
+
 EXPECT: dict = {
+    "docs/guide/fleet.md": _fleet,
     "docs/guide/diagnose.md": _diagnose,
     "docs/guide/acquire.md": _acquire,
     "docs/guide/compensate.md": _compensate,

@@ -178,7 +178,31 @@ def _fleet(repo: Path):
     assert len((repo / "out-cluster/summary.csv").read_text().splitlines()) == 1 + 3
 
 
+def _published(stated_mm: float, measured_m: float, what: str) -> None:
+    """A figure the README states (to 0.01 mm, or 0.001 mm below 1 mm), measured again by the page's commands."""
+    digits = 3 if stated_mm < 1 else 2
+    assert round(measured_m * 1e3, digits) == stated_mm, (
+        f"{what}: the commands give {measured_m * 1e3:.4f} mm where README.md states {stated_mm} mm — "
+        "update README.md, the guide and this check together")
+
+
+def _import_csv(repo: Path):
+    """The README's figures of the four real datasets, through the guide's commands (import → run → evaluate)."""
+    recs = {r["path"]: r for r in _json(repo / "runs/tiago-eval/evaluation.json")["recordings"]}
+    for s, mm in (("2021-11-26", 2.82), ("2021-11-30-1403", 2.60), ("2021-11-30-1504", 2.40)):
+        _published(mm, recs[f"tiago_{s}.mcap"]["rms_3d_m"], f"FIGAROH's TIAGo protocol, session {s}")
+    (ur10,) = _json(repo / "runs/ur10-eval/evaluation.json")["recordings"]
+    _published(3.62, ur10["rms_3d_m"], "UR10e, every 5th row held out")
+    (mate,) = _json(repo / "runs/mate-eval/evaluation.json")["recordings"]
+    _published(1.91, mate["rms_normal_m"], "MATE, every 5th row held out (along the normals)")
+    panda = _json(repo / "runs/panda_2-eval/evaluation.json")["recordings"]
+    assert len(panda) == 8
+    _published(0.429, sum(r["mean_3d_m"] for r in panda) / 8, "MUKCa's panda_2 protocol, mean over 8 placements")
+    assert (repo / "runs/tiago/identify/model.urdf").is_file() and (repo / "runs/tiago-two/results.json").is_file()
+
+
 EXPECT: dict = {
+    "docs/guide/import-csv.md": _import_csv,
     "docs/guide/fleet.md": _fleet,
     "docs/guide/diagnose.md": _diagnose,
     "docs/guide/acquire.md": _acquire,

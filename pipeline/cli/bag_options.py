@@ -25,7 +25,8 @@ def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
         "coupled": typer.Option(None, "--coupled", help="A joint driven by others, not in the JointStates: "
                                 "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2 (repeatable; URDF <mimic> joints are "
                                 "coupled already).", **kw),
-        "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type).", **kw),
+        "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type) | effort (dynamics: "
+                                "every JointState with its efforts).", **kw),
         "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window", min=1e-6,
                                  help="Standstill window around each measurement, s.", **kw),
         "max_speed": typer.Option(standstill.DEFAULT_MAX_SPEED, "--still-speed", min=1e-12,

@@ -47,7 +47,8 @@ def import_csv(
                                   "links: LINK=X,Y,Z (its position columns), repeatable (point)."),
     coupled: list[str] = typer.Option([], "--coupled", help="A joint driven by others, not in the CSV: "
                                       "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2 (repeatable)."),
-    measure: str = typer.Option(..., "--measure", help="point | pose | plane | coincidence."),
+    measure: str = typer.Option(..., "--measure", help="point | pose | plane | coincidence | effort (joint "
+                                "position / velocity / effort logs for dynamics)."),
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
     joint_units: str = typer.Option("rad", "--joint-units", help="Revolute joint columns in rad or deg."),
     length_units: str = typer.Option("m", "--length-units", help="Positions and prismatic joints in m or mm."),
@@ -68,6 +69,23 @@ def import_csv(
     instrument: str = typer.Option("", "--instrument", help="Instrument identity (tracker serial, mocap room) stored "
                                                             "in the campaign: recordings sharing a registration "
                                                             "must name the same (robocal evaluate)."),
+    velocity_csv: Optional[Path] = typer.Option(None, "--velocity-csv", help="Effort: the joint velocity table "
+                                                "(columns t and JOINT_velocity), when not in the first file."),
+    effort_csv: Optional[Path] = typer.Option(None, "--effort-csv", help="Effort: the joint effort table (columns t "
+                                              "and JOINT_effort), when not in the first file."),
+    effort_scale: list[str] = typer.Option([], "--effort-scale", help="Effort: N·m (N) per raw effort unit, "
+                                           "JOINT=K,… (gear ratio × motor constant); repeatable."),
+    effort_offset: list[str] = typer.Option([], "--effort-offset", help="Effort: N·m (N) added after scaling, "
+                                            "JOINT=C,…; C = weight: g × the mass the joint carries (a lift)."),
+    effort_mix: list[str] = typer.Option([], "--effort-mix", help="Effort: the raw efforts a joint's torque "
+                                         "combines, JOINT=EXPR (a differential wrist: j6=-j6+j7); repeatable."),
+    effort_joints: str = typer.Option("", "--effort-joints", help="Effort: the joints whose torque is fitted and "
+                                      "scored, comma-separated (default: all)."),
+    effort_units: Optional[str] = typer.Option(None, "--effort-units", help="Effort: Nm (efforts are joint "
+                                               "torques) or raw (with --effort-scale); default raw with a scale, "
+                                               "else unknown."),
+    rows: str = typer.Option("", "--rows", help="Effort: keep data rows A:B (zero-based, B excluded)."),
+    time_col: str = typer.Option("t", "--time-col", help="Effort: the time column (s)."),
 ) -> None:
     """Map CSV columns to the URDF's joints (by header name) and write a recording `robocal run` calibrates."""
     from pipeline.errors import RobocalError
@@ -75,8 +93,13 @@ def import_csv(
     from pipeline.importers.recording import write_urdf_recording
     from pipeline.models import urdf as urdf_mod
 
+    if measure == "effort":
+        from pipeline.cli.import_effort import import_effort
+
+        return import_effort(files, urdf, root, tip, out, velocity_csv, effort_csv, effort_scale, effort_offset,
+                             effort_mix, effort_joints, effort_units, rows, time_col, robot_id)
     if measure not in ("point", "pose", "plane", "coincidence"):
-        raise RobocalError(f"--measure {measure!r}: expected point, pose, plane or coincidence")
+        raise RobocalError(f"--measure {measure!r}: expected point, pose, plane, coincidence or effort")
     if joint_units not in ("rad", "deg") or length_units not in ("m", "mm"):
         raise RobocalError("--joint-units takes rad or deg, --length-units m or mm")
     if sigma_m is not None and not (sigma_m > 0 and sigma_m < 1):

@@ -13,6 +13,7 @@ from pipeline.cli.importer import import_app
 
 BAG = bag_options.options()
 CAM = "Camera (a bag with images: --target)"
+DYN = "Dynamics (--measure effort: every JointState with its efforts)"
 
 
 @import_app.command("ros2")
@@ -53,6 +54,16 @@ def import_ros2(
                                           "images`' pose chain): only camera, hand-eye and board are fitted."),
     skip_bad: bool = typer.Option(False, "--skip-bad", rich_help_panel=CAM, help="Leave out images that cannot be "
                                   "read, of an unsupported encoding or of another size than CameraInfo (listed)."),
+    effort_scale: list[str] = typer.Option([], "--effort-scale", rich_help_panel=DYN, help="N·m (N) per raw effort "
+                                           "unit, JOINT=K,… (as `import csv --measure effort`)."),
+    effort_offset: list[str] = typer.Option([], "--effort-offset", rich_help_panel=DYN, help="N·m (N) added, "
+                                            "JOINT=C,…; C = weight: g × the mass the joint carries."),
+    effort_mix: list[str] = typer.Option([], "--effort-mix", rich_help_panel=DYN, help="Raw efforts a joint's torque "
+                                         "combines, JOINT=EXPR (repeatable)."),
+    effort_joints: str = typer.Option("", "--effort-joints", rich_help_panel=DYN, help="Joints whose torque is "
+                                      "fitted and scored (default: all)."),
+    effort_units: Optional[str] = typer.Option(None, "--effort-units", rich_help_panel=DYN, help="Nm or raw "
+                                               "(default raw with a scale, else unknown)."),
 ) -> None:
     """Pair each measurement with the joint state where the robot stood still around it and write a
     recording `robocal run` calibrates; measurements taken while moving are listed and left out."""
@@ -61,6 +72,18 @@ def import_ros2(
 
     from pipeline.errors import RobocalError
 
+    if measure == "effort":  # dynamics: the joint states' positions, velocities and efforts
+        from pipeline.cli.import_effort import write_effort_recording
+        from pipeline.importers.ros2_effort import read_effort_bag
+        from pipeline.models import urdf as urdf_mod
+
+        if tip is None or measure_topic or target is not None:
+            raise RobocalError("--measure effort needs --tip LINK and takes no --measure-topic or --target")
+        desc = urdf_mod.read(urdf, root, tip)
+        write_effort_recording(out, desc, read_effort_bag(bag, desc, joint_topic, time), str(urdf), effort_scale,
+                               effort_offset, effort_mix, effort_joints, effort_units, {"source_files": [str(bag)]},
+                               robot_id)
+        return
     if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
         from pipeline.cli.ros2_camera import import_camera
         from pipeline.importers.ros2_camera import CameraSpec

@@ -47,7 +47,16 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
             ("RMS before", res(s.get("rms_before_m"))), ("RMS after", res(s.get("rms_after_m"))),
             ("held-out RMS", res(s.get("holdout_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
-    if s.get("rms_3d_after_m") is not None:  # the figure other tools publish: norm of each 3-D error, RMS
+    if s.get("family") == "dynamics":  # torques, N·m (N for a prismatic joint)
+        nm = lambda v: "—" if v is None else f"{v:.4f} N·m"  # noqa: E731
+        rows = [("system", "urdf (dynamics)"), ("status", s.get("status", "—")),
+                ("samples", str(s.get("n_measurements", "—"))),
+                ("torque RMS after (fit)", nm(s.get("rms_after_Nm"))),
+                ("held-out torque RMS (contiguous blocks)", nm(s.get("holdout_rms_Nm"))),
+                ("base parameters / parameters", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}"),
+                ("condition number (base regressor, scaled)", f"{s.get('condition_number', float('nan')):.1f}"),
+                ("model choice (held-out arbiter)", str(s.get("model_choice_label", "—")))]
+    elif s.get("rms_3d_after_m") is not None:  # the figure other tools publish: norm of each 3-D error, RMS
         rows[3:3] = [("RMS of the 3-D error before / after", f"{mm(s.get('rms_3d_before_m'))} / {mm(s['rms_3d_after_m'])}"),
                      ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(s.get("holdout_kind", "")
                       ).startswith("whole") else "k-fold, within this recording") + ")", mm(s.get("holdout_rms_3d_m")))]

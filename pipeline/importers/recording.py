@@ -26,7 +26,8 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
     the type's columns: ``position`` (n,3), ``target`` (n,), ``orientation`` (n,4) xyzw,
     ``plane``/``group`` (n,) names; optional ``timestamp_ns``) to `out`.  With `stream` (``t_ns`` (T,)
     sorted, ns; ``q`` (T, n_joints) rad / m; optional drive state ``q_cmd`` rad / m, ``effort``
-    N·m / N and ``current`` A, (T, n_joints), chain order) also the encoder stream, `batch` samples a message.
+    N·m / N (or raw, converted as the campaign's ``effort`` declares) and ``current`` A, and logged velocities
+    ``v`` rad/s / m/s, (T, n_joints), chain order) also the encoder stream, `batch` samples a message.
     `tips`: the measured links of a tree (several chains from the root; ``target`` is the tip index).
     Returns rows written."""
     q = np.asarray(table["joint_positions"], float)
@@ -64,5 +65,6 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
                 w.write_batch(ts[sl], np.asarray(stream["q"])[sl], desc.joint_names,
                               q_cmd=None if stream.get("q_cmd") is None else np.asarray(stream["q_cmd"])[sl],
                               effort=None if stream.get("effort") is None else np.asarray(stream["effort"])[sl],
-                              current=None if stream.get("current") is None else np.asarray(stream["current"])[sl])
+                              current=None if stream.get("current") is None else np.asarray(stream["current"])[sl],
+                              velocity=None if stream.get("v") is None else np.asarray(stream["v"])[sl])
     return n

@@ -112,20 +112,20 @@ class RecordingWriter:
     def write_batch(self, t_ns: np.ndarray, q: np.ndarray, names: list[str] | tuple[str, ...],
                     device_t_ns: np.ndarray | None = None, host_t_ns: np.ndarray | None = None,
                     q_cmd: np.ndarray | None = None, effort: np.ndarray | None = None,
-                    current: np.ndarray | None = None) -> None:
+                    current: np.ndarray | None = None, velocity: np.ndarray | None = None) -> None:
         """One encoder-stream message: samples `t_ns` (n,) ns, positions `q` (n, n_joints) rad,
         optional raw device and host receive times (n,) ns, optional drive state (n, n_joints):
-        commanded positions rad / m, efforts N·m / N, motor currents A (protobuf only); log time = the first
-        sample's."""
+        commanded positions rad / m, efforts N·m / N, motor currents A, logged velocities rad/s (protobuf
+        only); log time = the first sample's."""
         t0 = int(t_ns[0])
         if self._scene is not None:
             self._scene["t"].append(np.asarray(t_ns, np.int64))
             self._scene["q"].append(np.asarray(q, float))
         if self.stream_encoding == JSB.ENCODING:
             self._add(STREAM, self.channel(STREAM), t0, t0,
-                      JSB.encode(t_ns, q, names, device_t_ns, host_t_ns, q_cmd, effort, current))
+                      JSB.encode(t_ns, q, names, device_t_ns, host_t_ns, q_cmd, effort, current, velocity))
             return
-        if q_cmd is not None or effort is not None or current is not None:
+        if q_cmd is not None or effort is not None or current is not None or velocity is not None:
             raise ValueError("drive state (commanded positions, efforts, currents) is written on the protobuf stream only")
         msg = {"timestamp_ns": t0, "timestamps_ns": np.asarray(t_ns).tolist(), "joint_names": list(names),
                "positions": np.asarray(q).tolist()}

@@ -22,14 +22,15 @@ from pipeline.models.urdf_arm import UrdfArm
 from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
 
 SYSTEM = "urdf"
-MEASURES = ("point", "pose", "plane", "coincidence", "camera")
+MEASURES = ("point", "pose", "plane", "coincidence", "camera", "effort")
 MEASUREMENT_CHANNEL = "/measure/point"
 STREAM_OPTIONAL = True
 GROUP_COLUMN = "label"
 
 
 def channel_of(measure: str) -> str:
-    return f"/measure/{measure}"
+    """The measurement channel of a measurement type (effort: the encoder stream's samples themselves)."""
+    return "/robot/joint_state" if measure == "effort" else f"/measure/{measure}"
 
 
 def channel_for(rec) -> str:
@@ -279,6 +280,13 @@ def load(rec, physics: str | None = None, payload: tuple = ()):
     gravity terms offered to identification (`physics_model`; point measurements); None keeps the
     rigid model (the command line and the run's stages ask for ``auto`` by default)."""
     measure = campaign_measure(rec)
+    if measure == "effort":  # dynamics: the stream's samples (pipeline.systems.urdf_dynamics)
+        from pipeline.systems import urdf_dynamics
+
+        if payload or physics not in (None, "auto", "none"):
+            raise RobocalError(f"{rec.path}: --physics / --payload are gravity terms of point measurements; a "
+                               "dynamics recording identifies its inertial parameters")
+        return urdf_dynamics.load(rec)
     campaign = rec.meta(META_CAMPAIGN)
     if is_tree(rec) and measure != "point":
         raise RobocalError(f"{rec.path}: several tips or coupled joints need point measurements (got {measure})")

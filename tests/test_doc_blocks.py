@@ -21,7 +21,14 @@ import pytest
 from doc_pages import REPO, SHELL_LANGS, Outcome, blocks, is_setup, needs_real_data, pages, run_block, \
     scratch_root, shown_commands, twins_missing, ABSOLUTE
 
+# Pages whose blocks another change is converting right now: skipped, saying so, and left out of the page checks
+# until it lands (an entry here is a debt: remove it with the change that makes the page run).
+PENDING = {
+    "docs/guide/camera.md": "camera.md's commands are being made runnable with the camera path's fix "
+                            "(its placeholders, the absolute data path and the 20-min benchmark block)",
+}
 PAGES = {p.relative_to(REPO).as_posix(): blocks(p) for p in pages()}
+CHECKED = {page: bs for page, bs in PAGES.items() if page not in PENDING}
 RUNNABLE = [b for bs in PAGES.values() for b in bs if b.lang == "sh" and not is_setup(b)]
 
 try:  # keep a page's blocks on one worker when the suite runs under pytest-xdist (--dist loadgroup)
@@ -38,6 +45,7 @@ def _marks(page: str) -> list:
 def test_every_page_is_read():
     assert "README.md" in PAGES and any(p.startswith("docs/guide/") for p in PAGES)
     assert RUNNABLE, "no ```sh block found"
+    assert set(PENDING) <= set(PAGES), "a pending page that no longer exists: remove it from PENDING"
 
 
 def test_readme_has_the_setup_block_first():
@@ -55,7 +63,7 @@ def test_setup_targets_exist():
 
 def test_no_shell_block_escapes_the_runner():
     bad = []
-    for bs in PAGES.values():
+    for bs in CHECKED.values():
         for b in bs:
             if b.lang in SHELL_LANGS:
                 bad.append(f"{b.name}: ```{b.lang} block: write ```sh (run by this test) or mark a ```text template")
@@ -68,12 +76,12 @@ def test_no_shell_block_escapes_the_runner():
 
 
 def test_every_template_has_a_runnable_twin():
-    missing = [m for bs in PAGES.values() for m in twins_missing(bs)]
+    missing = [m for bs in CHECKED.values() for m in twins_missing(bs)]
     assert not missing, "\n".join(missing)
 
 
 def test_no_absolute_data_paths():
-    bad = [f"{p}:{i}: {m.group(0)}" for p in PAGES for i, line in enumerate((REPO / p).read_text().splitlines(), 1)
+    bad = [f"{p}:{i}: {m.group(0)}" for p in CHECKED for i, line in enumerate((REPO / p).read_text().splitlines(), 1)
            for m in ABSOLUTE.finditer(line)]
     assert not bad, "name data relative to the repository (../shared/real-data/…):\n" + "\n".join(bad)
 
@@ -120,6 +128,8 @@ def _failure(block, out: Outcome) -> str:
 
 @pytest.mark.parametrize("block", [pytest.param(b, id=b.name, marks=_marks(b.page)) for b in RUNNABLE])
 def test_block_runs_as_printed(scratch, block):
+    if block.page in PENDING:
+        pytest.skip(f"{block.page}: {PENDING[block.page]}")
     page = [b for b in RUNNABLE if b.page == block.page]
     upto = page[:page.index(block) + 1]
     if any(needs_real_data(b) for b in upto) and not (scratch_root(scratch, block.page).parent / "shared").is_dir():
@@ -201,7 +211,19 @@ def _import_csv(repo: Path):
     assert (repo / "runs/tiago/identify/model.urdf").is_file() and (repo / "runs/tiago-two/results.json").is_file()
 
 
+def _import_ros2(repo: Path):
+    """Bags written by rosbags from the TIAGo sessions give the CSV import's held-out figure; every pose paired."""
+    (ev,) = _json(repo / "runs/tiago-bag-eval/evaluation.json")["recordings"]
+    _published(2.82, ev["rms_3d_m"], "TIAGo session 2021-11-26 from a bag")
+    assert _json(repo / "runs/tiago-bag/results.json")["summary"]["status"] in ("pass", "warn")
+    r = subprocess.run([str(REPO / ".venv/bin/python"), "-c", "import sys; from pipeline.recording.reader import "
+                        "read_recording; print(read_recording(sys.argv[1]).metadata['robocal.campaign']['ros2']['pairing']['n_paired'])",
+                        str(repo / "ur10.mcap")], capture_output=True, text=True, timeout=120)
+    assert r.stdout.strip() == "23", r.stderr
+
+
 EXPECT: dict = {
+    "docs/guide/import-ros2.md": _import_ros2,
     "docs/guide/import-csv.md": _import_csv,
     "docs/guide/fleet.md": _fleet,
     "docs/guide/diagnose.md": _diagnose,

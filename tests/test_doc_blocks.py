@@ -222,7 +222,17 @@ def _import_ros2(repo: Path):
     assert r.stdout.strip() == "23", r.stderr
 
 
+def _physics(repo: Path):
+    """The humanoid's tree calibrated from its CSV (the bag imports the same 80 points), every program row solved."""
+    summary = _json(repo / "runs/h/results.json")["summary"]
+    assert summary["holdout_rms_3d_m"] < 1e-3 and summary["status"] != "fail", summary
+    for program in ("program.csv", "program-up.csv"):
+        rows = list(csv.DictReader((repo / program).open()))
+        assert [r["status"] for r in rows] == ["ok"] * 5, (program, rows)
+
+
 EXPECT: dict = {
+    "docs/guide/physics.md": _physics,
     "docs/guide/import-ros2.md": _import_ros2,
     "docs/guide/import-csv.md": _import_csv,
     "docs/guide/fleet.md": _fleet,

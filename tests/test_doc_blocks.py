@@ -200,7 +200,7 @@ def _import_csv(repo: Path):
     """The README's figures of the four real datasets, through the guide's commands (import → run → evaluate)."""
     recs = {r["path"]: r for r in _json(repo / "runs/tiago-eval/evaluation.json")["recordings"]}
     for s, mm in (("2021-11-26", 2.82), ("2021-11-30-1403", 2.60), ("2021-11-30-1504", 2.40)):
-        _published(mm, recs[f"tiago_{s}.mcap"]["rms_3d_m"], f"FIGAROH's TIAGo protocol, session {s}")
+        _published(mm, recs[f"tiago_{s}.mcap"]["rms_3d_m"], f"FIGAROH's TIAGo protocol, the recording of {s}")
     (ur10,) = _json(repo / "runs/ur10-eval/evaluation.json")["recordings"]
     _published(3.62, ur10["rms_3d_m"], "UR10e, every 5th row held out")
     (mate,) = _json(repo / "runs/mate-eval/evaluation.json")["recordings"]
@@ -214,7 +214,7 @@ def _import_csv(repo: Path):
 def _import_ros2(repo: Path):
     """Bags written by rosbags from the TIAGo sessions give the CSV import's held-out figure; every pose paired."""
     (ev,) = _json(repo / "runs/tiago-bag-eval/evaluation.json")["recordings"]
-    _published(2.82, ev["rms_3d_m"], "TIAGo session 2021-11-26 from a bag")
+    _published(2.82, ev["rms_3d_m"], "the TIAGo recording of 2021-11-26, from a bag")
     assert _json(repo / "runs/tiago-bag/results.json")["summary"]["status"] in ("pass", "warn")
     r = subprocess.run([str(REPO / ".venv/bin/python"), "-c", "import sys; from pipeline.recording.reader import "
                         "read_recording; print(read_recording(sys.argv[1]).metadata['robocal.campaign']['ros2']['pairing']['n_paired'])",

@@ -32,8 +32,9 @@ def parse_rows(text: str) -> tuple[int, int | None]:
 
 def import_effort(files: list[Path], urdf: Path, root: str, tip: list[str], out: Path, velocity_csv, effort_csv,
                   scale: list[str], offset: list[str], mix: list[str], fit_joints: str, units, rows: str,
-                  time_col: str, robot_id: str) -> None:
+                  time_col: str, robot_id: str, force: bool = False) -> None:
     from pipeline.importers.csv_effort import read_logs
+    from pipeline.recording.output import claim_output
     from pipeline.models import urdf as urdf_mod
 
     if len(files) != 1:
@@ -48,6 +49,7 @@ def import_effort(files: list[Path], urdf: Path, root: str, tip: list[str], out:
     a, b = parse_rows(rows)
     logs = read_logs(files[0], desc, velocity_csv, effort_csv, time_col, (a, b))
     t_ns = T0_NS + np.round(logs.pop("t_s") * 1e9).astype(np.int64)
+    claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
     write_effort_recording(out, desc, {"t_ns": t_ns, **logs}, str(urdf), scale, offset, mix, fit_joints, units,
                            {"source_files": [str(f) for f in (files[0], velocity_csv, effort_csv) if f],
                             "rows": [a, a + len(t_ns)]}, robot_id)

@@ -40,12 +40,14 @@ class RecordingWriter:
     (`stream_encoding="json"` writes it as archived recordings have it, for tests and comparisons).
 
     Chunks are closed every `chunk_size` bytes; call `flush_chunk()` to force one out (the
-    acquisition does so every second so a killed process loses at most that much).
+    acquisition does so every second so a killed process loses at most that much).  `origin` is
+    appended to the header's library ("robocal/<version> acquire": real measurements, which no
+    command replaces; `pipeline.recording.output`).
     """
 
     def __init__(self, out: str | Path | IO[bytes], chunk_size: int = 1 << 20,
                  compression: CompressionType = CompressionType.ZSTD, stream_encoding: str = JSB.ENCODING,
-                 scene: bool = False):
+                 scene: bool = False, origin: str = ""):
         if stream_encoding not in (JSB.ENCODING, "json"):
             raise ValueError(f"stream_encoding {stream_encoding!r}: 'protobuf' or 'json'")
         self.stream_encoding = stream_encoding
@@ -56,7 +58,7 @@ class RecordingWriter:
             check_output(out)
         self._f = open(out, "wb") if self._own else out
         self._w = Writer(self._f, chunk_size=chunk_size, compression=compression)
-        self._w.start(profile=PROFILE, library=f"robocal/{__version__}")
+        self._w.start(profile=PROFILE, library=f"robocal/{__version__}" + (f" {origin}" if origin else ""))
         self._channels: dict[str, int] = {}
         self._seq: dict[str, int] = {}
         self._closed = False

@@ -231,7 +231,15 @@ def _physics(repo: Path):
         assert [r["status"] for r in rows] == ["ok"] * 5, (program, rows)
 
 
+def _plan(repo: Path):
+    """The two-stage campaign lands (the page: 98.3 % over 20 pools), calibrates, and its pty copy is complete."""
+    ex = _json(repo / "T.json")["campaign_execution"]
+    assert ex["planned"] == 50 and ex["land_rate"] >= 0.94, ex
+    assert _json(repo / "RUN1/results.json")["summary"]["status"] != "fail"
+
+
 EXPECT: dict = {
+    "docs/guide/plan.md": _plan,
     "docs/guide/physics.md": _physics,
     "docs/guide/import-ros2.md": _import_ros2,
     "docs/guide/import-csv.md": _import_csv,

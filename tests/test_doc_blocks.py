@@ -238,7 +238,15 @@ def _plan(repo: Path):
     assert _json(repo / "RUN1/results.json")["summary"]["status"] != "fail"
 
 
+def _accuracy(repo: Path):
+    """The map at the user's three points, the bound the page states for the jig grid passed the 0.25 mm tolerance."""
+    acc = _json(repo / "runs/x/accuracy/accuracy.json")
+    assert len(acc["map"]["points_m"]) == 3 and acc["status"] == "pass", acc["status"]
+    assert (repo / "runs/y/results.json").is_file()
+
+
 EXPECT: dict = {
+    "docs/guide/accuracy.md": _accuracy,
     "docs/guide/plan.md": _plan,
     "docs/guide/physics.md": _physics,
     "docs/guide/import-ros2.md": _import_ros2,

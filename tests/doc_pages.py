@@ -63,7 +63,7 @@ def pages() -> list[Path]:
 
 def blocks(page: Path) -> list[Block]:
     """Every fenced block of `page`, in order, with the marker line directly above it (if any)."""
-    rel = page.relative_to(REPO).as_posix()
+    rel = page.relative_to(REPO).as_posix() if page.is_relative_to(REPO) else page.name
     lines = page.read_text().split("\n")
     out, i = [], 0
     while i < len(lines):
@@ -81,6 +81,18 @@ def blocks(page: Path) -> list[Block]:
         mk = MARKER.match(above.strip())
         out.append(Block(rel, start + 1, lang.lower(), "\n".join(body) + "\n", mk.group(1) if mk else ""))
         i += 1
+    return out
+
+
+def indented_commands(page: Path) -> list[tuple[int, str]]:
+    """(line, text) of commands shown in an indented (4-space) code block, outside the fences: they escape the runner."""
+    out, fence = [], None
+    for i, line in enumerate(page.read_text().split("\n"), 1):
+        m = re.match(r"^\s*(`{3,}|~{3,})", line)
+        if m and (fence is None or m.group(1).startswith(fence)):
+            fence = None if fence else m.group(1)
+        elif fence is None and re.match(r"^(?: {4}|\t)\s*(?:\$\s+)?(?:robocal|python3?|\.venv/bin/)\S*(?:\s|$)", line):
+            out.append((i, line.strip()))
     return out
 
 

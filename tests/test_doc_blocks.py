@@ -18,8 +18,8 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from doc_pages import REPO, SHELL_LANGS, Outcome, blocks, is_setup, needs_real_data, pages, run_block, \
-    scratch_root, shown_commands, twins_missing, ABSOLUTE
+from doc_pages import REPO, SHELL_LANGS, Outcome, blocks, indented_commands, is_setup, needs_real_data, pages, \
+    run_block, scratch_root, shown_commands, twins_missing, ABSOLUTE
 
 # Pages whose blocks another change is converting right now: skipped, saying so, and left out of the page checks
 # until it lands (an entry here is a debt: remove it with the change that makes the page run).
@@ -72,6 +72,9 @@ def test_no_shell_block_escapes_the_runner():
                            "make it ```sh, or mark it <!-- doc-test: template --> / <!-- doc-test: benchmark -->")
             elif b.marker and b.lang != "text":
                 bad.append(f"{b.name}: a {b.marker} block must be ```text")
+    for page in CHECKED:
+        bad += [f"{page}:{i}: an indented code block shows `{text}`: make it a ```sh block"
+                for i, text in indented_commands(REPO / page)]
     assert not bad, "\n".join(bad)
 
 
@@ -86,9 +89,14 @@ def test_no_absolute_data_paths():
     assert not bad, "name data relative to the repository (../shared/real-data/…):\n" + "\n".join(bad)
 
 
-def test_convention_detects_what_it_must():
-    """The checks above can fail: a console block, an unmarked command, a template without a twin, a /work path."""
+def test_convention_detects_what_it_must(tmp_path):
+    """The checks above can fail: a console block, an unmarked command, a template without a twin, a /work path,
+    a command in an indented code block."""
     from doc_pages import Block, command_key
+    page = tmp_path / "p.md"
+    page.write_text("Run:\n\n    robocal run x.mcap --out r\n\n```sh\n    robocal run y.mcap --out r\n```\n")
+    assert indented_commands(page) == [(3, "robocal run x.mcap --out r")]
+    assert [b.lang for b in blocks(page)] == ["sh"]
     assert command_key(".venv/bin/robocal import csv M.csv --urdf R.urdf") == ("robocal", "import", "csv")
     assert command_key("robocal run REC.mcap --out runs/x") == ("robocal", "run")
     assert command_key("python benchmarks/bench_x.py --seeds 20") == ("python", "benchmarks/bench_x.py")

@@ -23,10 +23,7 @@ from doc_pages import REPO, SHELL_LANGS, Outcome, blocks, indented_commands, is_
 
 # Pages whose blocks another change is converting right now: skipped, saying so, and left out of the page checks
 # until it lands (an entry here is a debt: remove it with the change that makes the page run).
-PENDING = {
-    "docs/guide/camera.md": "camera.md's commands are being made runnable with the camera path's fix "
-                            "(its placeholders, the absolute data path and the 20-min benchmark block)",
-}
+PENDING: dict[str, str] = {}
 PAGES = {p.relative_to(REPO).as_posix(): blocks(p) for p in pages()}
 CHECKED = {page: bs for page, bs in PAGES.items() if page not in PENDING}
 RUNNABLE = [b for bs in PAGES.values() for b in bs if b.lang == "sh" and not is_setup(b)]

@@ -1,4 +1,4 @@
-"""The documentation's shell blocks, read as a user reads them, and run as printed (tests/test_doc_blocks.py).
+"""The documentation's shell blocks, read as a user reads them, and run as printed (tests/doc_runner.py).
 
 Convention of every page (README.md and docs/**/*.md):
 

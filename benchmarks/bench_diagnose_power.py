@@ -187,10 +187,25 @@ def main() -> None:
     ap.add_argument("--cases", default="")
     ap.add_argument("--n-boot", type=int, default=20)
     ap.add_argument("--out", default="")
-    ap.add_argument("--plan", default="robocal", choices=("robocal", "robocal-backlash", "generator"),
-                    help="the campaign: robocal's plan (robocal plan arc-welder [--backlash]) or the generator's random one")
+    ap.add_argument("--plan", default="robocal", choices=("robocal", "robocal-backlash", "generator", "random"),
+                    help="the campaign: robocal's plan (robocal plan arc-welder [--backlash]), the generator's random one "
+                         "(searches along the face normals), or (random) a new random campaign per seed with random "
+                         "search directions and speeds, mixed payloads and a servo's encoder stream "
+                         "(benchmarks/power_random.py)")
+    ap.add_argument("--mults", default="4,2", help="--plan random: the multiples of the ideal MDE injected")
+    ap.add_argument("--no-budget", action="store_true", help="--plan random: skip the power budget per term")
     a = ap.parse_args()
     t0 = time.time()
+    if a.plan == "random":
+        import power_random as pr
+
+        rows: list = []
+        summary = pr.report(range(a.first_seed, a.first_seed + a.seeds), tuple(float(v) for v in a.mults.split(",")),
+                            a.cases.split(",") if a.cases else None, a.n_boot, budgets=not a.no_budget, out=rows)
+        print(f"elapsed {time.time() - t0:.0f} s")
+        if a.out:
+            Path(a.out).write_text(json.dumps(summary, indent=1))
+        return
     w = world(a.plan)
     names = a.cases.split(",") if a.cases else list(cases(w[2]))
     seeds = range(a.first_seed, a.first_seed + a.seeds)

@@ -349,24 +349,33 @@ def geometric_jacobian(arm: Arm, q: np.ndarray, ax: np.ndarray) -> np.ndarray:
     return np.stack([(f(v0 + h * np.eye(v0.size)[i]) - f0) / h for i in range(v0.size)], axis=1)
 
 
-def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
-        jig: Jig | None = None, *, at_size: bool = False, drop_top: int = 0, **campaign) -> float:
-    """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable (`campaign`: `run`'s
-    options, e.g. payload_kg).  The signature is the tangent at 10⁻³ × the effect's size, or (`at_size`) the
-    secant at its size (a dead band's shape changes with its play: a search shorter than the play does not
-    turn the link).  `drop_top` contacts carrying the largest shares of the ⊥ signature are left out, one at
-    a time and re-projected: the figure for a test that must not rest on those few contacts."""
+def signature(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, n: int = 100, jig: Jig | None = None, *,
+              at_size: bool = False, runner=None, **campaign) -> tuple[np.ndarray, np.ndarray]:
+    """(S (n,) m per unit of the effect, J (n, 42) the geometric Jacobian): the change of each contact's residual
+    (the model tip at the latched q, along the measured axis) per unit effect, the tangent at 10⁻³ × the
+    effect's size or (`at_size`) the secant at its size, noise-free; `runner` the campaign's `run` (default this
+    module's; `independent_search.run` for its plans), `campaign` its options."""
     jig = jig or stepped_block()
-    c0 = run(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0, **campaign)
+    runner = runner or run
+    c0 = runner(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0, **campaign)
     unit = effect if at_size else Effect(effect.kind, 1e-3 * (effect.size or 1.0), effect.where)
-    c1 = run(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0, **campaign)
+    c1 = runner(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0, **campaign)
     ax = c0.table["axis"]
     rows = np.arange(ax.size)
     # residual change: the same coordinates, the model tip at the latched q moves
     r0 = tip(truth, c0.truth_joint_q)[rows, ax]
     r1 = tip(truth, c1.truth_joint_q)[rows, ax]
-    S = (r1 - r0) / unit.size
-    J = geometric_jacobian(truth, c0.truth_joint_q, ax)
+    return (r1 - r0) / unit.size, geometric_jacobian(truth, c0.truth_joint_q, ax)
+
+
+def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
+        jig: Jig | None = None, *, at_size: bool = False, drop_top: int = 0, runner=None, **campaign) -> float:
+    """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable (`campaign`: `run`'s
+    options, e.g. payload_kg), the signature of `signature` (a dead band's shape changes with its play: a
+    search shorter than the play does not turn the link, so `at_size` takes the secant at the effect's size).
+    `drop_top` contacts carrying the largest shares of the ⊥ signature are left out, one at a time and
+    re-projected: the figure for a test that must not rest on those few contacts."""
+    S, J = signature(nominal, truth, targets, effect, n, jig, at_size=at_size, runner=runner, **campaign)
     keep = np.ones(S.size, bool)
     for k in range(drop_top + 1):
         U, sv, _ = np.linalg.svd(J[keep], full_matrices=False)

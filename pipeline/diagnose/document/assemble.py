@@ -1,13 +1,14 @@
 """Step 7 of the diagnosis: the visual proof and the document of `DIR/diagnosis.json`
 (docs/guide/diagnose.md, "diagnosis.json"): findings with their added-variable plots, the located
 structure with its plots, the re-simulated campaign, `not_identifiable`, the candidates, the
-clustered-inference summary and the held-out RMS before / after."""
+clustered-inference summary, the held-out RMS before / after and what the campaign could not have seen
+(`unseen`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.document import plots
+from pipeline.diagnose.document import plots, unseen
 from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.inference.projection import orthonormal
 
@@ -96,6 +97,7 @@ def assemble(*, system: str, n: int, k: int, sigma: float, sigma_after: float, s
                                 if alone else {})},
         **({"holdout_over_insample": design} if design and design["flagged"] else {}),
         "candidates": candidates(gates),
+        "unseen": unseen.unseen(gates, findings, system),
         "geometry": {"names": names, "x": [float(v) for v in z[:ng]], "free": [bool(b) for b in free]},
         "resimulation": resim,
     }

@@ -86,6 +86,9 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
                     out.append(_entry(table, i, r, f"the finding {label} rests on this record (not significant "
                                                    f"without it): set aside, the finding is not reported"))
     doc["outlier_records"] = out
+    named = {(fd["effect"], fd["location"].split(" (")[0]) for fd in doc["findings"]}
+    for e in doc.get("unseen", []):  # a finding dropped above is not found
+        e["found"] = (e["effect"], e["location"].split(" (")[0]) in named
     rest = sorted({label for label, _ in carried_labels(out)})
     if rest:  # said beside the status (a finding of one or two records is as often noise as physics)
         recs = sorted({rec for _, rec in carried_labels(out)})

@@ -146,10 +146,19 @@ def located_right(d: dict, kind: str, where: dict) -> bool:
     return bool(hit or near)
 
 
+def named_beside(d: dict, key) -> bool:
+    """The right effect is a finding, or a look-alike reported beside a finding of lower than high confidence (the
+    campaign cannot tell the two apart: both are named, with their evidence)."""
+    return any(right(f, key) or (f["confidence"] != "high" and any(right(a, key) for a in f.get("look_alikes", [])))
+               for f in d["findings"])
+
+
 def score(d: dict, key, second=None, out_of_library=None) -> dict:
     ok = [key] + ([second] if second else [])
     named = [any(right(f, k) for f in d["findings"]) for k in ok]
     return {"status": d["status"], "named": bool(named[0]), "named_second": bool(named[-1]) if second else None,
+            "named_or_alike": named_beside(d, key) if key else None,
+            "named_or_alike_second": named_beside(d, second) if second else None,
             "named_high": any(right(f, key) and f["confidence"] == "high" for f in d["findings"]),
             "misnamed_high": any(f["confidence"] == "high" and not any(right(f, k) for k in ok) for f in d["findings"]),
             "false": len(d["findings"]) if key is None and out_of_library is None else 0,
@@ -270,13 +279,15 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
             summary[f"{name} budget"] = med
         else:
             summary[f"{name} {mult:g}x"] = {
-                "runs": len(rr), **{k: _rate(rr, k) for k in ("named", "named_second", "named_high", "misnamed_high",
-                                                             "located", "worse")},
+                "runs": len(rr), **{k: _rate(rr, k) for k in ("named", "named_or_alike", "named_second", "named_or_alike_second",
+                                                             "named_high", "misnamed_high", "located", "worse")},
                 "false_findings": int(sum(r["false"] for r in rr)) if name == "clean" else None,
                 "statuses": {k: sum(r["status"] == k for r in rr) for k in sorted({r["status"] for r in rr})},
                 "misses": [(r["seed"], r["findings"], r["where"]) for r in rr
-                           if not (r["named"] if r.get("located") is None else r["located"]) and name != "clean"][:6]}
-        print(json.dumps({k: v for k, v in summary.items() if k.startswith(name + " ")}), flush=True)
+                           if not (r["named_or_alike"] if r.get("located") is None else r["located"])
+                           and name != "clean"][:6]}
+        key = f"{name} budget" if mult == "budget" else f"{name} {mult:g}x"
+        print(json.dumps({key: summary[key]}), flush=True)
     if out is not None:
         out.append(rows)
     return summary

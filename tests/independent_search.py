@@ -256,9 +256,12 @@ def gear_play(sc: Searches, s: np.ndarray, width: float, j: int) -> np.ndarray:
 
 
 def run(nominal, truth, sc: Searches, effects=(), seed: int = 0, n: int = 100, jig: Jig | None = None,
-        repeatability_3sigma_m: float = 1e-4, jig_error_m: float = 2e-5, noise: float = 1.0) -> Campaign:
+        repeatability_3sigma_m: float = 1e-4, jig_error_m: float = 2e-5, noise: float = 1.0,
+        stream_noise_counts: float = 0.0) -> Campaign:
     """One campaign of the first n contacts of plan `sc` on the true arm with `effects` (`independent_touch`'s
-    forms); `seed` draws the noise only (module docstring)."""
+    forms); `seed` draws the noise only (module docstring).  `stream_noise_counts`: the stream's readings (not
+    the latches) carry that much Gaussian noise, in encoder counts (a servo's position estimate logged beside
+    the hardware latch)."""
     jig = jig or stepped_block()
     rng = np.random.default_rng(seed)
     rows = np.arange(n)
@@ -303,7 +306,7 @@ def run(nominal, truth, sc: Searches, effects=(), seed: int = 0, n: int = 100, j
     q_latch = q_a + s[:, None] * dq
     if noise:
         q_latch = np.round(q_latch / COUNT) * COUNT
-    t_stream, q_stream = _stream(sc, n, s, t_latch, rng if noise else None)
+    t_stream, q_stream = _stream(sc, n, s, t_latch, rng if noise else None, stream_noise_counts * noise)
     t_ns = EPOCH_NS + np.round(t_stream * 1e9).astype(np.int64)
     tc_ns = EPOCH_NS + np.round(t_latch * 1e9).astype(np.int64)
     change = np.flatnonzero(np.r_[True, np.diff(payload) != 0])
@@ -320,9 +323,10 @@ def run(nominal, truth, sc: Searches, effects=(), seed: int = 0, n: int = 100, j
                     [(d["t_ns"], d["payload_kg"]) for d in schedule], schedule, sc.direction[:n].copy(), payload)
 
 
-def _stream(sc: Searches, n: int, s: np.ndarray, t_latch: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
+def _stream(sc: Searches, n: int, s: np.ndarray, t_latch: np.ndarray, rng,
+            noise_counts: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """(t (k,) s, q (k, 6) rad) of the encoder stream: the motor path of the module docstring sampled at 250 Hz
-    (with `rng`: timing jitter, dropped samples and the encoder's quantisation)."""
+    (with `rng`: timing jitter, dropped samples, `noise_counts` of reading noise and the encoder's quantisation)."""
     dt = 1 / RATE_HZ
     ts, qs = [], []
     prev = sc.q_a[0]
@@ -355,7 +359,8 @@ def _stream(sc: Searches, n: int, s: np.ndarray, t_latch: np.ndarray, rng) -> tu
         t = np.sort(t + rng.normal(0, 2e-4, t.size))
         keep = rng.uniform(size=t.size) > 0.003
         keep[0] = True
-        t, q = t[keep], np.round(q[keep] / COUNT) * COUNT
+        q = q[keep] + rng.normal(0, noise_counts * COUNT, (keep.sum(), q.shape[1])) if noise_counts else q[keep]
+        t, q = t[keep], np.round(q / COUNT) * COUNT
         keep = np.r_[True, np.diff(t) > 1e-6]
         t, q = t[keep], q[keep]
     return t, q

@@ -107,6 +107,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         if i in form_cv:
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
     _runner_ups(findings, sel, p)
+    _alike_evidence(findings, sel, p, folds)
     # 6. the held-out arbiter and the records that carry a finding (`verdict.arbiter`); pose-clustered
     # campaigns: the unweighted CV ignores the shared pose errors, so there the findings rest on the
     # pose sign-flip check instead and a finding without CV improvement is graded `low`
@@ -128,13 +129,16 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     # 7. visual proof (added-variable plots, the re-simulated campaign: pure arrays) and the document
     resim = add_plots(ad, fin.findings, effects, fin.contributions, where, variables, p.r, fin.r_final, fin.A, p.Jf,
                       p.n, p.k)
-    return assemble(
+    doc = assemble(
         system=model.system, n=p.n, k=p.k, sigma=p.sigma, sigma_after=rf.sigma_after, s=s,
         clustered=None if W is None else clustered_summary(W, nz.nm, s, ad, p.lib, sel.dropped),
         status=(st_name, st_reason), floor=floor, findings=fin.findings, rejected=rejected,
         carried=carried if influence else None, gates=sel.gates, where=where, lof=lof, before_cv=before_cv,
         after_cv=fin.after_cv, all_cv=all_cv, names=f.names, z=rf.z, free=f.free, resim=resim, moved=moved,
         alone=alone, design=design)
+    if influence:  # the final design and residual: the records' screen judges them against this model
+        doc["_final"] = (fin.A, fin.r_final)
+    return doc
 
 
 def _geometry(model, table, ad: Adapter, x0: np.ndarray | None, geometry_fit: Fit | None) -> Fit:
@@ -158,7 +162,7 @@ def _runner_ups(findings: list, sel: screen.Selection, p: screen.Problem) -> Non
     if not joint:
         return
     pos = [sel.testable.index(i) for i in sel.accepted]
-    every = look_alikes(sel.r_w, sel.Sp, p.dof, pos, sel.tols, level=1.0)
+    every = look_alikes(sel.r_w, sel.Sp, p.dof, pos, sel.tols, level=1.0, share=0.0)
     for j in joint:  # another form of its own family is not a rival name (`inference.forms` chose among them)
         near = [(c, dl) for c, dl in every.get(pos[j], [])
                 if p.lib[sel.testable[c]].family != p.lib[sel.accepted[j]].family]
@@ -166,6 +170,26 @@ def _runner_ups(findings: list, sel: screen.Selection, p: screen.Problem) -> Non
             c, dl = near[0]
             e = p.lib[sel.testable[c]]
             findings[j]["runner_up"] = {"effect": e.name, "location": str(e.location), "delta_chi2": dl}
+
+
+def _alike_evidence(findings: list, sel: screen.Selection, p: screen.Problem, folds: list) -> None:
+    """Each look-alike with its evidence beside the finding's: the grouped cross-validated RMS of the linearised
+    model with it in the finding's place (`cv_rms_m`) and the share of the finding's own gain it explains —
+    the two names reported side by side, the data's figures for each."""
+    if not any(fd.get("look_alikes") for fd in findings):
+        return
+    label = {(p.lib[i].name, str(p.lib[i].location)): i for i in sel.testable}
+    for j, fd in enumerate(findings):
+        if not fd.get("look_alikes"):
+            continue
+        own = forms._cv(p.Jf, p.S, sel.accepted, p.r, folds)
+        fd["evidence"]["cv_rms_linearised_m"] = float(np.sqrt(np.mean(own**2)))
+        for a in fd["look_alikes"]:
+            c = label.get((a["effect"], a["location"]))
+            if c is None or j >= len(sel.accepted):
+                continue
+            swap = sel.accepted[:j] + [c] + sel.accepted[j + 1:]
+            a["cv_rms_m"] = float(np.sqrt(np.mean(forms._cv(p.Jf, p.S, swap, p.r, folds) ** 2)))
 
 
 def _choose_forms(p: screen.Problem, nz: screen.Noise, sel: screen.Selection, folds: list) -> dict:

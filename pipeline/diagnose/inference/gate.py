@@ -5,9 +5,9 @@ of the free geometric Jacobian columns, a candidate's *projected signature* S⊥
 is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at the optimum.
 
 - `gate`: absorbed fraction 1 − ‖S⊥‖²/‖S‖², minimum detectable size along the candidate's
-  weakest direction, (z₁₋α/(2m) + z₀.₈)·σ/s_min(S⊥) (+ its immaterial tolerance), and
-  confounding with other candidates; a candidate whose detectable size is beyond what is
-  physically plausible is `not_identifiable`.
+  weakest direction, (z₁₋α/(2m) + z₀.₈)·σ/s_min(S⊥) (+ its immaterial tolerance: what could hide), and
+  confounding with other candidates; a candidate that no plausible size makes detectable along any direction of
+  its parameters is `not_identifiable`; a twin that no plausible size tells from an earlier candidate too.
 - `sigma_given`: the residual σ after the effects accepted so far — the gate's σ once something
   is accepted (the geometry-only σ carries the unmodelled effects and inflates every MDS).
 """
@@ -41,6 +41,7 @@ class Gate:
     absorbed_by: str
     reason: str
     projected: np.ndarray  # S⊥ against geometry (and confounders when they are what hides it)
+    best_detectable: float = np.inf  # along the candidate's best direction (= min_detectable for one parameter)
 
 
 def _unit(Sp: np.ndarray) -> tuple[np.ndarray, float] | None:
@@ -103,14 +104,16 @@ def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free
                 conf_label = " + ".join(sorted({effects[j].name for j in group}))
                 if share > CONFOUND:
                     hide = np.zeros_like(sp)
+        smax = 0.0
         if tot == 0 or not np.any(hide):  # absorbed, or confounded beyond CONFOUND
             smin = 0.0
         else:
             sv = np.linalg.svd(hide, compute_uv=False)
             smin = float(sv[-1]) if sv.size == e.k else 0.0
+            smax = float(sv[0]) if sv[0] >= RANK_REL * np.sqrt(tot) else 0.0
             if smin < RANK_REL * np.sqrt(tot):
                 smin = 0.0
-        per.append((tot, absorbed, absorbed_by, conf_label, smin))
+        per.append((tot, absorbed, absorbed_by, conf_label, smin, smax))
     return {"proj": proj, "basis": basis, "per": per, "unit": [_unit(p) for p in proj]}
 
 
@@ -133,18 +136,28 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
     kept: list[int] = []
     for i in order:
         e, sp = effects[i], proj[i]
-        tot, absorbed, absorbed_by, conf_label, smin = parts["per"][i]
-        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one
-        for j in kept:  # (the forms of one effect may be alike: the held-out error chooses, `forms`)
-            if effects[j].family != e.family and _share(parts["unit"][i], basis[j]) > CONFOUND:
-                smin = 0.0
+        tot, absorbed, absorbed_by, conf_label, smin, smax = parts["per"][i]
+        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one so closely that no
+        # plausible size tells them apart (what the rival leaves of it is below detection at the plausible
+        # size); closer than that, but separable, both are tested and the data decide — or, near-collinear,
+        # both are reported as look-alikes (`stepwise.look_alikes`).  (The forms of one effect may be alike:
+        # the held-out error chooses, `forms`.)
+        for j in kept:
+            if effects[j].family == e.family or smax == 0:
+                continue
+            sh = _share(parts["unit"][i], basis[j])
+            if sh > CONFOUND and e.plausible * (smin or smax) * np.sqrt(max(1.0 - sh, 0.0)) < z * sigma:
+                smin = smax = 0.0
                 conf_label = effects[j].label
                 break
         if e.data.get("blocked"):  # the library knows this campaign cannot expose it
-            smin = 0.0
+            smin = smax = 0.0
             conf_label = e.data.get("absorbed_by", "")
         mds = np.inf if smin == 0 else z * sigma / smin + e.tolerance
-        ok = bool(np.isfinite(mds) and mds <= e.plausible)
+        # a multi-parameter effect is testable when a plausible size is detectable along some direction of its
+        # parameters (its best one); `mds`, what could hide, is along its weakest
+        best = np.inf if smax == 0 else z * sigma / smax + e.tolerance
+        ok = bool(np.isfinite(best) and best <= e.plausible)
         if conf_label:
             absorbed_by = f"{absorbed_by} with {conf_label}"
         if ok:
@@ -156,12 +169,12 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
             reason = "no effect on these measurements"
         elif conf_label:
             reason = f"indistinguishable from {conf_label} in this campaign"
-        elif smin == 0:
+        elif smax == 0:
             reason = f"fully absorbed by the geometry ({absorbed_by})"
         else:
-            reason = (f"smallest detectable size {mds:.3g} {e.units[0]} exceeds the plausible {e.plausible:.3g} "
+            reason = (f"smallest detectable size {best:.3g} {e.units[0]} exceeds the plausible {e.plausible:.3g} "
                       f"{e.units[0]} ({absorbed * 100:.1f} % absorbed by the geometry)")
-        gates[i] = Gate(e, absorbed, float(mds), ok, absorbed_by, reason, sp)
+        gates[i] = Gate(e, absorbed, float(mds), ok, absorbed_by, reason, sp, float(best))
     return gates  # type: ignore[return-value]
 
 

@@ -65,12 +65,14 @@ def arbiter(fin: Final, folds, Jf: np.ndarray, r: np.ndarray,
 
 
 def carried(fin: Final, k: int, alpha: float) -> dict[str, list[int]]:
-    """{finding label: measurement rows} for findings that lose their significance without ≤ 2 records."""
+    """{finding label: measurement rows} for findings the rest of the records do not corroborate: not significant
+    at `checks.CORROBORATION_ALPHA` (or the family α, if larger) without their ≤ 2 most influential records."""
     out = {}
     nk = fin.r_final.size
     for fd, i, c in zip(fin.findings, fin.accepted, fin.contributions):
         rest = np.setdiff1d(np.arange(fin.A.shape[1]), fin.col_of[i])
-        rows = checks.carried_by(fin.r_final - c.reshape(nk), fin.A[:, rest], fin.A[:, fin.col_of[i]], alpha)
+        rows = checks.carried_by(fin.r_final - c.reshape(nk), fin.A[:, rest], fin.A[:, fin.col_of[i]],
+                                 max(alpha, checks.CORROBORATION_ALPHA))
         if rows is not None:
             out[f"{fd['effect']}@{fd['location']}"] = sorted({int(q) // k for q in rows})
     return out

@@ -13,7 +13,8 @@ since a dead band's shape changes with its play).  Per case and seed:
   ((3 + z₀.₈)σ/‖P⊥S‖, like for like with robocal's figure), robocal's own `min_detectable` (its gate: its signature,
   its σ, Holm's family), and robocal's *effective* MDE for the true effect — (z_{1−α/2m} + z₀.₈)·σ̂ over the part of
   the true signature ⊥ robocal's geometry that robocal's candidate captures — split into its factors:
-  multiplicity, σ̂/σ, geometry, signature capture.
+  multiplicity, σ̂/σ, geometry, signature capture; and in the ideal's own convention (50 % power) robocal's
+  `detection_threshold` (its critical value × σ̂ over its signature ⊥) against the ideal's t = 3 figure.
 """
 
 from __future__ import annotations
@@ -230,9 +231,13 @@ def budget(w: World, name: str, clean_doc: dict | None = None) -> dict | None:
     ideal80 = (3 + Z80) * SIGMA / gen_norm
     eff80 = (z + Z80) * p.sigma / max(capture * rob_norm, 1e-300)
     gate_mds = gs[best].min_detectable if best is not None else None
+    gate_thr = gs[best].threshold if best is not None else None
     return {"mds_ideal_t3": m_ideal, "mds_ideal_80": ideal80, "mds_robocal_gate": gate_mds,
             "mds_robocal_effective": eff80, "ratio_gate": (gate_mds or np.inf) / ideal80,
-            "ratio_effective": eff80 / ideal80, "best_form": str(p.lib[best].location) if best is not None else None,
+            "ratio_effective": eff80 / ideal80,
+            # the same in the ideal's convention (50 % power): robocal's critical value vs t = 3
+            "threshold_robocal_gate": gate_thr, "ratio_threshold_gate": (gate_thr or np.inf) / m_ideal,
+            "best_form": str(p.lib[best].location) if best is not None else None,
             "factors": {"multiplicity": (z + Z80) / (3 + Z80), "m": m, "sigma": p.sigma / SIGMA,
                         "geometry": gen_norm / rob_norm, "capture": capture}}
 
@@ -273,7 +278,8 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
         if mult == "budget":
             med = {k: float(np.median([r[k] for r in rr])) for k in ("mds_ideal_t3", "mds_ideal_80", "mds_robocal_gate",
                                                                        "mds_robocal_effective", "ratio_gate",
-                                                                       "ratio_effective")}
+                                                                       "ratio_effective", "threshold_robocal_gate",
+                                                                       "ratio_threshold_gate")}
             med["factors"] = {k: float(np.median([r["factors"][k] for r in rr])) for k in rr[0]["factors"]}
             med["forms"] = sorted({r["best_form"] for r in rr if r["best_form"]})
             summary[f"{name} budget"] = med

@@ -23,6 +23,7 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.stats
 
 from pipeline.blas import one_thread
 from pipeline.diagnose.adapters.adapter import Adapter
@@ -174,22 +175,38 @@ def _runner_ups(findings: list, sel: screen.Selection, p: screen.Problem) -> Non
 
 def _alike_evidence(findings: list, sel: screen.Selection, p: screen.Problem, folds: list) -> None:
     """Each look-alike with its evidence beside the finding's: the grouped cross-validated RMS of the linearised
-    model with it in the finding's place (`cv_rms_m`) and the share of the finding's own gain it explains —
-    the two names reported side by side, the data's figures for each."""
+    model with it in the finding's place (`cv_rms_m`; the finding's own: `evidence.cv_rms_linearised_m`) and the
+    share of the finding's own gain it explains.  A rival the fit cannot reject (Δχ² below χ²_k(95 %)) stays a
+    look-alike; a near-collinear one (explaining ≥ 90 % of the finding's gain, `stepwise.LOOK_ALIKE_SHARE`) stays
+    one unless the held-out error separates them — the finding's lower by more than two standard errors of the
+    paired difference: the held-out arbiter decides where the data separate them, never the order of the library."""
     if not any(fd.get("look_alikes") for fd in findings):
         return
     label = {(p.lib[i].name, str(p.lib[i].location)): i for i in sel.testable}
     for j, fd in enumerate(findings):
-        if not fd.get("look_alikes"):
+        if not fd.get("look_alikes") or j >= len(sel.accepted):
             continue
-        own = forms._cv(p.Jf, p.S, sel.accepted, p.r, folds)
-        fd["evidence"]["cv_rms_linearised_m"] = float(np.sqrt(np.mean(own**2)))
+        own = forms._cv(p.Jf, p.S, sel.accepted, p.r, folds) ** 2
+        fd["evidence"]["cv_rms_linearised_m"] = float(np.sqrt(np.mean(own)))
+        kb = p.lib[sel.accepted[j]].k
+        kept = []
         for a in fd["look_alikes"]:
             c = label.get((a["effect"], a["location"]))
-            if c is None or j >= len(sel.accepted):
+            if c is None:
                 continue
             swap = sel.accepted[:j] + [c] + sel.accepted[j + 1:]
-            a["cv_rms_m"] = float(np.sqrt(np.mean(forms._cv(p.Jf, p.S, swap, p.r, folds) ** 2)))
+            e2 = forms._cv(p.Jf, p.S, swap, p.r, folds) ** 2
+            d = e2 - own
+            a["cv_rms_m"] = float(np.sqrt(np.mean(e2)))
+            separated = np.mean(d) > 2 * np.std(d, ddof=1) / np.sqrt(d.size)
+            if a["delta_chi2"] < scipy.stats.chi2.ppf(0.95, kb):
+                a["why"] = "the fit cannot reject the swap"
+            elif separated:
+                continue  # near-collinear, but the held-out error prefers the finding: not a look-alike
+            else:
+                a["why"] = "near-collinear here, and the held-out error does not separate them"
+            kept.append(a)
+        fd["look_alikes"] = kept
 
 
 def _choose_forms(p: screen.Problem, nz: screen.Noise, sel: screen.Selection, folds: list) -> dict:

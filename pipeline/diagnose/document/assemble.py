@@ -27,6 +27,9 @@ def candidates(gates: list) -> list[dict]:
     return [{"effect": g.effect.name, "location": str(g.effect.location), "identifiable": g.identifiable,
              "absorbed_fraction": g.absorbed_fraction,
              "min_detectable": g.min_detectable if np.isfinite(g.min_detectable) else None,
+             # the size whose expected statistic is the critical value (50 % power: the convention of a t-test's
+             # 'minimum detectable' size, e.g. 3σ/‖P⊥S‖ at t = 3); min_detectable is at 80 % power
+             "detection_threshold": g.threshold if np.isfinite(g.threshold) else None,
              "unit": g.effect.units[0], "plausible_max": g.effect.plausible} for g in gates]
 
 

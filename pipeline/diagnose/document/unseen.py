@@ -63,9 +63,6 @@ def unseen(gates: list, findings: list[dict], system: str = "") -> list[dict]:
         base = base_location(e.location)
         key = (e.name, base, e.units[0])  # forms in other units (a quadratic coupling) are entries of their own
         mds = float(g.min_detectable) if g.identifiable and np.isfinite(g.min_detectable) else None
-        weak_only = g.identifiable and mds is None  # tested along its best direction; another hides any size
-        if weak_only:
-            mds = float(g.best_detectable)
         entry = out.get(key)
         if entry is not None and (mds is None or (entry["could_have_gone_unseen"] is not None
                                                   and entry["could_have_gone_unseen"] <= mds)):
@@ -74,8 +71,7 @@ def unseen(gates: list, findings: list[dict], system: str = "") -> list[dict]:
         out[key] = {"effect": e.name, "location": where, "form": str(e.location) if str(e.location) != where else None,
                     "testable": mds is not None, "found": (e.name, base) in found, "could_have_gone_unseen": mds,
                     "unit": e.units[0], "plausible_max": e.plausible,
-                    "display": display(mds, e.units[0]) + (" along its best direction (any size along another: "
-                                                          "the geometry absorbs it)" if weak_only else ""),
+                    "display": display(mds, e.units[0]),
                     "power": POWER, "reason": None if mds is not None else g.reason,
                     "reveal": PLANS.get((system, e.name), e.advice)}
     return list(out.values())

@@ -6,8 +6,8 @@ is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at
 
 - `gate`: absorbed fraction 1 − ‖S⊥‖²/‖S‖², minimum detectable size along the candidate's
   weakest direction, (z₁₋α/(2m) + z₀.₈)·σ/s_min(S⊥) (+ its immaterial tolerance: what could hide), and
-  confounding with other candidates; a candidate that no plausible size makes detectable along any direction of
-  its parameters is `not_identifiable`; a twin that no plausible size tells from an earlier candidate too.
+  confounding with other candidates; a candidate whose detectable size is beyond what is
+  physically plausible is `not_identifiable`; a twin that no plausible size tells from an earlier candidate too.
 - `sigma_given`: the residual σ after the effects accepted so far — the gate's σ once something
   is accepted (the geometry-only σ carries the unmodelled effects and inflates every MDS).
 """
@@ -42,6 +42,7 @@ class Gate:
     reason: str
     projected: np.ndarray  # S⊥ against geometry (and confounders when they are what hides it)
     best_detectable: float = np.inf  # along the candidate's best direction (= min_detectable for one parameter)
+    threshold: float = np.inf  # the size whose expected test statistic is the family's critical value (50 % power)
 
 
 def _unit(Sp: np.ndarray) -> tuple[np.ndarray, float] | None:
@@ -154,10 +155,8 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
             smin = smax = 0.0
             conf_label = e.data.get("absorbed_by", "")
         mds = np.inf if smin == 0 else z * sigma / smin + e.tolerance
-        # a multi-parameter effect is testable when a plausible size is detectable along some direction of its
-        # parameters (its best one); `mds`, what could hide, is along its weakest
-        best = np.inf if smax == 0 else z * sigma / smax + e.tolerance
-        ok = bool(np.isfinite(best) and best <= e.plausible)
+        best = np.inf if smax == 0 else z * sigma / smax + e.tolerance  # along its best direction
+        ok = bool(np.isfinite(mds) and mds <= e.plausible)
         if conf_label:
             absorbed_by = f"{absorbed_by} with {conf_label}"
         if ok:
@@ -169,12 +168,13 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
             reason = "no effect on these measurements"
         elif conf_label:
             reason = f"indistinguishable from {conf_label} in this campaign"
-        elif smax == 0:
+        elif smin == 0:
             reason = f"fully absorbed by the geometry ({absorbed_by})"
         else:
-            reason = (f"smallest detectable size {best:.3g} {e.units[0]} exceeds the plausible {e.plausible:.3g} "
+            reason = (f"smallest detectable size {mds:.3g} {e.units[0]} exceeds the plausible {e.plausible:.3g} "
                       f"{e.units[0]} ({absorbed * 100:.1f} % absorbed by the geometry)")
-        gates[i] = Gate(e, absorbed, float(mds), ok, absorbed_by, reason, sp, float(best))
+        thr = np.inf if smin == 0 else (z - POWER_Z) * sigma / smin + e.tolerance
+        gates[i] = Gate(e, absorbed, float(mds), ok, absorbed_by, reason, sp, float(best), float(thr))
     return gates  # type: ignore[return-value]
 
 

@@ -15,7 +15,7 @@ order: `independent_touch.plan`).
 
 Per case: `named` (the right effect at the right place among the findings; thermal: the family
 thermal_growth@links, any form), `named_high` (and with high confidence), `located` (out of library: status
-partially_explained / unexplained), `misnamed_high` (a high-confidence finding that is not the injected
+partially_explained / unexplained, or a place named in `unexplained_where`), `misnamed_high` (a high-confidence finding that is not the injected
 effect), `worse` (the final model's held-out RMS above geometry alone's), and the gate's own minimum
 detectable size on that campaign (Bonferroni over the library and 80 % power: stricter than the
 generator's 3σ), and for backlash the generator's figure at the injected size without the one contact that carries most
@@ -108,7 +108,8 @@ def score(d: dict, key: tuple | None) -> dict:
     named = any(right(f) for f in d["findings"])
     return {"status": d["status"], "named": named,
             "named_high": any(right(f) and f["confidence"] == "high" for f in d["findings"]),
-            "located": d["status"] in ("partially_explained", "unexplained"),
+            # out of library: a status that says something is left, or a located place (unexplained_where)
+            "located": d["status"] in ("partially_explained", "unexplained") or bool(d["unexplained_where"]),
             "misnamed_high": any(f["confidence"] == "high" and not right(f) for f in d["findings"]),
             "worse": d["holdout_rms_after_m"] > d["holdout_rms_before_m"] + 1e-15,
             "findings": [f"{f['effect']}@{f['location']}:{f['confidence']}" for f in d["findings"]],

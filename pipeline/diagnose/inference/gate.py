@@ -27,7 +27,8 @@ from pipeline.diagnose.library.term import Effect
 
 POWER_Z = scipy.stats.norm.ppf(0.8)  # 80 % power
 RANK_REL = 1e-6  # a projected column this small relative to its original is gone
-CONFOUND = 0.95  # share of a projected signature another candidate explains → confounded
+CONFOUND = 0.95  # share of a projected signature its named confounders explain → confounded
+TWIN = 0.99  # share of a projected signature one earlier candidate explains → a twin no campaign size separates
 
 
 @dataclass
@@ -138,16 +139,14 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
     for i in order:
         e, sp = effects[i], proj[i]
         tot, absorbed, absorbed_by, conf_label, smin, smax = parts["per"][i]
-        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one so closely that no
-        # plausible size tells them apart (what the rival leaves of it is below detection at the plausible
-        # size); closer than that, but separable, both are tested and the data decide — or, near-collinear,
-        # both are reported as look-alikes (`stepwise.look_alikes`).  (The forms of one effect may be alike:
-        # the held-out error chooses, `forms`.)
+        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one (> 99 % of its projected
+        # signature: a twin); less alike, both are tested and the data decide — near-collinear, both are reported
+        # as look-alikes (`stepwise.look_alikes`), not one by the library's order.  (The forms of one effect may
+        # be alike: the held-out error chooses, `forms`.)
         for j in kept:
             if effects[j].family == e.family or smax == 0:
                 continue
-            sh = _share(parts["unit"][i], basis[j])
-            if sh > CONFOUND and e.plausible * (smin or smax) * np.sqrt(max(1.0 - sh, 0.0)) < z * sigma:
+            if _share(parts["unit"][i], basis[j]) > TWIN:
                 smin = smax = 0.0
                 conf_label = effects[j].label
                 break

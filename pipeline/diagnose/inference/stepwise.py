@@ -392,6 +392,7 @@ def look_alikes(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, A: 
         return {}
     D = _Design(r, candidates, None, tolerances or [0.0] * len(candidates))
     rss_A, rk = D.given(A)[:2]
+    rss_A = max(rss_A, 1e-9 * D.rr)  # a near-singular accepted set can round its RSS to nothing
     s2 = max(rss_A / max(dof_resid - rk, 1), 1e-300)
     out = {}
     for b in A:

@@ -6,6 +6,7 @@ silent loss, per mutation class, with the worst CPU time and peak memory.
     .venv/bin/python benchmarks/bench_fuzz.py --per-class 40          # full size (≈ 330 cases)
     .venv/bin/python benchmarks/bench_fuzz.py --per-class 4 --stages ingest,validate   # bounded
     .venv/bin/python benchmarks/bench_fuzz.py --surfaces 24    # CSV, URDF, bags, campaigns, run folders, …
+    .venv/bin/python benchmarks/bench_fuzz.py --surfaces 28 --classes options,outputs   # nonsense at the door
 
 `--surfaces N` runs N cases of each surface of tests/fuzz_surfaces.py instead, in this process (their
 actions are library calls: import, parse, read_bag, run_pipeline, plan…), each with its CPU time.
@@ -69,9 +70,12 @@ def run_case(path: Path, out: Path, stages: str, original: int, timeout_s: float
     return "silent-loss", cpu, peak_gb, f"{original - got} lost, status {res['summary']['status']}"
 
 
-def surfaces(seed: int, per_class: int, show: int) -> None:
-    """The surface corpus (tests/fuzz_surfaces.py) in this process: table of outcomes per surface."""
+def surfaces(seed: int, per_class: int, show: int, classes: tuple[str, ...] = ()) -> None:
+    """The surface corpus (tests/fuzz_surfaces.py) in this process: table of outcomes per surface
+    (`classes`: those surfaces only)."""
     from fuzz_surfaces import FAILURES, SURFACES, classify, surface_cases
+
+    classes = classes or SURFACES
 
     cols = ("error", "ok", "warned") + FAILURES
     table: dict[str, Counter] = defaultdict(Counter)
@@ -80,7 +84,7 @@ def surfaces(seed: int, per_class: int, show: int) -> None:
     work = workdir()
     t0, n = time.monotonic(), 0
     try:
-        for case in surface_cases(seed, per_class):
+        for case in surface_cases(seed, per_class, classes):
             c0 = time.process_time()
             outcome, detail = classify(case, work / f"s{n}")
             worst = max(worst, (time.process_time() - c0, case.name))
@@ -93,7 +97,7 @@ def surfaces(seed: int, per_class: int, show: int) -> None:
         shutil.rmtree(work, ignore_errors=True)
     print(f"robocal surface fuzz: {n} cases (seed {seed}, {per_class} per surface) in {time.monotonic() - t0:.0f} s")
     print(f"{'surface':10s} " + " ".join(f"{c:>17s}" for c in cols))
-    for cls in SURFACES:
+    for cls in classes:
         print(f"{cls:10s} " + " ".join(f"{table[cls][c]:>17d}" for c in cols))
     print(f"most CPU: {worst[0]:.1f} s ({worst[1]})")
     for e in examples:
@@ -104,6 +108,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--surfaces", type=int, default=0, help="run N cases of every surface of tests/fuzz_surfaces.py "
                     "(CSV, URDF, ROS 2 bags, campaigns, targets, run folders, archives, …) instead")
+    ap.add_argument("--classes", default="", help="with --surfaces: these surfaces only (comma-separated, e.g. "
+                    "options,outputs)")
     ap.add_argument("--per-class", type=int, default=40, help="cases per mutation class (default 40: ~330 cases)")
     ap.add_argument("--seed", type=int, default=15)
     ap.add_argument("--sources", default="delta-tracker,scorbot-scanner,arc-welder-touch")
@@ -113,7 +119,7 @@ def main() -> None:
     ap.add_argument("--show", type=int, default=3, help="examples printed per failing outcome")
     a = ap.parse_args()
     if a.surfaces:
-        return surfaces(a.seed, a.surfaces, a.show)
+        return surfaces(a.seed, a.surfaces, a.show, tuple(c for c in a.classes.split(",") if c))
     sources = tuple(s for s in a.sources.split(",") if s)
     originals = {s: message_count(BUNDLED[s]) for s in sources}
     work = workdir()

@@ -1,12 +1,14 @@
 """A seeded corpus of hostile inputs beyond robocal's own recordings: CSV tables, URDFs, ROS 2 bags
-(written by rosbags' own writer, then cut or bit-flipped), campaign files, compensation targets,
-run folders holding a user's files, reprocess archives, recordings whose measurement topic is
-missing or whose times run backwards, absurd counts on the command line, and figures of a few
-equal values.  Used by tests/test_fuzz.py (bounded) and benchmarks/bench_fuzz.py --surfaces.
+(written by rosbags' own writer, then cut or bit-flipped), campaign files, compensation targets (an
+unknown column, joints in degrees), run folders holding a user's files, reprocess archives, recordings
+whose measurement topic is missing or whose times run backwards, absurd counts on the command line,
+figures of a few equal values, nonsense options and recordings at an output path (tests/fuzz_door.py).
+Used by tests/test_fuzz.py (bounded) and benchmarks/bench_fuzz.py --surfaces.
 
 Each case runs in this process and is classified: `error` (one-line `RobocalError` naming the
 file), `ok`, `warned` (success that says what it lost), or a failure: `traceback`, `hang`,
-`memory`, `unnamed-error`, `user-data-changed` (a file the user wrote changed or deleted).
+`memory`, `unnamed-error`, `user-data-changed` (a file the user wrote changed or deleted),
+`accepted-nonsense` (a case that must be refused succeeded).
 """
 
 from __future__ import annotations
@@ -25,17 +27,20 @@ from pathlib import Path
 
 import numpy as np
 
+import fuzz_door
 from fuzz_edits import ARM, TOKENS, csv_bytes, csv_edit, flips, urdf_edit
 from hostile_support import BUNDLED, rebuild
 
-SURFACES = ("csv", "urdf", "ros2bag", "campaign", "targets", "runfolder", "archive", "recording", "counts", "figures")
-FAILURES = ("traceback", "hang", "memory", "unnamed-error", "user-data-changed")
+SURFACES = ("csv", "urdf", "ros2bag", "campaign", "targets", "runfolder", "archive", "recording", "counts", "figures",
+            "options", "outputs")
+FAILURES = ("traceback", "hang", "memory", "unnamed-error", "user-data-changed", "accepted-nonsense")
 @dataclass(frozen=True)
 class SurfaceCase:
     cls: str
     name: str
     make: Callable[[Path], tuple[Callable[[], object], list[Path], dict[Path, bytes]]]
     # make(dir) -> (action, paths an error must name (any one), the user's files that must survive unchanged)
+    refuse: bool = False  # nonsense or a file that must not be replaced: a success is `accepted-nonsense`
 
 
 class _Hang(Exception):
@@ -73,6 +78,8 @@ def classify(case: SurfaceCase, d: Path, timeout_s: float = 60.0) -> tuple[str, 
     changed = [p for p, b in user.items() if not p.is_file() or p.read_bytes() != b]
     if changed:
         return "user-data-changed", f"{changed[0]} ({outcome}: {detail[:200]})"
+    if case.refuse and outcome in ("ok", "warned"):
+        return "accepted-nonsense", f"{case.name}: {detail[:200]}"
     return outcome, detail
 
 
@@ -200,8 +207,12 @@ def _campaign_case(k, rng):
 
 def _targets_case(k, rng):
     rows = [["x", "y", "z", "name"]] + [[repr(float(v)) for v in rng.uniform(-1, 1, 3)] + [f"t{i}"] for i in range(6)]
-    how = k % 6
+    how = k % 9
     i, j = int(rng.integers(1, len(rows))), int(rng.integers(0, 3))
+    if how >= 6:  # nonsense a reader used to take: an unknown column, joints in degrees, some joints only
+        rows[0] += [["comment", "q_j1", "q_j2"][how - 6]] + (["q_j2"] if how == 7 else [])
+        for r in rows[1:]:
+            r += [["a", "90.0", "0.5"][how - 6]] + (["45.0"] if how == 7 else [])
     if how == 0:
         rows[0][1] = "x"
     elif how == 1:
@@ -220,7 +231,8 @@ def _targets_case(k, rng):
         from pipeline.compensate.program import read_targets
 
         p = _write(d / "targets.csv", data)
-        return (lambda: read_targets(p, ["j1", "j2"]) and None), [p], _user(p)
+        ranges = (np.array([-3.0, -2.0]), np.array([3.0, 2.0]), np.array([True, True]))
+        return (lambda: read_targets(p, ["j1", "j2"], ranges) and None), [p], _user(p)
     return make
 
 
@@ -363,9 +375,13 @@ def _figures_case(k, rng):
 
 MAKERS = {"csv": _csv_case, "urdf": _urdf_case, "ros2bag": _bag_case, "campaign": _campaign_case,
           "targets": _targets_case, "runfolder": _runfolder_case, "archive": _archive_case,
-          "recording": _recording_case, "counts": _counts_case, "figures": _figures_case}
-PERIOD = {"csv": 12, "urdf": 11, "ros2bag": 5, "campaign": 7, "targets": 6, "runfolder": 7, "archive": 5,
-          "recording": 4, "counts": 6, "figures": 4}  # cases per class that cover every kind of edit once
+          "recording": _recording_case, "counts": _counts_case, "figures": _figures_case,
+          "options": lambda k, rng: fuzz_door.options_case(k, _base()),
+          "outputs": lambda k, rng: fuzz_door.outputs_case(k, _base())}
+PERIOD = {"csv": 12, "urdf": 11, "ros2bag": 5, "campaign": 7, "targets": 9, "runfolder": 7, "archive": 5,
+          "recording": 4, "counts": 6, "figures": 4, "options": len(fuzz_door.OPTIONS),
+          "outputs": len(fuzz_door.OUTPUTS)}  # cases per class that cover every kind of edit once
+REFUSE = {"options": lambda k: True, "outputs": lambda k: True, "targets": lambda k: k % 9 >= 6}
 
 
 def surface_cases(seed: int, per_class: int | None = None, classes: tuple[str, ...] = SURFACES) -> Iterator[SurfaceCase]:
@@ -373,4 +389,4 @@ def surface_cases(seed: int, per_class: int | None = None, classes: tuple[str, .
     for cls in classes:
         for k in range(per_class or PERIOD[cls]):
             rng = np.random.default_rng([seed, SURFACES.index(cls), k])
-            yield SurfaceCase(cls, f"{cls}-{k}", MAKERS[cls](k, rng))
+            yield SurfaceCase(cls, f"{cls}-{k}", MAKERS[cls](k, rng), REFUSE.get(cls, lambda k: False)(k))

@@ -209,8 +209,8 @@ def test_simulated_recordings_carry_the_robot_identity_and_campaign_time(tmp_pat
 
 
 def test_simulate_fleet_never_replaces_a_file_it_did_not_write(tmp_path):
-    """A foreign fleet.truth.json or campaign.mcap in the archive: one line naming it, exit 2, nothing written;
-    the fleet's own files (a second run) are replaced."""
+    """A foreign fleet.truth.json or campaign.mcap in the archive: one line naming it, exit 2, nothing written,
+    with or without --force; the fleet's own files are replaced by a second run with --force only (kept as .bak)."""
     arch = tmp_path / "arch"
     cmd = [str(BIN / "robocal"), "simulate", "fleet", "--out", str(arch), "--robots", "1", "--months", "2",
            "--contacts", "10"]
@@ -225,10 +225,15 @@ def test_simulate_fleet_never_replaces_a_file_it_did_not_write(tmp_path):
     assert p.returncode == 0, p.stderr
     first = sorted(arch.rglob("*.mcap"))
     assert len(first) == 2 and json.loads((arch / "fleet.truth.json").read_text())["generator"].startswith("robocal/")
+    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=300)  # recordings are data
+    assert p.returncode == 2 and "holds a truth already" in p.stderr and "--force" in p.stderr, p.stderr
     first[1].write_bytes(b"someone else's bytes")
-    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=300)
+    p = subprocess.run(cmd + ["--force"], capture_output=True, text=True, env=ENV, timeout=300)
     assert p.returncode == 2 and f"{first[1]}: exists and was not written by robocal" in p.stderr, p.stderr
-    assert first[1].read_bytes() == b"someone else's bytes"
+    assert first[1].read_bytes() == b"someone else's bytes" and not list(arch.rglob("*.bak"))
     first[1].unlink()
-    p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=300)
-    assert p.returncode == 0, p.stderr  # its own recordings and truth replaced
+    kept = first[0].read_bytes()
+    p = subprocess.run(cmd + ["--force"], capture_output=True, text=True, env=ENV, timeout=300)
+    assert p.returncode == 0, p.stderr  # its own recordings and truth replaced with --force, the old ones kept
+    assert first[0].with_name("campaign.mcap.bak").read_bytes() == kept
+    assert (arch / "fleet.truth.json.bak").is_file()

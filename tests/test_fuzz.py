@@ -49,9 +49,10 @@ def test_mutation_corpus_every_class(tmp_path):
 def test_surface_corpus_every_class(tmp_path):
     """One case of every kind of edit of every surface beyond the recordings (CSV, URDF, ROS 2 bags,
     campaign and target files, run folders, archives, recordings missing their topic or running
-    backwards, command-line counts, figures): one-line errors, successes that say what they lost,
-    never a traceback, hang or a user's file changed."""
-    from fuzz_surfaces import FAILURES as SURFACE_FAILURES, SURFACES, classify, surface_cases
+    backwards, command-line counts, figures, nonsense options, recordings at an output path):
+    one-line errors, successes that say what they lost, never a traceback, hang, a user's file
+    changed or nonsense accepted."""
+    from fuzz_surfaces import FAILURES as SURFACE_FAILURES, PERIOD, SURFACES, classify, surface_cases
 
     table: Counter = Counter()
     bad = []
@@ -63,6 +64,8 @@ def test_surface_corpus_every_class(tmp_path):
     assert not bad, bad
     assert {c for c, _ in table} == set(SURFACES)
     assert table["ros2bag", "warned"] >= 1 and table["csv", "error"] >= 8 and table["runfolder", "error"] >= 5
+    # nonsense options and an existing recording at every writer's output: each refused in one line
+    assert table["options", "error"] == PERIOD["options"] and table["outputs", "error"] == PERIOD["outputs"]
 
 
 GOOD = BUNDLED["delta-tracker"].read_bytes()

@@ -23,19 +23,33 @@ def test_foreign_file_is_never_overwritten(tmp_path):
         assert foreign.read_bytes() == before
 
 
-def test_own_recordings_and_empty_files_are_replaced(tmp_path):
+def test_empty_files_are_replaced_and_own_recordings_only_with_force(tmp_path):
+    """An empty file is no data: replaced.  robocal's own recording is data: refused without --force
+    (left byte for byte), kept as NAME.bak with it, and a second --force never overwrites that .bak."""
     robot = tmp_path / "r6.urdf"
     robot.write_text(URDF)
     out = tmp_path / "rec.mcap"
     out.write_bytes(b"")
-    for _ in range(2):  # an empty file, then robocal's own recording
-        r = run_cli("simulate", "urdf", "--urdf", robot, "--root", "b", "--tip", "l6", "--out", out)
-        assert r.returncode == 0, r.stderr
-        assert written_by_robocal(out)
+    sim = ("simulate", "urdf", "--urdf", robot, "--root", "b", "--tip", "l6", "--out", out)
+    r = run_cli(*sim)
+    assert r.returncode == 0, r.stderr
+    assert written_by_robocal(out)
+    first = out.read_bytes()
+    r = run_cli(*sim, "--seed", "1")
+    assert r.returncode == 2 and "--force" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert out.read_bytes() == first
+    r = run_cli(*sim, "--seed", "1", "--force")
+    assert r.returncode == 0, r.stderr
+    bak = tmp_path / "rec.mcap.bak"
+    assert bak.read_bytes() == first and out.read_bytes() != first
+    second = out.read_bytes()
+    r = run_cli(*sim, "--seed", "2", "--force")
+    assert r.returncode == 2 and "rec.mcap.bak" in r.stderr and "exists already" in r.stderr, r.stderr
+    assert bak.read_bytes() == first and out.read_bytes() == second
     up = tmp_path / "up.mcap"
     up.write_text("a text file")
-    r = run_cli("simulate", "arc-welder", "--out", up)
-    assert r.returncode != 0 and up.read_text() == "a text file"
+    r = run_cli("simulate", "arc-welder", "--out", up, "--force")
+    assert r.returncode != 0 and up.read_text() == "a text file"  # --force never touches someone else's file
 
 
 def test_plan_and_compensate_never_overwrite_a_foreign_json_or_csv(tmp_path):

@@ -13,7 +13,7 @@ from conftest import run_cli
 from r6_robot import BARE_URDF as URDF
 from stream_support import record_over_pty
 
-from pipeline.recording.output import written_by_robocal
+from pipeline.recording.output import library_of, written_by_robocal
 
 FOREIGN = {"json": b'{"stop_reason": "mine", "devices": {}}\n', "text": b"someone's notes\n"}
 
@@ -50,13 +50,16 @@ def test_a_foreign_summary_report_or_truth_is_refused_before_any_work(tmp_path, 
 
 def test_robocal_replaces_its_own_summary_report_and_truth(tmp_path):
     """A real run over a pty pair (device-sim → acquire) with robocal-written files at every side
-    output: all three are replaced by this run's documents."""
+    output: the summary and report are replaced by this run's documents (a truth file, like its
+    recording, only with --force: the old one kept as .bak)."""
     direct, truth = tmp_path / "direct.mcap", tmp_path / "truth.json"
     run_cli("simulate", "arc-welder", "--contacts", "10", "--seed", "3", "--out", direct, "--truth", truth, check=True)
     first = truth.read_bytes()
     assert written_by_robocal(truth)
-    run_cli("simulate", "arc-welder", "--contacts", "12", "--seed", "3", "--out", direct, "--truth", truth, check=True)
+    run_cli("simulate", "arc-welder", "--contacts", "12", "--seed", "3", "--out", direct, "--truth", truth, "--force",
+            check=True)  # a recording and its truth are data: replaced with --force only, the old ones kept as .bak
     assert truth.read_bytes() != first and json.loads(truth.read_text())["campaign"]["contacts"] == 12
+    assert (tmp_path / "truth.json.bak").read_bytes() == first and (tmp_path / "direct.mcap.bak").is_file()
     for name in ("summary.json", "sim.json"):  # robocal's own JSON (a truth file) where acquire and device-sim write
         shutil.copy(truth, tmp_path / name)
     _, s, rep = record_over_pty(tmp_path, "arc-welder", ("--recording", str(direct), "--speed", "40"))
@@ -64,6 +67,19 @@ def test_robocal_replaces_its_own_summary_report_and_truth(tmp_path):
     assert rep["devices"]["bridge"]["sent"] > 0
     for name in ("summary.json", "sim.json"):
         assert written_by_robocal(tmp_path / name) and "campaign" not in json.loads((tmp_path / name).read_text())
+    # the acquisition is real measurements: marked in its header, never replaced — not even with --force —
+    # and a recovered copy keeps the mark
+    acq = tmp_path / "acq.mcap"
+    assert "acquire" in library_of(acq).split()
+    before = acq.read_bytes()
+    r = run_cli("simulate", "arc-welder", "--contacts", "10", "--out", acq, "--force")
+    assert r.returncode == 2 and "real measurements (robocal acquire)" in r.stderr and "even with --force" in r.stderr
+    assert acq.read_bytes() == before and not (tmp_path / "acq.mcap.bak").exists()
+    copy = tmp_path / "recovered.mcap"
+    run_cli("recover", acq, copy, check=True)
+    assert library_of(copy).split()[1:] == ["recover", "acquire"]
+    r = run_cli("recover", acq, copy, "--force")
+    assert r.returncode == 2 and "real measurements" in r.stderr, r.stderr
 
 
 def test_the_same_file_for_recording_and_truth_is_refused_and_truth_into_a_new_folder_is_written(tmp_path):

@@ -74,6 +74,8 @@ def test_bad_tree_of_a_ros2_bag_is_one_line(recs, tmp_path, args, needles):
     ({"torso_j3": {"terms": {"nowhere": -1.0}}}, ("robocal.campaign", "names unknown joint 'nowhere'")),
     ({"torso_j3": {"terms": {"torso_j1": -1.0}}, "torso_j1": {"terms": {"torso_j3": 1.0}}},
      ("robocal.campaign", "itself coupled")),
+    # a factor of 1e308 ended `run` in a traceback in validate's outlier fit: now one line at load
+    ({"torso_j3": {"terms": {"torso_j1": 1e308}}}, ("robocal.campaign", "factor 1e+308", "not a physical transmission")),
 ])
 def test_bad_coupling_in_a_recording_is_one_line(recs, tmp_path, coupled, needles):
     """A recording (not the importer) whose campaign couples joints wrongly: calibrate says so in one line."""

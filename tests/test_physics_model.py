@@ -112,7 +112,7 @@ def test_stiffness_recovered_and_held_out_at_the_noise_floor(humanoid, calibrati
     (("--coupled", "torso_j3=-torso_j1-nowhere"), "unknown joint 'nowhere'"),
     (("--coupled", "torso_j3=-torso_j3"), "driven by itself"),
     (("--coupled", "torso_j3=-torso_j1", "--coupled", "torso_j1=torso_j3"), "itself coupled"),
-    (("--tip", "nowhere=lx,ly,lz"), "'nowhere' is not in the URDF"),
+    (("--tip", "nowhere=rx,ry,rz"), "'nowhere' is not in the URDF"),  # its own columns: the link is what is wrong
 ])
 def test_bad_tree_input_is_one_line(humanoid, tmp_path, args, message):
     rec, _ = humanoid

@@ -112,6 +112,10 @@ def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict, data: dic
 
 def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
+    from pipeline.dynamics.stage import is_dynamics_run, not_applicable
+
+    if is_dynamics_run(run_dir):
+        return not_applicable(NAME)
     _, model, rec = load_system(run_dir)
     fit = read_fit(run_dir)
     table = read_measurements(run_dir)

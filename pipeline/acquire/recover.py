@@ -18,20 +18,22 @@ from mcap.writer import CompressionType, Writer
 
 from pipeline import __version__
 from pipeline.errors import RobocalError
-from pipeline.recording.output import check_output
+from pipeline.recording.output import ACQUIRED, check_output, claim_output
 from pipeline.recording.reader import MAGIC
 
 META_RECOVERY = "robocal.recovery"
 
 
-def recover(src: str | Path, dst: str | Path) -> dict:
-    """Copy the complete records of `src` into a new, well-formed MCAP file `dst`."""
+def recover(src: str | Path, dst: str | Path, force: bool | None = False) -> dict:
+    """Copy the complete records of `src` into a new, well-formed MCAP file `dst` (an existing recording
+    there only with `force`, kept as ``dst.bak``; `pipeline.recording.output`).  A recovered acquisition
+    stays marked as one: its header's library keeps ``acquire``."""
     src, dst = Path(src), Path(dst)
     if not src.is_file():
         raise RobocalError(f"{src}: no such file")
     if src.resolve() == dst.resolve():
         raise RobocalError(f"{dst}: recover writes a new file; choose another output path")
-    check_output(dst)
+    check_output(dst, force=force)
     with open(src, "rb") as f:
         if f.read(len(MAGIC)) != MAGIC:
             raise RobocalError(f"{src}: not an MCAP file (bad magic bytes)")
@@ -41,6 +43,7 @@ def recover(src: str | Path, dst: str | Path) -> dict:
         channels: dict[int, Channel] = {}
         stats = {"source": str(src), "source_bytes": size, "messages": 0, "metadata": 0, "channels": 0,
                  "complete_source": False, "damage": ""}
+        claim_output(dst, force=force)
         with open(dst, "wb") as out:
             w = Writer(out, compression=CompressionType.ZSTD)
             profile = "robocal"
@@ -52,7 +55,8 @@ def recover(src: str | Path, dst: str | Path) -> dict:
                 for r in StreamReader(f, validate_crcs=True).records:
                     if isinstance(r, Header):
                         profile = r.profile
-                        w.start(profile=profile, library=f"robocal/{__version__} recover")
+                        w.start(profile=profile, library=f"robocal/{__version__} recover"
+                                + (f" {ACQUIRED}" if ACQUIRED in r.library.split() else ""))
                         started = True
                         for m in pending_meta:
                             w.add_metadata(m.name, m.metadata)

@@ -58,9 +58,9 @@ def acquire(devices: dict[str, str], out: Path, *, max_s: float | None = None, c
     with back-off; a bridge down for `give_up_s` (0: never) stops the acquisition."""
     if "bridge" not in devices:
         raise RobocalError("acquire needs a controller bridge: --device bridge=PORT")
-    from pipeline.recording.output import check_output
+    from pipeline.recording.output import ACQUIRED, check_output
 
-    check_output(out)  # before anything changes: no folder made, signal handlers untouched
+    check_output(out, force=None)  # before anything changes: no folder made, signal handlers untouched
     out.parent.mkdir(parents=True, exist_ok=True)
     stop = {"why": ""}
 
@@ -71,7 +71,7 @@ def acquire(devices: dict[str, str], out: Path, *, max_s: float | None = None, c
     ports = {role: Port(role, path) for role, path in devices.items()}
     sel = selectors.DefaultSelector()
     f = open(out, "wb")
-    writer = RecordingWriter(f, scene=True)  # /tf and /robot_description added at close (recording.scene)
+    writer = RecordingWriter(f, scene=True, origin=ACQUIRED)  # /tf and /robot_description added at close (recording.scene)
     acq = Acquisition(writer, devices)
     t_start = time.monotonic()
     next_flush = t_start + FLUSH_S

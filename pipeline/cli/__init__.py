@@ -61,6 +61,13 @@ def console(stderr: bool = False) -> Console:
 err = console(stderr=True)
 
 
+def force_option(what: str = "recording"):
+    """`--force` of a command writing a recording (or a simulation's truth): replace an existing one robocal
+    wrote, keeping it as NAME.bak (`pipeline.recording.output`; never a recording of real measurements)."""
+    return typer.Option(False, "--force", help=f"Replace an existing {what} robocal wrote, keeping the old one as "
+                        "NAME.bak (never a recording robocal acquire made; never over an existing .bak).")
+
+
 def _version(value: bool) -> None:
     if value:
         from pipeline import __version__
@@ -106,6 +113,8 @@ def load_commands(argv: list[str] | None = None) -> None:
 
 def main() -> None:
     """Console-script entry point."""
+    from rich.markup import escape  # an error quotes the user's text ("[m/rad]", a path with brackets) as written
+
     from pipeline.errors import RobocalError
 
     load_commands(sys.argv[1:])
@@ -113,13 +122,14 @@ def main() -> None:
     try:
         app()
     except RobocalError as e:
-        err.print(f"[bold red]robocal: error:[/] {e}", highlight=False, soft_wrap=True)
+        err.print(f"[bold red]robocal: error:[/] {escape(str(e))}", highlight=False, soft_wrap=True)
         sys.exit(2)
     except PermissionError as e:  # an output folder the user cannot write: one line, not a traceback
-        err.print(f"[bold red]robocal: error:[/] {e.filename}: cannot write (PermissionError: {e.strerror})",
+        err.print(f"[bold red]robocal: error:[/] {escape(str(e.filename))}: cannot write (PermissionError: {e.strerror})",
                   highlight=False, soft_wrap=True)
         sys.exit(2)
     except OSError as e:  # a file system error on a path the user named: one line, not a traceback
-        err.print(f"[bold red]robocal: error:[/] {e.filename or ''}: {type(e).__name__}: {e.strerror or e}",
+        err.print(f"[bold red]robocal: error:[/] {escape(str(e.filename or ''))}: {type(e).__name__}: "
+                  f"{escape(str(e.strerror or e))}",
                   highlight=False, soft_wrap=True)
         sys.exit(2)

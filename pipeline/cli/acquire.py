@@ -10,7 +10,7 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import SIMULATE, app, err, simulate_app
+from pipeline.cli import SIMULATE, app, err, force_option, simulate_app
 from pipeline.errors import RobocalError
 
 ROLES = ("bridge", "tracker", "scanner")
@@ -46,6 +46,7 @@ def acquire_cmd(
     from pipeline.recording.output import check_output, distinct_outputs, generated
 
     devs = _parse_devices(device)
+    check_output(out, force=None)  # a recording is never replaced by an acquisition (no --force here)
     if summary is not None:
         check_output(summary, "summary")  # before the acquisition starts: never over a file robocal did not create
         distinct_outputs(out=out, summary=summary)
@@ -87,11 +88,12 @@ def acquire_cmd(
 def recover_cmd(
     src: Path = typer.Argument(..., help="A recording cut short (crash, SIGKILL, full disk)."),
     dst: Path = typer.Argument(..., help="Where to write the restored recording."),
+    force: bool = force_option(),
 ) -> None:
     """Restore every complete record of a damaged recording into a well-formed MCAP file."""
     from pipeline.acquire.recover import recover
 
-    s = recover(src, dst)
+    s = recover(src, dst, force=force)
     state = "source was complete" if s["complete_source"] else f"source cut short ({s['damage'] or 'no footer'})"
     err.print(f"recovered {s['messages']} messages, {s['metadata']} metadata records on {s['channels']} channels "
               f"into {dst}; {state}", highlight=False, soft_wrap=True)

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 
 from pipeline.cli import err
 from pipeline.importers import standstill
@@ -23,9 +24,13 @@ def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
                                       "topic (default: the bag's only one); a robot measured on several links: "
                                       "LINK=TOPIC, repeated (one PointStamped topic per tip).", **kw),
         "coupled": typer.Option(None, "--coupled", help="A joint driven by others, not in the JointStates: "
-                                "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2 (repeatable; URDF <mimic> joints are "
+                                "JOINT=EXPR, e.g. torso_3=-torso_1-torso_2, lift=0.01[m/rad]*j1 (a factor between a "
+                                "prismatic and a revolute joint carries its unit; repeatable; URDF <mimic> joints are "
                                 "coupled already).", **kw),
-        "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type).", **kw),
+        "coupling_wins": typer.Option(False, "--coupling-wins", help="A --coupled joint the JointStates also carry: the "
+                                      "coupling replaces its readings (without this that is an error).", **kw),
+        "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type) | effort (dynamics: "
+                                "every JointState with its efforts).", **kw),
         "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window", min=1e-6,
                                  help="Standstill window around each measurement, s.", **kw),
         "max_speed": typer.Option(standstill.DEFAULT_MAX_SPEED, "--still-speed", min=1e-12,
@@ -63,7 +68,7 @@ def measure_topics(measure_topic: list[str] | None, tip: str | None, bag: bool =
 def print_read(bag: Path, extras: dict) -> None:
     """What the import read: its warnings, the topics and the standstill pairing, every excluded record."""
     for w in extras.get("import_warnings", []):
-        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
     r = extras["ros2"]
     p = r["pairing"]
     js = r["joint_states"]

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from pipeline.cli import CALIBRATE, app, console, err
@@ -40,9 +41,10 @@ def calibrate_cmd(
 
     recording = merged_input(recordings, out, registration, run_folder=False)
     if physics is not None or payload:
-        from pipeline.systems.urdf_robot import check_physics_input
+        from pipeline.physics.payload import check_physics_input
 
-        check_physics_input(recording, physics, payload)  # one line naming the element, before the fit
+        for w in check_physics_input(recording, physics, payload):  # one line naming the element, before the fit
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
 
     with err.status(f"calibrating {recording}…"):
         doc = calibrate(recording, out, FitOptions(loss=loss, rank_tol=rank_tol), k_folds=folds, solver=solver,
@@ -50,7 +52,7 @@ def calibrate_cmd(
                         model_choice=model_choice,
                         accuracy=accuracy_params(prior, tolerance, previous, targets))
     for w in doc["warnings"]:
-        err.print(f"[yellow]warning:[/] {w}", highlight=False)
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False)
     t = Table(title=f"robocal calibrate — {recording.name}")
     t.add_column("figure")
     t.add_column("value", justify="right")

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 
 from pipeline.cli import PLAN, app, err
 
@@ -43,13 +44,14 @@ def compensate_cmd(
     check_output(out, "program")  # never over a file robocal did not create (its own programs are replaced)
     run = pg.load_run(run_dir)
     names = pg.joint_names(run["model"])
-    tg = pg.read_targets(targets, names)
+    tg = pg.read_targets(targets, names, pg.joint_ranges(run["model"]))
     from pipeline.physics.compliance import parse_payload
 
     if physics not in ("auto", "none"):
         raise RobocalError(f"--physics {physics!r}: expected auto or none")
     load = parse_payload(payload)
-    pg.check_payload(run, load)
+    for w in pg.check_payload(run, load, payload or ()):
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
     t0 = time.perf_counter()
     c = pg.compensate_run(run, tg, load, physics == "auto", tip, approach)
     sigma = pg.predicted_sigma(run["model"], run["x"], run["free"], run["cov"], c.q)

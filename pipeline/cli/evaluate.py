@@ -70,6 +70,10 @@ def evaluate_cmd(
                                       help="With --refit registration: shared (one frame for all) or per-recording."),
 ) -> None:
     """Apply a calibrated model to other recordings without refitting it: the error of every measurement."""
+    from pipeline.dynamics.stage import is_dynamics_run
+
+    if is_dynamics_run(run_dir):  # torques: held-out RMS per fitted joint and pooled, N·m
+        return _evaluate_dynamics(run_dir, recordings, out)
     from pipeline.evaluate.apply import error_table, evaluate
     from pipeline.evaluate.calibrated import read_calibrated
     from pipeline.report.evaluation import POSTURES_NOTE, render
@@ -96,3 +100,37 @@ def evaluate_cmd(
     console().print(_table(results, f"robocal evaluate — {run_dir} (calibrated on {Path(cal.recording).name}), "
                                     f"not refitted{'' if refit == 'none' else ' except the registration'}"))
     print(f"evaluation: {out / 'evaluation.json'}\nerrors:     {out / 'errors.parquet'}\nreport:     {out / 'report.html'}")
+
+
+def _evaluate_dynamics(run_dir: Path, recordings: list[Path], out: Path) -> None:
+    """A dynamics run's predicted torques on other recordings of the robot, no refit (evaluation.json,
+    torques.parquet): the held-out torque RMS per fitted joint and pooled (N·m; N for a prismatic joint)."""
+    import numpy as np
+
+    from pipeline.dynamics.stage import evaluate
+    from pipeline.stages.artefacts import sha256_file, write_json, write_table
+
+    with err.status(f"evaluating {run_dir} on {len(recordings)} recording(s)…"):
+        results = evaluate(run_dir, recordings)
+    _claim(out)
+    keep = ("path", "measure", "n", "rms_joint_Nm", "rms_pooled_Nm", "nominal_rms_joint_Nm", "nominal_rms_pooled_Nm")
+    doc = {"run": str(run_dir), "family": "dynamics", "refit": "none",
+           "note": "torque RMS over the recording's samples, raw converted efforts at the recorded rate, predicted "
+                   "without refitting (N·m; N for a prismatic joint); nominal: the URDF's own parameters",
+           "recordings": [{k: r[k] for k in keep} | {"sha256": sha256_file(r["path"])} for r in results]}
+    write_json(out / "evaluation.json", doc)
+    tab = {"recording": np.concatenate([np.full(r["n"], i) for i, r in enumerate(results)]),
+           "t_s": np.concatenate([r["t_s"] for r in results])}
+    for k, j in enumerate(results[0]["joints"]):
+        tab[f"measured_{j}"] = np.concatenate([r["measured"][:, k] for r in results])
+        tab[f"predicted_{j}"] = np.concatenate([r["predicted"][:, k] for r in results])
+    write_table(out / "torques.parquet", tab)
+    t = Table(title=f"robocal evaluate — {run_dir}, not refitted: held-out torque RMS N·m")
+    joints = results[0]["joints"]
+    for h in ["recording", "n", *joints, "pooled", "URDF as drawn (pooled)"]:
+        t.add_column(h, justify="left" if h == "recording" else "right")
+    for r in results:
+        t.add_row(Path(r["path"]).name, str(r["n"]), *(f"{r['rms_joint_Nm'][j]:.3f}" for j in joints),
+                  f"{r['rms_pooled_Nm']:.3f}", f"{r['nominal_rms_pooled_Nm']:.3f}")
+    console().print(t)
+    print(f"evaluation: {out / 'evaluation.json'}\ntorques:    {out / 'torques.parquet'}")

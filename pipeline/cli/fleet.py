@@ -8,7 +8,7 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli import FLEET, app, err, simulate_app
+from pipeline.cli import FLEET, app, err, force_option, simulate_app
 
 
 @app.command("fleet", rich_help_panel=FLEET)
@@ -80,6 +80,7 @@ def simulate_fleet_cmd(
                                    "2:7:J3.theta_offset=5e-3."),
     drift: list[str] = typer.Option([], "--drift", help="ROBOT:PARAM=VALUE_PER_MONTH (SI), e.g. 4:J2.a=8e-5."),
     workers: int = typer.Option(1, "--workers", min=1, help="Processes."),
+    force: bool = force_option("campaign recording or truth file"),
 ) -> None:
     """A fleet of arc-welding robots calibrated monthly (truth to ARCHIVE/fleet.truth.json)."""
     from pipeline.errors import MAX_CONTACTS, MAX_COUNT, at_most
@@ -105,7 +106,7 @@ def simulate_fleet_cmd(
         raise RobocalError(f"--step/--drift: robot numbers run from 1 to {robots}")
     try:
         simulate_fleet(out, FleetSpec(robots=robots, months=months, contacts=contacts, seed=seed,
-                                      changes=tuple(changes)), workers=workers)
+                                      changes=tuple(changes)), workers=workers, force=force)
     except ValueError as e:
         raise RobocalError(str(e)) from None
     err.print(f"wrote {robots * months} recordings under {out}")

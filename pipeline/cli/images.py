@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from pipeline.cli import err
+from pipeline.cli import err, force_option
 from pipeline.cli.importer import import_app
 
 BAD = ("unreadable", "wrong size", "no state")  # bad input: an error unless --skip-bad
@@ -35,6 +35,7 @@ def import_images(
     workers: int = typer.Option(0, "--workers", min=0, help="Detection processes (0: the CPU count)."),
     skip_bad: bool = typer.Option(False, "--skip-bad", help="Leave out unreadable images, images of another size "
                                   "and images without a row in the CSV (listed) instead of failing."),
+    force: bool = force_option(),
 ) -> None:
     """Detect the target in every image, pair each with the robot's state, write a recording `robocal run` calibrates."""
     from pipeline.camera.detect import detect_folder, image_files
@@ -42,7 +43,9 @@ def import_images(
     from pipeline.errors import RobocalError
     from pipeline.importers import images as im
     from pipeline.models import urdf as urdf_mod
+    from pipeline.recording.output import check_output, claim_output
 
+    check_output(out, force=force)  # before any work: an existing recording only with --force
     if (poses is None) == (joints is None):
         raise RobocalError("give the robot's state at each image with exactly one of --poses or --joints")
     if camera_on not in ("tip", "world"):
@@ -91,6 +94,7 @@ def import_images(
     campaign = {"mount": camera_on, "lens": lens, "n_dist": n_dist, "image_size": list(size),
                 "kinematics_known": poses is not None, "source_files": [str(folder), str(states_path)],
                 "robot_id": desc.name}
+    claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
     n = im.write_camera_recording(out, desc, tgt, dets, campaign, folder, keep_images)
     err.print(f"imported {n} of {len(dets)} images ({sum(len(d.ids) for d in used)} corners, {size[0]}x{size[1]} px, "
               f"camera on the {camera_on}) into {out}", highlight=False, soft_wrap=True)

@@ -6,6 +6,7 @@ import importlib
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 
 from pipeline.cli import PLAN, app, err
 
@@ -112,7 +113,7 @@ def plan_cmd(
             err.print("approach from both sides (rarer side's share of the contacts): " + ", ".join(
                 f"{j} {b['rarer_share']:.0%}" for j, b in bal["joints"].items()), highlight=False, soft_wrap=True)
         for w in doc.get("warnings", []):
-            err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
         if doc["stage"] < doc["stages"]:
             err.print(f"next: robocal simulate {system} --campaign {out} --out REC.mcap (or run it on the robot); "
                       f"robocal run REC.mcap --out RUN; robocal plan {system} --after RUN --select N --out NEXT.json")

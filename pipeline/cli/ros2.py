@@ -8,11 +8,12 @@ from typing import Optional
 
 import typer
 
-from pipeline.cli import bag_options
+from pipeline.cli import bag_options, force_option
 from pipeline.cli.importer import import_app
 
 BAG = bag_options.options()
 CAM = "Camera (a bag with images: --target)"
+DYN = "Dynamics (--measure effort: every JointState with its efforts)"
 
 
 @import_app.command("ros2")
@@ -25,6 +26,7 @@ def import_ros2(
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
     joint_topic: str = BAG["joint_topic"],
     measure_topic: Optional[list[str]] = BAG["measure_topic"], coupled: Optional[list[str]] = BAG["coupled"],
+    coupling_wins: bool = BAG["coupling_wins"],
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
@@ -53,6 +55,17 @@ def import_ros2(
                                           "images`' pose chain): only camera, hand-eye and board are fitted."),
     skip_bad: bool = typer.Option(False, "--skip-bad", rich_help_panel=CAM, help="Leave out images that cannot be "
                                   "read, of an unsupported encoding or of another size than CameraInfo (listed)."),
+    force: bool = force_option(),
+    effort_scale: list[str] = typer.Option([], "--effort-scale", rich_help_panel=DYN, help="N·m (N) per raw effort "
+                                           "unit, JOINT=K,… (as `import csv --measure effort`)."),
+    effort_offset: list[str] = typer.Option([], "--effort-offset", rich_help_panel=DYN, help="N·m (N) added, "
+                                            "JOINT=C,…; C = weight: g × the mass the joint carries."),
+    effort_mix: list[str] = typer.Option([], "--effort-mix", rich_help_panel=DYN, help="Raw efforts a joint's torque "
+                                         "combines, JOINT=EXPR (repeatable)."),
+    effort_joints: str = typer.Option("", "--effort-joints", rich_help_panel=DYN, help="Joints whose torque is "
+                                      "fitted and scored (default: all)."),
+    effort_units: Optional[str] = typer.Option(None, "--effort-units", rich_help_panel=DYN, help="Nm or raw "
+                                               "(default raw with a scale, else unknown)."),
 ) -> None:
     """Pair each measurement with the joint state where the robot stood still around it and write a
     recording `robocal run` calibrates; measurements taken while moving are listed and left out."""
@@ -60,7 +73,22 @@ def import_ros2(
     from pipeline.importers.ros2 import BagSpec
 
     from pipeline.errors import RobocalError
+    from pipeline.recording.output import check_output, claim_output
 
+    check_output(out, force=force)  # before any work: an existing recording only with --force
+    if measure == "effort":  # dynamics: the joint states' positions, velocities and efforts
+        from pipeline.cli.import_effort import write_effort_recording
+        from pipeline.importers.ros2_effort import read_effort_bag
+        from pipeline.models import urdf as urdf_mod
+
+        if tip is None or measure_topic or target is not None:
+            raise RobocalError("--measure effort needs --tip LINK and takes no --measure-topic or --target")
+        desc = urdf_mod.read(urdf, root, tip)
+        log = read_effort_bag(bag, desc, joint_topic, time)
+        claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
+        write_effort_recording(out, desc, log, str(urdf), effort_scale, effort_offset, effort_mix, effort_joints,
+                               effort_units, {"source_files": [str(bag)]}, robot_id)
+        return
     if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
         from pipeline.cli.ros2_camera import import_camera
         from pipeline.importers.ros2_camera import CameraSpec
@@ -73,11 +101,11 @@ def import_ros2(
                          n_dist=n_dist or (8 if lens == "pinhole" else 4), max_edge_px=max_edge_px,
                          clock_bound_s=clock_bound, clock_offset_s=clock_offset, workers=workers, skip_bad=skip_bad,
                          kinematics_known=kinematics_known)
-        import_camera(bag, urdf, root, tip, out, spec, cam, robot_id)
+        import_camera(bag, urdf, root, tip, out, spec, cam, robot_id, force=force)
         return
     mt, tips = bag_options.measure_topics(measure_topic, tip)
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time, tips=tips)
     done = import_bag(bag, urdf, root, tip, out, spec, sigma_m, sigma_rad, robot_id, on_read=bag_options.print_read,
-                      coupled=tuple(coupled or ()))
+                      coupled=tuple(coupled or ()), force=force, coupling_wins=coupling_wins)
     bag_options.print_written(done)

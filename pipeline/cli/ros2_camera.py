@@ -37,8 +37,10 @@ def _print_pairing(bag: Path, extras: dict) -> None:
         _say(f"[yellow]excluded:[/] {r['image_topic']} record {e['index']} at {e['t_s']:.3f} s: no joint states around it")
 
 
-def import_camera(bag: Path, urdf: Path, root: str, tip: str, out: Path, spec, cam, robot_id: str = "") -> None:
-    """`robocal import ros2 BAG --target …`: detections of the paired images → a camera recording."""
+def import_camera(bag: Path, urdf: Path, root: str, tip: str, out: Path, spec, cam, robot_id: str = "",
+                  force: bool = False) -> None:
+    """`robocal import ros2 BAG --target …`: detections of the paired images → a camera recording (an
+    existing recording at `out` replaced only with `force`, kept as NAME.bak)."""
     from pipeline.errors import RobocalError
     from pipeline.importers.images import write_camera_recording
     from pipeline.importers.ros2_camera import BAD, read_camera_bag
@@ -95,6 +97,9 @@ def import_camera(bag: Path, urdf: Path, root: str, tip: str, out: Path, spec, c
                 "kinematics_known": cam.kinematics_known, "robot_id": robot_id or desc.name, **extras}
     if k0 is not None:
         campaign["start_intrinsics"] = k0
+    from pipeline.recording.output import claim_output
+
+    claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
     n = write_camera_recording(out, desc, tgt, dets, campaign)
     _say(f"imported {n} of {len(dets)} paired images ({sum(len(d.ids) for d in used)} corners, "
          f"{info.width}x{info.height} px, camera on the {cam.mount}) into {out}")

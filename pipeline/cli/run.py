@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from pipeline.cli import CALIBRATE, app, bag_options, console, err
@@ -47,7 +48,16 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
             ("RMS before", res(s.get("rms_before_m"))), ("RMS after", res(s.get("rms_after_m"))),
             ("held-out RMS", res(s.get("holdout_rms_m"))),
             ("parameters identified / total", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}")]
-    if s.get("rms_3d_after_m") is not None:  # the figure other tools publish: norm of each 3-D error, RMS
+    if s.get("family") == "dynamics":  # torques, N·m (N for a prismatic joint)
+        nm = lambda v: "—" if v is None else f"{v:.4f} N·m"  # noqa: E731
+        rows = [("system", "urdf (dynamics)"), ("status", s.get("status", "—")),
+                ("samples", str(s.get("n_measurements", "—"))),
+                ("torque RMS after (fit)", nm(s.get("rms_after_Nm"))),
+                ("held-out torque RMS (contiguous blocks)", nm(s.get("holdout_rms_Nm"))),
+                ("base parameters / parameters", f"{s.get('n_identifiable', '—')} / {s.get('n_parameters', '—')}"),
+                ("condition number (base regressor, scaled)", f"{s.get('condition_number', float('nan')):.1f}"),
+                ("model choice (held-out arbiter)", str(s.get("model_choice_label", "—")))]
+    elif s.get("rms_3d_after_m") is not None:  # the figure other tools publish: norm of each 3-D error, RMS
         rows[3:3] = [("RMS of the 3-D error before / after", f"{mm(s.get('rms_3d_before_m'))} / {mm(s['rms_3d_after_m'])}"),
                      ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(s.get("holdout_kind", "")
                       ).startswith("whole") else "k-fold, within this recording") + ")", mm(s.get("holdout_rms_3d_m")))]
@@ -74,7 +84,7 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
         t.add_row(k, str(v))
     console(stderr=True).print(t)
     for w in doc.get("warnings", []):
-        err.print(f"[yellow]warning:[/] {w}", highlight=False, soft_wrap=True)
+        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
     if s.get("status_reason"):
         colour = "red" if s.get("status") in ("insufficient", "fail") else "yellow"
         err.print(f"[{colour}]{s.get('status')}:[/] {s['status_reason']}", highlight=False, soft_wrap=True)
@@ -206,6 +216,7 @@ def run_cmd(
                                       rich_help_panel=bag_options.RUN_PANEL),
     joint_topic: str = BAG["joint_topic"], measure_topic: Optional[list[str]] = BAG["measure_topic"],
     coupled: Optional[list[str]] = bag_options.options()["coupled"],
+    coupling_wins: bool = bag_options.options()["coupling_wins"],
     measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
     time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
@@ -243,7 +254,7 @@ def run_cmd(
         importer = lambda rec: import_camera(recording, urdf, root, tip, rec, spec, cam)  # noqa: E731
     recording = run_input(recording, out, urdf, root, tip, spec, sigma_m, sigma_rad,
                           on_read=bag_options.print_read, on_written=bag_options.print_written, importer=importer,
-                          coupled=tuple(coupled or ()))
+                          coupled=tuple(coupled or ()), coupling_wins=coupling_wins)
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
@@ -254,9 +265,10 @@ def run_cmd(
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
     if physics is not None or payload:  # the model's gravity terms (default auto), chosen at ingest for every stage
-        from pipeline.systems.urdf_robot import check_physics_input
+        from pipeline.physics.payload import check_physics_input
 
-        check_physics_input(recording, physics, payload)  # one line before any stage, not a failed run
+        for w in check_physics_input(recording, physics, payload):  # one line before any stage, not a failed run
+            err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
         params.setdefault("ingest", {}).update({"physics": physics, "payload": list(payload or [])})
     try:
         outs = run_pipeline(recording, out, params, force=force, log=_log,

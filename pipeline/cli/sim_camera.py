@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from pipeline.cli import err, simulate_app
+from pipeline.cli import err, force_option, simulate_app
 
 
 def cell_of(path: Path, doc: dict):
@@ -48,6 +48,7 @@ def camera_cmd(
     seed: int = typer.Option(0, "--seed", help="Random seed (truth, image noise)."),
     noise: float = typer.Option(2.0, "--noise-grey", min=0.0, help="Grey-level noise of the images, 1σ of 255."),
     blur_px: float = typer.Option(0.6, "--blur-px", min=0.0, help="Gaussian blur of the images, σ px."),
+    force: bool = force_option("truth file"),
 ) -> None:
     """Render the planned images on a true cell: the campaign's nominal cell plus errors
     (`pipeline.plan.camera_check.true_cell`: joint offsets, hand-eye, board, intrinsics, a lens)."""
@@ -55,13 +56,12 @@ def camera_cmd(
     from pipeline.errors import RobocalError
     from pipeline.plan.camera_check import true_cell
     from pipeline.plan.campaign import load_document, read_pose
-    from pipeline.recording.output import check_output, generated
+    from pipeline.recording.output import check_outputs, claim_outputs, generated
     from pipeline.simulate.camera_images import write_campaign
 
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise RobocalError(f"--out {out}: exists and is not an empty folder (robocal writes the images into a new one)")
-    if truth is not None:
-        check_output(truth, "truth")
+    check_outputs(force, truth=truth)  # an existing truth file only with --force (kept as NAME.bak)
     doc = load_document(campaign_file)
     model, x, desc = cell_of(campaign_file, doc)
     q = read_pose(campaign_file, "urdf", list(desc.joint_names))
@@ -74,6 +74,7 @@ def camera_cmd(
         files = write_campaign(out, model, x_true, q, target, rng, blur_px=blur_px, noise=noise)
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)
+        claim_outputs(force, truth=truth)
         truth.write_text(json.dumps(generated({"parameters": dict(zip(names, map(float, x_true))),
                                                "campaign_file": str(campaign_file), "seed": seed}), indent=1))
     err.print(f"{len(files)} images of {target.spec} rendered at the planned joints into {out}; next: robocal import "

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from pipeline.cli import err, simulate_app
+from pipeline.cli import err, force_option, simulate_app
 
 
 @simulate_app.command("delta-tracker")
@@ -37,6 +37,7 @@ def delta_tracker_cmd(
                                       "identification for (simplified, extended); default: none (simplified)."),
     campaign_file: Path = typer.Option(None, "--campaign", help="Execute this planned pose campaign "
                                        "(robocal plan delta-tracker --out) instead of the grid."),
+    force: bool = force_option(),
 ) -> None:
     """Laser-tracker campaign of seed 003's 90° Delta robot."""
     from pipeline.errors import at_most
@@ -45,13 +46,11 @@ def delta_tracker_cmd(
         at_most(option, value)
     from pipeline.errors import RobocalError
     from pipeline.models.delta import Delta
-    from pipeline.recording.output import check_output, distinct_outputs
+    from pipeline.recording.output import check_outputs, claim_outputs
     from pipeline.simulate.delta_recording import write
     from pipeline.simulate.delta_tracker import TRUTH_MODELS, Campaign, Noise, random_truth
 
-    if truth is not None:
-        check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
-        distinct_outputs(out=out, truth=truth)
+    check_outputs(force, out=out, truth=truth)  # before any work: an existing recording only with --force
     if truth_model not in TRUTH_MODELS:
         raise RobocalError(f"--truth-model must be one of {', '.join(TRUTH_MODELS)}, not {truth_model!r}")
     if model_variant not in (None, "simplified", "extended"):
@@ -89,6 +88,7 @@ def delta_tracker_cmd(
         raise RobocalError(str(e)) from None
     variations = Variations(both_sides=both_sides, passes=passes, warmup_s=warmup,
                             warm_up=(warm.tau_s, warm.rise_k) if warm else (), temperature_sensor=temperature_sensor)
+    claim_outputs(force, out=out, truth=truth)  # with --force the old files kept as NAME.bak
     with err.status("simulating the tracker campaign…"):
         sim = write(out, delta, true, campaign, noise, truth, injected, variations, model_variant)
     err.print(f"wrote {out} ({sim.stream_t_ns.size} encoder samples, {sim.t_ns.size} tracker points, "

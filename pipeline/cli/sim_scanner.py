@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from pipeline.cli import err, simulate_app
+from pipeline.cli import err, force_option, simulate_app
 
 
 @simulate_app.command("scorbot-scanner")
@@ -31,6 +31,7 @@ def scorbot_scanner_cmd(
                                              "each pose servoed onto its grid line from its planned joints on the true arm "
                                              "(a first stage's operator poses: jogged onto the nearest line). Repeat for the "
                                              "stages of a staged campaign: run back to back, one recording."),
+    force: bool = force_option(),
 ) -> None:
     """Laser-stripe scanner on a SCORBOT-ER VII (seed 001): stripe crossings of a printed 30 mm grid."""
     from pipeline.errors import at_most
@@ -42,12 +43,10 @@ def scorbot_scanner_cmd(
     from pipeline.simulate import scorbot_scanner as sim
     from pipeline.errors import RobocalError
     from pipeline.simulate.effects import parse_effect
-    from pipeline.recording.output import check_output, distinct_outputs, generated
+    from pipeline.recording.output import check_outputs, claim_outputs, generated
     from pipeline.systems import scorbot_scanner as sc
 
-    if truth is not None:
-        check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
-        distinct_outputs(out=out, truth=truth)
+    check_outputs(force, out=out, truth=truth)  # before any work: an existing recording only with --force
     try:
         injected = tuple(parse_effect(e) for e in effect)
         sim.check_effects(injected)
@@ -91,6 +90,7 @@ def scorbot_scanner_cmd(
                               "nominal": {n: float(v) for n, v in zip(sc.cam.SCANNER_NAMES, sc.nominal_scanner())},
                               "source": "seed 001 Table 2 (bounds); nominal = middle of each bound"}}
     out.parent.mkdir(parents=True, exist_ok=True)
+    claim_outputs(force, out=out, truth=truth)  # with --force the old files kept as NAME.bak
     write_campaign(out, meta, (result.stream_t_ns, result.stream_q, [j.name for j in nominal.joints]),
                    sim.stripe_messages(result, pattern))
     if truth is not None:

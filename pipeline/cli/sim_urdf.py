@@ -9,7 +9,7 @@ from typing import Optional
 import numpy as np
 import typer
 
-from pipeline.cli import err, simulate_app
+from pipeline.cli import err, force_option, simulate_app
 
 
 @simulate_app.command("urdf")
@@ -46,6 +46,7 @@ def urdf_cmd(
     payload_kg: float = typer.Option(0.0, "--payload-kg", min=0.0, help="A payload at the tip the URDF does not describe, kg."),
     payload_com: str = typer.Option("0,0,0.05", "--payload-com",
                                     help="The payload's centre of mass in the tip link's frame, m (x,y,z)."),
+    force: bool = force_option(),
 ) -> None:
     """Random truth (errors of the stated size) and a campaign (random configurations, or a planned
     CAMPAIGN.json executed on the true robot), written as a URDF recording."""
@@ -64,16 +65,14 @@ def urdf_cmd(
     from pipeline.models.urdf_arm import UrdfArm
     from pipeline.plan.campaign import read_pose
     from pipeline.recording.joint_state_batch import COMMANDED_POSITIONS
-    from pipeline.recording.output import check_output, distinct_outputs, generated
+    from pipeline.recording.output import check_outputs, claim_outputs, generated
     from pipeline.simulate import urdf_drive
     from pipeline.simulate.urdf_robot import campaign, random_truth
     from pipeline.systems.urdf_robot import model_for
 
     if measure not in ("point", "pose", "plane", "coincidence"):
         raise RobocalError(f"--measure {measure!r}: expected point, pose, plane or coincidence")
-    if truth is not None:
-        check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
-        distinct_outputs(out=out, truth=truth)
+    check_outputs(force, out=out, truth=truth)  # before any work: an existing recording only with --force
     desc = urdf_mod.read(urdf, root, tip)
     arm = UrdfArm(desc)
     model = model_for(arm, measure, {}, [f"socket{i}" for i in range(groups)])
@@ -110,6 +109,7 @@ def urdf_cmd(
         camp["planes"] = [{**p, "known": True} for p in tr.planes]
     if measure == "pose":
         camp |= {"sigma_m": max(noise_mm * 1e-3, 1e-6), "sigma_rad": max(np.radians(noise_deg), 1e-6)}
+    claim_outputs(force, out=out, truth=truth)  # with --force the old files kept as NAME.bak
     n = write_urdf_recording(out, desc, measure, camp, table, stream=stream)
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)

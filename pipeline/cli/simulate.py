@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from pipeline.cli import err, simulate_app
+from pipeline.cli import err, force_option, simulate_app
 
 
 @simulate_app.command("arc-welder")
@@ -40,6 +40,7 @@ def arc_welder_cmd(
     campaign_file: list[Path] = typer.Option([], "--campaign", help="Execute this planned campaign (robocal plan --out) "
                                              "on the true robot instead of drawing targets; misses go to /touch/miss. "
                                              "Repeat for the stages of a staged campaign: run back to back, one recording."),
+    force: bool = force_option(),
 ) -> None:
     """Touch-sensing campaign of seed 000's arc-welding arm on the stepped jig."""
     from pipeline.errors import MAX_CONTACTS, MAX_COUNT, at_most
@@ -47,13 +48,11 @@ def arc_welder_cmd(
     for option, value in (("--contacts", contacts),):
         at_most(option, value, MAX_CONTACTS if option == "--contacts" else MAX_COUNT)
     from pipeline.models.jig import stepped_block
-    from pipeline.recording.output import check_output, distinct_outputs
+    from pipeline.recording.output import check_outputs, claim_outputs
     from pipeline.simulate.arc_welder import Campaign, Noise, simulate, truth_document
     from pipeline.systems import arc_welder as aw
 
-    if truth is not None:
-        check_output(truth, "truth")  # before the simulation: never over a file robocal did not create
-        distinct_outputs(out=out, truth=truth)
+    check_outputs(force, out=out, truth=truth)  # before any work: an existing recording only with --force
     nominal = aw.nominal_arm()
     true = aw.random_truth(nominal, np.random.default_rng(seed + 1_000_003)) if random_errors else aw.reference_truth()
     campaign, noise = Campaign(contacts=contacts, seed=seed), Noise(scale=noise_scale)
@@ -73,6 +72,7 @@ def arc_welder_cmd(
     thermal = (warm_up, temperature_sensor)
     effects = (effect or payloads or search_speeds or face_order != "shuffled" or warm_up or temperature_sensor
                or payload_pairs)
+    claim_outputs(force, out=out, truth=truth)  # with --force the old files kept as NAME.bak
     if campaign_file:  # a planned campaign on the true robot, with the effects when any are asked for
         _run_campaign(out, truth, nominal, true, jig, campaign_file, noise, seed, robot_id,
                       _effect_options(effect, payloads, search_speeds, face_order, thermal, payload_pairs) if effects

@@ -3,7 +3,9 @@
 Targets CSV (header row; SI units, work frame — the jig frame {W} for the arc welder, the robot
 frame {A} for the Delta): ``x,y,z`` (m); optional ``qw,qx,qy,qz`` (tool orientation, unit
 quaternion, scalar first); optional ``q_<joint>`` for every joint (the program's nominal joint
-angles, rad: the branch to keep); optional ``name``.  Program CSV: per target ``row``, ``name``,
+angles, rad: the branch to keep); optional ``name``.  Any other column, ``q_`` columns for only some
+joints, or a joint angle beyond its limits (degrees given as radians; `importers.bounds`) is a
+one-line error naming the file and the column.  Program CSV: per target ``row``, ``name``,
 ``status``, the calibrated joints ``q_<joint>`` (rad), the corrected target for a nominal
 controller ``x_cmd,y_cmd,z_cmd`` (+ ``qw_cmd…`` with orientation), ``predicted_sigma_m`` (1σ
 3-D tool-point error of the calibrated model there), ``correction_m``, ``sigma_min_m``,
@@ -22,17 +24,26 @@ from scipy.spatial.transform import Rotation
 
 from pipeline.compensate import serial
 from pipeline.errors import RobocalError
-from pipeline.importers.csv_text import check_bound, read_columns
+from pipeline.importers.bounds import check_bound, check_joints
+from pipeline.importers.csv_text import read_columns
 from pipeline.importers.csv_text import numbers as parse_numbers
 
 QUAT = ("qw", "qx", "qy", "qz")
 
 
-def read_targets(path: Path, joint_names: list[str]) -> dict:
-    """Targets from CSV: p (N,3), R (N,3,3) or None, hint (N,n) or None, names (one-line errors)."""
+def read_targets(path: Path, joint_names: list[str], ranges: tuple | None = None) -> dict:
+    """Targets from CSV: p (N,3), R (N,3,3) or None, hint (N,n) or None, names (one-line errors);
+    `ranges`: (lower, upper, angular) of the joints (`joint_ranges`), the hints checked against them."""
     hint_cols = [f"q_{j}" for j in joint_names]
-    header, t, n_rows = read_columns(path, {"x", "y", "z", "name", *QUAT, *hint_cols})
+    known = ["x", "y", "z", "name", *QUAT, *hint_cols]
+    header, t, n_rows = read_columns(path, set(known))
     cols = set(header)
+    if unknown := [c for c in header if c not in known]:
+        raise RobocalError(f"{path}: column {unknown[0]!r} is not a target column (x,y,z; qw,qx,qy,qz; "
+                           f"q_<joint> for {', '.join(joint_names)}; name)")
+    if (some := [c for c in hint_cols if c in cols]) and len(some) < len(hint_cols):
+        raise RobocalError(f"{path}: nominal joints for some joints only ({', '.join(some)}); give q_<joint> for "
+                           f"every joint ({', '.join(hint_cols)}) or none")
     if missing := [c for c in ("x", "y", "z") if c not in cols]:
         raise RobocalError(f"{path}: missing column(s) {', '.join(missing)} (need x,y,z in m)")
     if n_rows == 0:
@@ -60,6 +71,10 @@ def read_targets(path: Path, joint_names: list[str]) -> dict:
             raise RobocalError(f"{path}: row {bad[0] + 1} (line {bad[0] + 2}): quaternion norm {norm[bad[0]]:.6g} is not 1")
         R = Rotation.from_quat(qv[:, [1, 2, 3, 0]]).as_matrix()
     hint = numbers(hint_cols) if set(hint_cols) <= cols else None
+    if hint is not None and ranges is not None:
+        check_joints(hint, list(joint_names), *ranges,
+                     where=lambda i, k: f"{path}: row {i + 1} (line {i + 2}), column {hint_cols[k]}",
+                     degrees_hint="compensate reads joints in rad, m for prismatic joints")
     names = list(t["name"]) if "name" in cols else [""] * n_rows
     return {"p": p, "R": R, "hint": hint, "names": names}
 
@@ -167,10 +182,11 @@ def compensate_run(run: dict, targets: dict, payload: tuple = (), physics: bool 
     raise RobocalError(f"compensation is not available for system {run['system']} yet")
 
 
-def check_payload(run: dict, payload: tuple) -> None:
-    """A payload needs a calibrated physics term and a link of the URDF (one-line errors)."""
+def check_payload(run: dict, payload: tuple, items=()) -> list[str]:
+    """A payload needs a calibrated physics term and a link of the URDF, within the robot's bounds
+    (`physics.payload.check_payloads`; `items`: the --payload texts): one-line errors; returns warnings."""
     if not payload:
-        return
+        return []
     from pipeline.compensate.tree import is_tree_model
 
     model = run["model"]
@@ -183,11 +199,27 @@ def check_payload(run: dict, payload: tuple) -> None:
     for _, link, _ in payload:
         if link not in links:
             raise RobocalError(f"--payload: link {link!r} is not in the run's URDF")
+    from pipeline.physics.payload import check_payloads
+
+    kin = model.kin
+    return check_payloads(kin.urdf, kin.root, list(kin.tips), list(items) or [f"{m:g}@{ln}" for m, ln, _ in payload],
+                          payload, "")
 
 
 def _chain_kin(model):
     kin = getattr(model, "kin", None)
     return kin if kin is not None and hasattr(kin, "chain") else None
+
+
+def joint_ranges(model) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(lower, upper, angular) of the calibrated chain's joints in `joint_names` order (None: not a chain)."""
+    kin = _chain_kin(model)
+    if kin is None or not hasattr(kin, "lower"):
+        return None
+    joints = getattr(kin, "all_joints", None) or getattr(getattr(kin, "desc", None), "movable", None) or ()
+    kind = {j.name: j.type for j in joints if hasattr(j, "type")}
+    angular = np.array([kind.get(n, "revolute") != "prismatic" for n in joint_names(model)])
+    return np.asarray(kin.lower, float), np.asarray(kin.upper, float), angular
 
 
 def joint_names(model) -> list[str]:

@@ -96,11 +96,12 @@ def simulate_campaign(archive: Path, spec: FleetSpec, r: int, m: int) -> dict:
             "recording": path.relative_to(archive).as_posix(), "x": true.vector().tolist()}
 
 
-def simulate_fleet(archive: Path, spec: FleetSpec = FleetSpec(), workers: int = 1) -> dict:
-    """Write every campaign of the fleet (`workers` processes); returns the truth document (also written)."""
+def simulate_fleet(archive: Path, spec: FleetSpec = FleetSpec(), workers: int = 1, force: bool = False) -> dict:
+    """Write every campaign of the fleet (`workers` processes); returns the truth document (also written).
+    Existing recordings (and the truth) are replaced only with `force`, each kept as NAME.bak."""
     from concurrent.futures import ProcessPoolExecutor
 
-    from pipeline.recording.output import check_output, generated
+    from pipeline.recording.output import check_output, claim_output, generated
     from pipeline.systems import arc_welder as aw
 
     archive = Path(archive)
@@ -109,9 +110,11 @@ def simulate_fleet(archive: Path, spec: FleetSpec = FleetSpec(), workers: int = 
         if c.param not in names:
             raise ValueError(f"unknown parameter {c.param!r}")
     jobs = [(archive, spec, r, m) for r in range(spec.robots) for m in range(1, spec.months + 1)]
-    truth_path = check_output(archive / "fleet.truth.json", "truth")  # before anything is written:
-    for job in jobs:  # a file robocal did not write is never replaced
-        check_output(campaign_path(*job))
+    truth_path = check_output(archive / "fleet.truth.json", "truth", force)  # before anything is written:
+    for job in jobs:  # a file robocal did not write is never replaced, a recording only with --force
+        check_output(campaign_path(*job), force=force)
+    for p in [truth_path] + [campaign_path(*job) for job in jobs]:
+        claim_output(p, "truth" if p == truth_path else "recording", force)
     from pipeline.progress import Ticker
 
     tick = Ticker("simulate fleet", total=len(jobs), unit="campaigns")

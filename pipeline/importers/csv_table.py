@@ -4,8 +4,10 @@ Columns are matched to the URDF chain's joints by header name (any order; other 
 measurement columns or ignored).  Units are declared (`joint_units` deg|rad for revolute joints,
 `length_units` mm|m for prismatic joints and positions) and converted to SI; a value beyond a
 joint's limits after conversion — the usual sign of degrees declared as radians — is an error
-naming file, row and column.  Several files may be given: their rows are concatenated and each
-row keeps its file's stem (the plane or group name for plane / coincidence measurements).
+naming file, row and column (`pipeline.importers.bounds`: the ranges and numeric bounds every
+importer shares; a reading past its limit by less than that range's slack is a warning).  A joint
+driven by others (`coupled`) has no column of its own unless `coupling_wins`.  Several files may be
+given: their rows are concatenated and each row keeps its file's stem (the plane or group name for plane / coincidence measurements).
 Optional columns ``dir_<joint>`` (−1/0/+1, point measurements) give each joint's direction of approach
 (`approach`): the sign of its last motion before the standstill, 0 unknown — what backlash needs.
 """
@@ -19,13 +21,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from pipeline.errors import RobocalError
-from pipeline.importers.csv_text import check_bound, numbers, read_columns
+from pipeline.importers.bounds import check_bound, joint_range
+from pipeline.importers.csv_text import numbers, read_columns
 from pipeline.models.urdf import RobotDescription
-
-# A reading beyond its URDF limit by more than this fraction of the joint's range (or, for a joint
-# without limits, beyond ±4π) is an error — the usual sign of degrees declared as radians.  Real
-# robots do read a little past their URDF limits: less than that is a warning.
-LIMIT_SLACK = 0.25
 
 
 @dataclass(frozen=True)
@@ -42,6 +40,8 @@ class CsvSpec:
     orientation_kind: str = "rpy"  # rpy (URDF roll, pitch, yaw; rad) | quat (x, y, z, w)
     group_from: str = "file"  # coincidence: "file" (stem) or "parent/file"
     planes: dict = field(default_factory=dict)  # plane name (file stem) -> {"normal": (3,), "offset": col or value}
+    coupled: tuple[str, ...] = ()  # joints driven by others (--coupled): no column of their own ...
+    coupling_wins: bool = False  # ... unless the user says the coupling replaces it (--coupling-wins)
 
 
 def _numeric(path: Path, cols: dict, name: str, scale: float = 1.0) -> np.ndarray:
@@ -102,11 +102,13 @@ def read_table(paths: list[Path], desc: RobotDescription, spec: CsvSpec) -> tupl
         if n == 0:
             raise RobocalError(f"{path}: no data rows")
         _need(path, header, names, "joint", used)
+        own = [c for c in spec.coupled if c in header]
+        if own and not spec.coupling_wins:
+            raise RobocalError(f"{path}: column {own[0]!r}: joint {own[0]!r} is given to --coupled but has its own "
+                               f"column; drop --coupled {own[0]} (the column wins) or add --coupling-wins (the "
+                               "coupling replaces the column)")
         q = np.stack([_numeric(path, cols, c, s) for c, s in zip(names, jscale)], axis=1)
-        finite = np.isfinite(hi - lo)
-        slack = np.where(finite, LIMIT_SLACK * np.where(finite, hi - lo, 0.0), 0.0)
-        lo_e = np.where(finite, lo - slack, np.where(ang, -4 * np.pi, -np.inf))
-        hi_e = np.where(finite, hi + slack, np.where(ang, 4 * np.pi, np.inf))
+        lo_e, hi_e = joint_range(lo, hi, ang)
         out_of = (q < lo_e) | (q > hi_e)
         beyond = ((q < lo) | (q > hi)) & ~out_of
         for k in np.flatnonzero(beyond.any(0)):

@@ -8,8 +8,8 @@ than the header, more than `MAX_COLUMNS` columns, a field over `MAX_FIELD_CHARS`
 
 Numbers are decimal literals as written by spreadsheets and numpy (``-1.5``, ``2e-3``, ``.5``,
 ``nan``, ``inf``); Python's other float spellings (``0_5``, ``١٢``) are not numbers here, and a
-finite value beyond `BOUND` (m, rad, after unit conversion by the caller) is damage, not a
-measurement.
+finite value beyond `pipeline.importers.bounds.BOUND` (m, rad, after unit conversion by the caller)
+is damage, not a measurement.
 """
 
 from __future__ import annotations
@@ -26,7 +26,6 @@ from pipeline.errors import RobocalError
 
 MAX_COLUMNS = 100_000  # columns of a header; a wider file is refused before any row is read
 MAX_FIELD_CHARS = 1 << 16  # characters of one field
-BOUND = 1e6  # |value| of a coordinate or joint value (m or rad): anything larger is damage
 _NUMBER = re.compile(r"\s*[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|nan|inf|infinity)\s*",
                      re.IGNORECASE | re.ASCII)
 
@@ -104,11 +103,3 @@ def _bad(s: str) -> float:
     if not s.strip():
         return float("nan")
     raise _NotANumber(s)
-
-
-def check_bound(path: Path, column: str, v: np.ndarray, first_line: int = 2, unit: str = "m or rad") -> None:
-    """One line when a finite value is beyond ±`BOUND` (after unit conversion)."""
-    bad = np.flatnonzero(np.isfinite(v) & (np.abs(v) > BOUND))
-    if bad.size:
-        raise RobocalError(f"{path}: row {bad[0] + first_line}: column {column!r}: {v[bad[0]]:.6g} is beyond "
-                           f"±{BOUND:g} ({unit}): not a measurement")

@@ -26,6 +26,7 @@ from scipy.spatial.transform import Rotation
 from pipeline.camera.detect import Detection
 from pipeline.camera.targets import Target
 from pipeline.errors import RobocalError
+from pipeline.importers.bounds import check_bound
 from pipeline.importers.recording import T0_NS
 from pipeline.models.urdf import RobotDescription, parse
 from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
@@ -75,6 +76,7 @@ def _numbers(path: Path, cols: dict, names: list[str]) -> np.ndarray:
                 raise RobocalError(f"{path}: row {i + 2}: column {c!r}: {v!r} is not a number") from None
             if not np.isfinite(out[i, j]):
                 raise RobocalError(f"{path}: row {i + 2}: column {c!r} is empty, NaN or inf")
+        check_bound(path, c, out[:, j])  # the bound every importer shares (importers.bounds)
     return out
 
 

@@ -39,6 +39,9 @@ def _check_same(recs: list) -> None:
                                    "measurement type")
 
 
+MERGED = "merge"  # the header's library note of a merged recording (derived: calibrate re-merges it)
+
+
 def merge(paths: list[Path], out: Path, registration: str = "shared") -> int:
     """Write the merged recording of `paths` to `out` (module docstring); returns rows written."""
     from pipeline.evaluate.apply import instrument_of
@@ -90,7 +93,7 @@ def merge(paths: list[Path], out: Path, registration: str = "shared") -> int:
     m0 = recs[0].metadata[META_URDF]
     desc = urdf.parse(m0["urdf"], m0["root"], m0["tip"], source=f"{paths[0]}: metadata robocal.urdf")
     desc = replace(desc, source=m0.get("source", desc.source))
-    return write_urdf_recording(out, desc, measure, campaign, table)
+    return write_urdf_recording(out, desc, measure, campaign, table, origin=MERGED)
 
 
 def merged_input(recordings: list[Path], out: Path, registration: str = "shared", run_folder: bool = True) -> Path:
@@ -107,6 +110,10 @@ def merged_input(recordings: list[Path], out: Path, registration: str = "shared"
     if not run_folder:
         Path(out).mkdir(parents=True, exist_ok=True)
         dst = Path(out) / "merged.mcap"
+        from pipeline.recording.output import library_of
+
+        if library_of(dst).endswith(f" {MERGED}"):  # calibrate's own merge of the last call: derived, re-merged
+            dst.unlink()
         merge(recordings, dst, registration)
         return dst
     from pipeline.stages.runfolder import claim, fresh_stage_dir, locked

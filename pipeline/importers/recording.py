@@ -21,14 +21,15 @@ T0_NS = 1_700_000_000_000_000_000  # a fixed epoch for tables without times (bit
 def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, campaign: dict,
                          table: dict[str, np.ndarray], labels: list[str] | None = None,
                          stream: dict[str, np.ndarray] | None = None, batch: int = 250,
-                         tips: list[str] | None = None) -> int:
+                         tips: list[str] | None = None, origin: str = "") -> int:
     """Write `table` (rows: ``joint_positions`` (n, n_joints) in the chain's joint order, plus
     the type's columns: ``position`` (n,3), ``target`` (n,), ``orientation`` (n,4) xyzw,
     ``plane``/``group`` (n,) names; optional ``timestamp_ns``) to `out`.  With `stream` (``t_ns`` (T,)
     sorted, ns; ``q`` (T, n_joints) rad / m; optional drive state ``q_cmd`` rad / m, ``effort``
-    N·m / N and ``current`` A, (T, n_joints), chain order) also the encoder stream, `batch` samples a message.
+    N·m / N (or raw, converted as the campaign's ``effort`` declares) and ``current`` A, and logged velocities
+    ``v`` rad/s / m/s, (T, n_joints), chain order) also the encoder stream, `batch` samples a message.
     `tips`: the measured links of a tree (several chains from the root; ``target`` is the tip index).
-    Returns rows written."""
+    `origin`: the header's library note (`RecordingWriter`).  Returns rows written."""
     q = np.asarray(table["joint_positions"], float)
     n = len(q)
     t = np.asarray(table.get("timestamp_ns", T0_NS + np.arange(n) * 1_000_000_000), np.int64)
@@ -38,7 +39,7 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
                  **({"tips": list(tips)} if tips else {})}
     st = None if stream is None else (np.asarray(stream["t_ns"], np.int64), np.asarray(stream["q"], float))
     scene = sorted(scene_events({META_URDF: meta_urdf, META_CAMPAIGN: camp}, st, (t, q)), key=lambda e: e[0])
-    with RecordingWriter(out) as w:
+    with RecordingWriter(out, origin=origin) as w:
         w.metadata(META_URDF, meta_urdf)
         w.metadata(META_CAMPAIGN, camp)
         for ts, tp, msg in scene:  # the robot for ROS / Foxglove tools (pipeline.recording.scene)
@@ -64,5 +65,6 @@ def write_urdf_recording(out: str | Path, desc: RobotDescription, measure: str, 
                 w.write_batch(ts[sl], np.asarray(stream["q"])[sl], desc.joint_names,
                               q_cmd=None if stream.get("q_cmd") is None else np.asarray(stream["q_cmd"])[sl],
                               effort=None if stream.get("effort") is None else np.asarray(stream["effort"])[sl],
-                              current=None if stream.get("current") is None else np.asarray(stream["current"])[sl])
+                              current=None if stream.get("current") is None else np.asarray(stream["current"])[sl],
+                              velocity=None if stream.get("v") is None else np.asarray(stream["v"])[sl])
     return n

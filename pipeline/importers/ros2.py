@@ -23,6 +23,7 @@ import numpy as np
 
 from pipeline.errors import RobocalError
 from pipeline.importers import standstill
+from pipeline.importers.bounds import check_values
 from pipeline.importers.ros2_messages import (  # noqa: F401 — the names other importers use from here
     JOINT_STATE,
     MEASURE_TYPES,
@@ -220,6 +221,7 @@ def read_joint_states(path: Path, topic: str, messages, joints: list[str]):
     if len(bad):
         i, k = bad[0]
         raise RobocalError(f"{at(path, topic, int(r[i]))}: joint {joints[k]!r} position is NaN or inf")
+    check_values(lambda i: f"{at(path, topic, int(r[i // J]))}: joint {joints[i % J]!r} position", q.ravel())
     report = {"n_messages": n, "n_used": len(q), "n_skipped_other_joints": n - len(q), "ignored_joints": sorted(ignored)}
     effort = None
     # efforts are optional (many drivers publish NaN or none for joints without torque sensing): when they

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import RobocalError
+from pipeline.importers.bounds import check_values
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 POINT = "geometry_msgs/msg/PointStamped"
@@ -64,6 +65,7 @@ def read_measurements(path: Path, topic: str, typename: str, datas: list[bytes])
     bad = np.flatnonzero(~np.isfinite(P).all(1) | (False if O is None else ~np.isfinite(O).all(1)))
     if len(bad):
         raise RobocalError(f"{at(path, topic, int(bad[0]))}: position or orientation is NaN or inf")
+    check_values(lambda i: f"{at(path, topic, i // 3)}: position {'xyz'[i % 3]}", P.ravel(), "m")
     if O is not None:
         norm = np.linalg.norm(O, axis=1)
         zero = np.flatnonzero(norm < 1e-9)

@@ -15,20 +15,25 @@ def tree_description(urdf: Path, root: str, tips: list[str], coupled: list[str])
     """(description of the read joints, {coupled joint: {terms, offset}} for the campaign) of the chains
     `root` → each of `tips` of the URDF file, joints coupled by `--coupled` texts and the URDF's `<mimic>`."""
     from pipeline.models import urdf as urdf_mod
-    from pipeline.models.urdf_tree import UrdfTree, parse_coupling
-    from pipeline.systems.urdf_robot import check_coupling
+    from pipeline.models.coupling import check_coupling, check_units, parse_coupling
+    from pipeline.models.urdf_tree import UrdfTree
 
     try:
         text = Path(urdf).read_text()
     except (OSError, UnicodeDecodeError) as e:
         raise RobocalError(f"{urdf}: cannot read URDF ({e.__class__.__name__}: {e})") from None
     descs = tuple(urdf_mod.parse(text, root, t, source=str(urdf), allow_mimic=True) for t in tips)
-    movable = {j.name for d in descs for j in d.movable}
+    types = {j.name: j.type for d in descs for j in d.movable}
+    movable = set(types)
     cp = {c: v for c, v in urdf_mod.mimic_couplings(text, str(urdf)).items() if c in movable}
+    check_coupling(cp, movable, f"{urdf}: <mimic>", types)
     given = {}
-    for c, t, o in map(parse_coupling, coupled):
+    for text_c in coupled:
+        c, t, o = parse_coupling(text_c)
         if c not in movable:
             raise RobocalError(f"--coupled {c!r}: not a movable joint of the chains {root} → {', '.join(tips)}")
+        check_units(text_c, types)
+        check_coupling({c: (t, o)}, movable, f"--coupled {text_c!r}", types)
         cp[c] = given[c] = (t, o)
     check_coupling(cp, movable, "--coupled")
     tree = UrdfTree(descs, coupled=tuple((c, tuple(sorted(t.items())), o) for c, (t, o) in sorted(cp.items())))

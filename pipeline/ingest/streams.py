@@ -22,7 +22,8 @@ TOUCH_CONTACT = "/touch/contact"
 @dataclass(frozen=True)
 class JointStream:
     """The encoder stream: sample times (ns since epoch), positions (T, n_joints) rad; the optional
-    drive state (T, n_joints), None when not logged: commanded positions rad / m, efforts N·m / N, motor currents A."""
+    drive state (T, n_joints), None when not logged: commanded positions rad / m, efforts N·m / N (or raw drive
+    units the campaign converts), motor currents A; the optional logged velocities (T, n_joints) rad/s / m/s."""
 
     t_ns: np.ndarray
     q: np.ndarray
@@ -31,6 +32,7 @@ class JointStream:
     q_cmd: np.ndarray | None = None
     effort: np.ndarray | None = None
     current: np.ndarray | None = None
+    velocity: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.t_ns.size
@@ -61,7 +63,7 @@ def joint_stream(rec: Recording) -> JointStream:
         except JSB.BatchError as e:
             raise RobocalError(f"{where(rec.path, JOINT_STATE, e.record)}: {e.why}") from None
         return JointStream(t_ns=b.t_ns, q=b.q, names=b.names, message_index=b.message_index, q_cmd=b.q_cmd,
-                           effort=b.effort, current=b.current)
+                           effort=b.effort, current=b.current, velocity=b.velocity)
     t, q, names, index = decode_json_stream(raw, rec.path, JOINT_STATE)
     return JointStream(t_ns=t, q=q, names=names, message_index=index)
 

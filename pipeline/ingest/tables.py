@@ -31,11 +31,13 @@ def channel_table(messages: list[dict], log_times: list[int] | None = None) -> p
 
 def encoder_table(stream: JointStream) -> dict[str, np.ndarray]:
     """`t_ns`, `q_<joint>` (rad) and `record` (the joint_state message of each sample); where the stream
-    carries drive state also `cmd_<joint>` (commanded, rad / m), `effort_<joint>` (N·m / N), `current_<joint>` (A)."""
+    carries drive state also `cmd_<joint>` (commanded, rad / m), `effort_<joint>` (N·m / N), `current_<joint>` (A),
+    and where it carries logged velocities `vel_<joint>` (rad/s / m/s)."""
     out = {"t_ns": stream.t_ns.astype(np.int64), "record": stream.message_index.astype(np.int64)}
     for j, name in enumerate(stream.names):
         out[f"q_{name}"] = stream.q[:, j]
-    for prefix, v in (("cmd", stream.q_cmd), ("effort", stream.effort), ("current", stream.current)):
+    for prefix, v in (("cmd", stream.q_cmd), ("effort", stream.effort), ("current", stream.current),
+                      ("vel", stream.velocity)):
         if v is not None:
             for j, name in enumerate(stream.names):
                 out[f"{prefix}_{name}"] = v[:, j]

@@ -282,35 +282,3 @@ class UrdfTree:
                 "units": {"length": "m", "angle": "rad"}, "joint_names": self.joint_names,
                 "coupled": {c: {"terms": t, "offset": o} for c, (t, o) in self.coupling.items()},
                 "parameters": {n: float(v) for n, v in zip(self.parameter_names(), x)}}
-
-
-def parse_coupling(text: str) -> tuple[str, dict[str, float], float]:
-    """``"J=-A-B"``, ``"J=0.5*A+0.1"`` → (J, {A: -1, B: -1}, offset rad): a joint driven by a linear
-    combination of others plus a constant."""
-    import re
-
-    from pipeline.errors import RobocalError
-
-    name, sep, rhs = str(text).partition("=")
-    name, rhs = name.strip(), rhs.replace(" ", "")
-    num = r"(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
-    term = re.compile(rf"([+-]?)(?:({num})\*?)?([A-Za-z_][\w./:]*)?")
-    terms: dict[str, float] = {}
-    offset, pos = 0.0, 0
-    while sep and name and pos < len(rhs):
-        m = term.match(rhs, pos)
-        if m is None or m.end() == pos or not (m.group(2) or m.group(3)):
-            break
-        sign = -1.0 if m.group(1) == "-" else 1.0
-        factor = float(m.group(2)) if m.group(2) else 1.0
-        if m.group(3):
-            terms[m.group(3)] = terms.get(m.group(3), 0.0) + sign * factor
-        else:
-            offset += sign * factor
-        pos = m.end()
-    if not sep or not name or not terms or pos != len(rhs):
-        raise RobocalError(f"--coupled {text!r}: expected JOINT=EXPR, a linear combination of joints "
-                           "(e.g. torso_3=-torso_1-torso_2, j=0.5*a+0.1)")
-    if name in terms:
-        raise RobocalError(f"--coupled {text!r}: joint {name!r} is driven by itself (a cycle)")
-    return name, terms, offset

@@ -29,18 +29,20 @@ def singular_values(J: np.ndarray) -> np.ndarray:
 
 
 def indices(s: np.ndarray, m: int) -> dict[str, float]:
-    """O1..O5 of singular values `s` (largest first) of an m-row scaled Jacobian."""
-    s = np.asarray(s, float)
+    """O1..O5 of singular values `s` (largest first) of an m-row scaled Jacobian; all 0 where the
+    Jacobian has no rows, a zero (or non-finite) singular value: nothing is observable then."""
+    s = np.sort(np.asarray(s, float))[::-1]
     L = s.size
-    if L == 0 or s[-1] <= 0:
+    if L == 0 or m <= 0 or not np.all(np.isfinite(s)) or s[-1] <= 0:
         return {"O1": 0.0, "O2": 0.0, "O3": 0.0, "O4": 0.0, "O5": 0.0}
-    return {
-        "O1": float(np.exp(np.mean(np.log(s))) / np.sqrt(m)),
-        "O2": float(s[-1] / s[0]),
-        "O3": float(s[-1]),
-        "O4": float(s[-1] ** 2 / s[0]),
-        "O5": float(1.0 / np.sum(1.0 / s)),
-    }
+    with np.errstate(over="ignore", under="ignore", divide="ignore"):  # subnormal σ: O4, O5 → 0, not a warning
+        return {
+            "O1": float(np.exp(np.mean(np.log(s))) / np.sqrt(m)),
+            "O2": float(s[-1] / s[0]),
+            "O3": float(s[-1]),
+            "O4": float(s[-1] ** 2 / s[0]),
+            "O5": float(1.0 / np.sum(1.0 / s)),
+        }
 
 
 def correlation(cov: np.ndarray) -> np.ndarray:

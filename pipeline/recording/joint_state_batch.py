@@ -12,12 +12,16 @@ Core functions are pure: `encode` (arrays → one message), `decode` (all messag
 message checked; a bad one raises `BatchError` with its index), `descriptor_problem`.
 Units: times ns since the Unix epoch, positions rad (row-major, sample × joint).
 
-Optional drive state (commanded positions, efforts, motor currents), same (sample, joint) layout as `positions`, empty when not logged:
+Optional per-sample joint velocities (`velocities`, rad/s; m/s for a prismatic joint: what the controller
+logged, field 10) and drive state (commanded positions, efforts, motor currents), same (sample, joint) layout
+as `positions`, empty when not logged:
 `commanded_positions` (rad / m, what the controller commanded) and `efforts` (the drive's measured
 torque on the link along the joint axis, N·m; force N for a prismatic joint — ROS JointState.effort's
-convention), and `motor_currents` (A; a torque only once multiplied by the joint's torque constant,
+convention; raw drive units where the campaign declares an effort → torque conversion, `pipeline.dynamics.effort`),
+and `motor_currents` (A; a torque only once multiplied by the joint's torque constant,
 which `pipeline.ingest.drive` does where the campaign states one).  A registered schema written
-before these fields (fields 1–6 only) is still robocal's.
+before these fields (fields 1–6 only) is still robocal's.  A dynamics identification reads position, velocity
+and effort from this one stream (`pipeline.dynamics`).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ _F = D.FieldDescriptorProto
 _NS = _F.TYPE_SFIXED64  # an epoch time: fixed 8 bytes (a varint would take 9)
 # the optional drive state's field names (7, 8, 9), the one spelling every module imports
 COMMANDED_POSITIONS, EFFORTS, MOTOR_CURRENTS = "commanded_positions", "efforts", "motor_currents"
+VELOCITIES = "velocities"  # field 10: logged joint velocities, rad/s (m/s prismatic)
 # (name, number, type, label): the message's fields, in .proto order.  Sample times are offsets from
 # `timestamp_ns` (varints of ~4·10⁶ ns): absolute times cost 1 MB more after zstd on the bundled campaign
 FIELDS: tuple[tuple[str, int, int, int], ...] = (
@@ -52,10 +57,12 @@ FIELDS: tuple[tuple[str, int, int, int], ...] = (
     (COMMANDED_POSITIONS, 7, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
     (EFFORTS, 8, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
     (MOTOR_CURRENTS, 9, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
+    (VELOCITIES, 10, _F.TYPE_DOUBLE, _F.LABEL_REPEATED),
 )
 OPTIONAL_TIMES = ("device_timestamps_ns", "host_receive_times_ns")  # empty or one per sample
 OPTIONAL_SAMPLES = (COMMANDED_POSITIONS, EFFORTS, MOTOR_CURRENTS)  # drive state: empty or samples × joints
-ADDED_LATER = frozenset({7, 8, 9})  # fields a registered schema of an older robocal may lack
+STREAM_SAMPLES = (*OPTIONAL_SAMPLES, VELOCITIES)  # every optional samples × joints field, in `Batches` order
+ADDED_LATER = frozenset({7, 8, 9, 10})  # fields a registered schema of an older robocal may lack
 
 
 def _json_name(name: str) -> str:
@@ -90,7 +97,8 @@ class BatchError(ValueError):
 class Batches:
     """The decoded stream: sample times (T,) ns, positions (T, n_joints) rad, joint names, the
     message of each sample (T,), the optional raw device / host receive times (T,) ns, and the
-    optional drive state (T, n_joints): commanded positions rad / m, efforts N·m / N, motor currents A."""
+    optional drive state (T, n_joints): commanded positions rad / m, efforts N·m / N, motor currents A, and
+    the optional logged velocities (T, n_joints) rad/s / m/s."""
 
     t_ns: np.ndarray
     q: np.ndarray
@@ -101,15 +109,17 @@ class Batches:
     q_cmd: np.ndarray | None = None
     effort: np.ndarray | None = None
     current: np.ndarray | None = None
+    velocity: np.ndarray | None = None
 
 
 def encode(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], device_t_ns: np.ndarray | None = None,
            host_t_ns: np.ndarray | None = None, q_cmd: np.ndarray | None = None,
-           effort: np.ndarray | None = None, current: np.ndarray | None = None) -> bytes:
+           effort: np.ndarray | None = None, current: np.ndarray | None = None,
+           velocity: np.ndarray | None = None) -> bytes:
     """One message: samples at `t_ns` (n,) ns since the epoch (stored as `timestamp_ns` = t[0] and
     offsets t − t[0]), positions `q` (n, len(names)) rad; optional raw device times and host
-    receive times (n,) ns; optional commanded positions (rad / m), efforts (N·m / N) and motor currents (A),
-    (n, len(names))."""
+    receive times (n,) ns; optional commanded positions (rad / m), efforts (N·m / N), motor currents (A) and
+    velocities (rad/s / m/s), (n, len(names))."""
     t = np.asarray(t_ns, np.int64)
     q = np.asarray(q, np.float64)
     if t.ndim != 1 or not t.size or q.shape != (t.size, len(names)):
@@ -122,7 +132,7 @@ def encode(t_ns: np.ndarray, q: np.ndarray, names: Sequence[str], device_t_ns: n
             if v.shape != t.shape:
                 raise ValueError(f"{key} has {v.size} values for {t.size} samples")
             getattr(m, key).extend(v.tolist())
-    for key, v in zip(OPTIONAL_SAMPLES, (q_cmd, effort, current)):
+    for key, v in zip(STREAM_SAMPLES, (q_cmd, effort, current, velocity)):
         if v is not None:
             v = np.asarray(v, np.float64)
             if v.shape != q.shape:
@@ -136,7 +146,7 @@ def from_dict(msg: dict) -> bytes:
     q = np.asarray(msg["positions"], np.float64)
     names = msg["joint_names"]
     q = q.reshape(-1, len(names)) if q.size == 0 else q
-    drive = [None if msg.get(k) is None else np.asarray(msg[k], np.float64).reshape(q.shape) for k in OPTIONAL_SAMPLES]
+    drive = [None if msg.get(k) is None else np.asarray(msg[k], np.float64).reshape(q.shape) for k in STREAM_SAMPLES]
     return encode(np.asarray(msg["timestamps_ns"], np.int64), q, names,
                   *(msg.get(k) for k in OPTIONAL_TIMES), *drive)
 
@@ -201,7 +211,7 @@ def decode(raw: Sequence[bytes]) -> Batches:
             i = int(wrong[0])
             raise BatchError(i, f"{key} has {k[i]} values for {n[i]} samples")
         extra.append(_join(msgs, key, np.int64))
-    for key in OPTIONAL_SAMPLES:
+    for key in STREAM_SAMPLES:
         extra.append(_drive(msgs, key, n * nj, index, total, nj))
     return Batches(t, q, names, index, *extra)
 
@@ -236,7 +246,7 @@ def to_dict(body: bytes, record: int = 0) -> dict:
     for key in OPTIONAL_TIMES:
         if len(getattr(m, key)):
             out[key] = list(getattr(m, key))
-    for key in OPTIONAL_SAMPLES:
+    for key in STREAM_SAMPLES:
         v = np.asarray(getattr(m, key), np.float64)
         if v.size:
             out[key] = v.reshape(-1, nj).tolist() if v.size % nj == 0 else v.tolist()
@@ -299,8 +309,8 @@ def bad_records(raw: Sequence[bytes]) -> list[tuple[int, str]]:
                next((f"{k} has {len(getattr(m, k))} values for {n} samples" for k in OPTIONAL_TIMES
                      if len(getattr(m, k)) not in (0, n)), "") or
                next((f"{k} has {len(getattr(m, k))} values, expected {n} samples × {len(nm)} joints"
-                     for k in OPTIONAL_SAMPLES if len(getattr(m, k)) not in (0, nq)), "") or
-               next((f"{k} hold NaN or inf" for k in ("positions", *OPTIONAL_SAMPLES)
+                     for k in STREAM_SAMPLES if len(getattr(m, k)) not in (0, nq)), "") or
+               next((f"{k} hold NaN or inf" for k in ("positions", *STREAM_SAMPLES)
                      if not np.isfinite(np.asarray(getattr(m, k), np.float64)).all()), ""))
         if why:
             out.append((i, why))

@@ -28,7 +28,7 @@ from mcap.writer import CompressionType, Writer
 
 from pipeline import __version__
 from pipeline.errors import RobocalError, where
-from pipeline.recording.output import check_output
+from pipeline.recording.output import ACQUIRED, check_output
 from pipeline.ingest.legacy_json_stream import decode_json_stream
 from pipeline.recording import joint_state_batch as JSB
 from pipeline.recording.reader import MAGIC, decode
@@ -60,7 +60,7 @@ def upgrade(src: str | Path, dst: str | Path) -> dict:
         raise RobocalError(f"{src}: no such file")
     if src.resolve() == dst.resolve():
         raise RobocalError(f"{dst}: upgrade writes a new file; choose another output path")
-    check_output(dst)
+    check_output(dst, force=None)
     data = src.read_bytes()
     if data[:len(MAGIC)] != MAGIC:
         raise RobocalError(f"{src}: not an MCAP file (bad magic bytes)")
@@ -78,7 +78,8 @@ def upgrade(src: str | Path, dst: str | Path) -> dict:
             complete = False
             for r in StreamReader(io.BytesIO(data), validate_crcs=True).records:
                 if isinstance(r, Header):
-                    w.start(profile=r.profile, library=f"robocal/{__version__} upgrade")
+                    w.start(profile=r.profile, library=f"robocal/{__version__} upgrade"
+                            + (f" {ACQUIRED}" if ACQUIRED in r.library.split() else ""))
                 elif isinstance(r, Schema):
                     schemas[r.id] = r
                 elif isinstance(r, Channel):

@@ -40,12 +40,14 @@ class RecordingWriter:
     (`stream_encoding="json"` writes it as archived recordings have it, for tests and comparisons).
 
     Chunks are closed every `chunk_size` bytes; call `flush_chunk()` to force one out (the
-    acquisition does so every second so a killed process loses at most that much).
+    acquisition does so every second so a killed process loses at most that much).  `origin` is
+    appended to the header's library ("robocal/<version> acquire": real measurements, which no
+    command replaces; `pipeline.recording.output`).
     """
 
     def __init__(self, out: str | Path | IO[bytes], chunk_size: int = 1 << 20,
                  compression: CompressionType = CompressionType.ZSTD, stream_encoding: str = JSB.ENCODING,
-                 scene: bool = False):
+                 scene: bool = False, origin: str = ""):
         if stream_encoding not in (JSB.ENCODING, "json"):
             raise ValueError(f"stream_encoding {stream_encoding!r}: 'protobuf' or 'json'")
         self.stream_encoding = stream_encoding
@@ -56,7 +58,7 @@ class RecordingWriter:
             check_output(out)
         self._f = open(out, "wb") if self._own else out
         self._w = Writer(self._f, chunk_size=chunk_size, compression=compression)
-        self._w.start(profile=PROFILE, library=f"robocal/{__version__}")
+        self._w.start(profile=PROFILE, library=f"robocal/{__version__}" + (f" {origin}" if origin else ""))
         self._channels: dict[str, int] = {}
         self._seq: dict[str, int] = {}
         self._closed = False
@@ -112,20 +114,20 @@ class RecordingWriter:
     def write_batch(self, t_ns: np.ndarray, q: np.ndarray, names: list[str] | tuple[str, ...],
                     device_t_ns: np.ndarray | None = None, host_t_ns: np.ndarray | None = None,
                     q_cmd: np.ndarray | None = None, effort: np.ndarray | None = None,
-                    current: np.ndarray | None = None) -> None:
+                    current: np.ndarray | None = None, velocity: np.ndarray | None = None) -> None:
         """One encoder-stream message: samples `t_ns` (n,) ns, positions `q` (n, n_joints) rad,
         optional raw device and host receive times (n,) ns, optional drive state (n, n_joints):
-        commanded positions rad / m, efforts N·m / N, motor currents A (protobuf only); log time = the first
-        sample's."""
+        commanded positions rad / m, efforts N·m / N, motor currents A, logged velocities rad/s (protobuf
+        only); log time = the first sample's."""
         t0 = int(t_ns[0])
         if self._scene is not None:
             self._scene["t"].append(np.asarray(t_ns, np.int64))
             self._scene["q"].append(np.asarray(q, float))
         if self.stream_encoding == JSB.ENCODING:
             self._add(STREAM, self.channel(STREAM), t0, t0,
-                      JSB.encode(t_ns, q, names, device_t_ns, host_t_ns, q_cmd, effort, current))
+                      JSB.encode(t_ns, q, names, device_t_ns, host_t_ns, q_cmd, effort, current, velocity))
             return
-        if q_cmd is not None or effort is not None or current is not None:
+        if q_cmd is not None or effort is not None or current is not None or velocity is not None:
             raise ValueError("drive state (commanded positions, efforts, currents) is written on the protobuf stream only")
         msg = {"timestamp_ns": t0, "timestamps_ns": np.asarray(t_ns).tolist(), "joint_names": list(names),
                "positions": np.asarray(q).tolist()}

@@ -20,6 +20,9 @@ def _mm(v) -> str:
     return "–" if v is None else f"{float(v) * 1e3:.3g} mm"
 
 
+JOINT_COLUMNS = 3  # joints a row in the per-joint figures (as `report.plots.residuals_vs_joints`)
+
+
 def _fig_html(svg: str, caption: str, fig_id: str) -> str:
     return f'<figure id="{fig_id}" class="plot">{svg}<figcaption>{escape(caption)}</figcaption></figure>'
 
@@ -63,24 +66,35 @@ def histograms(before: np.ndarray, after: np.ndarray, floor_m: float | None) -> 
 
 def joints_before_after(joints: dict[str, np.ndarray], before: np.ndarray, after: np.ndarray,
                         prismatic: frozenset = frozenset()) -> str:
-    """|residual| against each joint angle (deg; a prismatic joint's travel mm), before (top row)
-    and after (bottom row); of a pose, its position part."""
+    """|residual| against each joint angle (deg; a prismatic joint's travel mm), before (upper panel of
+    each pair) and after (lower); of a pose, its position part.  Wrapped as the residuals section's
+    per-joint figure: at most `JOINT_COLUMNS` joints a row, so a humanoid's 18 joints stay readable."""
     from pipeline.report.labels import joint_scale
 
     names = list(joints)
+    ncols = JOINT_COLUMNS if len(names) > 4 else max(len(names), 1)
+    nrows = max(int(np.ceil(len(names) / ncols)), 1)
     with rc_context(RC):
-        fig, ax = _fig(min(2.0 * len(names), 12.0), 4.2, 2, len(names))
-        for j, n in enumerate(names):
+        fig, ax = _fig(min(2.4 * ncols, 9.5), 3.9 * nrows + 0.3, 2 * nrows, ncols)
+        for j in range(nrows * ncols):
+            pair = ax[2 * (j // ncols):2 * (j // ncols) + 2, j % ncols]
+            if j >= len(names):
+                for a in pair:
+                    a.set_visible(False)
+                continue
+            n = names[j]
             scale, unit = joint_scale(n, prismatic)
             q = np.asarray(joints[n], float) * scale
             for row, (r, col) in enumerate(((before, "#d62728"), (after, "#2ca02c"))):
-                a = ax[row, j]
+                a = pair[row]
                 for k in range(min(r.shape[1], 3)):  # a pose's position part (its rotation part is not mm)
                     a.scatter(q, r[:, k] * MM, s=5, color=AXIS_RGB[k] if r.shape[1] > 1 else col, linewidths=0)
                 a.axhline(0, color="k", lw=0.5)
                 if row == 1:
                     a.set_xlabel(f"{n} ({unit})")
-                if j == 0:
+                else:
+                    a.tick_params(labelbottom=False)
+                if j % ncols == 0:
                     a.set_ylabel(("before" if row == 0 else "after") + " (mm)")
     return _svg(fig)
 

@@ -26,6 +26,12 @@ def run(run_dir: Path, params: dict[str, Any] | None = None) -> dict[str, Any]:
     """Write DIR/report.html and DIR/run.rrd; return the figures (SI) for results.json."""
     run_dir = Path(run_dir)
     params = dict(params or {})
+    from pipeline.dynamics.stage import is_dynamics_run
+
+    if is_dynamics_run(run_dir):  # torques measured vs predicted, residuals, parameters (pipeline.report.dynamics)
+        from pipeline.report.dynamics import write_report
+
+        return write_report(run_dir, params, REPORT_HTML, RUN_RRD)
     art = load_run(run_dir)
     figures = results_figures(art)
     out: dict[str, Any] = {**figures, "files": {}}

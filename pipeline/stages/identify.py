@@ -66,6 +66,10 @@ def _progress(line: str) -> None:
 
 def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
+    from pipeline.dynamics.stage import identify as identify_dynamics, is_dynamics_run
+
+    if is_dynamics_run(run_dir):  # effort recordings: the dynamics model family (pipeline.dynamics)
+        return identify_dynamics(run_dir, params)
     out = run_dir / NAME
     system, model, rec = load_system(run_dir)
     table = read_measurements(run_dir)

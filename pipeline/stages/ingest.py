@@ -81,7 +81,7 @@ def run(run_dir: Path, params: dict) -> dict:
                           f"({type(e).__name__}: {e})")
     n = 0
     mchan = getattr(system, "channel_for", lambda r: system.MEASUREMENT_CHANNEL)(rec)
-    if not errors and (bad := first_schema_error(rec, mchan)):
+    if not errors and mchan != JOINT_STATE and (bad := first_schema_error(rec, mchan)):
         errors.append(bad)  # checked against the schema before any numeric conversion
     if not errors:
         try:
@@ -153,10 +153,10 @@ def read_encoder(run_dir: Path):
         raise RobocalError(f"{p}: does not match {Path(run_dir) / NAME / 'recording.json'} (re-run ingest)")
     q = np.stack([np.asarray(tab[f"q_{n}"], float) for n in names], axis=1)
     drive = [np.stack([np.asarray(tab[f"{prefix}_{n}"], float) for n in names], axis=1)
-             if all(f"{prefix}_{n}" in tab for n in names) else None for prefix in ("cmd", "effort", "current")]
+             if all(f"{prefix}_{n}" in tab for n in names) else None for prefix in ("cmd", "effort", "current", "vel")]
     return JointStream(t_ns=np.asarray(tab["t_ns"], np.int64), q=q, names=names,
                        message_index=np.asarray(tab["record"], np.int64), q_cmd=drive[0], effort=drive[1],
-                       current=drive[2])
+                       current=drive[2], velocity=drive[3])
 
 
 def write_messages(path: Path, rec) -> None:

@@ -18,6 +18,10 @@ NAME = "observe"
 
 def run(run_dir: Path, params: dict) -> dict:
     run_dir = Path(run_dir)
+    from pipeline.dynamics.stage import is_dynamics_run, observe as observe_dynamics
+
+    if is_dynamics_run(run_dir):
+        return observe_dynamics(run_dir)
     _, model, _ = load_system(run_dir)
     fit = read_fit(run_dir)
     table = read_measurements(run_dir)

@@ -12,7 +12,8 @@ HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m",
             "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m",
             "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind",  # 3-D: URDF points/poses
             "model_choice",  # URDF robots: {asked, route, reason}
-            "residual_unit")  # px for a camera (its *_m residual figures are px); absent: m
+            "residual_unit",  # px for a camera (its *_m residual figures are px); absent: m
+            "family", "rms_after_Nm", "holdout_rms_Nm", "condition_number", "model_choice_label")  # dynamics
 
 
 def _consistent(run_dir: Path, docs: dict[str, dict], doc: dict) -> bool:

@@ -163,6 +163,12 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
     if info.get("errors") and not any(c.status == C.FAIL for c in out):
         out.append(C.Check("ingest", C.FAIL, info["errors"][0], mchan, []))
     # gross outliers after a first robust fit (only on data that passed everything else)
+    from pipeline.dynamics.stage import is_dynamics_run
+
+    if is_dynamics_run(run_dir):  # efforts: the checks of a dynamics recording replace the geometric screen
+        from pipeline.dynamics.checks import dynamics_checks
+
+        return out + dynamics_checks(run_dir, table, mchan, out)
     if table is not None and not any(c.status == C.FAIL for c in out):
         from pipeline.identify.least_squares import FitOptions, fit
         from pipeline.ingest.tables import model_columns

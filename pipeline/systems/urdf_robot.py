@@ -22,14 +22,15 @@ from pipeline.models.urdf_arm import UrdfArm
 from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
 
 SYSTEM = "urdf"
-MEASURES = ("point", "pose", "plane", "coincidence", "camera")
+MEASURES = ("point", "pose", "plane", "coincidence", "camera", "effort")
 MEASUREMENT_CHANNEL = "/measure/point"
 STREAM_OPTIONAL = True
 GROUP_COLUMN = "label"
 
 
 def channel_of(measure: str) -> str:
-    return f"/measure/{measure}"
+    """The measurement channel of a measurement type (effort: the encoder stream's samples themselves)."""
+    return "/robot/joint_state" if measure == "effort" else f"/measure/{measure}"
 
 
 def channel_for(rec) -> str:
@@ -69,6 +70,7 @@ def tree_of(rec, lateral: tuple[str, ...] = ()):
     """The recording's `UrdfTree`: chains root → each of robocal.urdf's `tips` (or its `tip`),
     joints coupled by the campaign's `coupled` ({joint: {terms: {joint: factor}, offset: rad}}) or by
     the URDF's `<mimic>` elements."""
+    from pipeline.models.coupling import check_coupling
     from pipeline.models.urdf_tree import UrdfTree
 
     meta, campaign = rec.meta(META_URDF), rec.meta(META_CAMPAIGN)
@@ -86,8 +88,13 @@ def tree_of(rec, lateral: tuple[str, ...] = ()):
         if c not in movable or not isinstance(terms, dict) or not terms:
             raise RobocalError(f"{rec.path}: metadata robocal.campaign: coupled joint {c!r} is not a movable joint "
                                "of the chains or has no terms")
-        coupled[c] = ({str(k): float(f) for k, f in terms.items()}, float(v.get("offset", 0.0)))
-    check_coupling(coupled, movable, f"{rec.path}: metadata robocal.campaign")
+        try:
+            coupled[c] = ({str(k): float(f) for k, f in terms.items()}, float(v.get("offset", 0.0)))
+        except (TypeError, ValueError):
+            raise RobocalError(f"{rec.path}: metadata robocal.campaign: coupled joint {c!r}: factors and offset must "
+                               "be numbers") from None
+    check_coupling(coupled, movable, f"{rec.path}: metadata robocal.campaign",
+                   {j.name: j.type for d in descs for j in d.movable})
     tree = UrdfTree(descs, coupled=tuple((c, tuple(sorted(t.items())), o) for c, (t, o) in sorted(coupled.items())),
                     lateral=tuple(lateral))
     names = campaign.get("joint_names", tree.joint_names)
@@ -95,17 +102,6 @@ def tree_of(rec, lateral: tuple[str, ...] = ()):
         raise RobocalError(f"{rec.path}: campaign joint_names {names} differ from the tree's read joints "
                            f"{tree.joint_names}")
     return tree
-
-
-def check_coupling(coupled: dict, movable: set, where_: str) -> None:
-    """Each coupled joint is driven by movable joints that are not coupled themselves (no chain, no cycle)."""
-    for c, (terms, _) in coupled.items():
-        for k in terms:
-            if k not in movable:
-                raise RobocalError(f"{where_}: coupled joint {c!r} names unknown joint {k!r}")
-            if k in coupled:
-                raise RobocalError(f"{where_}: coupled joint {c!r} is driven by {k!r}, itself coupled "
-                                   "(a cycle or a chain of couplings)")
 
 
 def physics_model(rec, table: dict, physics: str | None = None, payload: tuple = ()):
@@ -137,39 +133,6 @@ def physics_model(rec, table: dict, physics: str | None = None, payload: tuple =
     carried = any(n.endswith(".backlash") for n in reading)
     return TreePointModel(tree_of(rec, lateral), compliant=compliant, payload=payload, forced=mode == "fixed",
                           encoder=reading, absent=("backlash",) if "backlash" in families and not carried else ())
-
-
-def check_physics_input(path, physics: str | None, payload) -> None:
-    """Before any stage runs (`robocal run`): the --physics value and the --payload items against the
-    recording's URDF — a payload on a link the URDF lacks, gravity terms asked by name or a payload on a
-    URDF without inertials — one `RobocalError` line naming the element.  Other systems: nothing."""
-    import xml.etree.ElementTree as ET
-
-    from pipeline.physics import compliance
-    from pipeline.physics.gravity import has_inertials
-    from pipeline.recording.reader import read_recording
-
-    mode, families = compliance.parse_spec(physics)
-    load = compliance.parse_payload(payload)
-    meta = read_recording(path, topics=set()).metadata.get(META_URDF)
-    if not (isinstance(meta, dict) and isinstance(meta.get("urdf"), str)):
-        return
-    try:
-        links = {lk.get("name") for lk in ET.fromstring(meta["urdf"]).iter("link")}
-    except ET.ParseError:
-        return  # the load says what is wrong with the description
-    for item, (_, link, _) in zip(payload or (), load):
-        if link not in links:
-            raise RobocalError(f"{path}: --payload {item!r}: link {link!r} is not in the URDF "
-                               f"(links: {', '.join(sorted(links)[:12])}{', …' if len(links) > 12 else ''})")
-    gravity = tuple(f for f in families if f in compliance.GRAVITY)
-    if load and not gravity:
-        raise RobocalError(f"{path}: --payload {payload[0]!r} needs gravity terms (--physics auto or a list with "
-                           f"{' or '.join(compliance.GRAVITY)})")
-    if (load or mode == "fixed" and gravity) and not has_inertials(meta["urdf"]):
-        what = f"gravity terms ({', '.join(gravity)})" if mode == "fixed" and gravity else f"--payload {payload[0]!r}"
-        raise RobocalError(f"{path}: metadata robocal.urdf: no link has an <inertial> mass, which {what} needs "
-                           "(use --physics none, no --payload)")
 
 
 def model_like(rec, names: list[str], payload: tuple = ()):
@@ -279,6 +242,13 @@ def load(rec, physics: str | None = None, payload: tuple = ()):
     gravity terms offered to identification (`physics_model`; point measurements); None keeps the
     rigid model (the command line and the run's stages ask for ``auto`` by default)."""
     measure = campaign_measure(rec)
+    if measure == "effort":  # dynamics: the stream's samples (pipeline.systems.urdf_dynamics)
+        from pipeline.systems import urdf_dynamics
+
+        if payload or physics not in (None, "auto", "none"):
+            raise RobocalError(f"{rec.path}: --physics / --payload are gravity terms of point measurements; a "
+                               "dynamics recording identifies its inertial parameters")
+        return urdf_dynamics.load(rec)
     campaign = rec.meta(META_CAMPAIGN)
     if is_tree(rec) and measure != "point":
         raise RobocalError(f"{rec.path}: several tips or coupled joints need point measurements (got {measure})")
@@ -371,9 +341,9 @@ def _with_distances(rec, table: dict, distances: list, labels: list[str], nj: in
 
 def joint_limits(rec):
     """(lower, upper, names) of the chain's movable joints for validate, widened as the importer
-    does (`csv_table.LIMIT_SLACK` of each range): real robots read a little past their URDF's
+    does (`importers.bounds.LIMIT_SLACK` of each range): real robots read a little past their URDF's
     nominal limits; far past them is a unit mistake and fails."""
-    from pipeline.importers.csv_table import LIMIT_SLACK
+    from pipeline.importers.bounds import LIMIT_SLACK
 
     arm = tree_of(rec) if is_tree(rec) else arm_of(rec)
     lo, hi = arm.lower, arm.upper

@@ -1,0 +1,237 @@
+"""The whole dynamics identification: model choice by the held-out arbiter, the fit, the prediction.
+
+`identify(rb, data)` tries each candidate model (low-pass cut-off, friction terms, solver) with
+contiguous-block cross-validation on the recording's fitted joints, keeps the one whose held-out torque
+RMS is lowest, and refits it on every sample.  `predict(rb, fit, t, q)` gives the torques of any other
+recording of the robot without refitting.  Pure: arrays in, dataclasses out (N·m, N for prismatic joints).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from pipeline.dynamics import base as B
+from pipeline.dynamics import design, signals, solve
+from pipeline.dynamics.crossval import held_out, rms
+from pipeline.dynamics.rigid_body import RigidBody, regressor, standard_parameters
+
+
+@dataclass(frozen=True)
+class Data:
+    """One recording: times t (T,) s, positions q (T, J), measured torques tau (T, J) N·m / N, which
+    joints' torques are fitted `fit` (J,) bool."""
+
+    t: np.ndarray
+    q: np.ndarray
+    tau: np.ndarray
+    fit: np.ndarray
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One candidate model: the positions' low-pass cut-off (Hz, also the training torques'), the per-joint
+    terms, the solver (ols | wls | consistent) and, for the consistent solver, its ridge toward the URDF."""
+
+    cutoff_hz: float = 4.0
+    terms: design.Terms = design.Terms()
+    solver: str = "ols"
+    ridge: float = 1e-4
+
+    def label(self) -> str:
+        t = self.terms
+        parts = [f"{self.cutoff_hz:g} Hz", "+".join(t.friction) or "no friction"]
+        if t.armature:
+            parts.append("armature")
+        if "coulomb" in t.friction:
+            parts.append(f"Coulomb width {t.coulomb_width:g}")
+        return ", ".join(parts + [self.solver])
+
+
+@dataclass
+class Fit:
+    """The identified model: the choice, θ (P,) with names and units, the base set, the solution, the
+    training and held-out RMS per fitted joint, the condition number, every candidate's held-out RMS."""
+
+    choice: Choice
+    names: list[str]
+    units: list[str]
+    theta: np.ndarray
+    base: B.BaseSet
+    solution: solve.Solution
+    condition: float
+    rms_train: np.ndarray
+    rms_cv: np.ndarray
+    candidates: list[dict] = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+    consistent: solve.Solution | None = None  # the physically consistent fit of the chosen structure (model.urdf)
+    rms_cv_consistent: np.ndarray | None = None
+    cv_residuals: np.ndarray | None = None  # (T, F) held-out residuals of the chosen model
+
+
+def structural_base(rb: RigidBody, fit: np.ndarray, terms: design.Terms, seed: int = 0, n: int = 120) -> B.BaseSet:
+    """The base set of the model's regressor at random states (positions ±π / ±1 m, velocities and
+    accelerations standard normal): the dependencies that hold for every trajectory."""
+    rng = np.random.default_rng(seed)
+    J = rb.n_joints
+    q = rng.uniform(-np.pi, np.pi, (n, J))
+    v, a = rng.standard_normal((n, J)), rng.standard_normal((n, J))
+    X = design.matrix(regressor(rb, q, v, a), v, a, fit, replace(terms, coulomb_width=0.0))
+    return B.base_set(X.reshape(-1, X.shape[2]))
+
+
+@dataclass
+class _Prepared:
+    X: np.ndarray  # (T, F, P)
+    y: np.ndarray  # (T, F) low-passed torques (training target)
+    raw: np.ndarray  # (T, F) raw torques (the score)
+
+
+def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = None) -> _Prepared:
+    """Regressor and torques of `data` under `choice` (the rigid-body regressor cached per cut-off)."""
+    key = choice.cutoff_hz
+    if Y_cache is not None and key in Y_cache:
+        Y, v, a = Y_cache[key]
+    else:
+        qf, v, a = signals.derivatives(data.t, data.q, choice.cutoff_hz)
+        Y = regressor(rb, qf, v, a)
+        if Y_cache is not None:
+            Y_cache[key] = (Y, v, a)
+    X = design.matrix(Y, v, a, data.fit, choice.terms)
+    fs = signals.sample_rate(data.t)
+    y = signals.lowpass(data.tau, fs, choice.cutoff_hz)[:, data.fit]
+    return _Prepared(X, y, np.asarray(data.tau, float)[:, data.fit])
+
+
+def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: B.BaseSet,
+           decimate: int) -> solve.Solution:
+    rows = rows[signals.decimation_rows(rows.size, decimate)]
+    X, y = P.X[rows], P.y[rows]
+    if choice.solver == "ols":
+        return solve.ols(X, y, base)
+    if choice.solver == "wls":
+        return solve.wls(X, y, base)
+    n = 10 * rb.n_joints
+    nonneg = np.zeros(X.shape[2], bool)
+    keys = [k for k, _ in choice.terms.per_joint()]
+    for p in range(n, X.shape[2]):
+        nonneg[p] = keys[(p - n) % len(keys)] in ("fv", "fc", "Ia")
+    prior = np.r_[standard_parameters(rb), np.zeros(X.shape[2] - n)]
+    return solve.consistent(X, y, base, rb.n_joints, prior, rb.carried, nonneg, ridge=choice.ridge)
+
+
+def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet, folds: int, guard: int,
+                   decimate: int) -> np.ndarray:
+    """Held-out residuals (T, F) on the raw torques, contiguous blocks."""
+
+    def fit_predict(train, test):
+        s = _solve(rb, P, train, choice, base, decimate)
+        return P.X[test] @ s.theta - P.raw[test]
+
+    return held_out(fit_predict, P.X.shape[0], folds, guard)
+
+
+DEFAULT_CANDIDATES = tuple(
+    Choice(cutoff_hz=c, terms=design.Terms(friction=f, armature=True))
+    for c in (2.0, 4.0, 8.0) for f in (("viscous", "coulomb", "offset"), ("viscous", "offset")))
+
+
+def identify(rb: RigidBody, data: Data, candidates: tuple[Choice, ...] = DEFAULT_CANDIDATES,
+             solvers: tuple[str, ...] = ("ols", "wls", "consistent"), folds: int = 5, guard_s: float = 0.5,
+             decimate: int = 1, progress=None) -> Fit:
+    """Choose the model by held-out torque RMS (pooled over the fitted joints), then refit it on every sample.
+    Structure candidates are compared with OLS; the solvers then on the chosen structure."""
+    from pipeline.blas import one_thread
+
+    with one_thread():
+        return _identify(rb, data, candidates, solvers, folds, guard_s, decimate, progress or (lambda s: None))
+
+
+def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say) -> Fit:
+    t0 = time.perf_counter()
+    fs = signals.sample_rate(data.t)
+    guard = int(round(guard_s * fs))
+    cache: dict = {}
+    bases: dict = {}
+    rows = []
+    best = None
+    for c in candidates:
+        P = prepare(rb, data, c, cache)
+        bkey = (c.terms.friction, c.terms.armature)
+        if bkey not in bases:
+            bases[bkey] = structural_base(rb, data.fit, c.terms)
+        r = cross_validate(rb, P, replace(c, solver="ols"), bases[bkey], folds, guard, decimate)
+        score = float(rms(r))
+        rows.append({"choice": replace(c, solver="ols").label(), "holdout_rms": score,
+                     "holdout_rms_joint": rms(r, axis=0).tolist()})
+        say(f"{replace(c, solver='ols').label()}: held-out {score:.4f}")
+        if best is None or score < best[0]:
+            best = (score, replace(c, solver="ols"), r)
+    t_struct = time.perf_counter() - t0
+    choice = best[1]
+    P = prepare(rb, data, choice, cache)
+    base = bases[(choice.terms.friction, choice.terms.armature)]
+    for s in solvers:
+        if s == "ols":
+            continue
+        c = replace(choice, solver=s)
+        try:
+            r = cross_validate(rb, P, c, base, folds, guard, decimate)
+        except ArithmeticError as e:
+            rows.append({"choice": c.label(), "error": str(e)})
+            continue
+        score = float(rms(r))
+        rows.append({"choice": c.label(), "holdout_rms": score, "holdout_rms_joint": rms(r, axis=0).tolist()})
+        say(f"{c.label()}: held-out {score:.4f}")
+        if score < best[0]:
+            best = (score, c, r)
+    score, choice, r = best
+    all_rows = np.arange(P.X.shape[0])
+    sol = _solve(rb, P, all_rows, choice, base, decimate)
+    cons = sol if choice.solver == "consistent" else _solve(rb, P, all_rows, replace(choice, solver="consistent"),
+                                                            base, decimate)
+    cv_cons = next((np.array(c["holdout_rms_joint"]) for c in rows
+                    if c["choice"] == replace(choice, solver="consistent").label() and "holdout_rms_joint" in c), None)
+    names = rb.parameter_names() + design.extra_names(list(rb.joints), data.fit, choice.terms)[0]
+    units = rb.parameter_units() + design.extra_names(list(rb.joints), data.fit, choice.terms)[1]
+    Xb = P.X[:, :, base.independent]
+    fit = Fit(choice=choice, names=names, units=units, theta=sol.theta, base=base, solution=sol,
+              condition=float(np.linalg.cond(Xb.reshape(-1, Xb.shape[2]))),
+              rms_train=rms(P.X @ sol.theta - P.raw, axis=0), rms_cv=rms(r, axis=0), candidates=rows,
+              timings={"choice_s": t_struct, "total_s": time.perf_counter() - t0}, consistent=cons,
+              rms_cv_consistent=cv_cons, cv_residuals=r)
+    return fit
+
+
+def predict(rb: RigidBody, fit: Fit, t: np.ndarray, q: np.ndarray, fitted: np.ndarray) -> np.ndarray:
+    """Predicted torques (T, F) of the fitted joints for positions q (T, J) at times t (s), no refit."""
+    qf, v, a = signals.derivatives(t, q, fit.choice.cutoff_hz)
+    from pipeline.blas import one_thread
+
+    with one_thread():
+        X = design.matrix(regressor(rb, qf, v, a), v, a, fitted, fit.choice.terms)
+        return X @ fit.theta
+
+
+def from_document(doc: dict) -> Fit:
+    """The predictor a run saved (`pipeline.dynamics.stage`): choice and θ (enough for `predict`)."""
+    t = doc["terms"]
+    choice = Choice(cutoff_hz=float(doc["cutoff_hz"]), solver=str(doc["solver"]),
+                    terms=design.Terms(friction=tuple(t["friction"]), armature=bool(t["armature"]),
+                                       coulomb_width=float(t["coulomb_width"])))
+    theta = np.asarray(doc["theta"], float)
+    empty = B.BaseSet(np.arange(0), np.arange(0), np.zeros((0, 0)))
+    sol = solve.Solution(theta, np.zeros(0), np.zeros(0), np.zeros(0), choice.solver)
+    return Fit(choice, list(doc["names"]), list(doc.get("units", [])), theta, empty, sol, float("nan"),
+               np.zeros(0), np.zeros(0))
+
+
+def nominal_torques(rb: RigidBody, data: Data, fitted: np.ndarray, cutoff_hz: float = 4.0) -> np.ndarray:
+    """The URDF's own rigid-body torques (T, F) of the fitted joints (no friction, no armature)."""
+    from pipeline.blas import one_thread
+
+    qf, v, a = signals.derivatives(data.t, data.q, cutoff_hz)
+    with one_thread():
+        return regressor(rb, qf, v, a)[:, fitted] @ standard_parameters(rb)

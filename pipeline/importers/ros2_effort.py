@@ -1,0 +1,67 @@
+"""ROS 2 bags → the encoder stream of a dynamics recording: every ``sensor_msgs/msg/JointState`` of the joint
+topic with its positions, velocities and efforts (rosbags reads and decodes; the chain's joints matched by
+name, any order, other joints ignored).  Times are the messages' ``header.stamp`` (or the receive times with
+``time="log"``).  Refused with one line naming the file, topic and record: a message without an effort per
+name, NaN or inf, times that do not increase."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.errors import RobocalError
+from pipeline.importers.ros2 import JOINT_STATE, _decoder, _open, _Rows, _stamp, _stream, at, choose_joint_topic
+from pipeline.models.urdf import RobotDescription
+
+
+def read_effort_bag(path: Path, desc: RobotDescription, joint_topic: str = "/joint_states",
+                    time: str = "header") -> dict[str, np.ndarray]:
+    """{t_ns (T,), q (T, J), v (T, J) or absent, effort (T, J)} in the chain's joint order."""
+    path = Path(path)
+    joints = desc.joint_names
+    reader = _open(path)
+    try:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        jt = choose_joint_topic(path, topics, joint_topic)
+        decode = _decoder(path, jt, JOINT_STATE)
+        Q, V, E, T = _Rows(len(joints)), _Rows(len(joints)), _Rows(len(joints)), _Rows(1, np.int64)
+        prev, idx, velocities, rec = None, None, True, []
+        for i, (log_t, data) in enumerate(_stream(path, reader, jt, None, [])):
+            msg = decode(i, data)
+            if msg.name != prev:
+                prev = list(msg.name)
+                pos_of = {nm: k for k, nm in enumerate(prev)}
+                missing = [j for j in joints if j not in pos_of]
+                if missing:
+                    raise RobocalError(f"{at(path, jt, i)}: chain joint(s) {', '.join(missing)} missing from the "
+                                       f"JointState names ({', '.join(prev)})")
+                idx = np.array([pos_of[j] for j in joints], np.intp)
+            n = len(prev)
+            if len(msg.position) != n or len(msg.effort) != n:
+                raise RobocalError(f"{at(path, jt, i)}: {len(msg.position)} positions and {len(msg.effort)} efforts "
+                                   f"for {n} joint names: a dynamics recording needs an effort per joint")
+            Q.append(np.asarray(msg.position, float)[idx])
+            E.append(np.asarray(msg.effort, float)[idx])
+            if len(msg.velocity) == n:
+                V.append(np.asarray(msg.velocity, float)[idx])
+            else:
+                velocities = False
+            T.append((_stamp(msg) if time == "header" and _stamp(msg) > 0 else log_t,))
+            rec.append(i)
+    finally:
+        reader.close()
+    if not rec:
+        raise RobocalError(f"{at(path, jt)}: no messages")
+    out = {"t_ns": T.array()[:, 0], "q": Q.array(), "effort": E.array()}
+    if velocities:
+        out["v"] = V.array()
+    for key in ("q", "v", "effort"):
+        if key in out and (bad := np.argwhere(~np.isfinite(out[key]))).size:
+            r, k = bad[0]
+            raise RobocalError(f"{at(path, jt, rec[r])}: joint {joints[k]!r} {key} is NaN or inf")
+    back = np.flatnonzero(np.diff(out["t_ns"]) <= 0)
+    if back.size:
+        raise RobocalError(f"{at(path, jt, rec[back[0] + 1])}: time does not increase after the previous record "
+                           "(a dynamics recording needs strictly increasing times)")
+    return out

@@ -149,8 +149,10 @@ def located_right(d: dict, kind: str, where: dict) -> bool:
 
 def named_beside(d: dict, key) -> bool:
     """The right effect is a finding, or a look-alike reported beside a finding of lower than high confidence (the
-    campaign cannot tell the two apart: both are named, with their evidence)."""
-    return any(right(f, key) or (f["confidence"] != "high" and any(right(a, key) for a in f.get("look_alikes", [])))
+    campaign cannot tell the two apart: both are named, with their evidence; or the gate could not test it here and
+    it would explain the finding as well)."""
+    return any(right(f, key) or (f["confidence"] != "high" and any(
+        right(a, key) for a in f.get("look_alikes", []) + f.get("untested_look_alikes", [])))
                for f in d["findings"])
 
 

@@ -102,7 +102,8 @@ def _ik(arm, p: np.ndarray, w: np.ndarray, q0: np.ndarray, iters: int = 60) -> t
         return np.concatenate([T[:, :3, 3] - pp, 0.3 * (T[:, :3, 2] - ww)], axis=1)
 
     live = np.arange(n)
-    for _ in range(iters):
+    prev = np.full(n, np.inf)
+    for it_ in range(iters):
         m = live.size
         E = err((q[live, None, :] + steps).reshape(-1, 6), np.repeat(p[live], 7, 0), np.repeat(w[live], 7, 0))
         E = E.reshape(m, 7, 6)
@@ -110,7 +111,11 @@ def _ik(arm, p: np.ndarray, w: np.ndarray, q0: np.ndarray, iters: int = 60) -> t
         JT = np.swapaxes(J, 1, 2)
         step = np.linalg.solve(JT @ J + 1e-6 * np.eye(6), JT @ e[..., None])[..., 0]
         q[live] -= np.clip(step, -0.3, 0.3)
-        live = live[np.linalg.norm(e, axis=1) > 1e-12]
+        en = np.linalg.norm(e, axis=1)
+        # done, or (after a few steps) stalled: a start that does not converge is left to the next start
+        alive = (en > 1e-12) & ((it_ < 8) | (en < 0.5 * prev[live]) | (en < 1e-6))
+        prev[live] = en
+        live = live[alive]
         if not live.size:
             break
     ok = np.linalg.norm(err(q, p, w), axis=1) < 1e-9
@@ -129,10 +134,11 @@ def _schedule(rng, m: int, payloads, payload_kg) -> np.ndarray:
 
 
 def plan(arm, jig: Jig | None = None, m: int = 120, seed: int = 0, cone_deg: float = 40.0,
-         payloads=(0.0, 3.0, 6.0, 10.0), payload_kg: float | None = None, face_weights=None) -> Searches:
+         payloads=(0.0, 3.0, 6.0, 10.0), payload_kg: float | None = None, face_weights=None,
+         standoff_m=(0.015, 0.04)) -> Searches:
     """m contacts on random face points (module docstring), in random order, taught on `arm` (the true arm: a
-    user's program is taught on the robot, so each search starts 15–40 mm from its face); `face_weights` (one per
-    jig face) how often each face is touched (default: alike)."""
+    user's program is taught on the robot, so each search starts `standoff_m` (15–40 mm) from its face along its
+    direction); `face_weights` (one per jig face) how often each face is touched (default: alike)."""
     jig = jig or stepped_block()
     rng = np.random.default_rng(seed)
     starts = np.array([[0, 0.5, 0, 0, 0.8, 0], [0.5, 0.3, -0.3, 0, 1, 0], [-0.5, 0.3, -0.3, 0, 1, 0],
@@ -159,7 +165,7 @@ def plan(arm, jig: Jig | None = None, m: int = 120, seed: int = 0, cone_deg: flo
 
         d = tilted(np.radians(cone_deg))
         w = tilted(np.radians(30))
-        A = P - rng.uniform(0.015, 0.04, k)[:, None] * d  # the search starts here and runs along d
+        A = P - rng.uniform(*standoff_m, k)[:, None] * d  # the search starts here and runs along d
         q, ok = np.zeros((k, 6)), np.zeros(k, bool)
         for s0 in starts:  # each start only where none before converged
             todo = np.flatnonzero(~ok)

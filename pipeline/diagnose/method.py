@@ -30,7 +30,8 @@ from pipeline.diagnose.adapters.adapter import Adapter
 from pipeline.diagnose.adapters.touch import touch_adapter
 from pipeline.diagnose.document.assemble import add_plots, assemble, clustered_summary
 from pipeline.diagnose.inference import forms, refit, resampling, screen
-from pipeline.diagnose.inference.stepwise import look_alikes
+from pipeline.diagnose.inference.projection import orthonormal, project_out
+from pipeline.diagnose.inference.stepwise import LOOK_ALIKE_SHARE, look_alikes
 from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.touch_probe import tip_speed_vector
 from pipeline.diagnose.verdict import arbiter, grading, outliers
@@ -89,7 +90,14 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     # 3. gate and selection (iterated with the noise model), each finding's form by held-out error
     sel = screen.select(p, nz, s)
     groups = np.repeat(resampling.time_blocks(ad.time_s, s.block), p.k)
-    folds, moved, alone = resampling.design_folds(p.n, p.k, s, ad.time_s, table, p.Jf)
+    # folds that keep the selected model's design too: a contact that alone carries a direction of the geometry
+    # and the selected effects (a stretched pose under the heaviest payload for a compliance) is in every training
+    # set — its held-out error would be an extrapolation, not a test of the effect
+    selected = np.hstack([p.Jf] + [p.S[i] for i in sel.accepted])
+    folds, moved, alone = resampling.design_folds(p.n, p.k, s, ad.time_s, table, selected)
+    if sel.accepted:
+        folds, far = resampling.without_extrapolated(folds, selected, p.n, p.k)
+        alone = sorted(set(alone) | set(far))
     form_cv = _choose_forms(p, nz, sel, folds)
     # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
     alikes = (look_alikes(sel.r_w, sel.Sp, p.dof, [sel.testable.index(i) for i in sel.accepted], sel.tols)
@@ -109,6 +117,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
     _runner_ups(findings, sel, p)
     _alike_evidence(findings, sel, p, folds)
+    _untested_alikes(findings, sel)
     # 6. the held-out arbiter and the records that carry a finding (`verdict.arbiter`); pose-clustered
     # campaigns: the unweighted CV ignores the shared pose errors, so there the findings rest on the
     # pose sign-flip check instead and a finding without CV improvement is graded `low`
@@ -207,6 +216,43 @@ def _alike_evidence(findings: list, sel: screen.Selection, p: screen.Problem, fo
                 a["why"] = "near-collinear here, and the held-out error does not separate them"
             kept.append(a)
         fd["look_alikes"] = kept
+
+
+def _untested_alikes(findings: list, sel: screen.Selection) -> None:
+    """A candidate the gate set aside — too weak along one direction of its parameters to be tested at a plausible
+    size, not a twin — that reproduces a finding's fitted contribution (all but `LOOK_ALIKE_SHARE` of it, ⊥ the
+    geometry and the other findings) is listed as `untested_look_alikes`: the campaign could not test it, and it
+    would explain this finding as well (a J2 transmission error standing for a J2 eccentricity the geometry all but
+    absorbs), so the name is not a confident one."""
+    if not sel.accepted:
+        return
+    pos = [sel.testable.index(i) for i in sel.accepted]
+    B = np.hstack([sel.Sp[c] for c in pos])
+    coef, *_ = np.linalg.lstsq(B, sel.r_w, rcond=None)
+    at = np.cumsum([0] + [sel.Sp[c].shape[1] for c in pos])
+    aside = [g for g in sel.gates if not g.identifiable and np.any(g.projected) and not g.effect.data.get("blocked")
+             and not g.reason.startswith("indistinguishable")]
+    for j, fd in enumerate(findings[:len(pos)]):
+        u = sel.Sp[pos[j]] @ coef[at[j]:at[j + 1]]
+        others = [sel.Sp[c] for c in pos if c != pos[j]]
+        if others:
+            u = project_out(u[:, None], orthonormal(np.hstack(others)))[:, 0]
+        uu = float(u @ u)
+        if uu <= 0:
+            continue
+        own = (fd["effect"], fd["location"].split(" (")[0])
+        hits = []
+        for g in aside:
+            if (g.effect.name, str(g.effect.location).split(" (")[0]) == own:
+                continue
+            Q = orthonormal(g.projected)
+            share = float(np.sum((Q.T @ u) ** 2) / uu)
+            if share >= 1 - LOOK_ALIKE_SHARE:
+                hits.append({"effect": g.effect.name, "location": str(g.effect.location), "explains": share,
+                             "why": f"set aside by the gate ({g.reason}), yet it reproduces this finding",
+                             "advice": g.effect.advice})
+        if hits:
+            fd["untested_look_alikes"] = sorted(hits, key=lambda h: -h["explains"])
 
 
 def _choose_forms(p: screen.Problem, nz: screen.Noise, sel: screen.Selection, folds: list) -> dict:

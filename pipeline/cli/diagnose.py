@@ -54,7 +54,8 @@ def diagnose_cmd(
         pars = ", ".join(f"{p['name']}={p['value']:.4g}±{p['std']:.2g}"
                          + (f" [{p['ci95'][0]:.4g}, {p['ci95'][1]:.4g}]" if p.get("ci95") else "") + f" {p['unit']}"
                          for p in f["parameters"])
-        alike = ", ".join(f"{a['effect']}@{a['location']}" for a in f.get("look_alikes", []))
+        alike = ", ".join(f"{a['effect']}@{a['location']}"
+                          for a in f.get("look_alikes", []) + f.get("untested_look_alikes", []))
         t.add_row(f["effect"] + ("" if f["confidence"] == "high" else f" ({f['confidence']} confidence)")
                   + (f" (or {alike}: the campaign can hardly tell)" if alike else "")
                   + (f" (runner-up {ru['effect']}@{ru['location']}, Δχ² {ru['delta_chi2']:.3g})"

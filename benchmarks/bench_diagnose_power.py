@@ -195,6 +195,9 @@ def main() -> None:
                          "(benchmarks/power_random.py)")
     ap.add_argument("--mults", default="4,2", help="--plan random: the multiples of the ideal MDE injected")
     ap.add_argument("--no-budget", action="store_true", help="--plan random: skip the power budget per term")
+    ap.add_argument("--stream-noise", type=float, default=1.0,
+                    help="--plan random: the logged encoder stream's reading noise, counts (the latches have none)")
+    ap.add_argument("--clean-only", action="store_true", help="--plan random: only the clean campaigns (false findings)")
     a = ap.parse_args()
     t0 = time.time()
     if a.plan == "random":
@@ -202,7 +205,8 @@ def main() -> None:
 
         rows: list = []
         summary = pr.report(range(a.first_seed, a.first_seed + a.seeds), tuple(float(v) for v in a.mults.split(",")),
-                            a.cases.split(",") if a.cases else None, a.n_boot, budgets=not a.no_budget, out=rows)
+                            a.cases.split(",") if a.cases else None, a.n_boot, budgets=not a.no_budget, out=rows,
+                            stream_noise_counts=a.stream_noise, clean_only=a.clean_only)
         print(f"elapsed {time.time() - t0:.0f} s")
         if a.out:
             Path(a.out).write_text(json.dumps(summary, indent=1))

@@ -1,6 +1,6 @@
 """The diagnosis's power on the independent generator's random campaigns (`tests/independent_search.py`: random
-search directions and speeds, mixed payloads, a servo's encoder stream), against the ideal test — a helper of
-`bench_diagnose_power.py --plan random`.
+search directions and speeds, mixed payloads, a servo's encoder stream with 1 count of reading noise by default),
+against the ideal test — a helper of `bench_diagnose_power.py --plan random`.
 
 Per seed a new campaign (its own plan and noise).  Per case the effect is injected at `mult` × the ideal test's
 minimum detectable size on that campaign: the effect's true signature (the generator's, noise-free) projected off
@@ -63,8 +63,9 @@ SECOND = {"compliance_J2+backlash_J3": ("backlash", "J3")}  # the second effect 
 class World:
     """One seed's campaign: the true arm's plan, its clean run (σ, the geometric Jacobian) and caches."""
 
-    def __init__(self, seed: int, m: int = 120):
+    def __init__(self, seed: int, m: int = 120, stream_noise_counts: float = 1.0):
         self.seed = seed
+        self.stream_noise = stream_noise_counts  # the logged stream's reading noise (counts; the latches have none)
         self.nom, self.tru = it.default_arms()
         self.sc = isr.plan(self.tru, m=m, seed=seed)
         self._c0: dict = {}
@@ -180,7 +181,7 @@ def run_one(w: World, name: str, mult: float, n_boot: int) -> dict:
         m, _ = ideal_mds(w, kind, where, payload, unit if kind != "backlash" else None, mult)
         effs.append(it.Effect(kind, mult * m, where))
         mdes.append(m)
-    c = isr.run(w.nom, w.tru, w.plan(payload), tuple(effs), seed=w.seed)
+    c = isr.run(w.nom, w.tru, w.plan(payload), tuple(effs), seed=w.seed, stream_noise_counts=w.stream_noise)
     d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     ool = (effects[0][0], effs[0].where) if key is None else None
@@ -189,7 +190,7 @@ def run_one(w: World, name: str, mult: float, n_boot: int) -> dict:
 
 
 def clean_run(w: World, n_boot: int) -> dict:
-    c = isr.run(w.nom, w.tru, w.sc, (), seed=w.seed)
+    c = isr.run(w.nom, w.tru, w.sc, (), seed=w.seed, stream_noise_counts=w.stream_noise)
     d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     return {"seed": w.seed, **score(d, None), "_doc": d}
@@ -210,7 +211,7 @@ def budget(w: World, name: str, clean_doc: dict | None = None) -> dict | None:
     kind, where = effects[0]
     where = placed(w, kind, where)
     m_ideal, S_true = ideal_mds(w, kind, where, payload, unit if kind != "backlash" else None, 4.0)
-    c = isr.run(w.nom, w.tru, w.plan(payload), (), seed=w.seed)
+    c = isr.run(w.nom, w.tru, w.plan(payload), (), seed=w.seed, stream_noise_counts=w.stream_noise)
     model = aw.TouchModel(aw.nominal_arm())
     ad = touch_adapter(model, c.table, 2e-5, None, REPEATABILITY)
     f = _geometry(model, c.table, ad, None, None)
@@ -250,7 +251,7 @@ def _rate(rows, k):
 
 
 def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = True, budgets: bool = True,
-           out: list | None = None):
+           out: list | None = None, stream_noise_counts: float = 1.0, clean_only: bool = False):
     """Run every case on every seed's campaign; print one JSON line per case and multiple (and the budget per
     in-library case) as it goes; return the summary."""
     import json
@@ -260,12 +261,12 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
     rows: dict = {}
     t0 = time.time()
     for s in seeds:
-        w = World(s)
+        w = World(s, stream_noise_counts=stream_noise_counts)
         if clean:
             r = clean_run(w, n_boot)
             r.pop("_doc")
             rows.setdefault(("clean", 0.0), []).append(r)
-        for name in names:
+        for name in [] if clean_only else names:
             if budgets:
                 b = budget(w, name)
                 if b:

@@ -165,7 +165,8 @@ def plan(arm, jig: Jig | None = None, m: int = 120, seed: int = 0, cone_deg: flo
 
         d = tilted(np.radians(cone_deg))
         w = tilted(np.radians(30))
-        A = P - rng.uniform(*standoff_m, k)[:, None] * d  # the search starts here and runs along d
+        L = rng.uniform(*standoff_m, k)
+        A = P - L[:, None] * d  # the search starts here and runs along d
         q, ok = np.zeros((k, 6)), np.zeros(k, bool)
         for s0 in starts:  # each start only where none before converged
             todo = np.flatnonzero(~ok)
@@ -181,6 +182,8 @@ def plan(arm, jig: Jig | None = None, m: int = 120, seed: int = 0, cone_deg: flo
         lift = np.linalg.solve(J, np.concatenate([u, np.zeros((k, 3))], axis=1)[..., None])[..., 0]
         via = q + rng.uniform(0.02, 0.06, k)[:, None] * lift
         ok &= np.all((via > lo) & (via < hi), axis=1) & np.all(np.abs(dq) < 20, axis=1)
+        # the joint-space search line must stay near the straight one: at the stand-off it reaches the face point
+        ok &= np.linalg.norm(tip(arm, q + L[:, None] * dq) - P, axis=1) < 1e-3
         idx = np.flatnonzero(ok)
         parts.append((fi[idx], q[idx], dq[idx], d[idx], via[idx]))
     face, q_a, dq, d, via = (np.concatenate([p[i] for p in parts])[:m] for i in range(5))

@@ -23,8 +23,11 @@ bytecode: $(STAMP)
 demo: $(STAMP) bytecode
 	$(BIN)/robocal run recordings/arc-welder-touch.mcap --out runs/demo
 
+# the suite on TEST_WORKERS processes (pytest-xdist), one test file per unit of work, the heaviest
+# first (tests/ci_time.py); TEST_WORKERS=0 runs it in this process alone
+TEST_WORKERS ?= 2
 test: $(STAMP) bytecode chromium lint
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # pyflakes rules only: undefined names, unused imports/variables, syntax errors
 lint: $(STAMP)

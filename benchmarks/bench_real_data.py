@@ -11,6 +11,12 @@ TIAGo 5.59 → 5.24 mm, UR10e 4.86 → 6.70 mm; MUKCa on panda_1: 7.79 → 0.347
     python benchmarks/bench_real_data.py [--only tiago,ur10,mate,panda] [--folds 5]
     python benchmarks/bench_real_data.py --choice shrinkage --run-timing   # robocal run's default on imports
     python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca   # the peers' own protocols
+    python benchmarks/bench_real_data.py --protocols every5 --figaroh-python /work/figaroh-venv/bin/python
+
+`--protocols every5`: FIGAROH's every-5th splits (rows 0, 5, 10, … held out, the rest fitted; and the complement:
+those rows fitted, the rest held out) with robocal's default (`robocal run`: shrinkage, its gravity terms) and,
+with `--figaroh-python`, FIGAROH itself run on the same rows in its own venv (`benchmarks/figaroh_every5.py`),
+side by side: RMS and mean of the norm of the 3-D error (MATE: of the plane-normal error), mm.
 """
 
 from __future__ import annotations
@@ -111,6 +117,41 @@ def chosen_fit(model, data, choice: str, folds: int):
     return f, what, time.process_time() - c1
 
 
+def figaroh_splits(names: list[str], tmp: Path, figaroh_python: str | None) -> None:
+    """FIGAROH's every-5th splits: robocal's default and FIGAROH's (run by `figaroh_every5.py`) on the same rows."""
+    robocal = str(Path(sys.executable).parent / "robocal")
+    peer: dict = {}
+    if figaroh_python:
+        import json
+
+        out = subprocess.run([figaroh_python, str(Path(__file__).with_name("figaroh_every5.py")), "--data", str(REAL),
+                              "--only", ",".join(names)], capture_output=True, text=True, check=True).stdout
+        for line in out.splitlines():
+            r = json.loads(line)
+            peer.setdefault((r["dataset"], r["split"]), []).append(r)
+    print("| dataset | split | rows fitted / held out | robocal RMS | robocal mean | FIGAROH (method): RMS / mean |")
+    print("|---|---|---|---|---|---|")
+    for name in names:
+        rec_path = tmp / f"{name}.mcap"
+        subprocess.run([robocal, "import", "csv", *import_args(name, rec_path)], check=True, capture_output=True)
+        rec = read_recording(rec_path)
+        model, data = load_with_physics(detect(rec), rec, "auto", None)
+        for split, (train, test) in split_every5(n_rows(data)).items():
+            e = holdout(model, data, train, test, 5, False, "shrinkage")
+            norm = np.sqrt(np.sum(e[:, :3] ** 2, axis=1))
+            cells = "; ".join(f"{r['method']}: {r['rms_3d_mm']:.3f} / {r['mean_3d_mm']:.3f}" if "error" not in r
+                              else f"{r['method']}: refused ({r['error'][:60]})" for r in peer.get((name, split), []))
+            print(f"| {name} | {split} | {train.size} / {test.size} | {rms3(e) * 1e3:.3f} | {norm.mean() * 1e3:.3f} | "
+                  f"{cells or '—'} |", flush=True)
+
+
+def split_every5(n: int) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """{split: (fitted rows, held-out rows)}: rows 0, 5, 10, … held out (every5) or fitted (complement)."""
+    every = np.arange(0, n, 5)
+    rest = np.setdiff1d(np.arange(n), every)
+    return {"every5": (rest, every), "complement": (every, rest)}
+
+
 def run_timing(robocal: str, rec: Path, out: Path) -> tuple[float, float]:
     """(wall s, CPU s) of one whole `robocal run` (every stage, its default model choice) of `rec`."""
     import resource
@@ -133,6 +174,8 @@ def main() -> None:
                     "the default and --model-choice groups)")
     ap.add_argument("--models", default="registration only,groups,all,shrinkage rigid,shrinkage",
                     help="model choices of --protocols (Panda's groups selection costs minutes of CPU)")
+    ap.add_argument("--figaroh-python", default=None, help="--protocols every5: the Python of a venv with FIGAROH "
+                    "installed (pip install figaroh): FIGAROH itself run on the same rows")
     ap.add_argument("--mukca-train", default="front_center", help="placement fitted (--protocols mukca)")
     ap.add_argument("--mukca-robot", default="panda_2", help="MUKCa unit (--protocols mukca): panda_2 (MUKCa's "
                     "calibrated URDF published) or panda_1 (--mukca-train front)")
@@ -147,6 +190,8 @@ def main() -> None:
 
         choices = tuple(c.strip() for c in a.models.split(","))
         with tempfile.TemporaryDirectory() as tmp:
+            if "every5" in a.protocols:
+                figaroh_splits([n for n in a.only.split(",") if n != "panda"], Path(tmp), a.figaroh_python)
             if "tiago-sessions" in a.protocols:
                 pp.tiago(REAL, Path(tmp), choices, a.run_timing)
             if "mukca" in a.protocols:

@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from pipeline.importers import standstill  # noqa: E402
 from pipeline.importers.recording import write_urdf_recording  # noqa: E402
-from pipeline.importers.ros2 import BagSpec, read_bag  # noqa: E402
+from pipeline.ros2.points import BagSpec, read_bag  # noqa: E402
 from pipeline.models import urdf  # noqa: E402
 from pipeline.simulate.ros2_bag import BagLayout, simulate_bag  # noqa: E402
 from test_urdf_simulate import R6T  # noqa: E402

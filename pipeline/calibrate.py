@@ -98,6 +98,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         holdout = cross_validate(model, table, k=k_folds, seed=seed, options=options)
     else:
         raise RobocalError(f"unknown solver {solver!r} (expected lm or ga)")
+    from pipeline.identify.results import STATED_KIND, stated_uncertainty
+
+    f, std_independent, resampled = stated_uncertainty(model, f, table)  # a camera: the image jackknife σ
     tip_sigma = point_accuracy(model, f, table)
     warnings = list(rec.warnings)
     if w := holdout_warning(len(holdout), k_folds, model.residual_dim, int(f.free.sum())):
@@ -134,7 +137,9 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
 
     from pipeline.identify.folds import design_folds
 
-    folds = design_folds(len(holdout), k_folds, seed, None, table)
+    from pipeline.identify.natural_groups import holdout_groups
+
+    folds = design_folds(len(holdout), k_folds, seed, holdout_groups(model, table), table)
     acc = guarded_document(model, rec, f.x, f.free, f.cov, table, accuracy or {}, (holdout, folds),
                            f.sigma if "shrunk" in locals() else None)  # a shrinkage fit: its σ̂ is the scatter
     if (accuracy or {}).get("previous"):
@@ -159,6 +164,10 @@ def calibrate(path: str | Path, out: str | Path, options: FitOptions = FitOption
         doc["status_advice"] = "check the robot description and the data; or widen the prior (--prior) if intended"
     if hasattr(model, "extra_metrics"):  # optional hook: system-specific validation figures
         doc.update(model.extra_metrics(f.nominal, f.x, table))
+    if std_independent is not None:  # the parameters' std is the resampling σ; what σ̂²(JᵀJ)⁻¹ says, beside it
+        doc |= resampled | {"std_kind": STATED_KIND}
+        for row, s in zip(doc["parameters"], std_independent):
+            row["std_independent"] = float(s)
     out.mkdir(parents=True, exist_ok=True)
     from pipeline.identify.exports import describe, write_exports
     (out / "model.json").write_text(json.dumps(describe(model, f.x, f.std, f.free), indent=2) + "\n")

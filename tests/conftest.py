@@ -62,3 +62,7 @@ def tiago_frozen_protocol(tmp_path_factory):
     ev = run_cli("evaluate", tmp / "cal", *recs[1:], "--out", tmp / "ev")
     assert ev.returncode == 0, ev.stderr
     return recs, cal, tmp / "cal", ev, tmp / "ev"
+
+
+# the suite on the machine's cores, and what each test file costs: tests/ci_time.py (its hooks, by its __all__)
+from ci_time import *  # noqa: E402,F401,F403

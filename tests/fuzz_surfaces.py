@@ -159,7 +159,7 @@ def _bag_case(k, rng):
     frac = float(rng.uniform(0.02, 0.3) if how == 4 else rng.uniform(0.6, 0.999))  # little or most left
 
     def make(d):
-        from pipeline.importers.ros2 import read_bag
+        from pipeline.ros2.points import read_bag
         from pipeline.models import urdf
         from test_urdf_simulate import R6T
 

@@ -7,8 +7,10 @@ other arm and the head included — about the joint's origin) and its own elasti
 static equilibrium by fixed-point iteration:
 
 - joint compliance:   the joint turns by δq_j = c_j · (z_j · M_j)           (rad, c_j in rad/(N·m));
+                      with a load-dependent stiffness k_j(τ) = 1/c_j + h_j·|τ| (a harmonic drive stiffens
+                      as its load grows; h_j in 1/rad), δq_j = τ / k_j(τ), τ = z_j · M_j;
 - lateral compliance: the joint's child frame tilts about the two axes normal to the joint's axis,
-                      by c⊥_j · (e1_j · M_j) and c⊥_j · (e2_j · M_j)      (rad),
+                      by c⊥1_j · (e1_j · M_j) and c⊥2_j · (e2_j · M_j)    (rad; one value or one per normal),
   where M_j = Σ_l (p_l − o_j) × (m_l · g) over every link l below joint j in the tree (N·m, world
   frame), o_j the joint's origin and (z_j, e1_j, e2_j) its axis and two normals, all at the deflected
   configuration (the iteration converges to the equilibrium; ~1e-9 rad after 8 passes here).
@@ -23,7 +25,9 @@ q_true = q_read + b·d/2 with d = ±1 the joint's direction of approach at the p
 per posture and joint, written as the columns `dir_<joint>`). Geometry errors: joint offsets and origin perturbations (mm,
 mrad) of every joint; a motion-capture frame with an unknown pose; one marker per hand at an
 unknown offset. Measurements: both hand markers in the motion-capture frame with isotropic
-Gaussian noise (m).
+Gaussian noise (m).  The robot's true masses may differ from the URDF's (`mass_error`: each link's mass
+scaled by its own factor, its centre of mass moved; the URDF written is the nominal one): the gravity loads
+the calibrated model computes from the URDF are then not the true ones.
 
 `write(out_dir, seed=…)` writes `humanoid.urdf` (nominal), `postures.csv` (one row per posture:
 the 14 arm and 2 torso joint readings in rad, then `lx,ly,lz,rx,ry,rz` in m) and `truth.json`.
@@ -212,10 +216,13 @@ def joint_axes(joints, frames) -> dict[str, tuple]:
     return out
 
 
-def equilibrium(joints, links, q: dict, compliance: dict, lateral: dict, payload=None, passes: int = 12):
-    """Deflected angles and tilts at static equilibrium (fixed-point iteration from no deflection).
+def equilibrium(joints, links, q: dict, compliance: dict, lateral: dict, payload=None, passes: int = 12,
+                hardening: dict | None = None):
+    """Deflected angles and tilts at static equilibrium (fixed-point iteration from no deflection);
+    `lateral` {joint: c or (c1, c2)}, `hardening` {joint: h} (1/rad: the stiffness 1/c + h·|τ|).
     Returns (q_true {joint: (n,)}, tilt {joint: (n, 2)}, moments of the last pass, residual of the last
     update in rad)."""
+    hardening = hardening or {}
     qd, tilt, step = dict(q), {}, np.inf
     for _ in range(passes):
         frames = link_frames(joints, qd, tilt)
@@ -223,9 +230,11 @@ def equilibrium(joints, links, q: dict, compliance: dict, lateral: dict, payload
         ax = joint_axes(joints, frames)
         new_q, new_tilt = dict(q), {}
         for name, c in compliance.items():
-            new_q[name] = q[name] + c * np.einsum("ni,ni->n", ax[name][0], M[name])
+            tau = np.einsum("ni,ni->n", ax[name][0], M[name])
+            new_q[name] = q[name] + tau / (1.0 / c + hardening.get(name, 0.0) * np.abs(tau))
         for name, c in lateral.items():
-            new_tilt[name] = c * np.stack([np.einsum("ni,ni->n", ax[name][k], M[name]) for k in (1, 2)], 1)
+            c2 = np.broadcast_to(np.asarray(c, float), (2,))
+            new_tilt[name] = c2 * np.stack([np.einsum("ni,ni->n", ax[name][k], M[name]) for k in (1, 2)], 1)
         step = max([np.max(np.abs(new_q[k] - qd[k])) for k in compliance] +
                    [np.max(np.abs(new_tilt[k] - tilt.get(k, 0.0))) for k in lateral] + [0.0])
         qd, tilt = new_q, new_tilt
@@ -239,7 +248,10 @@ class Truth:
     origin_dxyz: dict = field(default_factory=dict)  # m
     origin_drpy: dict = field(default_factory=dict)  # rad
     compliance: dict = field(default_factory=dict)  # rad/(N·m)
-    lateral: dict = field(default_factory=dict)  # rad/(N·m), both normal axes
+    lateral: dict = field(default_factory=dict)  # rad/(N·m): one for both normal axes, or (c1, c2)
+    hardening: dict = field(default_factory=dict)  # 1/rad: joint stiffness 1/c + h·|τ| (load-dependent)
+    mass_scale: dict = field(default_factory=dict)  # {link: factor}: the true mass over the URDF's
+    com_shift: dict = field(default_factory=dict)  # {link: (3,) m}: the true centre of mass minus the URDF's
     eccentricity: dict = field(default_factory=dict)  # {joint: (a, b)} rad: δq = a·sin q + b·cos q
     scale: dict = field(default_factory=dict)  # {joint: s}: δq = s·q (a gear ratio off by s)
     backlash: dict = field(default_factory=dict)  # {joint: b} rad: δq = b·d/2, d = ±1 the direction of approach
@@ -266,6 +278,30 @@ def default_truth(rng: np.random.Generator, geometry: bool = True) -> Truth:
     t.registration_xyz = (1.8, -0.4, 0.05)
     t.registration_rpy = (0.01, -0.02, 2.6)
     return t
+
+
+def whole_truth(t: Truth, rng: np.random.Generator) -> Truth:
+    """`t` made a soft, torque-controlled humanoid (the physics a whole-robot calibration must find): every
+    arm joint compliant (stiffness 2–8·10³ N·m/rad, the wrist's softest), lateral compliance at the torso,
+    shoulders and elbows with a different value about each normal (2–8·10⁴ N·m/rad), the torso and
+    shoulders stiffening with their load (h: the stiffness doubles at 20–60 N·m), and the true masses off the
+    URDF's by ±15 % (centres of mass by ±1 cm)."""
+    joints, links = humanoid()
+    arm = [j.name for j in joints if j.name.startswith(("left_", "right_"))]
+    t.compliance = dict(t.compliance) | {k: float(1 / rng.uniform(2e3, 8e3)) for k in arm if k not in t.compliance}
+    lat = ["torso_j1", "torso_j2"] + [f"{s}_j{i}" for s in ("left", "right") for i in (1, 2, 4)]
+    t.lateral = {k: tuple(float(1 / v) for v in rng.uniform(2e4, 8e4, 2)) for k in lat}
+    t.hardening = {k: float(rng.uniform(20, 60) ** -1 / t.compliance[k])
+                   for k in ("torso_j1", "torso_j2", "left_j1", "right_j1", "left_j2", "right_j2")}
+    t.mass_scale = {lk.name: float(rng.uniform(0.85, 1.15)) for lk in links if lk.mass > 0}
+    t.com_shift = {lk.name: rng.uniform(-0.01, 0.01, 3).tolist() for lk in links if lk.mass > 0}
+    return t
+
+
+def true_links(t: Truth) -> list[Link]:
+    """The nominal links with the truth's mass factors and centre-of-mass shifts applied."""
+    return [Link(lk.name, lk.mass * t.mass_scale.get(lk.name, 1.0),
+                 tuple(np.add(lk.com, t.com_shift.get(lk.name, (0.0, 0.0, 0.0))))) for lk in humanoid()[1]]
 
 
 def true_robot(t: Truth) -> list[Joint]:
@@ -295,7 +331,7 @@ def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, pa
             approach: dict | None = None) -> dict:
     """Marker positions (n, 3) per hand in the mocap frame, at static equilibrium, with noise; `approach`
     {joint: (n,) ±1} the directions of approach (needed where the truth has backlash)."""
-    joints, links = true_robot(t), humanoid()[1]
+    joints, links = true_robot(t), true_links(t)
     turned = {k: v + t.scale.get(k, 0.0) * v for k, v in q_read.items()}  # the motor's true turn
     for k, (a, b) in t.eccentricity.items():
         turned[k] = turned[k] + a * np.sin(q_read[k]) + b * np.cos(q_read[k])
@@ -306,7 +342,7 @@ def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, pa
     q = {k: v + t.joint_offset.get(k, 0.0) for k, v in turned.items()}
     for name, comb in COUPLED.items():
         q[name] = sum(c * turned[k] for k, c in comb.items()) + t.joint_offset.get(name, 0.0)
-    qd, tilt, _, step = equilibrium(joints, links, q, t.compliance, t.lateral, payload)
+    qd, tilt, _, step = equilibrium(joints, links, q, t.compliance, t.lateral, payload, hardening=t.hardening)
     assert step < 1e-9, step
     frames = link_frames(joints, qd, tilt)
     T_base_mocap = origin(t.registration_xyz, t.registration_rpy)
@@ -321,13 +357,16 @@ def measure(t: Truth, q_read: dict, noise_m: float, rng: np.random.Generator, pa
 
 def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geometry: bool = True,
           session: int | None = None, eccentricity: dict | None = None, scale: dict | None = None,
-          backlash: dict | None = None, directions: bool = False, coupling: dict | None = None) -> Path:
+          backlash: dict | None = None, directions: bool = False, coupling: dict | None = None,
+          whole: bool = False) -> Path:
     """humanoid.urdf (nominal), postures.csv and truth.json under `out_dir`; returns the folder.  The robot
     (truth) comes from `seed`; `session` (default: the same stream) draws another set of postures and noise
     of the same robot — a second measurement session.  `eccentricity` {joint: (a, b) rad} and `scale`
     {joint: s} add encoder errors to read joints (none by default); `backlash` {joint: b rad} a free play,
     `directions` (implied by `backlash`) the columns `dir_<joint>` (±1, drawn per posture and joint);
-    `coupling` {joint: (driver, κ)} a reading of `joint` off by κ times the driver's reading."""
+    `coupling` {joint: (driver, κ)} a reading of `joint` off by κ times the driver's reading; `whole` the
+    physics of a soft humanoid besides (`whole_truth`: every arm joint compliant, lateral compliance per
+    normal, load-dependent stiffness, masses off the URDF's)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
@@ -336,6 +375,8 @@ def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geo
     t.scale = {k: float(v) for k, v in (scale or {}).items()}
     t.backlash = {k: float(v) for k, v in (backlash or {}).items()}
     t.coupling = {k: (str(drv), float(kappa)) for k, (drv, kappa) in (coupling or {}).items()}
+    if whole:  # its own stream: the robot of `seed` is otherwise the same
+        t = whole_truth(t, np.random.default_rng([seed, 7]))
     if session is not None:
         rng = np.random.default_rng([seed, session])
     joints, links = humanoid()
@@ -350,7 +391,7 @@ def write(out_dir: Path, seed: int = 0, n: int = 300, noise_m: float = 2e-4, geo
     (out_dir / "postures.csv").write_text("\n".join(lines) + "\n")
     truth = {"noise_m": noise_m, "n": n, "seed": seed, "session": session, "coupled": COUPLED,
              "stiffness_Nm_per_rad": {k: 1 / v for k, v in t.compliance.items()},
-             "lateral_stiffness_Nm_per_rad": {k: 1 / v for k, v in t.lateral.items()},
+             "lateral_stiffness_Nm_per_rad": {k: (1 / np.asarray(v, float)).tolist() for k, v in t.lateral.items()},
              **{k: v for k, v in vars(t).items()}}
     (out_dir / "truth.json").write_text(json.dumps(truth, indent=1, default=list) + "\n")
     return out_dir
@@ -362,5 +403,6 @@ if __name__ == "__main__":
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--n", type=int, default=300)
     ap.add_argument("--noise-m", type=float, default=2e-4)
+    ap.add_argument("--whole", action="store_true", help="a soft humanoid's whole physics (whole_truth)")
     a = ap.parse_args()
-    print(write(a.out, a.seed, a.n, a.noise_m))
+    print(write(a.out, a.seed, a.n, a.noise_m, whole=a.whole))

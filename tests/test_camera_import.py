@@ -114,11 +114,11 @@ def test_poses_csv_gives_the_pose_chain(images, tmp_path):
     q = R.as_quat()
     rows = ["image,x,y,z,qx,qy,qz,qw"] + [f"img_{i:03d}.png," + ",".join(repr(float(v)) for v in [*t[i], *q[i]]) for i in range(6)]
     (tmp_path / "poses.csv").write_text("\n".join(rows) + "\n")
-    from pipeline.importers.images import read_poses
+    from pipeline.importers.pose_files import read_poses
 
     states = read_poses(tmp_path / "poses.csv")
     model = CameraModel(UrdfArm(pose_chain()))
-    T = flange_poses(model, model.nominal(), np.array([states[f"img_{i:03d}.png"] for i in range(6)]))
+    T = flange_poses(model, model.nominal(), np.array([states.lookup(f"img_{i:03d}.png") for i in range(6)]))
     np.testing.assert_allclose(T[:, :3, :3], R.as_matrix(), atol=1e-12)
     np.testing.assert_allclose(T[:, :3, 3], t, atol=1e-12)
     r = _run(images / "img", "--target", TARGET, "--poses", tmp_path / "poses.csv", "--workers", "1",

@@ -31,7 +31,7 @@ def kuka(tmp_path_factory):
 
     tmp = tmp_path_factory.mktemp("kuka")
     rec = tmp / "kuka.mcap"
-    r = run_cli("import", "images", bh.DATA, "--target", bh.TARGET, "--poses", bh.kuka_pose_csv(bh.DATA, tmp / "p.csv"),
+    r = run_cli("import", "images", bh.DATA, "--target", bh.TARGET, "--poses", bh.DATA / "RobotPosesVec.txt",
                 "--keep-images", "--out", rec)
     assert r.returncode == 0, r.stderr
     model, data = urdf_robot.load(read_recording(rec))

@@ -96,7 +96,7 @@ def test_commands_are_grouped_by_task_in_order():
     assert res.exit_code == 0, res.output
     panels = _panels(res.output)
     assert [p for p in panels if p != "Options"] == list(PANELS)
-    assert panels["Import"] == ["import"]
+    assert panels["Import"] == ["export", "import"]
     assert {"run", "calibrate", "diagnose", "evaluate", "report", "ingest", "validate", "identify", "observe"} == set(
         panels["Calibrate"])
     assert set(panels["Plan & compensate"]) == {"plan", "compensate"}
@@ -116,9 +116,9 @@ def test_flags_are_shown_without_a_value_and_runs_import_options_have_their_pane
         assert "<bool>" not in res.output, (path, res.output)
     panels = _panels(runner.invoke(app, ["run", "--help"], terminal_width=200).output)
     bag = panels["Import (when REC is a ROS 2 bag or needs --urdf)"]
-    assert bag == ["--urdf", "--root", "--tip", "--joint-topic", "--measure-topic", "--measure", "--still-window",
-                   "--still-speed", "--time", "--sigma-m", "--sigma-rad", "--target", "--camera-on",
-                   "--clock-offset-bound"]
+    assert bag == ["--urdf", "--root", "--tip", "--joint-topic", "--measure-topic", "--measure", "--still-window-s",
+                   "--still-speed-rad-s", "--time", "--sigma-m", "--sigma-rad", "--target", "--camera-on",
+                   "--clock-offset-bound-s"]
     assert not set(bag) & set(panels["Options"])
     assert "--force" in panels["Options"] and "--strict" in panels["Options"]
 
@@ -150,6 +150,6 @@ def test_shell_completion_completes_commands_and_options():
     assert out == ["run"]
     env |= {"COMP_WORDS": "robocal run x --still-w", "COMP_CWORD": "3"}
     out = subprocess.run([exe], env=env, capture_output=True, text=True, check=True).stdout.split()
-    assert out == ["--still-window"]
+    assert out == ["--still-window-s"]
     res = CliRunner().invoke(app, ["--help"])
     assert "--install-completion" in res.output and "--show-completion" in res.output

@@ -324,7 +324,7 @@ def _cut_bag(tmp_path: Path, desc, frac: float, keep_metadata: bool = True, n: i
 
 
 def test_a_truncated_bag_is_salvaged_with_a_warning_naming_what_was_lost(tmp_path, r6):
-    from pipeline.importers.ros2 import read_bag
+    from pipeline.ros2.points import read_bag
     from pipeline.recording.reader import read_recording
     from pipeline.simulate.ros2_bag import simulate_bag
 
@@ -347,8 +347,8 @@ def test_a_truncated_bag_is_salvaged_with_a_warning_naming_what_was_lost(tmp_pat
 
 def test_a_bag_whose_recorder_was_killed_is_salvaged(tmp_path, r6):
     """No metadata.yaml and no MCAP footer: read what is there, say the loss is unknown."""
-    from pipeline.importers.bagkind import ros2_kind
-    from pipeline.importers.ros2 import read_bag
+    from pipeline.ros2.kind import ros2_kind
+    from pipeline.ros2.points import read_bag
 
     _, desc = r6
     bag, _ = _cut_bag(tmp_path, desc, 0.8, keep_metadata=False)

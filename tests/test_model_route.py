@@ -55,7 +55,7 @@ def test_unknown_model_choice_is_one_line(tmp_path):
     for cmd in ("calibrate", "run"):
         proc = run_cli(cmd, REPO / "recordings" / "arc-welder-touch.mcap", "--model-choice", "ridge",
                        "--out", tmp_path / cmd)
-        assert_one_line_error(proc, "--model-choice 'ridge'", "auto, groups, shrinkage")
+        assert_one_line_error(proc, "--model-choice", "'ridge' is not one of 'auto', 'groups', 'shrinkage'")
 
 
 def test_imported_csv_takes_shrinkage_by_default_and_says_so(tmp_path):

@@ -57,16 +57,19 @@ def test_tree_kinematics_match_yourdfpy(humanoid):
 
 def test_physics_jacobian_matches_finite_differences(humanoid):
     rec, _ = humanoid
-    model, table = _model(rec, "joint-compliance,lateral-compliance")
+    model, table = _model(rec, "joint-compliance,lateral-compliance,load-compliance")
     data = {k: v[:40] for k, v in table.items()}
     rng = np.random.default_rng(0)
     x = model.initial_guess(data)
     names = model.parameter_names()
     phys = [i for i, n in enumerate(names) if n.endswith((".compliance", ".lateral1", ".lateral2"))]
+    load = [i for i, n in enumerate(names) if n.endswith(".compliance_load")]  # rad/(N·m)²: δq = c·τ + h·τ|τ|
+    assert len(load) == len(model.compliant) > 0
     x[phys] = rng.uniform(1e-5, 5e-5, len(phys))
+    x[load] = rng.uniform(-2e-7, 2e-7, len(load))
     J = model.jacobian(x, data)
-    for i in phys[::3] + [names.index("torso_j1.offset"), names.index("base.yaw")]:
-        h = 1e-7 if i in phys else 1e-7
+    for i in phys[::3] + load[::2] + [names.index("torso_j1.offset"), names.index("base.yaw")]:
+        h = 1e-10 if i in load else 1e-7
         e = np.zeros_like(x)
         e[i] = h
         fd = (model.residuals(x + e, data) - model.residuals(x - e, data)) / (2 * h)

@@ -43,14 +43,23 @@ def _matrix(t: dict) -> np.ndarray:
 
 
 def _compose(transforms: list[dict], frm: str, to: str) -> np.ndarray:
-    """Pose of frame `to` in frame `frm` by walking the parent → child transforms of one message."""
-    by_child = {t["child_frame_id"]: t for t in transforms}
-    T, f = np.eye(4), to
-    while f != frm:
-        t = by_child[f]
-        T = _matrix(t) @ T
-        f = t["parent_frame_id"]
-    return T
+    """Pose of frame `to` in frame `frm` by walking the parent → child transforms of one message up to
+    the tree's top (each frame has one parent: a second is an error here)."""
+    by_child: dict[str, dict] = {}
+    for t in transforms:
+        assert t["child_frame_id"] not in by_child, f"{t['child_frame_id']} has two parents"
+        by_child[t["child_frame_id"]] = t
+
+    def up(f: str) -> tuple[np.ndarray, str]:
+        T = np.eye(4)
+        while f in by_child:
+            T = _matrix(by_child[f]) @ T
+            f = by_child[f]["parent_frame_id"]
+        return T, f
+
+    (A, top_a), (B, top_b) = up(frm), up(to)
+    assert top_a == top_b, (frm, to, top_a, top_b)
+    return np.linalg.inv(A) @ B
 
 
 def _check_tf(doc: dict, root: str, tip: str, joint_q_by_time: dict[int, np.ndarray], joint_names: list[str]) -> int:
@@ -220,3 +229,33 @@ def test_delta_simulation_carries_its_tree_and_closed_chain_transforms(tmp_path)
         assert _compose(tr, "robocal_instrument", "robocal_tool").shape == (4, 4)
         checked += 1
     assert checked > 10
+
+
+UR10 = REPO.parent / "shared" / "real-data" / "figaroh_ur10_pose"
+
+
+@pytest.mark.skipif(not UR10.is_dir(), reason=f"real data not here: {UR10}")
+def test_one_tree_where_the_root_link_has_a_parent(tmp_path):
+    """The real UR10e's URDF has world → support_link → base_link: the recording's /tf hangs the
+    instrument below base_link (as model.urdf does), so URDF joints and /tf together give every frame
+    one parent and reach every /tf frame from the URDF's own top link."""
+    import xml.etree.ElementTree as ET
+
+    import sys
+
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    from bench_real_data import import_args
+
+    rec = tmp_path / "ur10.mcap"
+    p = run_cli("import", "csv", *import_args("ur10", rec))
+    assert p.returncode == 0, p.stderr
+    doc = _read(rec)
+    urdf = ET.fromstring(doc["/robot_description"]["messages"][0][1]["data"])
+    parent = {j.find("child").get("link"): j.find("parent").get("link") for j in urdf.findall("joint")}
+    assert parent["base_link"] == "support_link"
+    for _, msg in doc["/tf"]["messages"][:5]:
+        for t in msg["transforms"]:
+            c, a = t["child_frame_id"], t["parent_frame_id"]
+            assert parent.setdefault(c, a) == a, f"{c} has two parents: {parent[c]} and {a}"
+    top = {f for f in set(parent.values()) if f not in parent}
+    assert top == {"world"} and parent["robocal_instrument"] == "base_link"

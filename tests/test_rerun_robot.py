@@ -1,6 +1,8 @@
-"""The robot in run.rrd, read back with rerun's own reader (rerun.chunk.RrdReader), checked against
-yourdfpy's forward kinematics of the calibrated model.urdf, the measured points and the residuals
-the identify stage wrote; and the real rerun viewer's screenshot under Xvfb.
+"""The robot in run.rrd, logged through rerun's URDF support and read back with rerun's own reader
+(rerun.chunk.RrdReader): the URDF's links by name, and their frames (placement, the loader's static
+transforms, the joint transforms per time step) checked against yourdfpy's forward kinematics of the
+calibrated model.urdf, the measured points and the residuals the identify stage wrote; and the real
+rerun viewer's screenshot under Xvfb.
 
 Uses the real TIAGo motion-capture campaign (/work/shared/real-data/figaroh_tiago_mocap; skips
 where it is absent)."""
@@ -48,7 +50,8 @@ def rrd(tiago_run) -> dict:
 
 
 def _capsule_ends(e: dict, n_links: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Times (N,), capsule starts and ends (N, n_links, 3) of a Capsules3D entity logged per time."""
+    """Times (N,), capsule starts and ends (N, n_links, 3) of a Capsules3D entity logged per time (seed
+    000's D-H arm, drawn as capsules)."""
     t = np.asarray(e["index"]["time"], np.int64)
     tr = np.array(e["rows"]["Capsules3D:translations"], float).reshape(len(t), n_links, 3)
     qt = np.array(e["rows"]["Capsules3D:quaternions"], float).reshape(len(t), n_links, 4)
@@ -59,9 +62,14 @@ def _capsule_ends(e: dict, n_links: int) -> tuple[np.ndarray, np.ndarray, np.nda
 
 @needs_tiago
 def test_robot_entities_and_no_whitespace(rrd):
-    want = {f"world/robot/{w}/{p}" for w in ("nominal", "calibrated") for p in ("links", "joints", "tool")}
-    want |= {"world/robot/calibrated/root", "world/instrument", "world/measured", "encoder/postures",
-             "world/tips/nominal", "world/tips/calibrated"}
+    """Both robots' links by their URDF names (rerun's URDF loader), their joints' transforms on `time`."""
+    links = {"torso_lift_link", "arm_1_link", "arm_4_link", "arm_7_link", "wrist_ft_tool_link"}
+    for w in ("nominal", "calibrated"):
+        drawn = {e.split("/")[3] for e in rrd if e.startswith(f"world/robot_{w}/visual_geometries/")}
+        assert links <= drawn, sorted(links - drawn)
+        assert {f"world/robot_{w}/joints/{j}" for j in ("torso_lift_joint", "arm_1_joint", "arm_7_joint")} <= set(rrd)
+        assert f"world/robot_{w}/placement" in rrd
+    want = {"world/instrument", "world/measured", "encoder/postures", "world/tips/nominal", "world/tips/calibrated"}
     assert want <= set(rrd), sorted(want - set(rrd))
     assert not [e for e in rrd if any(c.isspace() for c in e)], "entity paths with whitespace"
     names = rrd["encoder/postures"]["static"]["SeriesLines:names"]
@@ -70,33 +78,33 @@ def test_robot_entities_and_no_whitespace(rrd):
 
 
 @needs_tiago
-def test_calibrated_robot_is_the_calibrated_urdf(rrd, tiago_run):
-    """Every capsule of the calibrated robot joins two link origins of model.urdf as yourdfpy
-    places them (instrument frame), at every measurement posture of the campaign."""
+def test_calibrated_robot_is_the_calibrated_urdf(tiago_run):
+    """Every link frame of the calibrated robot, composed from run.rrd's transforms (placement in the world,
+    the URDF loader's static transforms, the joint transforms at each time), is where yourdfpy places that
+    link of model.urdf in the instrument frame, at every measurement posture of the campaign."""
     from pipeline.models.urdf import load_urdf_model
     from pipeline.recording.reader import read_recording
     from pipeline.systems.registry import detect
+    from rrd_frames import pose, read_frames
 
     rec = read_recording(tiago_run.parent / "tiago.mcap")
     model, table = detect(rec).load(rec)
     u = load_urdf_model((tiago_run / "identify" / "model.urdf").read_text())
-    labels = rrd["world/robot/calibrated/links"]["static"]["Capsules3D:labels"]
-    t, start, end = _capsule_ends(rrd["world/robot/calibrated/links"], len(labels))
+    static, timed = read_frames(tiago_run / "run.rrd")
+    t = timed["calibrated/arm_1_link"][1]
     order = np.argsort(table["timestamp_ns"])
-    assert np.array_equal(np.sort(t), np.asarray(table["timestamp_ns"])[order])
+    assert np.array_equal(t, np.asarray(table["timestamp_ns"])[order])
     joints = model.kin.joint_names
     checked = 0
-    for i in np.argsort(t)[:: max(1, len(t) // 6)]:
+    for i in range(0, len(t), max(1, len(t) // 6)):
         k = int(np.flatnonzero(table["timestamp_ns"] == t[i])[0])
         u.update_cfg(dict(zip(joints, table["joint_positions"][k])))
-        for c, lab in enumerate(labels):
-            a, b = lab.split(" → ")
-            for link, got in ((a, start[i, c]), (b, end[i, c])):
-                link = "robocal_tool" if link == "tool" else link
-                want = u.get_transform(link, "robocal_instrument")[:3, 3]
-                np.testing.assert_allclose(got, want, atol=2e-5, err_msg=f"{lab} at posture {k}")
-                checked += 1
-    assert checked > 100
+        for link in ("torso_lift_link", "arm_1_link", "arm_4_link", "arm_7_link", "wrist_ft_tool_link", "robocal_tool"):
+            got = pose(static, timed, f"calibrated/{link}", "tf#/world", i)
+            np.testing.assert_allclose(got[:3, 3], u.get_transform(link, "robocal_instrument")[:3, 3], atol=2e-5,
+                                       err_msg=f"{link} at posture {k}")
+            checked += 1
+    assert checked > 30
 
 
 @needs_tiago

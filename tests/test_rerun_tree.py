@@ -1,13 +1,13 @@
-"""A robot with several tips in rerun: every chain of the tree drawn, read back from the .rrd with
-rerun's own reader (rerun.chunk.RrdReader) and checked against yourdfpy's forward kinematics of the
-URDF the independent humanoid generator writes (dual arm, coupled torso; no robocal code)."""
+"""A robot with several tips in rerun, through rerun's URDF support: every link of both arms by name and
+their frames read back from the .rrd with rerun's own reader (rerun.chunk.RrdReader), checked against
+yourdfpy's forward kinematics of the URDF the independent humanoid generator writes (dual arm, coupled
+torso driven by the others; no robocal code)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import rerun as rr
-from scipy.spatial.transform import Rotation
 
 import independent_humanoid as hu
 from test_rerun_rrd import _read
@@ -41,40 +41,69 @@ def drawn(tmp_path_factory):
 def test_every_tip_has_its_chain(drawn):
     _, paths, rrd, _ = drawn
     for which in ("nominal", "calibrated"):
-        for tip in ("left_hand", "right_hand"):
-            for part in ("links", "joints", "tool"):
-                assert f"world/robot/{which}/{tip}/{part}" in rrd, (which, tip, part)
-    # the torso both chains share is drawn once, with the first chain
-    left = rrd["world/robot/calibrated/left_hand/joints"]["static"]["Points3D:labels"]
-    right = rrd["world/robot/calibrated/right_hand/joints"]["static"]["Points3D:labels"]
-    assert {"torso_j1", "torso_j2", "torso_j3"} <= set(left) and not {"torso_j1", "torso_j3"} & set(right)
-    assert {f"right_j{i}" for i in range(1, 7)} <= set(right)
+        links = {e.split("/")[3] for e in rrd if e.startswith(f"world/robot_{which}/visual_geometries/")}
+        assert {"left_hand", "right_hand", "base"} <= links, links
+        joints = {e.split("/")[3] for e in rrd if e.startswith(f"world/robot_{which}/joints/")}
+        assert {"torso_j1", "torso_j2", "torso_j3"} | {f"right_j{i}" for i in range(1, 7)} <= joints
 
 
-def test_capsules_join_the_links_yourdfpy_places(drawn):
+def test_links_are_where_yourdfpy_places_them(drawn):
     yourdfpy = pytest.importorskip("yourdfpy")
-    d, _, rrd, q = drawn
+    from rrd_frames import pose, read_frames
+
+    d, _, _, q = drawn
     u = yourdfpy.URDF.load(str(d / "humanoid.urdf"), load_meshes=False)
+    static, timed = read_frames(d / "tree.rrd")
     checked = 0
-    for tip in ("left_hand", "right_hand"):
-        e = rrd[f"world/robot/calibrated/{tip}/links"]
-        labels = e["static"]["Capsules3D:labels"]
-        n, m = len(q), len(labels)
-        tr = np.array(e["rows"]["Capsules3D:translations"], float).reshape(n, m, 3)
-        qt = np.array(e["rows"]["Capsules3D:quaternions"], float).reshape(n, m, 4)
-        L = np.array(e["rows"]["Capsules3D:lengths"], float).reshape(n, m)
-        end = tr + Rotation.from_quat(qt.reshape(-1, 4)).apply([0, 0, 1]).reshape(n, m, 3) * L[..., None]
-        order = np.argsort(e["index"]["time"])
-        for i, k in enumerate(order):
-            cfg = dict(zip(hu.READ, q[i]))
-            cfg["torso_j3"] = -cfg["torso_j1"] - cfg["torso_j2"]
-            u.update_cfg(cfg)
-            for c, lab in enumerate(labels):
-                a, b = lab.split(" → ")
-                if b == "tool":
-                    continue
-                np.testing.assert_allclose(tr[k, c], u.get_transform(a, "base")[:3, 3], atol=1e-9)
-                np.testing.assert_allclose(end[k, c], u.get_transform(b, "base")[:3, 3], atol=1e-6)
-                checked += 1
-        assert any(lab.endswith(f"→ {tip}") for lab in labels), labels
-    assert checked > 40
+    for i in range(len(q)):
+        cfg = dict(zip(hu.READ, q[i]))
+        cfg["torso_j3"] = -cfg["torso_j1"] - cfg["torso_j2"]
+        u.update_cfg(cfg)
+        for link in ("left_hand", "right_hand"):
+            got = pose(static, timed, f"calibrated/{link}", "tf#/world", i)
+            np.testing.assert_allclose(got[:3, 3], u.get_transform(link, "base")[:3, 3], atol=1e-5)
+            checked += 1
+    assert checked == 2 * len(q)
+
+
+def test_meshes_where_package_paths_resolve_primitives_otherwise(tmp_path, monkeypatch):
+    """A link whose package:// mesh is found under --mesh-path (or ROS_PACKAGE_PATH) is drawn with that mesh
+    (rerun's Asset3D / Mesh3D from the STL); one whose mesh is not found, as primitives (cylinder, sphere)."""
+    from rrd_frames import read_frames
+
+    from pipeline.models import urdf
+    from pipeline.models.urdf_arm import UrdfArm
+    from pipeline.visualize.robot import log_robot
+
+    stl = tmp_path / "pkgs" / "demo" / "meshes" / "l1.stl"
+    stl.parent.mkdir(parents=True)
+    stl.write_text("solid t\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 0.1 0 0\n   vertex 0 0.1 0\n"
+                   "  endloop\n endfacet\nendsolid t\n")
+    text = """<robot name="two"><link name="base"/><link name="l1"><visual><geometry>
+      <mesh filename="package://demo/meshes/l1.stl"/></geometry></visual></link>
+      <link name="l2"><visual><geometry><mesh filename="package://missing/l2.stl"/></geometry></visual></link>
+      <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.3"/><axis xyz="0 0 1"/>
+        <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+      <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.4 0 0"/><axis xyz="0 1 0"/>
+        <limit lower="-3" upper="3" effort="1" velocity="1"/></joint></robot>"""
+    arm = UrdfArm(urdf.parse(text, "base", "l2"))
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    for name, kw in (("found", {"mesh_path": [tmp_path / "pkgs"]}), ("missing", {})):
+        rec = rr.RecordingStream(f"robocal-test-mesh-{name}")
+        rec.save(str(tmp_path / f"{name}.rrd"))
+        x = arm.nominal_vector()
+        log_robot(rec, arm, {"calibrated": x}, np.zeros((2, 2)), np.arange(2) * 1_000_000_000, **kw)
+        rec.flush()
+        rec.disconnect()
+        rrd = _read(tmp_path / f"{name}.rrd")
+        l1 = {k: v for k, v in rrd.items() if k.startswith("world/robot_calibrated/visual_geometries/l1/")}
+        comps = {c for v in l1.values() for c in v["static"]}
+        if name == "found":
+            assert any(c.startswith(("Asset3D:", "Mesh3D:")) for c in comps), comps
+        else:
+            assert any(c.startswith("Cylinders3D:") for c in comps), comps
+        l2 = {c for k, v in rrd.items() if k.startswith("world/robot_calibrated/visual_geometries/l2/") for c in v["static"]}
+        assert any(c.startswith("Ellipsoids3D:") or c.startswith("Cylinders3D:") for c in l2), l2
+        static, timed = read_frames(tmp_path / f"{name}.rrd")
+        assert timed["calibrated/l2"][0] == "calibrated/l1"

@@ -24,7 +24,7 @@ from pipeline.camera.uncertainty import clustered_fit  # noqa: E402
 from pipeline.cli import app, load_commands  # noqa: E402
 from pipeline.identify.complexity import fixed_for  # noqa: E402
 from pipeline.identify.least_squares import FitOptions  # noqa: E402
-from pipeline.importers.ros2_images import header_stamp, typestore  # noqa: E402
+from pipeline.ros2.images import header_stamp, typestore  # noqa: E402
 from pipeline.measurements.camera import CameraModel  # noqa: E402
 from pipeline.models.urdf import parse  # noqa: E402
 from pipeline.models.urdf_arm import UrdfArm  # noqa: E402
@@ -84,7 +84,7 @@ def _run(bag, urdf, out, *extra):
 
 def test_bag_calibrates_to_the_truth_within_stated_sigma(campaign):
     tmp = campaign["tmp"]
-    r = _cli(tmp / "bag", tmp / "r6.urdf", tmp / "rec.mcap", "--clock-offset-bound", "0.4", workers=2)  # the pool
+    r = _cli(tmp / "bag", tmp / "r6.urdf", tmp / "rec.mcap", "--clock-offset-bound-s", "0.4", workers=2)  # the pool
     assert r.exit_code == 0, r.output
     assert "record 4" in r.output and "record 11" in r.output and "moving" in r.output
     rec = read_recording(tmp / "rec.mcap")
@@ -117,7 +117,7 @@ def test_a_wrong_clock_offset_unpairs_the_stop_images(campaign, tmp_path):
     images taken at the stops no longer stand still around their stamps, so they are listed as taken
     while moving and left out; too few remain, exit 2."""
     tmp = campaign["tmp"]
-    r = _run(tmp / "bag", tmp / "r6.urdf", tmp_path / "rec.mcap", "--clock-offset", "-1.3")
+    r = _run(tmp / "bag", tmp / "r6.urdf", tmp_path / "rec.mcap", "--clock-offset-s", "-1.3")
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr and "usable in 2 of 2 paired images" in r.stderr
     for i in (0, 1, 2, 3, 5):

@@ -19,7 +19,7 @@ import pytest
 
 from conftest import run_cli
 from pipeline.importers import standstill
-from pipeline.importers.bagkind import ros2_kind
+from pipeline.ros2.kind import ros2_kind
 from pipeline.models import urdf
 from pipeline.simulate.ros2_bag import JOINT_STATE, BagLayout, simulate_bag
 from test_bad_input import assert_one_line_error

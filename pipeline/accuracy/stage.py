@@ -58,7 +58,7 @@ def accuracy_document(model, rec, x, free, cov, data, params: dict, holdout=None
     sigma, kinds, source = prior.prior_sigma(model, file_priors, params.get("prior") or {})
     # a physics term held rigid (the held-out model selection did not keep it) is not part of the stated
     # model: the data showed no sign of it, and the held-out check catches physics the model lacks
-    unkept = np.array([k == "compliance" for k in kinds]) & ~np.asarray(free, bool)
+    unkept = np.array([k in ("compliance", "load_compliance") for k in kinds]) & ~np.asarray(free, bool)
     sigma = np.where(unkept, 0.0, sigma)
     fixture = rec.metadata.get(META_FIXTURE)
     targets = read_targets(params["targets"]) if params.get("targets") else None
@@ -94,10 +94,12 @@ def guarded_document(model, rec, x, free, cov, data, params: dict, holdout=None,
                 "advice": "report this model to the robocal maintainers", "map": {}}
 
 
-def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict, data: dict | None = None):
+def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict, data: dict | None = None, model=None):
     """(held-out residuals of the used rows, folds) of the identify stage's cross-validation (the
-    same seeded split kept representative of the design `data`, `folds.design_folds`), or None when it has none."""
+    same seeded split kept representative of the design `data`, `folds.design_folds`, with the rows `model`
+    keeps together: a camera's images), or None when it has none."""
     from pipeline.identify.folds import design_folds
+    from pipeline.identify.natural_groups import holdout_groups
     from pipeline.stages.artefacts import read_stage
 
     k = int(fit.get("residual_dim", 1))
@@ -107,7 +109,8 @@ def run_holdout(run_dir: Path, res: dict, used: np.ndarray, fit: dict, data: dic
         return None
     seed = int(((read_stage(run_dir, IDENTIFY) or {}).get("params") or {}).get("seed", 0))
     h = np.stack([np.asarray(res[c], float) for c in cols], axis=1)[used]
-    return h, design_folds(int(used.sum()), folds, seed, None, data)
+    groups = holdout_groups(model, data) if model is not None and data is not None else None
+    return h, design_folds(int(used.sum()), folds, seed, groups, data)
 
 
 def run(run_dir: Path, params: dict) -> dict:
@@ -124,7 +127,7 @@ def run(run_dir: Path, params: dict) -> dict:
     data = take(model_columns(table), used)
     x, free = np.asarray(fit["x"], float), np.asarray(fit["free"], bool)
     shrunk = str((fit.get("model_selection") or {}).get("method", "")).startswith("shrinkage")
-    doc = guarded_document(model, rec, x, free, fit["cov"], data, params, run_holdout(run_dir, res, used, fit, data),
+    doc = guarded_document(model, rec, x, free, fit["cov"], data, params, run_holdout(run_dir, res, used, fit, data, model),
                            fit.get("sigma_m") if shrunk else None)
     if params.get("previous"):
         doc["previous"] = {"run": str(params["previous"]),

@@ -6,7 +6,9 @@ For a calibration (intrinsics k, X, Y as `pipeline.camera.start.hand_eye`) and a
 used to fit it:
 
 * **reprojection**: the board's corners predicted through the robot's pose at the image,
-  projected, minus the detected corners (px);
+  projected, minus the detected corners (px): the RMS over corners of the 2-D error (OpenCV's
+  reprojection RMS, ``reprojection_rms_2d_px``) and over the u, v components (``reprojection_rms_px``,
+  = 2-D/√2 when isotropic);
 * **board in base**: the board's centre located from the image alone (solvePnP with the
   calibration's intrinsics) and carried into the robot base frame by the robot's pose and the
   hand-eye transform, minus the calibration's board position (eye-in-hand: Y; mm).
@@ -58,7 +60,8 @@ def held_out(model, x: np.ndarray, k: np.ndarray, X: np.ndarray, Y: np.ndarray, 
             seen, known = X @ T_pnp @ c, T_bf[i] @ Y @ c
         dist.append(np.linalg.norm(seen[:3] - known[:3]))
     r = np.concatenate(res)
-    return {"reprojection_rms_px": float(np.sqrt(np.mean(r**2))), "board_rms_mm": float(np.sqrt(np.mean(np.square(dist)))) * 1e3,
+    return {"reprojection_rms_2d_px": float(np.sqrt(np.mean(np.sum(r**2, axis=1)))),
+            "reprojection_rms_px": float(np.sqrt(np.mean(r**2))), "board_rms_mm": float(np.sqrt(np.mean(np.square(dist)))) * 1e3,
             "residuals": r, "board_mm": np.asarray(dist) * 1e3}
 
 

@@ -8,7 +8,10 @@ Every image gets a status; only ``ok`` and ``partial`` images carry corners a ca
 and each image that is not used is listed with its reason:
 
 * ``unreadable`` — the file is not an image OpenCV decodes;
-* ``wrong size`` — its size differs from the first readable image's;
+* ``too large`` — its header states more than `MAX_PIXELS` pixels (judged before decoding: a
+  hostile 30000×30000 PNG is not decoded into gigabytes);
+* ``wrong size`` — its size differs from the first readable image's (from the headers where
+  Pillow reads them, so a wrong-size image is not decoded either);
 * ``not found`` — the target is not in it (or too little of it: fewer than `MIN_CORNERS`);
 * ``blurred`` — the chessboard's mean edge width exceeds `max_edge_px`;
 * ``partial`` — a ChArUco / grid seen in part (used: its corner ids say which corners they are).
@@ -28,6 +31,7 @@ import numpy as np
 from pipeline.camera.targets import Target, parse
 
 MIN_CORNERS = 6
+MAX_PIXELS = 250_000_000  # width × height: above every calibration camera (the largest sensors sold: ≈ 150 MP)
 MAX_EDGE_PX = 5.0  # a chessboard whose black-white edges are wider than this (px, 10 %–90 %) is blurred
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 USED = ("ok", "partial")
@@ -54,6 +58,30 @@ class Detection:
 def image_files(folder: Path) -> list[Path]:
     """The image files of a folder (by suffix), sorted by name."""
     return sorted(p for p in Path(folder).iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+
+
+def header_size(path) -> tuple[int, int] | None:
+    """(width, height) px from the header of an image file (a path, or a binary file object), without
+    decoding its pixels (Pillow reads PNG, JPEG, BMP, TIFF, WebP, PGM/PPM headers lazily); None where
+    Pillow cannot read the header."""
+    from PIL import Image
+
+    limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # only the header is read: `too_large` judges it
+    try:
+        with Image.open(path) as im:
+            return int(im.size[0]), int(im.size[1])
+    except Exception:  # noqa: BLE001 — any header Pillow cannot parse: OpenCV decides when it decodes
+        return None
+    finally:
+        Image.MAX_IMAGE_PIXELS = limit
+
+
+def too_large(size: tuple[int, int] | None) -> str | None:
+    """The reason an image of `size` (w, h) px is refused before decoding, or None."""
+    if size is not None and size[0] * size[1] > MAX_PIXELS:
+        return (f"{size[0]}x{size[1]} px ({size[0] * size[1] / 1e6:.0f} MP) in its header, more than robocal "
+                f"decodes ({MAX_PIXELS / 1e6:.0f} MP)")
+    return None
 
 
 def subpix_window(px: np.ndarray, target: Target) -> int:
@@ -127,6 +155,12 @@ def detect_image(path: str | Path, target: Target | str, max_edge_px: float = MA
 
     cv2.setNumThreads(1)
     path = Path(path)
+    head = header_size(path)
+    if (why := too_large(head)) is not None:
+        return Detection(path.name, "too large", why, head)
+    if size is not None and head is not None and head != tuple(size):
+        return Detection(path.name, "wrong size", f"{head[0]}x{head[1]} px, the others are {size[0]}x{size[1]} px",
+                         head)
     img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if img is None:
         return Detection(path.name, "unreadable", "not an image OpenCV can decode (damaged or unknown format)")
@@ -183,7 +217,13 @@ def detect_folder(files: list[Path], target: Target, max_edge_px: float = MAX_ED
     import cv2
 
     size = None
-    for f in files:  # the reference size: the first image OpenCV decodes
+    for f in files:  # the reference size: the first image's header (else the first image OpenCV decodes)
+        head = header_size(f)
+        if too_large(head) is not None:
+            continue
+        if head is not None:
+            size = head
+            break
         img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
         if img is not None:
             size = (int(img.shape[1]), int(img.shape[0]))

@@ -43,7 +43,27 @@ def _flags_take_no_value() -> None:
     cls.display_type_rich = display_type_rich
 
 
+def _no_emoji() -> None:
+    """Help text as written: rich reads ``:name:`` as an emoji code (``A:B:METRES`` became "A🅱METRES"), so
+    typer's help renders rich markup with emoji codes off.  Idempotent."""
+    import rich.text
+    import typer.rich_utils as ru
+
+    if getattr(ru.Text, "_no_emoji", False):
+        return
+
+    class Text(rich.text.Text):
+        _no_emoji = True
+
+        @classmethod
+        def from_markup(cls, text, *, style="", emoji=False, **kw):
+            return rich.text.Text.from_markup(text, style=style, emoji=False, **kw)
+
+    ru.Text = Text
+
+
 _flags_take_no_value()
+_no_emoji()
 app = typer.Typer(name="robocal", help="Log-centric robot calibration: record, calibrate, inspect.",
                   no_args_is_help=True, pretty_exceptions_enable=False, cls=_TaskOrderedGroup)
 simulate_app = typer.Typer(help="Simulate a calibration campaign of a reference system into an MCAP recording.",
@@ -55,7 +75,7 @@ def console(stderr: bool = False) -> Console:
     """A rich console that wraps only on a terminal: in CI logs and pipes a line stays one line
     (grep-friendly), whatever the 80-column default."""
     stream = sys.stderr if stderr else sys.stdout
-    return Console(stderr=stderr, width=None if stream.isatty() else 10_000, soft_wrap=not stream.isatty())
+    return Console(stderr=stderr, width=None if stream.isatty() else 10_000, soft_wrap=not stream.isatty(), emoji=False)
 
 
 err = console(stderr=True)
@@ -88,7 +108,7 @@ SIMULATORS = ("simulate", "sim_camera", "sim_delta", "sim_scanner", "sim_urdf", 
 COMMAND_MODULES: dict[str, tuple[str, ...]] = {
     "acquire": ("acquire",), "recover": ("acquire",), "device-sim": ("acquire", *SIMULATORS),
     "calibrate": ("calibrate",), "evaluate": ("evaluate",), "compensate": ("compensate",), "diagnose": ("diagnose",), "fleet": ("fleet",),
-    "import": ("importer", "images", "ros2"), "plan": ("plan",), "report": ("report",), "reprocess": ("reprocess",),
+    "import": ("importer", "images", "ros2"), "export": ("export",), "plan": ("plan",), "report": ("report",), "reprocess": ("reprocess",),
     "run": ("run",), "ingest": ("run",), "validate": ("run",), "identify": ("run",), "observe": ("run",),
     "simulate": SIMULATORS, "view": ("view",),
 }
@@ -111,16 +131,50 @@ def load_commands(argv: list[str] | None = None) -> None:
         importlib.import_module(f"pipeline.cli.{m}")
 
 
+# Options renamed to carry their unit: the old names stay accepted (hidden from --help, one warning line) so
+# the scripts written for them keep working.
+RENAMED = {"--f-scale": "--f-scale-m", "--still-window": "--still-window-s", "--still-speed": "--still-speed-rad-s",
+           "--clock-offset-bound": "--clock-offset-bound-s", "--clock-offset": "--clock-offset-s"}
+
+
+def renamed(argv: list[str]) -> tuple[list[str], list[str]]:
+    """(`argv` with each renamed option's old name, alone or as ``--old=VALUE``, replaced by its new name;
+    the old names met).  Words after ``--`` are left as they are."""
+    out, met = [], []
+    for i, a in enumerate(argv):
+        if a == "--":
+            return out + argv[i:], met
+        name, eq, value = a.partition("=")
+        if name in RENAMED:
+            met.append(name)
+            a = RENAMED[name] + eq + value
+        out.append(a)
+    return out, met
+
+
 def main() -> None:
     """Console-script entry point."""
     from rich.markup import escape  # an error quotes the user's text ("[m/rad]", a path with brackets) as written
 
     from pipeline.errors import RobocalError
 
+    sys.argv[1:], old = renamed(sys.argv[1:])
+    for name in old:
+        err.print(f"[yellow]warning:[/] {name} is now {RENAMED[name]} (the old name still works)", highlight=False,
+                  soft_wrap=True)
     load_commands(sys.argv[1:])
 
+    from typer._click.exceptions import UsageError
+
     try:
-        app()
+        code = app(standalone_mode=False)
+    except UsageError as e:  # an unknown choice, a missing option: one line, exit 2, like every bad input
+        if not e.format_message().strip():  # no arguments: the help was printed
+            sys.exit(e.exit_code)
+        cmd = e.ctx.command_path if e.ctx is not None else "robocal"
+        err.print(f"[bold red]robocal: error:[/] {escape(e.format_message())} (see {escape(cmd)} --help)",
+                  highlight=False, soft_wrap=True)
+        sys.exit(2)
     except RobocalError as e:
         err.print(f"[bold red]robocal: error:[/] {escape(str(e))}", highlight=False, soft_wrap=True)
         sys.exit(2)
@@ -133,3 +187,5 @@ def main() -> None:
                   f"{escape(str(e.strerror or e))}",
                   highlight=False, soft_wrap=True)
         sys.exit(2)
+    if isinstance(code, int) and code:  # typer.Exit(code) from a command (--strict, …)
+        sys.exit(code)

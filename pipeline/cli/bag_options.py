@@ -4,8 +4,6 @@ Registers no command."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import typer
 from rich.markup import escape
 
@@ -29,11 +27,11 @@ def options(panel: str | None = None) -> dict[str, typer.models.OptionInfo]:
                                 "coupled already).", **kw),
         "coupling_wins": typer.Option(False, "--coupling-wins", help="A --coupled joint the JointStates also carry: the "
                                       "coupling replaces its readings (without this that is an error).", **kw),
-        "measure": typer.Option(None, "--measure", help="point | pose (default: from the topic's type) | effort (dynamics: "
-                                "every JointState with its efforts).", **kw),
-        "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window", min=1e-6,
+        "measure": typer.Option(None, "--measure", help="point, pose or effort (dynamics: every JointState with its "
+                                "efforts).", show_default="from the topic's type", **kw),
+        "window_s": typer.Option(standstill.DEFAULT_WINDOW_S, "--still-window-s", min=1e-6,
                                  help="Standstill window around each measurement, s.", **kw),
-        "max_speed": typer.Option(standstill.DEFAULT_MAX_SPEED, "--still-speed", min=1e-12,
+        "max_speed": typer.Option(standstill.DEFAULT_MAX_SPEED, "--still-speed-rad-s", min=1e-12,
                                   help="Largest joint speed (peak-to-peak over the window / window) still counted as "
                                        "standing still, rad/s (m/s for prismatic joints).", **kw),
         "time": typer.Option("header", "--time", help="Times from header (header.stamp; receive time for a topic "
@@ -65,38 +63,11 @@ def measure_topics(measure_topic: list[str] | None, tip: str | None, bag: bool =
     return (None if tips else (topics[0] if topics else None)), tips
 
 
-def print_read(bag: Path, extras: dict) -> None:
-    """What the import read: its warnings, the topics and the standstill pairing, every excluded record."""
-    for w in extras.get("import_warnings", []):
-        err.print(f"[yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
-    r = extras["ros2"]
-    p = r["pairing"]
-    js = r["joint_states"]
-    if js.get("efforts_dropped"):
-        err.print(f"[yellow]warning:[/] {js['efforts_dropped']}", highlight=False, soft_wrap=True)
-    skipped = f", {js['n_skipped_other_joints']} naming only other joints skipped" if js["n_skipped_other_joints"] else ""
-    err.print(f"{bag}: {js['n_used']} joint states on {r['joint_topic']} "
-              f"(ignored joints: {', '.join(js['ignored_joints']) or 'none'}{skipped}), "
-              f"{p['n_measurements']} measurements on {r['measure_topic']} in frame {r['frame_id']!r}", highlight=False,
-              soft_wrap=True)
-    err.print(f"standstill pairing (window {p['window_s']:g} s, max speed {p['max_speed_rad_s_or_m_s']:g} rad/s): "
-              f"{p['n_paired']} paired, {p['n_moving']} taken while moving, {p['n_not_covered']} outside the joint "
-              "states — excluded", highlight=False, soft_wrap=True)
-    for e in p["moving"]:
-        err.print(f"[yellow]excluded:[/] {r['measure_topic']} record {e['index']} at {e['t_s']:.3f} s: moving "
-                  f"({e['joint']} {e['speed']:.3g} rad/s over the window)", highlight=False, soft_wrap=True)
-    for e in p["not_covered"]:
-        err.print(f"[yellow]excluded:[/] {r['measure_topic']} record {e['index']} at {e['t_s']:.3f} s: no joint "
-                  "states around it", highlight=False, soft_wrap=True)
-    listed = len(p["moving"]) + len(p["not_covered"])
-    if listed < p["n_moving"] + p["n_not_covered"]:
-        err.print(f"… and {p['n_moving'] + p['n_not_covered'] - listed} more excluded (all counted in the "
-                  "recording's campaign metadata)", highlight=False)
-
-
-def print_written(done) -> None:
-    """What the import wrote (a `pipeline.importers.bag_import.BagImport`)."""
-    if done.n_stream is not None:
-        err.print(f"kept the efforts of {done.n_stream} joint states in the encoder stream", highlight=False)
-    err.print(f"imported {done.n} {done.kind} measurements of {done.n_joints} joints ({done.root} → {done.tip}) "
-              f"into {done.out}", highlight=False, soft_wrap=True)
+def say(line: str) -> None:
+    """Print one line an import says (`pipeline.ros2.report`) on stderr, its ``warning:`` / ``excluded:`` word in
+    yellow, the rest as written (no rich markup read into it)."""
+    for word in ("warning:", "excluded:"):
+        if line.startswith(word):
+            err.print(f"[yellow]{word}[/]{escape(line[len(word):])}", highlight=False, soft_wrap=True)
+            return
+    err.print(escape(line), highlight=False, soft_wrap=True)

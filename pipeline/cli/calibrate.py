@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 import typer
 from rich.markup import escape
@@ -19,19 +19,19 @@ def calibrate_cmd(
     recordings: list[Path] = typer.Argument(..., help="Recording(s) (MCAP) of a calibration campaign; several "
                                                       "recordings of one robot are calibrated together (sessions)."),
     out: Path = typer.Option(..., "--out", help="Output folder for results.json and model.json."),
-    loss: str = typer.Option("linear", "--loss", help="Loss: linear, huber or soft_l1."),
+    loss: Literal["linear", "huber", "soft_l1"] = typer.Option("linear", "--loss", help="Robust loss."),
     folds: int = typer.Option(5, "--folds", min=2, help="Folds of the held-out cross-validation."),
     rank_tol: float = typer.Option(1e-3, "--rank-tol", min=0.0,
                                    help="Smallest remaining norm of a kept unit-norm Jacobian column (rank test)."),
-    solver: str = typer.Option("lm", "--solver", help="lm (least squares, default) or ga (seed 001's genetic algorithm)."),
+    solver: Literal["lm", "ga"] = typer.Option("lm", "--solver", help="lm (least squares) or ga (seed 001's genetic algorithm)."),
     joint_offsets: bool = typer.Option(False, "--joint-offsets", help="Also identify the arm's joint offsets (scanner)."),
     variant: str = typer.Option(None, "--model-variant",
                                 help="Model variant of the system (delta-tracker: simplified, extended)."),
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
-    registration: str = typer.Option("shared", "--registration", help="Several recordings: shared (one instrument "
+    registration: Literal["shared", "per-recording"] = typer.Option("shared", "--registration", help="Several recordings: shared (one instrument "
                                                                       "frame) or per-recording."),
-    model_choice: str = typer.Option("auto", "--model-choice", help=MODEL_CHOICE_HELP),
+    model_choice: Literal["auto", "groups", "shrinkage"] = typer.Option("auto", "--model-choice", help=MODEL_CHOICE_HELP),
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
 ) -> None:
     """Identify the robot model from a recording: full nonlinear least squares from the nominal model."""

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from typing import Literal
+
 import typer
 from rich.table import Table
 
@@ -29,11 +31,17 @@ def _mm(v) -> str:
     return "—" if v is None else f"{v * 1e3:.3f}"
 
 
+def _px(v) -> str:
+    return "—" if v is None else f"{v:.3f}"
+
+
 def _table(results: list[dict], title: str) -> Table:
     measure = results[0]["measure"] if results else "point"
     t = Table(title=title)
-    plane = measure == "plane"
+    plane, camera = measure == "plane", measure == "camera"
     heads = (["recording / group", "n", "RMS along normal mm", "mean |d| mm", "max |d| mm"] if plane else
+             ["recording / image", "corners", "RMS of the 2-D reprojection error px", "mean 2-D px", "max 2-D px",
+              "RMS per axis px"] if camera else
              ["recording / group", "n", "RMS of the 3-D error mm", "mean 3-D mm", "max 3-D mm", "RMS per axis mm"])
     if measure == "coincidence":
         heads.append("socket distance error mm")
@@ -44,6 +52,9 @@ def _table(results: list[dict], title: str) -> Table:
         if plane:
             return [name, str(d.get("n", 0)), _mm(d.get("rms_normal_m")), _mm(d.get("mean_abs_normal_m")),
                     _mm(d.get("max_abs_normal_m"))]
+        if camera:
+            return [name, str(d.get("n", 0))] + [_px(d.get(k)) for k in ("rms_2d_px", "mean_2d_px", "max_2d_px",
+                                                                          "rms_axis_px")]
         cells = [name, str(d.get("n", 0)), _mm(d.get("rms_3d_m")), _mm(d.get("mean_3d_m")), _mm(d.get("max_3d_m")),
                  _mm(d.get("rms_axis_m"))]
         return cells + ([dist or ""] if measure == "coincidence" else [])
@@ -64,9 +75,9 @@ def evaluate_cmd(
     run_dir: Path = typer.Argument(..., help="Run folder of `robocal run` (or output folder of `robocal calibrate`)."),
     recordings: list[Path] = typer.Argument(..., help="Recording(s) (MCAP) of the same robot to evaluate it on."),
     out: Path = typer.Option(..., "--out", help="Folder for evaluation.json, errors.parquet and report.html."),
-    refit: str = typer.Option("none", "--refit", help="none (apply as calibrated) or registration (re-estimate "
+    refit: Literal["none", "registration"] = typer.Option("none", "--refit", help="none (apply as calibrated) or registration (re-estimate "
                                                       "only the instrument frame)."),
-    registration: str = typer.Option("shared", "--registration",
+    registration: Literal["shared", "per-recording"] = typer.Option("shared", "--registration",
                                       help="With --refit registration: shared (one frame for all) or per-recording."),
 ) -> None:
     """Apply a calibrated model to other recordings without refitting it: the error of every measurement."""
@@ -92,7 +103,10 @@ def evaluate_cmd(
         "registration": registration if refit == "registration" else "as calibrated",
         "note": ("rms_3d_m: RMS over measurements of the norm of the 3-D position error (points, poses, ball "
                  "centres about their socket's mean); rms_axis_m: RMS over the x, y, z components (= rms_3d_m/√3 "
-                 "when isotropic); planes: distance along the normal"),
+                 "when isotropic); planes: distance along the normal; camera images: rms_2d_px, the RMS over "
+                 "corners of the 2-D reprojection error (px) through the robot's pose at each image, the calibrated "
+                 "hand-eye, board and intrinsics, nothing refitted per image (rms_axis_px: over u and v, "
+                 "= rms_2d_px/√2 when isotropic)"),
         "postures_note": POSTURES_NOTE, "recordings": docs}
     write_json(out / "evaluation.json", doc)
     write_table(out / "errors.parquet", error_table(results))

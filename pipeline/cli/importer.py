@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 import typer
 from rich.markup import escape
@@ -51,20 +51,20 @@ def import_csv(
                                       "between a prismatic and a revolute joint carries its unit; repeatable)."),
     coupling_wins: bool = typer.Option(False, "--coupling-wins", help="A --coupled joint that has its own column: "
                                        "the coupling replaces the column (without this that is an error)."),
-    measure: str = typer.Option(..., "--measure", help="point | pose | plane | coincidence | effort (joint "
+    measure: Literal["point", "pose", "plane", "coincidence", "effort"] = typer.Option(..., "--measure", help="point | pose | plane | coincidence | effort (joint "
                                 "position / velocity / effort logs for dynamics)."),
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
-    joint_units: str = typer.Option("rad", "--joint-units", help="Revolute joint columns in rad or deg."),
-    length_units: str = typer.Option("m", "--length-units", help="Positions and prismatic joints in m or mm."),
+    joint_units: Literal["rad", "deg"] = typer.Option("rad", "--joint-units", help="Revolute joint columns in rad or deg."),
+    length_units: Literal["m", "mm"] = typer.Option("m", "--length-units", help="Positions and prismatic joints in m or mm."),
     columns: str = typer.Option("", "--columns", help="Column names for files without a header, comma-separated."),
     position: str = typer.Option("", "--position-cols", help="Position columns (point, pose; default x,y,z; not "
                                  "with --tip LINK=X,Y,Z)."),
     target: list[str] = typer.Option([], "--target-cols", help="Further targets' x,y,z columns (point), repeatable."),
     orientation: str = typer.Option("", "--orientation-cols", help="Orientation columns (pose)."),
-    orientation_kind: str = typer.Option("rpy", "--orientation", help="rpy (URDF roll,pitch,yaw, rad) or quat (x,y,z,w)."),
+    orientation_kind: Literal["rpy", "quat"] = typer.Option("rpy", "--orientation", help="rpy (URDF roll,pitch,yaw, rad) or quat (x,y,z,w)."),
     plane: list[str] = typer.Option([], "--plane", help="Plane of a file: STEM:NX,NY,NZ:OFFSET (repeatable)."),
     unknown_planes: bool = typer.Option(False, "--unknown-planes", help="Estimate the planes' tilt and offset."),
-    group_from: str = typer.Option("file", "--group-from", help="Coincidence group of a row: file or parent/file."),
+    group_from: Literal["file", "parent/file"] = typer.Option("file", "--group-from", help="Coincidence group of a row: file or parent/file."),
     distance: list[str] = typer.Option([], "--distance", help="Known distance between two groups: A:B:METRES."),
     sigma_m: Optional[float] = typer.Option(None, "--sigma-m", help="The instrument's position uncertainty (1σ per "
                                             "axis), m: residuals far above it fail the calibration naming the likely "
@@ -87,7 +87,7 @@ def import_csv(
                                          "combines, JOINT=EXPR (a differential wrist: j6=-j6+j7); repeatable."),
     effort_joints: str = typer.Option("", "--effort-joints", help="Effort: the joints whose torque is fitted and "
                                       "scored, comma-separated (default: all)."),
-    effort_units: Optional[str] = typer.Option(None, "--effort-units", help="Effort: Nm (efforts are joint "
+    effort_units: Optional[Literal["Nm", "raw"]] = typer.Option(None, "--effort-units", help="Effort: Nm (efforts are joint "
                                                "torques) or raw (with --effort-scale); default raw with a scale, "
                                                "else unknown."),
     rows: str = typer.Option("", "--rows", help="Effort: keep data rows A:B (zero-based, B excluded)."),

@@ -5,6 +5,8 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
+from typing import Literal
+
 import typer
 from rich.markup import escape
 
@@ -54,12 +56,12 @@ def plan_cmd(
     urdf: Path = typer.Option(None, "--urdf", help="System urdf: the robot description (URDF)."),
     root: str = typer.Option(None, "--root", help="System urdf: root link of the chain."),
     tip: str = typer.Option(None, "--tip", help="System urdf: tip link of the chain."),
-    measure: str = typer.Option("point", "--measure", help="System urdf: point | pose (what is measured at each "
+    measure: Literal["point", "pose"] = typer.Option("point", "--measure", help="System urdf: point | pose (what is measured at each "
                                 "configuration: a tracker target, or a 6-D pose)."),
     target: str = typer.Option(None, "--target", help="System camera: the board (as robocal import images), "
                                "e.g. chessboard:9x6:0.03."),
-    camera_on: str = typer.Option("tip", "--camera-on", help="System camera: tip (eye-in-hand) or world (eye-to-hand)."),
-    lens: str = typer.Option("pinhole", "--lens", help="System camera: pinhole or fisheye."),
+    camera_on: Literal["tip", "world"] = typer.Option("tip", "--camera-on", help="System camera: tip (eye-in-hand) or world (eye-to-hand)."),
+    lens: Literal["pinhole", "fisheye"] = typer.Option("pinhole", "--lens", help="System camera: pinhole or fisheye."),
     n_dist: int = typer.Option(5, "--distortion-terms", help="System camera: distortion terms of the model (4, 5, 8)."),
     image_size: str = typer.Option("640x480", "--image-size", help="System camera: WIDTHxHEIGHT, px."),
     focal_px: float = typer.Option(None, "--focal-px", min=1.0, help="System camera: nominal focal length, px "

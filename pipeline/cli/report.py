@@ -16,6 +16,10 @@ def report_cmd(
     out: Optional[Path] = typer.Option(None, "--out", help="Run folder (same as the argument)."),
     no_rrd: bool = typer.Option(False, "--no-rrd", help="Write report.html only, not run.rrd."),
     force: bool = typer.Option(False, "--force", help="Run even if cached."),
+    mesh_path: Optional[list[Path]] = typer.Option(None, "--mesh-path", help="A folder where the URDF's "
+                                                    "package://PKG/… meshes are (PKG/… inside it; repeatable; also "
+                                                    "ROS_PACKAGE_PATH, AMENT_PREFIX_PATH): run.rrd draws them, "
+                                                    "primitives where a mesh is not found."),
 ) -> None:
     """Write DIR/report.html (self-contained, opens offline) and DIR/run.rrd (rerun; `robocal view DIR`)."""
     from pipeline.errors import RobocalError
@@ -26,7 +30,9 @@ def report_cmd(
         raise RobocalError("robocal report: give the run folder (robocal report DIR)")
     if not d.is_dir():
         raise RobocalError(f"{d}: no such run folder")
-    params = {"rrd": False} if no_rrd else {}
+    params: dict = {"rrd": False} if no_rrd else {}
+    if mesh_path:
+        params["mesh_path"] = [str(p.resolve()) for p in mesh_path]
     run_stage(d, "report", params, force=force,
               log=lambda line: err.print(line, highlight=False))
     print(f"report: {d / 'report.html'}")

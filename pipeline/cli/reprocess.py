@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 import typer
 from rich.console import Console
@@ -39,7 +39,7 @@ def reprocess_cmd(
                                             "(its workers must see ARCHIVE and --out at the same paths). Default: "
                                             "a local cluster of --workers processes."),
     workers: Optional[int] = typer.Option(None, "--workers", min=1, help="Local workers (default: CPU count)."),
-    engine: str = typer.Option("dask", "--engine", help="dask (default), processes (a local process pool) or "
+    engine: Literal["dask", "processes", "serial"] = typer.Option("dask", "--engine", help="dask, processes (a local process pool) or "
                                "serial (in this process)."),
     core: bool = typer.Option(False, "--core", help="Only ingest, validate, identify, observe (no diagnose/report)."),
     stages_opt: str = typer.Option("", "--stages", help="Comma-separated stages to run instead (e.g. "

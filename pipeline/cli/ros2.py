@@ -4,7 +4,7 @@ images: Image/CompressedImage + CameraInfo) → a robocal recording."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 import typer
 
@@ -19,7 +19,8 @@ DYN = "Dynamics (--measure effort: every JointState with its efforts)"
 @import_app.command("ros2")
 def import_ros2(
     bag: Path = typer.Argument(..., help="ROS 2 bag: a folder with metadata.yaml, or its .mcap or .db3 file."),
-    urdf: Path = typer.Option(..., "--urdf", help="Robot description (URDF); meshes are not needed."),
+    urdf: Optional[Path] = typer.Option(None, "--urdf", help="Robot description: a URDF or .xacro file (meshes are "
+                                        "not needed); default: the bag's own /robot_description."),
     root: str = typer.Option(..., "--root", help="Root link of the calibrated chain."),
     tip: Optional[str] = typer.Option(None, "--tip", help="Tip link of the calibrated chain (not with "
                                       "--measure-topic LINK=TOPIC, whose links are the tips)."),
@@ -27,8 +28,8 @@ def import_ros2(
     joint_topic: str = BAG["joint_topic"],
     measure_topic: Optional[list[str]] = BAG["measure_topic"], coupled: Optional[list[str]] = BAG["coupled"],
     coupling_wins: bool = BAG["coupling_wins"],
-    measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
-    time: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
+    measure: Optional[Literal["point", "pose", "effort"]] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
+    time: Literal["header", "log"] = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     robot_id: str = typer.Option("", "--robot-id", help="Robot identity (name or serial) stored in the campaign."),
     target: Optional[str] = typer.Option(None, "--target", rich_help_panel=CAM, help="A camera bag: the board the "
                                          "images show, as for `import images` (chessboard:COLSxROWS:SQUARE_M | "
@@ -37,17 +38,17 @@ def import_ros2(
                                               "CompressedImage topic (default: the bag's only one)."),
     info_topic: Optional[str] = typer.Option(None, "--camera-info-topic", rich_help_panel=CAM, help="CameraInfo topic "
                                              "(default: the one beside the image topic, or the bag's only one)."),
-    camera_on: str = typer.Option("tip", "--camera-on", rich_help_panel=CAM, help="tip (eye-in-hand; board fixed) or "
+    camera_on: Literal["tip", "world"] = typer.Option("tip", "--camera-on", rich_help_panel=CAM, help="tip (eye-in-hand; board fixed) or "
                                   "world (eye-to-hand; board on the tip)."),
-    lens: str = typer.Option("pinhole", "--lens", rich_help_panel=CAM, help="pinhole or fisheye."),
+    lens: Literal["pinhole", "fisheye"] = typer.Option("pinhole", "--lens", rich_help_panel=CAM, help="Lens model."),
     n_dist: int = typer.Option(0, "--distortion-terms", rich_help_panel=CAM, help="Pinhole: 4, 5 or 8 (default 8); "
                                "fisheye: 4."),
     max_edge_px: float = typer.Option(5.0, "--max-edge-px", rich_help_panel=CAM, help="A chessboard with edges wider "
                                       "than this (px) is blurred."),
-    clock_bound: float = typer.Option(0.1, "--clock-offset-bound", rich_help_panel=CAM, min=0.0, help="How far the "
+    clock_bound: float = typer.Option(0.1, "--clock-offset-bound-s", rich_help_panel=CAM, min=0.0, help="How far the "
                                       "camera's clock may be off the joint states' (s): an image is paired only where "
                                       "the robot stood still for ± this around its stamp."),
-    clock_offset: float = typer.Option(0.0, "--clock-offset", rich_help_panel=CAM, help="A known offset, camera clock "
+    clock_offset: float = typer.Option(0.0, "--clock-offset-s", rich_help_panel=CAM, help="A known offset, camera clock "
                                        "− joint clock (s), taken off the image stamps."),
     workers: int = typer.Option(0, "--workers", min=0, rich_help_panel=CAM, help="Detection processes (0: the CPU count)."),
     kinematics_known: bool = typer.Option(False, "--kinematics-known", rich_help_panel=CAM, help="The joint states "
@@ -64,48 +65,43 @@ def import_ros2(
                                          "combines, JOINT=EXPR (repeatable)."),
     effort_joints: str = typer.Option("", "--effort-joints", rich_help_panel=DYN, help="Joints whose torque is "
                                       "fitted and scored (default: all)."),
-    effort_units: Optional[str] = typer.Option(None, "--effort-units", rich_help_panel=DYN, help="Nm or raw "
-                                               "(default raw with a scale, else unknown)."),
+    effort_units: Optional[Literal["Nm", "raw"]] = typer.Option(None, "--effort-units", rich_help_panel=DYN,
+                                                                help="Nm (efforts are torques) or raw.",
+                                                                show_default="raw with a scale, else unknown"),
 ) -> None:
     """Pair each measurement with the joint state where the robot stood still around it and write a
     recording `robocal run` calibrates; measurements taken while moving are listed and left out."""
-    from pipeline.importers.bag_import import import_bag
-    from pipeline.importers.ros2 import BagSpec
-
     from pipeline.errors import RobocalError
-    from pipeline.recording.output import check_output, claim_output
+    from pipeline.recording.output import check_output
+    from pipeline.ros2.importer import Robot, import_bag
+    from pipeline.ros2.points import BagSpec
 
     check_output(out, force=force)  # before any work: an existing recording only with --force
     if measure == "effort":  # dynamics: the joint states' positions, velocities and efforts
-        from pipeline.cli.import_effort import write_effort_recording
-        from pipeline.importers.ros2_effort import read_effort_bag
-        from pipeline.models import urdf as urdf_mod
-
         if tip is None or measure_topic or target is not None:
             raise RobocalError("--measure effort needs --tip LINK and takes no --measure-topic or --target")
-        desc = urdf_mod.read(urdf, root, tip)
-        log = read_effort_bag(bag, desc, joint_topic, time)
+        from pipeline.cli.import_effort import write_effort_recording
+        from pipeline.recording.output import claim_output
+        from pipeline.ros2.effort import read_effort_bag
+
+        desc, source, log = read_effort_bag(bag, urdf, root, tip, joint_topic, time)
         claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
-        write_effort_recording(out, desc, log, str(urdf), effort_scale, effort_offset, effort_mix, effort_joints,
+        write_effort_recording(out, desc, log, source, effort_scale, effort_offset, effort_mix, effort_joints,
                                effort_units, {"source_files": [str(bag)]}, robot_id)
         return
+    cam = None
     if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
-        from pipeline.cli.ros2_camera import import_camera
-        from pipeline.importers.ros2_camera import CameraSpec
+        from pipeline.ros2.camera import CameraSpec
 
         if tip is None or measure_topic or coupled:
             raise RobocalError("--target (a camera bag) needs --tip LINK (where the camera or board is) and takes no "
                                "--measure-topic or --coupled")
-        spec = BagSpec(joint_topic=joint_topic, window_s=window_s, max_speed=max_speed, time=time)
         cam = CameraSpec(target=target, image_topic=image_topic, info_topic=info_topic, mount=camera_on, lens=lens,
                          n_dist=n_dist or (8 if lens == "pinhole" else 4), max_edge_px=max_edge_px,
                          clock_bound_s=clock_bound, clock_offset_s=clock_offset, workers=workers, skip_bad=skip_bad,
                          kinematics_known=kinematics_known)
-        import_camera(bag, urdf, root, tip, out, spec, cam, robot_id, force=force)
-        return
     mt, tips = bag_options.measure_topics(measure_topic, tip)
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time, tips=tips)
-    done = import_bag(bag, urdf, root, tip, out, spec, sigma_m, sigma_rad, robot_id, on_read=bag_options.print_read,
-                      coupled=tuple(coupled or ()), force=force, coupling_wins=coupling_wins)
-    bag_options.print_written(done)
+    robot = Robot(urdf, root, tip, tuple(coupled or ()), coupling_wins)
+    import_bag(bag, robot, out, spec, cam, sigma_m, sigma_rad, robot_id, force=force, say=bag_options.say)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 import typer
 from rich.markup import escape
@@ -62,6 +62,12 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
                      ("held-out RMS of the 3-D error (" + ("whole groups left out" if str(s.get("holdout_kind", "")
                       ).startswith("whole") else "k-fold, within this recording") + ")", mm(s.get("holdout_rms_3d_m")))]
         rows[5:8] = [(f"{k} (per axis)", v) for k, v in rows[5:8]]
+    if isinstance(s.get("correction"), dict) and not s["correction"].get("applied", True):
+        rows.insert(2, ("correction", "NONE APPLIED: the nominal robot was kept"))
+    if isinstance(s.get("prior_class"), dict):  # the robot class whose compliance prior judged the estimates
+        pc = s["prior_class"]
+        rows.append(("prior (robot class)", f"{pc.get('class')}: compliance σ {pc.get('compliance_sigma', 0):.3g} "
+                     f"rad/(N·m) ({'auto' if pc.get('asked') == 'auto' else '--robot-class'})"))
     if isinstance(s.get("model_choice"), dict):  # URDF robots: which route the model choice took
         mc = s["model_choice"]
         rows.append(("model choice", f"{mc.get('route')} (--model-choice {mc.get('asked')})"))
@@ -72,7 +78,7 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
         if diag.get("unexplained"):
             rows.append(("diagnosis: unexplained structure", "yes (see report)"))
         if diag["findings"] and diag.get("holdout_rms_after_m") is not None:
-            rows.append(("held-out RMS with the effects modelled", mm(diag["holdout_rms_after_m"])))
+            rows.append(("held-out RMS with the effects modelled", res(diag["holdout_rms_after_m"])))
     if s.get("predicted_map_rms_1sigma_m") is not None:
         rows.append(("predicted accuracy over the workspace (1σ RMS / worst 95 %)",
                      f"{mm(s['predicted_map_rms_1sigma_m'])} / {mm(s.get('predicted_map_max_bound95_m'))}"))
@@ -149,15 +155,15 @@ def _params(loss: str | None, f_scale: float | None, reject: float | None, folds
     return p
 
 
-LOSS = typer.Option(None, "--loss", help="identify: loss linear, huber or soft_l1 (default linear).")
-F_SCALE = typer.Option(None, "--f-scale", help="identify: robust-loss scale, m (default 1e-4).")
+LOSS = typer.Option(None, "--loss", help="identify: robust loss.", show_default="linear")
+F_SCALE = typer.Option(None, "--f-scale-m", help="identify: robust-loss scale, m.", show_default="1e-4")
 REJECT = typer.Option(None, "--reject", help="identify: reject measurements beyond this many robust σ (MAD); 0 = off (default 5).")
 FOLDS = typer.Option(None, "--folds", min=2, help="identify: folds of the held-out cross-validation (default 5).")
 FORCE = typer.Option(False, "--force", help="Run even if cached.")
 MODEL = "Model (physics terms)"
 PHYSICS = typer.Option(None, "--physics", rich_help_panel=MODEL, help="Physics terms of a URDF robot (point data): "
                        "auto (default: each family kept when held-out error improves), none, or a list of "
-                       "joint-compliance, lateral-compliance, encoder-eccentricity, joint-scale, joint-coupling, backlash.")
+                       "joint-compliance, lateral-compliance, load-compliance, encoder-eccentricity, joint-scale, joint-coupling, backlash.")
 PAYLOAD = typer.Option(None, "--payload", rich_help_panel=MODEL, help="A mass carried besides the URDF's links: "
                        "KG@LINK or KG@LINK:X,Y,Z (m, link frame); repeatable.")
 ACCURACY = "Accuracy (predicted over the workspace)"
@@ -182,7 +188,7 @@ def in_panel(option: typer.models.OptionInfo, panel: str) -> typer.models.Option
 
 
 IDENTIFY, VALIDATE = "Identify", "Validate"
-MODEL_CHOICE_HELP = ("auto (default): shrinkage for a single-chain URDF robot measured in lengths, groups for the "
+MODEL_CHOICE_HELP = ("auto: shrinkage for a single-chain URDF robot measured in lengths, groups for the "
                      "seed systems, trees and cameras; groups (keep groups that lower held-out error); "
                      "shrinkage (every parameter pulled toward nominal by its prior; scale by leaving out whole "
                      "sessions/placements, else by the evidence per parameter family).")
@@ -193,11 +199,14 @@ def run_cmd(
     recordings: list[Path] = typer.Argument(..., metavar="REC", help="Recording (MCAP) of a calibration "
                                              "campaign, or a ROS 2 bag; several recordings of one robot are calibrated "
                                              "together (sessions)."),
-    registration: str = typer.Option("shared", "--registration", rich_help_panel=IDENTIFY,
+    registration: Literal["shared", "per-recording"] = typer.Option("shared", "--registration", rich_help_panel=IDENTIFY,
                                      help="Several recordings: shared (one instrument frame) or per-recording."),
-    model_choice: str = typer.Option("auto", "--model-choice", rich_help_panel=IDENTIFY, help=MODEL_CHOICE_HELP),
+    model_choice: Literal["auto", "groups", "shrinkage"] = typer.Option("auto", "--model-choice", rich_help_panel=IDENTIFY, help=MODEL_CHOICE_HELP),
+    robot_class: Literal["auto", "industrial", "collaborative", "torque-controlled"] = typer.Option(
+        "auto", "--robot-class", rich_help_panel=IDENTIFY, help="Prior of the compliances: industrial, collaborative "
+        "or torque-controlled (softer); auto: the stiffest class the estimates fit, said in the summary."),
     out: Path = typer.Option(..., "--out", help="Run folder: DIR/<stage>/ per stage, DIR/results.json."),
-    loss: Optional[str] = in_panel(LOSS, IDENTIFY), f_scale: Optional[float] = in_panel(F_SCALE, IDENTIFY),
+    loss: Optional[Literal["linear", "huber", "soft_l1"]] = in_panel(LOSS, IDENTIFY), f_scale: Optional[float] = in_panel(F_SCALE, IDENTIFY),
     reject: Optional[float] = in_panel(REJECT, IDENTIFY), folds: Optional[int] = in_panel(FOLDS, IDENTIFY),
     flag: Optional[float] = typer.Option(None, "--flag-outliers", rich_help_panel=VALIDATE,
                                          help="validate: flag residuals beyond this many robust σ (default 6)."),
@@ -208,7 +217,8 @@ def run_cmd(
     prior: Optional[list[str]] = PRIOR, tolerance: Optional[str] = TOLERANCE, previous: Optional[Path] = PREVIOUS,
     targets: Optional[Path] = TARGETS, strict: bool = STRICT,
     urdf: Optional[Path] = typer.Option(None, "--urdf", rich_help_panel=bag_options.RUN_PANEL,
-                                        help="ROS 2 bag: the robot's URDF (docs/guide/import-ros2.md)."),
+                                        help="ROS 2 bag: the robot's URDF or .xacro (default: the bag's own "
+                                             "/robot_description; docs/guide/import-ros2.md)."),
     root: Optional[str] = typer.Option(None, "--root", help="ROS 2 bag: root link of the calibrated chain.",
                                        rich_help_panel=bag_options.RUN_PANEL),
     tip: Optional[str] = typer.Option(None, "--tip", help="ROS 2 bag: tip link of the calibrated chain (not with "
@@ -217,16 +227,19 @@ def run_cmd(
     joint_topic: str = BAG["joint_topic"], measure_topic: Optional[list[str]] = BAG["measure_topic"],
     coupled: Optional[list[str]] = bag_options.options()["coupled"],
     coupling_wins: bool = bag_options.options()["coupling_wins"],
-    measure: Optional[str] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
-    time_source: str = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
+    measure: Optional[Literal["point", "pose", "effort"]] = BAG["measure"], window_s: float = BAG["window_s"], max_speed: float = BAG["max_speed"],
+    time_source: Literal["header", "log"] = BAG["time"], sigma_m: float = BAG["sigma_m"], sigma_rad: float = BAG["sigma_rad"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
     target: Optional[str] = typer.Option(None, "--target", rich_help_panel=bag_options.RUN_PANEL,
                                          help="ROS 2 camera bag: the board its images show (as `robocal import "
                                               "ros2 --target`; more camera options there)."),
-    camera_on: str = typer.Option("tip", "--camera-on", rich_help_panel=bag_options.RUN_PANEL,
+    camera_on: Literal["tip", "world"] = typer.Option("tip", "--camera-on", rich_help_panel=bag_options.RUN_PANEL,
                                   help="ROS 2 camera bag: tip (eye-in-hand) or world (eye-to-hand)."),
-    clock_bound: float = typer.Option(0.1, "--clock-offset-bound", min=0.0, rich_help_panel=bag_options.RUN_PANEL,
+    clock_bound: float = typer.Option(0.1, "--clock-offset-bound-s", min=0.0, rich_help_panel=bag_options.RUN_PANEL,
                                       help="ROS 2 camera bag: how far the camera's clock may be off the joints' (s)."),
+    mesh_path: Optional[list[Path]] = typer.Option(None, "--mesh-path", help="report: a folder where the URDF's "
+                                                    "package://PKG/… meshes are (repeatable; also ROS_PACKAGE_PATH, "
+                                                    "AMENT_PREFIX_PATH): run.rrd draws them, primitives otherwise."),
 ) -> None:
     """Run every stage (ingest, validate, identify, observe, then diagnose and report when
     available); stages whose inputs and parameters did not change are cached.  A ROS 2 bag is
@@ -239,29 +252,34 @@ def run_cmd(
     from pipeline.importers.merge import merged_input
 
     recording = merged_input(recordings, out, registration)
-    from pipeline.importers.bag_import import run_input
-    from pipeline.importers.ros2 import BagSpec
+    from pipeline.ros2.importer import Robot, run_input
+    from pipeline.ros2.points import BagSpec
 
     mt, tips = bag_options.measure_topics(measure_topic, tip, bag=False)
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time_source, tips=tips)
-    importer = None
+    cam = None
     if target is not None:  # a camera bag: Image / CompressedImage + CameraInfo + JointState
-        from pipeline.cli.ros2_camera import import_camera
-        from pipeline.importers.ros2_camera import CameraSpec
+        from pipeline.ros2.camera import CameraSpec
 
         cam = CameraSpec(target=target, mount=camera_on, clock_bound_s=clock_bound)
-        importer = lambda rec: import_camera(recording, urdf, root, tip, rec, spec, cam)  # noqa: E731
-    recording = run_input(recording, out, urdf, root, tip, spec, sigma_m, sigma_rad,
-                          on_read=bag_options.print_read, on_written=bag_options.print_written, importer=importer,
-                          coupled=tuple(coupled or ()), coupling_wins=coupling_wins)
+    robot = None
+    if urdf or root or tip or coupled or coupling_wins:
+        robot = Robot(urdf, root or "", tip, tuple(coupled or ()), coupling_wins)
+    recording = run_input(recording, out, robot, spec, cam, sigma_m, sigma_rad, say=bag_options.say)
     ok = False
     params = _params(loss, f_scale, reject, folds, flag, gap_factor)
     params["accuracy"] = accuracy_params(prior, tolerance, previous, targets)
+    if mesh_path:
+        params["report"] = {"mesh_path": [str(p.resolve()) for p in mesh_path]}
     from pipeline.identify.route import check
 
     if check(model_choice) != "auto":  # auto (default) is resolved by identify; no key: seed runs' caches unchanged
         params["identify"]["model_choice"] = model_choice
+    from pipeline.accuracy.prior import check_class
+
+    if check_class(robot_class) != "auto":  # auto (default): no key, caches unchanged
+        params["identify"]["robot_class"] = check_class(robot_class)
     if "prior" in params["accuracy"]:  # identify judges a parameter freed off the nominal geometry against it too
         params["identify"]["prior"] = params["accuracy"]["prior"]
     if physics is not None or payload:  # the model's gravity terms (default auto), chosen at ingest for every stage

@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from typing import Literal
+
 import typer
 
 from pipeline.cli import err, force_option, simulate_app
@@ -17,7 +19,7 @@ def delta_tracker_cmd(
     seed: int = typer.Option(0, "--seed", help="Random seed (true errors, tracker placement, noise)."),
     noise_scale: float = typer.Option(1.0, "--noise-scale", min=0.0, help="Multiplies every error source; 0 turns all off."),
     tracker_sigma: float = typer.Option(2e-5, "--tracker-sigma", min=0.0, help="Tracker noise, 1σ per axis, m."),
-    truth_model: str = typer.Option("simplified", "--truth-model",
+    truth_model: Literal["simplified", "full"] = typer.Option("simplified", "--truth-model",
                                     help="simplified (β' only, seed eq. 3) or full (adds axis direction errors and unequal rods)."),
     grid: tuple[int, int, int] = typer.Option((3, 3, 3), "--grid", help="Grid points along x, y, z (seed 003: 3 3 3)."),
     spacing: tuple[float, float, float] = typer.Option((0.150, 0.150, 0.040), "--spacing", help="Grid spacing x y z, m."),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 import numpy as np
 import typer
@@ -17,7 +17,7 @@ def urdf_cmd(
     urdf: Path = typer.Option(..., "--urdf", help="Robot description (URDF)."),
     root: str = typer.Option(..., "--root", help="Root link of the chain."),
     tip: str = typer.Option(..., "--tip", help="Tip link of the chain."),
-    measure: str = typer.Option("point", "--measure", help="point | pose | plane | coincidence."),
+    measure: Literal["point", "pose", "plane", "coincidence"] = typer.Option("point", "--measure", help="point | pose | plane | coincidence."),
     out: Path = typer.Option(..., "--out", help="Recording to write (MCAP)."),
     truth: Path = typer.Option(None, "--truth", help="Where to write TRUTH.json (the true parameter vector)."),
     poses: int = typer.Option(60, "--poses", min=4, help="Measurements (configurations tried, for plane/coincidence)."),

@@ -7,6 +7,8 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from typing import Literal
+
 import typer
 
 from pipeline.cli import err, force_option, simulate_app
@@ -24,7 +26,7 @@ def arc_welder_cmd(
                                      "(repeatable), e.g. joint_compliance=5e-6@J2, backlash=1e-3@J3, trigger_latency=0.02."),
     payloads: str = typer.Option("", "--payloads", help="Campaign variation: payloads (kg) cycled in blocks of 10 contacts, e.g. 0,6."),
     search_speeds: str = typer.Option("", "--search-speeds", help="Campaign variation: search speeds (m/s) drawn per contact, e.g. 0.005,0.01,0.02."),
-    face_order: str = typer.Option("shuffled", "--face-order", help="Campaign variation: shuffled (interleaved) or blocked faces."),
+    face_order: Literal["shuffled", "blocked"] = typer.Option("shuffled", "--face-order", help="Campaign variation: shuffled (interleaved) or blocked faces."),
     payload_pairs: bool = typer.Option(False, "--payload-pairs", help="With --payloads: touch each point once per payload, the "
                                        "points planned for the compliance information left after the geometry."),
     repeatability: float = typer.Option(None, "--repeatability", min=0.0, help="Robot repeatability 3σ (m); default 1e-4."),

@@ -18,7 +18,7 @@ import numpy as np
 from pipeline.diagnose.method import Settings
 
 NAME = "diagnose"
-PHYSICS_SUFFIXES = (".compliance", ".lateral1", ".lateral2")
+PHYSICS_SUFFIXES = (".compliance", ".lateral1", ".lateral2", ".compliance_load")
 SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner", "urdf")
 
 

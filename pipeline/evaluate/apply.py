@@ -11,7 +11,10 @@ instrument that moved) or per recording.
 A recording is refused (one line, `RobocalError`) when it is of another robot or chain (robot name,
 root, tip, joint names, campaign ``robot_id``), of another measurement type, or measured with
 another instrument than the registration it would share (campaign ``instrument`` or the ROS 2
-import's ``frame_id``, when both sides name one).
+import's ``frame_id``, when both sides name one).  Camera images are evaluated with the calibration's
+camera (intrinsics, lens model and distortion terms, hand-eye, board): a recording of another image size,
+mount or lens is refused; nothing of the camera is estimated from the evaluated images (the base frame
+only with ``refit="registration"``).
 """
 
 from __future__ import annotations
@@ -63,6 +66,11 @@ def check_compatible(cal: Calibrated, rec) -> None:
     if camp.get("measure") != cal.campaign.get("measure"):
         raise RobocalError(f"{rec.path}: {camp.get('measure')} measurements, but {cal.run_dir} was calibrated with "
                            f"{cal.campaign.get('measure')} measurements")
+    if camp.get("measure") == "camera":
+        for k in ("image_size", "mount", "lens", "target"):
+            if camp.get(k) != cal.campaign.get(k):
+                raise RobocalError(f"{rec.path}: camera {k} {camp.get(k)!r}, but {cal.run_dir} calibrated "
+                                   f"{cal.campaign.get(k)!r} (another camera, mount or board)")
 
 
 def check_instruments(cal: Calibrated, recs: list, refit: str, registration: str) -> None:
@@ -132,9 +140,14 @@ def evaluate(cal: Calibrated, recs: list, refit: str = "none", registration: str
         if tree is not None:  # several tips, coupled joints or physics terms: the calibration's own structure
             model = replace(tree, kin=replace(tree.kin, descs=tuple(replace(d, urdf=cal.urdf["urdf"]) for d in
                                                                     tree.kin.descs)))
+        elif measure == "camera":  # the calibration's camera: its distortion terms, whatever this import declared
+            model = replace(model_rec, kin=arm, n_dist=int(cal.campaign.get("n_dist", model_rec.n_dist)))
         else:
             model = replace(model_rec, kin=arm)
         x, own = transfer(cal, model, rec.path)
+        if measure == "camera" and own:
+            raise RobocalError(f"{rec.path}: {cal.run_dir} has no value for {', '.join(own[:4])}: not a calibration "
+                               "of this camera")
         items.append([rec, model, table, x, own])
     reg = [n for n in items[0][1].parameter_names() if n.startswith("base.")] if refit == "registration" else []
     if measure == "coincidence":
@@ -156,6 +169,8 @@ def evaluate(cal: Calibrated, recs: list, refit: str = "none", registration: str
         errs = row_errors(model, x, table, measure)
         doc = {"path": str(rec.path), "measure": measure, **summarise(errs, measure),
                "registration": ("as calibrated" if not reg else f"refitted ({registration})")}
+        if measure == "camera":
+            doc |= {"residual_unit": "px", "images": int(len(np.unique(np.asarray(table["image"]))))}
         post = posture_labels(cal, table, errs, measure)
         if post is not None:
             doc["postures"] = by_label(errs, post, postures.GROUPS, measure)

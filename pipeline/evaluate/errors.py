@@ -8,10 +8,13 @@ Per measurement type, the error of each row and what it means:
 * ``plane``: signed distance of the tool point from its plane along the normal (n, 1) m;
 * ``coincidence``: the tool point (ball centre) minus the mean of its group's tool points (the
   socket's own estimate from these rows: no fitted point is carried over), (n, 3) m; each known
-  distance row: distance between the two groups' means − the known distance (first component).
+  distance row: distance between the two groups' means − the known distance (first component);
+* ``camera``: each board corner projected through the robot's pose at its image, the calibrated
+  hand-eye, board pose and intrinsics — nothing refitted per image — minus where it was detected,
+  (n, 2) **px** (u right, v down); a row's group is its image.
 
-The norm of a row is the 3-D norm of its position part (points, poses, coincidences) or the
-absolute distance (planes, distance rows).
+The norm of a row is the 3-D norm of its position part (points, poses, coincidences), the 2-D
+reprojection error (camera corners, px) or the absolute distance (planes, distance rows).
 """
 
 from __future__ import annotations
@@ -71,6 +74,8 @@ def row_errors(model, x: np.ndarray, data: Table, measure: str) -> RowErrors:
         return RowErrors(r, np.linalg.norm(r[:, :3], axis=1), label, np.zeros(n, int))
     if measure == "plane":
         return RowErrors(r, np.abs(r[:, 0]), label, np.zeros(n, int))
+    if measure == "camera":
+        return RowErrors(r, np.linalg.norm(r, axis=1), label, np.zeros(n, int))
     return RowErrors(r, np.linalg.norm(r[:, :3], axis=1), label, np.zeros(n, int))
 
 
@@ -82,6 +87,10 @@ def _figures(e: np.ndarray, norm: np.ndarray, measure: str) -> dict:
         out |= {"rms_normal_m": float(np.sqrt(np.mean(norm**2))), "mean_abs_normal_m": float(norm.mean()),
                 "max_abs_normal_m": float(norm.max())}
         return out
+    if measure == "camera":  # px: the 2-D reprojection error (OpenCV's RMS), per axis under its own name
+        return out | {"rms_2d_px": float(np.sqrt(np.mean(norm**2))), "mean_2d_px": float(norm.mean()),
+                      "max_2d_px": float(norm.max()), "rms_axis_px": float(np.sqrt(np.mean(e[:, :2] ** 2))),
+                      "rms_uv_px": [float(v) for v in np.sqrt(np.mean(e[:, :2] ** 2, axis=0))]}
     p = e[:, :3]
     out |= {"rms_3d_m": float(np.sqrt(np.mean(norm**2))), "mean_3d_m": float(norm.mean()),
             "max_3d_m": float(norm.max()), "rms_axis_m": float(np.sqrt(np.mean(p**2))),
@@ -100,8 +109,8 @@ def by_label(errs: RowErrors, labels: np.ndarray, order: tuple[str, ...], measur
 
 
 def summarise(errs: RowErrors, measure: str) -> dict:
-    """Figures of one recording (SI): the headline over every measurement row, the same per group,
-    and for coincidences the known distances' errors."""
+    """Figures of one recording (SI; a camera's in px): the headline over every measurement row, the same
+    per group, and for coincidences the known distances' errors."""
     m = errs.kind == 0
     doc = _figures(errs.error[m], errs.norm[m], measure)
     groups = {}

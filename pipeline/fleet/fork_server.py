@@ -22,11 +22,11 @@ SINGLE_THREADED = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM
 # pyarrow's (a Parquet read imports pyarrow.dataset; converting Python objects, dateutil).  Left to the
 # first task, they made it ≈ 0.1 s longer than the next ones on every worker.
 TASK_IMPORTS = ("pipeline.stages.reprocess", "pipeline.stages.results", "pipeline.accuracy.prior",
-                "pipeline.models.jig", "pipeline.models.dh_export", "pipeline.importers.bagkind",
+                "pipeline.models.jig", "pipeline.models.dh_export", "pipeline.ros2.kind",
                 "pyarrow.dataset", "dateutil.relativedelta", "pipeline.physics.compliance",
                 "pipeline.physics.gravity", "pipeline.physics.summary", "pipeline.validate.plausibility",
                 "threadpoolctl", "pipeline.identify.folds", "pipeline.identify.physics_choice",
-                "pipeline.physics.encoder", "pipeline.identify.route")
+                "pipeline.physics.encoder", "pipeline.identify.route", "pipeline.dynamics.stage")
 _started = False  # this module started the forkserver running now
 _lock = threading.Lock()
 

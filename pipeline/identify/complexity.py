@@ -67,7 +67,9 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
     whole = row_groups(model, data) if groups_of_rows is None else None
 
     def errors(groups: list[str]) -> np.ndarray:
-        opts = replace(options, fixed=tuple(set(options.fixed) | set(fixed_for(model, groups))))
+        # candidates scored without refusing negative compliances (a refit per fold); the model kept is refitted
+        # with the refusal and its held-out error measured so (`pipeline.stages.identify`)
+        opts = replace(options, fixed=tuple(set(options.fixed) | set(fixed_for(model, groups))), physical=False)
         if whole is not None:
             if progress is not None:
                 progress(f"model choice: {' + '.join(groups)}, {len(np.unique(whole))} groups left out in turn")
@@ -81,13 +83,22 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
     def rms(e: np.ndarray) -> float:
         return float(np.sqrt(np.mean(e) / model.residual_dim))
 
-    def better(e_new: np.ndarray, e_old: np.ndarray) -> bool:
+    def better(e_new: np.ndarray, e_old: np.ndarray) -> tuple[bool, str]:
+        """(kept, why): the three tests in turn, the first that fails named."""
         d = e_old - e_new
         se = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else np.inf
-        ok = rms(e_new) < rms(e_old) * (1 - min_gain) and float(d.mean()) > z * se
-        if ok and whole is not None:  # never worse than registration only on a group it did not see
-            ok = all(e_new[whole == g].mean() <= e_reg[whole == g].mean() for g in np.unique(whole))
-        return ok
+        gain = 1 - rms(e_new) / rms(e_old) if rms(e_old) > 0 else 0.0
+        if gain < min_gain:
+            return False, (f"held-out RMS {'raised' if gain < 0 else 'lowered'} by {abs(gain) * 100:.1f} % "
+                           f"({min_gain * 100:.0f} % required)")
+        if not float(d.mean()) > z * se:
+            return False, (f"its gain is not carried by the rows (paired improvement {float(d.mean()) / se:.2f} "
+                           f"standard errors, {z} required)")
+        if whole is not None:  # never worse than registration only on a group it did not see
+            worse = [str(g) for g in np.unique(whole) if e_new[whole == g].mean() > e_reg[whole == g].mean()]
+            if worse:
+                return False, f"predicts left-out group {', '.join(worse)} worse than registration only"
+        return True, f"lowered the held-out RMS by {gain * 100:.1f} %"
 
     e_best = e_reg = errors(kept)
     reg = rms(e_best)
@@ -97,10 +108,11 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
         nonlocal e_best
         trial = {c: errors(kept + [c]) for c in pool}
         c = min(trial, key=lambda c: rms(trial[c]))
-        ok = better(trial[c], e_best)
+        ok = better(trial[c], e_best)[0]
         for c2, e in trial.items():
             rounds.append({"candidate": label(c2), "holdout_rms_m": rms(e), "kept": bool(ok and c2 == c),
-                           "against_m": rms(e_best)})
+                           "against_m": rms(e_best),
+                           "why": better(e, e_best)[1] if c2 == c or not ok else "another candidate lowered it more"})
         if not ok:
             return None
         kept.append(c)
@@ -151,7 +163,7 @@ def explain(sel: Selection, unit: str = "m") -> list[str]:
     for r in sel.rounds[1:]:
         verdict = "kept" if r["kept"] else "not kept"
         lines.append(f"+ {r['candidate']}: held-out {r['holdout_rms_m'] * k:.3f} {u} against "
-                     f"{r['against_m'] * k:.3f} {u} → {verdict}")
+                     f"{r['against_m'] * k:.3f} {u} → {verdict}" + (f" ({r['why']})" if r.get("why") else ""))
     return lines
 
 

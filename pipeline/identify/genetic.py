@@ -126,10 +126,11 @@ def cross_validate_ga(model, data, k: int = 5, seed: int = 0, options: GAOptions
     `least_squares.cross_validate`: kept representative of the design, `folds.design_folds`)."""
     from pipeline.identify.folds import design_folds
     from pipeline.identify.model import n_rows, take
+    from pipeline.identify.natural_groups import holdout_groups
 
     n = n_rows(data)
     out = np.full((n, model.residual_dim), np.nan)
-    for test in design_folds(n, k, seed, None, data):
+    for test in design_folds(n, k, seed, holdout_groups(model, data), data):
         train = np.setdiff1d(np.arange(n), test)
         f = fit_ga(model, take(data, train), options)
         out[test] = model.residuals(f.x, take(data, test))

@@ -31,6 +31,7 @@ class FitOptions:
     x0: np.ndarray | None = None
     before: bool = True  # compute the "before" residuals at the model's uncalibrated parameters
     prior_sigma: np.ndarray | None = None  # (P,) SI: each parameter's prior 1σ (default: accuracy.prior's defaults)
+    physical: bool = True  # refuse (hold at 0) terms the model says cannot be negative, estimated negative
 
 
 @dataclass
@@ -78,6 +79,31 @@ def fit(model: MeasurementModel, data: Table, options: FitOptions = FitOptions()
     held at 0 that are then no-ops (a `TreePointModel`'s physics terms: rigid), so every residual and
     every other parameter's Jacobian column is unchanged.  Parameters held fixed at 0 are then fitted
     on the smaller model (its chains shorter, its Jacobian narrower) and the result widened back."""
+    f = _fit_once(model, data, options)
+    hook = getattr(model, "nonnegative", None)
+    if hook is None or not options.physical:
+        return f
+    allowed = set(hook())  # terms that cannot be negative (a compliance): refused, held at 0, the rest refitted
+    refused: list[str] = []
+    for _ in range(4):
+        neg = [n for i, n in enumerate(f.names) if n in allowed and f.free[i] and f.x[i] < 0]
+        if not neg:
+            break
+        refused += neg
+        x0 = np.where(np.isin(f.names, refused), 0.0, f.x)
+        f = replace(_fit_once(model, data, replace(options, fixed=tuple(options.fixed) + tuple(refused), x0=x0,
+                                                   before=False)),
+                    nominal=f.nominal, residuals_before=f.residuals_before)
+    for n in refused:
+        f.identifiability.reasons[f.names.index(n)] = NEGATIVE
+    return f
+
+
+NEGATIVE = "held at 0: estimated negative, which no physical stiffness gives (the term absorbed something else)"
+
+
+def _fit_once(model: MeasurementModel, data: Table, options: FitOptions) -> Fit:
+    """One identification (`fit` without its refusal of negative terms)."""
     small = _without_fixed(model, options)
     if small is not None:
         return _widened(model, data, options, small)
@@ -316,10 +342,13 @@ def holdout_warning(n: int, k: int, residual_dim: int, n_free: int) -> str | Non
 def cross_validate(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0,
                    options: FitOptions = FitOptions(), groups: np.ndarray | None = None) -> np.ndarray:
     """Held-out residuals (n, residual_dim) m: each fold predicted by a fit on the others; the folds
-    keep every face, placement and joint range of the design in every training set (`folds.design_folds`)."""
+    keep every face, placement and joint range of the design in every training set (`folds.design_folds`) and,
+    without `groups`, the rows the model keeps together (`natural_groups.holdout_groups`: a camera's images)."""
     from pipeline.identify.folds import design_folds
+    from pipeline.identify.natural_groups import holdout_groups
 
     n = n_rows(data)
+    groups = holdout_groups(model, data) if groups is None else groups
     out = np.full((n, model.residual_dim), np.nan)
     for test in design_folds(n, k, seed, groups, data):
         train = np.setdiff1d(np.arange(n), test)

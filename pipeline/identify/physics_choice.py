@@ -23,6 +23,8 @@ from itertools import combinations
 import numpy as np
 
 SUFFIXES = {"compliance": "joint-compliance", "lateral1": "lateral-compliance", "lateral2": "lateral-compliance"}
+SECOND_ORDER = (".compliance_load",)  # not chosen here (held at 0 unless forced): a load-dependent compliance
+# anchored at a registration-stage estimate is the nominal geometry's error again; the group selection offers it
 NEGATIVE_SIGMA = 2.0
 
 
@@ -56,12 +58,17 @@ def names_of(model, chosen: tuple[str, ...]) -> tuple[tuple[str, ...], tuple[str
     on = tuple(n for f in chosen for n in fams[f])
     off = tuple(n for f, v in fams.items() if f not in chosen for n in v)
     if not getattr(model, "forced", False):  # reading errors are not chosen here: held at their nominal 0
-        off += tuple(n for n in model.parameter_names() if is_encoder(n))
+        off += tuple(n for n in model.parameter_names() if is_encoder(n) or n.endswith(SECOND_ORDER))
     return on, off
 
 
-def inadmissible(fit, names: tuple[str, ...]) -> list[str]:
-    """The terms of `names` whose registration-stage estimate is negative beyond `NEGATIVE_SIGMA` σ."""
+def inadmissible(fit, names: tuple[str, ...], model=None) -> list[str]:
+    """The terms of `names` whose registration-stage estimate is negative beyond `NEGATIVE_SIGMA` σ — of those
+    the model says cannot be negative (``nonnegative``: a compliance; a load-dependent compliance may be)."""
+    hook = getattr(model, "nonnegative", None)
+    if hook is not None:
+        allowed = set(hook())
+        names = tuple(n for n in names if n in allowed)
     idx = {n: i for i, n in enumerate(fit.names)}
     std = np.asarray(fit.std, float) if fit.std is not None else np.zeros(len(fit.names))
     return [n for n in names if fit.x[idx[n]] < 0 and fit.x[idx[n]] < -NEGATIVE_SIGMA * std[idx[n]]]

@@ -20,6 +20,30 @@ def parameter_table(fit: Fit) -> list[dict]:
     return rows
 
 
+STATED_KIND = ("delete-one-image jackknife (the corners of an image share its robot-pose error), plus the "
+               "independent-row σ̂²(JᵀJ)⁻¹ for the directions the resampling cannot reach")
+
+
+def stated_uncertainty(model, fit: Fit, data) -> tuple[Fit, np.ndarray | None, dict]:
+    """The uncertainty a run states, for a model whose rows share errors the fit's independent-row
+    σ̂²(JᵀJ)⁻¹ does not see (a camera: its ``resampled_covariance`` hook, the image jackknife):
+    (`fit` with cov = resampled + independent-row covariance of the free parameters and std its
+    diagonal's root, the independent-row std it replaces (P,), {"jackknife_sigma": {name: σ}});
+    `fit` unchanged, None, {} for other models."""
+    from dataclasses import replace
+
+    hook = getattr(model, "resampled_covariance", None)
+    C = hook(fit.x, fit.free, data) if hook is not None else None
+    if C is None:
+        return fit, None, {}
+    free = np.flatnonzero(fit.free)
+    cov = np.asarray(C, float) + np.asarray(fit.cov, float)
+    std = np.zeros(len(fit.names))
+    std[free] = np.sqrt(np.clip(np.diag(cov), 0, None))
+    jk = {fit.names[i]: float(np.sqrt(max(C[j, j], 0.0))) for j, i in enumerate(free)}
+    return replace(fit, std=std, cov=cov), np.asarray(fit.std, float), {"jackknife_sigma": jk}
+
+
 def results_document(system: str, fit: Fit, holdout: np.ndarray, tip_sigma: np.ndarray, *,
                      elapsed_s: float, source: dict, warnings: list[str], k_folds: int) -> dict:
     """Gather the figures of one calibration run."""

@@ -46,6 +46,7 @@ class Shrunk:
     log_evidence: float = float("nan")  # ln evidence of the linearised model at the estimate (evidence route)
     tool: str = ""  # the tool point "free" or "known" as the left-out groups chose ("": not judged)
     other_tool: dict = field(default_factory=dict)  # μ → score (m²) with the tool point the other way
+    passed_over: list = field(default_factory=list)  # candidates scored better than the chosen one, and why not
 
 
 def _registration(model, extra: tuple[str, ...] = ()) -> set[str]:
@@ -140,6 +141,8 @@ def shrinkage_document(s: Shrunk) -> dict:
         doc["registration"] = s.registration  # anchored at its registration-only estimate, or free
         doc["score_m2_registration_" + ("free" if s.registration == "anchored" else "anchored")] = {
             key(m): v for m, v in s.other_registration.items()}
+    if s.passed_over:  # scored better than the chosen candidate, not chosen: each with its reason
+        doc["passed_over"] = s.passed_over
     if s.tool:  # the tool point (a ball centre) judged free vs known by the same left-out groups
         doc["tool"] = s.tool
         doc["score_m2_tool_" + ("known" if s.tool == "free" else "free")] = {

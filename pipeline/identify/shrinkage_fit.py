@@ -57,7 +57,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
         label = "+".join(chosen) or "rigid"
         reg_fixed = tuple((set(options.fixed) | set(fixed_for(model, ["registration", *on]))) | set(off))
         f0 = fit(model, data, replace(options, fixed=reg_fixed))
-        bad = pc.inadmissible(f0, on) if not getattr(model, "forced", False) else []
+        bad = pc.inadmissible(f0, on, model) if not getattr(model, "forced", False) else []
         if bad:
             tried[label] = {"admissible": False, "negative": bad}
             if progress is not None:
@@ -95,7 +95,9 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     if groups_of_rows is not None:
         holdout = s.holdout
     else:  # the folds of `least_squares.cross_validate`, each left out in closed form (no refit)
-        folds = design_folds(n, k, seed, None, data)
+        from pipeline.identify.natural_groups import holdout_groups
+
+        folds = design_folds(n, k, seed, holdout_groups(model, data), data)
         idx = np.flatnonzero(free_mask)
         r = np.asarray(model.residuals(s.x, data), float).ravel()
         holdout = fold_holdout(J[:, idx], r, lam_all[idx], folds, kd)

@@ -102,6 +102,18 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
     if key not in solved:  # rounds exhausted: the best of the solved candidates, each scored at its own solution
         ok = [k for k in solved if k in per and all(per[k][g] <= per[INF][g] for g in per[INF])]
         key = min(ok, key=lambda k: total[k])
+    if np.isinf(key[1]):  # the nominal robot kept: never on a linearised score — solve what scored better, re-judge
+        for k in sorted((k for k in per if total[k] < total[INF] and k not in solved), key=total.get)[:ROUNDS]:
+            solve(k, solved[base][0])
+            (xk, Jk, rk), (cols, lam) = solved[k], cols_lam(k)
+            h = held_out_linear(model, data, groups, xk, cols, lam, centre, J=Jk, r=rk)
+            per[k], total[k], outs[k] = per_group_rms(h, groups), float(np.sqrt(np.nanmean(h**2))), h
+            if progress is not None:
+                progress(f"model choice: μ = {k[1] * 1e3:.4g} mm{'' if k[0] else ', registration free'} solved "
+                         f"(it scored below registration only): held-out RMS {total[k] * 1e3:.4g} mm")
+        ok = [k for k in solved if k in per and all(per[k][g] <= per[INF][g] for g in per[INF])]
+        key = min(ok, key=lambda k: total[k])
+    passed = rejected_candidates(per, total, key, INF, solved)
     ref, beat = per[INF], total[key]
     tk = _free_tool(model, data, groups, prior_sigma, tool, idx, reg, weights, centre, nominal, solved[key],
                     solved[INF], sorted({m_ for _, m_ in per}, reverse=True), ref, beat) if tool else None
@@ -145,7 +157,23 @@ def shrink_by_groups(model, data, prior_sigma: np.ndarray, x0: np.ndarray, group
                   [] if np.isinf(mu) else _implausible(model, xb, idx, w, nominal), fits,
                   per_group={float(m_): per[at(m_)] for m_ in cands}, holdout=outs[key],
                   registration="anchored" if anchored and anchorable else "free", other_registration=other,
-                  tool=tool_state, other_tool=other_tool)
+                  tool=tool_state, other_tool=other_tool, passed_over=passed)
+
+
+def rejected_candidates(per: dict, total: dict, key, ref, solved) -> list[dict]:
+    """The candidates whose held-out RMS is below the chosen one's but were not chosen, each with why: the
+    left-out groups it predicts worse than registration only (`ref`, the nominal robot) does — the rule of
+    `shrink_by_groups` — and whether its score is its own solution's or linearised."""
+    out = []
+    for k in sorted((k for k in per if k != key and total[k] < total[key]), key=total.get):
+        worse = {g: [per[k][g], per[ref][g]] for g in per[ref] if per[k][g] > per[ref][g]}
+        out.append({"mu_m": None if np.isinf(k[1]) else float(k[1]),
+                    "registration": "anchored" if k[0] else "free", "holdout_rms_m": float(total[k]),
+                    "solved": k in solved, "worse_groups_m": worse,
+                    "reason": ("predicts " + ", ".join(f"{g} worse ({a * 1e3:.4g} mm against {b * 1e3:.4g} mm with "
+                                                        f"registration only)" for g, (a, b) in worse.items())
+                               if worse else "not eligible")})
+    return out
 
 
 def _free_tool(model, data, groups, prior_sigma, tool, idx, reg, weights, centre, nominal, known, nominal_robot, mus,

@@ -8,7 +8,7 @@ A header matches joint J when, stripped of a leading ``- ``, it is ``J`` (positi
 
 Refused with one line naming file, row and column: a missing joint or effort column, a time column
 that is not strictly increasing (or differs between the tables), empty / NaN / inf values (a burst is
-named with its first and last row), positions far outside the URDF's limits (`csv_table.LIMIT_SLACK`).
+named with its first and last row), positions far outside the URDF's limits (`bounds.LIMIT_SLACK`, the bound every importer applies).
 Vectorised: one pass per column, no Python loop over rows.
 """
 
@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import RobocalError
-from pipeline.importers.csv_table import LIMIT_SLACK
-from pipeline.importers.csv_text import check_bound, numbers, read_columns
+from pipeline.importers.bounds import LIMIT_SLACK
+from pipeline.importers.bounds import check_bound
+from pipeline.importers.csv_text import numbers, read_columns
 from pipeline.models.urdf import RobotDescription
 
 KINDS = ("position", "velocity", "effort")

@@ -82,6 +82,11 @@ def read_columns(path: Path, keep: Iterable[str] | None = None,
     return header, out, n
 
 
+def is_number(text: str) -> bool:
+    """`text` is a decimal literal as `numbers` reads it."""
+    return _NUMBER.fullmatch(text) is not None
+
+
 def numbers(path: Path, column: str, texts: list[str], first_line: int = 2, where=None) -> np.ndarray:
     """The column's values as floats; one line naming file, row (line) and column for a field that
     is not a decimal number (`where(i)`: the caller's own words for data row i, 0-based).  Empty

@@ -1,14 +1,13 @@
 """A folder of calibration-board images plus the robot's state at each → a self-contained recording
 (`robocal import images`).
 
-The robot's state at an image is either its joint positions (a CSV with an ``image`` column and
-one column per joint of the URDF chain, matched by name) or its measured flange pose (a CSV with
-``image, x, y, z`` in m and ``qx, qy, qz, qw`` or ``roll, pitch, yaw`` in rad: the flange in the
-robot base frame).  A pose becomes the joint positions of a six-joint "pose chain" URDF
+The robot's state at an image is either its joint positions or its measured flange pose, read by
+`pipeline.importers.pose_files` (CSV tables, or one 4×4 base→flange matrix per line as hand-eye
+datasets ship them).  A pose becomes the joint positions of a six-joint "pose chain" URDF
 (prismatic x, y, z, then revolute yaw about z, pitch about y, roll about x — the URDF rpy
 convention), whose kinematics are known: only the camera, hand-eye and board are fitted.
 
-An image is matched to its row by file name or stem.  Each image with the target found becomes
+An image is matched to its row by file name or stem, or to its matrix line by the number its name ends in.  Each image with the target found becomes
 one ``/measure/camera`` message (corner ids, pixels); every image not used is listed in the
 campaign (``camera.skipped``: image and reason).  With `keep_images` each used image file is also
 stored in the recording as an MCAP attachment (its bytes unchanged).
@@ -19,14 +18,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.csv as pacsv
-from scipy.spatial.transform import Rotation
 
 from pipeline.camera.detect import Detection
 from pipeline.camera.targets import Target
 from pipeline.errors import RobocalError
-from pipeline.importers.bounds import check_bound
+from pipeline.importers.pose_files import States
 from pipeline.importers.recording import T0_NS
 from pipeline.models.urdf import RobotDescription, parse
 from pipeline.recording.schemas import META_CAMPAIGN, META_URDF
@@ -53,70 +49,37 @@ def pose_chain() -> RobotDescription:
     return parse(text, "base", "flange", source="robocal pose chain")
 
 
-def _read_csv(path: Path) -> dict[str, np.ndarray]:
-    try:
-        t = pacsv.read_csv(path, convert_options=pacsv.ConvertOptions(column_types={"image": pa.string()}))
-    except (pa.ArrowInvalid, OSError) as e:
-        raise RobocalError(f"{path}: cannot read CSV ({str(e).splitlines()[0]})") from None
-    if "image" not in t.column_names:
-        raise RobocalError(f"{path}: no 'image' column (the image file name of each row)")
-    return {n: np.asarray(t.column(n).to_pylist(), object) for n in t.column_names}
+def select(files: list[Path], only: str = "", exclude: str = "") -> list[Path]:
+    """The image files `only` names (all when empty) less those `exclude` names: comma-separated file
+    names, stems or shell patterns (``im_05,im_1*``); a name or pattern that matches no image is refused
+    (a typo would otherwise silently change the split)."""
+    from fnmatch import fnmatchcase
+
+    def hits(spec: str, option: str) -> set[Path]:
+        out: set[Path] = set()
+        for pat in (s.strip() for s in spec.split(",")):
+            if not pat:
+                continue
+            m = {f for f in files if fnmatchcase(f.name, pat) or fnmatchcase(f.stem, pat)}
+            if not m:
+                names = ", ".join(f.name for f in files[:6]) + (" …" if len(files) > 6 else "")
+                raise RobocalError(f"{option} {pat!r}: no image of the folder is called so (have: {names})")
+            out |= m
+        return out
+
+    keep = hits(only, "--only") if only.strip() else set(files)
+    keep -= hits(exclude, "--exclude")
+    return [f for f in files if f in keep]
 
 
-def _numbers(path: Path, cols: dict, names: list[str]) -> np.ndarray:
-    missing = [c for c in names if c not in cols]
-    if missing:
-        raise RobocalError(f"{path}: column(s) {', '.join(missing)} missing (have: {', '.join(cols)})")
-    out = np.empty((len(cols["image"]), len(names)))
-    for j, c in enumerate(names):
-        for i, v in enumerate(cols[c]):
-            try:
-                out[i, j] = float(v)
-            except (TypeError, ValueError):
-                raise RobocalError(f"{path}: row {i + 2}: column {c!r}: {v!r} is not a number") from None
-            if not np.isfinite(out[i, j]):
-                raise RobocalError(f"{path}: row {i + 2}: column {c!r} is empty, NaN or inf")
-        check_bound(path, c, out[:, j])  # the bound every importer shares (importers.bounds)
-    return out
-
-
-def read_poses(path: Path) -> dict[str, np.ndarray]:
-    """Image name → the pose chain's joint positions (x, y, z, yaw, pitch, roll) from a pose CSV."""
-    cols = _read_csv(path)
-    xyz = _numbers(path, cols, ["x", "y", "z"])
-    if all(c in cols for c in ("qx", "qy", "qz", "qw")):
-        quat = _numbers(path, cols, ["qx", "qy", "qz", "qw"])
-        norm = np.linalg.norm(quat, axis=1)
-        bad = np.flatnonzero(np.abs(norm - 1) > 1e-3)
-        if bad.size:
-            raise RobocalError(f"{path}: row {bad[0] + 2}: qx..qw is not a unit quaternion (norm {norm[bad[0]]:.4g})")
-        ypr = Rotation.from_quat(quat / norm[:, None]).as_euler("ZYX")
-    else:
-        rpy = _numbers(path, cols, ["roll", "pitch", "yaw"])
-        ypr = rpy[:, ::-1]
-    if np.any(np.abs(xyz) > 100):
-        i = int(np.flatnonzero(np.any(np.abs(xyz) > 100, axis=1))[0])
-        raise RobocalError(f"{path}: row {i + 2}: position {xyz[i].tolist()} beyond 100 m (mm given as m?)")
-    return {str(n): np.r_[xyz[i], ypr[i]] for i, n in enumerate(cols["image"])}
-
-
-def read_joints(path: Path, desc: RobotDescription, joint_units: str = "rad") -> dict[str, np.ndarray]:
-    """Image name → joint positions in the chain's order (rad / m) from a joint CSV."""
-    cols = _read_csv(path)
-    q = _numbers(path, cols, desc.joint_names)
-    if joint_units == "deg":
-        rev = [j.type != "prismatic" for j in desc.movable]
-        q[:, rev] = np.deg2rad(q[:, rev])
-    return {str(n): q[i] for i, n in enumerate(cols["image"])}
-
-
-def match(detections: list[Detection], states: dict[str, np.ndarray], states_path: Path) -> list[Detection]:
-    """Attach each image's row (by file name, else stem); an image without one is listed as such."""
-    by_stem = {Path(k).stem: v for k, v in states.items()}
+def match(detections: list[Detection], states: States, folder_names: list[str] | None = None) -> list[Detection]:
+    """Attach each image's state (`States.lookup`, numbered from all the folder's image names where given);
+    an image without one is listed as such."""
+    states.bind(folder_names if folder_names is not None else [d.name for d in detections])
     for d in detections:
-        q = states.get(d.name, by_stem.get(Path(d.name).stem))
+        q = states.lookup(d.name)
         if q is None and d.used:
-            d.status, d.reason = "no state", f"no row for it in {states_path.name}"
+            d.status, d.reason = "no state", states.missing(d.name)
         d.q = q  # type: ignore[attr-defined]
     return detections
 

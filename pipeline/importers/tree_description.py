@@ -14,14 +14,19 @@ from pipeline.errors import RobocalError
 def tree_description(urdf: Path, root: str, tips: list[str], coupled: list[str]):
     """(description of the read joints, {coupled joint: {terms, offset}} for the campaign) of the chains
     `root` → each of `tips` of the URDF file, joints coupled by `--coupled` texts and the URDF's `<mimic>`."""
-    from pipeline.models import urdf as urdf_mod
-    from pipeline.models.coupling import check_coupling, check_units, parse_coupling
-    from pipeline.models.urdf_tree import UrdfTree
-
     try:
         text = Path(urdf).read_text()
     except (OSError, UnicodeDecodeError) as e:
         raise RobocalError(f"{urdf}: cannot read URDF ({e.__class__.__name__}: {e})") from None
+    return tree_description_text(text, str(urdf), root, tips, coupled)
+
+
+def tree_description_text(text: str, urdf: str, root: str, tips: list[str], coupled: list[str]):
+    """`tree_description` of a URDF text (`urdf` names where it came from, for the messages)."""
+    from pipeline.models import urdf as urdf_mod
+    from pipeline.models.coupling import check_coupling, check_units, parse_coupling
+    from pipeline.models.urdf_tree import UrdfTree
+
     descs = tuple(urdf_mod.parse(text, root, t, source=str(urdf), allow_mimic=True) for t in tips)
     types = {j.name: j.type for d in descs for j in d.movable}
     movable = set(types)

@@ -118,24 +118,35 @@ class CameraModel(Composed):
     def jacobian(self, x: np.ndarray, data: Table) -> np.ndarray:
         return self.predict(x, data, jac=True)[1]
 
+    def hand_eye_names(self) -> list[str]:
+        """The hand-eye transform's parameters: flange → camera (``tool.*``, eye-in-hand) or camera →
+        robot base (``base.*``, eye-to-hand); m and rad (URDF rpy)."""
+        f = "tool" if self.mount == "tip" else "base"
+        return [f"{f}.{a}" for a in ("x", "y", "z", "roll", "pitch", "yaw")]
+
     def holdout_groups(self, data: Table) -> np.ndarray:
         """Rows that must stay together in a held-out split: one image's corners."""
         return np.asarray(data["image"])
 
     def extra_metrics(self, x0: np.ndarray, x: np.ndarray, data: Table) -> dict:
-        """Reprojection RMS (px) and each fitted parameter's σ by the delete-one-image jackknife
-        (`pipeline.camera.uncertainty`): the corners of an image share its robot pose error, so
-        the independent-corner σ̂²(JᵀJ)⁻¹ of the fit understates σ several fold; this one does not.
-        Fitted parameters: those that moved from the start x0 (held ones stay exactly there)."""
+        """Reprojection RMS (px) and the number of images."""
+        r = self.residuals(x, data)
+        return {"reprojection_rms_px": float(np.sqrt(np.mean(r**2))), "images": int(len(np.unique(data["image"])))}
+
+    def resampled_covariance(self, x: np.ndarray, free: np.ndarray, data: Table) -> np.ndarray | None:
+        """Covariance (F, F) of the free parameters by the delete-one-image jackknife
+        (`pipeline.camera.uncertainty`): the corners of an image share its robot pose error, so the
+        independent-corner σ̂²(JᵀJ)⁻¹ of the fit understates σ several fold (4–20× for a hand-eye on
+        real images); this one does not.  None with fewer than 4 images."""
         from pipeline.camera.uncertainty import image_jackknife
 
-        free = np.asarray(x, float) != np.asarray(x0, float)
-        r = self.residuals(x, data)
-        out = {"reprojection_rms_px": float(np.sqrt(np.mean(r**2))), "images": int(len(np.unique(data["image"])))}
-        if out["images"] >= 4 and free.any():
-            sig, _ = image_jackknife(self, data, np.asarray(x, float), free)
-            out["jackknife_sigma"] = {n: float(s) for n, s, f in zip(self.parameter_names(), sig, free) if f}
-        return out
+        free = np.asarray(free, bool)
+        if len(np.unique(data["image"])) < 4 or not free.any():
+            return None
+        _, est = image_jackknife(self, data, np.asarray(x, float), free)
+        d = est[:, free] - est[:, free].mean(axis=0)
+        G = len(est)
+        return (G - 1) / G * d.T @ d
 
     def initial_guess(self, data: Table) -> np.ndarray:
         """OpenCV's two-step answer as the start: calibrateCamera on the detections (from `k_start`

@@ -12,6 +12,8 @@ Physics terms (parameters appended after the kinematics', rad/(N·m), nominal 0 
   compliance (the inverse of its stiffness, N·m/rad);
 * ``J.lateral1``, ``J.lateral2``: joint J's child frame tilts by c · τ about each axis normal to
   J's axis (bearing and link bending), through the tree's lateral virtual joints;
+* ``J.compliance_load`` (rad/(N·m)²): joint J's compliance changes with its load, c + h·|τ|, so it turns by
+  c·τ + h·τ·|τ| — a gear that stiffens as its load grows (a harmonic drive: h < 0), to first order in h;
 * errors of the readings (`pipeline.physics.encoder`, after the compliance terms): ``J.ecc_sin``,
   ``J.ecc_cos`` (rad), ``J.scale``, ``J.coupling`` (rad/rad) — the read joint J turns by
   a·sin q + b·cos q + s·q + κ·q_driver more than read, before the couplings are expanded; ``J.backlash``
@@ -35,6 +37,7 @@ from pipeline.measurements.point import with_registration
 from pipeline.models import chain as ch
 
 COMPLIANCE_UNIT = "rad/(N·m)"
+LOAD_UNIT = "rad/(N·m)²"  # a compliance's change per N·m of load
 _SMALL: dict = {}  # (id of a model, its kept terms) → (that model, `TreePointModel.without`)
 
 
@@ -43,6 +46,7 @@ class TreePointModel(Composed):
     """Points on the tips of a `UrdfTree` (see module docstring)."""
 
     compliant: tuple[str, ...] = ()  # joints with a torsional compliance parameter
+    stiffening: tuple[str, ...] = ()  # joints with a load-dependent compliance (J.compliance_load)
     payload: tuple = ()  # ((mass kg, link, (x, y, z) m in the link frame), …) carried besides the URDF's links
     forced: bool = False  # True: the physics terms are always fitted (not left to the model selection)
     encoder: tuple[str, ...] = ()  # reading-error terms (`pipeline.physics.encoder`): J.ecc_sin, J.scale, …
@@ -53,7 +57,14 @@ class TreePointModel(Composed):
     def gravity_names(self) -> list[str]:
         """The compliance terms (rad/(N·m)), before the encoder terms in the parameter vector."""
         return [f"{j}.compliance" for j in self.compliant] + \
-               [f"{j}.lateral{a}" for j in self.kin.lateral for a in (1, 2)]
+               [f"{j}.lateral{a}" for j in self.kin.lateral for a in (1, 2)] + \
+               [f"{j}.compliance_load" for j in self.stiffening]
+
+    def nonnegative(self) -> list[str]:
+        """Terms no physical robot has negative: the compliances (a stiffness is positive).  `least_squares.fit`
+        holds one estimated negative at 0 (refused) and refits the rest.  A load-dependent compliance may be
+        negative (a joint that stiffens under load)."""
+        return [n for n in self.gravity_names() if not n.endswith(".compliance_load")]
 
     def extra_names(self) -> list[str]:
         return self.gravity_names() + list(self.encoder)
@@ -61,7 +72,9 @@ class TreePointModel(Composed):
     def extra_units(self) -> list[str]:
         from pipeline.physics.encoder import UNITS
 
-        return [COMPLIANCE_UNIT] * len(self.gravity_names()) + [UNITS[n.rsplit(".", 1)[1]] for n in self.encoder]
+        ng = len(self.gravity_names()) - len(self.stiffening)
+        return [COMPLIANCE_UNIT] * ng + [LOAD_UNIT] * len(self.stiffening) + \
+            [UNITS[n.rsplit(".", 1)[1]] for n in self.encoder]
 
     def extra_nominal(self) -> np.ndarray:
         return np.zeros(len(self.extra_names()))
@@ -76,6 +89,8 @@ class TreePointModel(Composed):
             phys["joint compliance"] = [f"{j}.compliance" for j in self.compliant]
         if self.kin.lateral:
             phys["lateral compliance"] = [f"{j}.lateral{a}" for j in self.kin.lateral for a in (1, 2)]
+        if self.stiffening:
+            phys["load-dependent compliance"] = [f"{j}.compliance_load" for j in self.stiffening]
         if self.encoder:
             from pipeline.physics.encoder import GROUPS, family
 
@@ -103,18 +118,20 @@ class TreePointModel(Composed):
         (`pipeline.identify.least_squares.fit` fits terms held at 0 on it).  Self when none can go."""
         drop = set(names)
         compliant = tuple(j for j in self.compliant if f"{j}.compliance" not in drop)
+        stiffening = tuple(j for j in self.stiffening if f"{j}.compliance_load" not in drop)
         lateral = tuple(j for j in self.kin.lateral if not {f"{j}.lateral1", f"{j}.lateral2"} <= drop)
         encoder = tuple(n for n in self.encoder if n not in drop)
-        if (compliant, lateral, encoder) == (self.compliant, self.kin.lateral, self.encoder):
+        if (compliant, lateral, encoder, stiffening) == (self.compliant, self.kin.lateral, self.encoder,
+                                                         self.stiffening):
             return self
-        key = (id(self), compliant, lateral, encoder)
+        key = (id(self), compliant, lateral, encoder, stiffening)
         hit = _SMALL.get(key)
         if hit is not None and hit[0] is self:
             return hit[1]
         from dataclasses import replace
 
         kin = self.kin if lateral == self.kin.lateral else replace(self.kin, lateral=lateral)
-        small = replace(self, kin=kin, compliant=compliant, encoder=encoder)
+        small = replace(self, kin=kin, compliant=compliant, encoder=encoder, stiffening=stiffening)
         if len(_SMALL) > 64:
             _SMALL.clear()
         _SMALL[key] = (self, small)
@@ -143,6 +160,9 @@ class TreePointModel(Composed):
         for i, j in enumerate(self.kin.lateral):
             for a in range(2):
                 qf[:, nj + 2 * i + a] = xe[nc + 2 * i + a] * lat[:, col[j], a]
+        ns = nc + 2 * len(self.kin.lateral)
+        for i, j in enumerate(self.stiffening):
+            qf[:, col[j]] += xe[ns + i] * ax[:, col[j]] * np.abs(ax[:, col[j]])
         return qf
 
     def load(self, data: Table):
@@ -206,6 +226,9 @@ class TreePointModel(Composed):
             li = np.array([col[j] for j in self.kin.lateral], int)
             nl = 2 * len(li)  # lateral virtual joint 2i + a ↔ parameter 2i + a, load (joint i, normal a)
             E[:, :, nc:nc + nl] = Jq[:, :, nj:nj + nl] * load.lateral[rows][:, li, :].reshape(len(rows), 1, nl)
+            if self.stiffening:  # d p / d h = d p / d q_J · τ|τ|
+                si = np.array([col[j] for j in self.stiffening], int)
+                E[:, :, nc + nl:nc + nl + si.size] = Jq[:, :, si] * (ax[:, si] * np.abs(ax[:, si]))[:, None, :]
         return E
 
     def held_columns(self, x: np.ndarray, data: Table, names) -> np.ndarray:
@@ -224,7 +247,8 @@ class TreePointModel(Composed):
         col = {j.name: i for i, j in enumerate(self.kin.all_joints)}
         by = {j.name: j for j in self.kin.all_joints}
         split = [n.rsplit(".", 1) for n in names]
-        enc = [i for i, (_, kind) in enumerate(split) if kind not in ("compliance", "lateral1", "lateral2")]
+        enc = [i for i, (_, kind) in enumerate(split) if kind not in ("compliance", "compliance_load", "lateral1",
+                                                                        "lateral2")]
         lat = [i for i, (_, kind) in enumerate(split) if kind in ("lateral1", "lateral2")]
         load = self.load(data) if len(enc) < len(names) else None
         if enc:
@@ -237,8 +261,9 @@ class TreePointModel(Composed):
             c = self.kin.chain(k)
             _, Jq = ch.joint_jacobian(c, xk, qf[rows])
             for i, (joint, kind) in enumerate(split):
-                if kind == "compliance":
-                    out[rows, :, i] = Jq[:, :, col[joint]] * load.axial[rows][:, None, col[joint]]
+                if kind in ("compliance", "compliance_load"):
+                    tau = load.axial[rows][:, col[joint]]
+                    out[rows, :, i] = Jq[:, :, col[joint]] * (tau if kind == "compliance" else tau * np.abs(tau))[:, None]
             if lat:
                 steps = {int(c.joint[s]): s for s in np.flatnonzero(c.joint >= 0)}
                 here = [i for i in lat if col[split[i][0]] in steps]
@@ -261,7 +286,8 @@ class TreePointModel(Composed):
         A = self.kin.coupling_matrix()
         read = {n: i for i, n in enumerate(self.kin.joint_names)}
         driven = {k for n in self.encoder for k in np.flatnonzero(A[:, read[n.rsplit(".", 1)[0]]])}
-        return np.array(sorted({col[j] for j in self.compliant} | set(range(nj, nj + 2 * len(self.kin.lateral)))
+        return np.array(sorted({col[j] for j in self.compliant + self.stiffening}
+                               | set(range(nj, nj + 2 * len(self.kin.lateral)))
                                | {int(k) for k in driven}), int)
 
     @cached_property
@@ -335,4 +361,4 @@ class TreePointModel(Composed):
                         np.asarray(free, bool) if ok(free) else None)
 
 
-__all__ = ["TreePointModel", "COMPLIANCE_UNIT"]
+__all__ = ["TreePointModel", "COMPLIANCE_UNIT", "LOAD_UNIT"]

@@ -7,20 +7,26 @@
   wrist_3, hash}`` — each entry the origin of one joint (parent link → joint frame; m, URDF rpy
   rad), shoulder ↔ shoulder_pan_joint, upper_arm ↔ shoulder_lift_joint, forearm ↔ elbow_joint,
   wrist_k ↔ wrist_k_joint.  A joint offset is folded into its origin's rotation (the joint axis is
-  z: Rot(z, q + θ₀) = Rot(z, θ₀)·Rot(z, q)).  ``hash`` names this calibration
-  (``calib_robocal_<16 hex of the values>``); the driver compares it with the controller's own
-  checksum and warns when they differ, which they do: this is not the factory calibration.
-- `offsets_yaml`: the identified corrections in robot_calibration's style, one flat mapping:
-  ``<joint>: offset`` (rad, added to the reading) and, per frame (each joint origin,
-  ``robocal_instrument``: the instrument → root link registration, ``robocal_tool``: tip → tool),
-  ``<frame>_x/_y/_z`` (m, origin translation correction) and ``<frame>_a/_b/_c`` (rad, rotation
-  correction as a rotation vector, applied after the nominal rotation).
+  z: Rot(z, q + θ₀) = Rot(z, θ₀)·Rot(z, q)).  ``hash`` is in the driver's form ``calib_<uint64>``,
+  formed as the UR client library forms the controller's checksum (`ur_hash`: libstdc++'s
+  ``std::hash<std::string>`` of the values written one after the other as a C++ stream writes a
+  double) but of robocal's values: it names this calibration and never equals the controller's
+  factory checksum, so the driver's start-up check says the two differ — as they do (the
+  controller's own Cartesian kinematics keep the factory calibration).
+- `offsets_yaml`: the corrections in robot_calibration's convention (its
+  ``OptimizationOffsets::updateURDF``), one ``name: value`` line each, names = URDF joint names:
+  ``<joint>: θ₀`` (rad or m) a joint-position offset (the model reads q + θ₀; updateURDF writes it to
+  the joint's ``<calibration rising=…>``), and ``<joint>_x/_y/_z`` (m) ``<joint>_a/_b/_c`` (rad, an
+  axis-magnitude rotation vector) a frame offset right-multiplied onto the joint's origin,
+  ``origin = origin · offset``: the translation in the joint's own (nominal origin) frame.  The
+  registration and the tool are the fixed joints ``robocal_instrument_joint`` (root link →
+  ``robocal_instrument``) and ``robocal_tool_joint`` (tip link → ``robocal_tool``) of model.urdf,
+  whose nominal origins are the identity: their offsets are their calibrated origins.
 - `load_ur_calibration` reads a UR file back; `apply_ur_calibration` puts it into a URDF text.
 """
 
 from __future__ import annotations
 
-import hashlib
 import re
 import xml.etree.ElementTree as ET
 
@@ -62,9 +68,42 @@ def ur_calibration_yaml(joint_names: list[str], origins: dict[str, np.ndarray]) 
         values += v
         rows.append(f"  {key}:")
         rows += [f"    {k}: {_num(x)}" for k, x in zip(KEYS, v)]
-    digest = hashlib.sha256(np.asarray(values, float).tobytes()).hexdigest()[:16]
-    rows.append(f"  hash: calib_robocal_{digest}")
+    rows.append(f"  hash: {ur_hash(values)}")
     return "\n".join(rows) + "\n"
+
+
+_MASK = (1 << 64) - 1
+_MUL = 0xC6A4A7935BD1E995
+
+
+def _shift_mix(v: int) -> int:
+    return v ^ (v >> 47)
+
+
+def cpp_string_hash(data: bytes, seed: int = 0xC70F6907) -> int:
+    """libstdc++'s ``std::hash<std::string>`` on a 64-bit platform (``_Hash_bytes``, a MurmurHash64A
+    variant, with the seed ``std::hash`` passes), as an unsigned 64-bit integer."""
+    n = len(data)
+    h = (seed ^ (n * _MUL)) & _MASK
+    aligned = n & ~7
+    for i in range(0, aligned, 8):
+        k = _shift_mix((int.from_bytes(data[i:i + 8], "little") * _MUL) & _MASK) * _MUL & _MASK
+        h = ((h ^ k) * _MUL) & _MASK
+    if n & 7:
+        h = ((h ^ int.from_bytes(data[aligned:], "little")) * _MUL) & _MASK
+    h = (_shift_mix(h) * _MUL) & _MASK
+    return _shift_mix(h)
+
+
+def cpp_stream(v: float) -> str:
+    """A double as ``std::ostream << double`` writes it by default (precision 6, ``%g``)."""
+    return "%g" % float(v)
+
+
+def ur_hash(values) -> str:
+    """``calib_<uint64>``: the UR client library's checksum rule (``KinematicsInfo::toHash``: every value
+    streamed in turn, ``std::hash`` of the text) applied to `values`."""
+    return f"calib_{cpp_string_hash(''.join(cpp_stream(v) for v in values).encode())}"
 
 
 def load_ur_calibration(text: str, source: str = "<calibration.yaml>") -> dict[str, np.ndarray]:
@@ -110,29 +149,37 @@ def apply_ur_calibration(urdf_text: str, calibration: dict[str, np.ndarray], pre
     return ET.tostring(robot, encoding="unicode")
 
 
+INSTRUMENT_JOINT = "robocal_instrument_joint"
+TOOL_JOINT = "robocal_tool_joint"
+
+
 def offsets_yaml(arm, x: np.ndarray) -> str:
-    """robot_calibration-style corrections of a `UrdfArm` at parameters x (see module docstring)."""
+    """The corrections of a `UrdfArm` at parameters x in robot_calibration's convention (module docstring):
+    for each movable joint, the frame offset C = [R₀ᵀ(t − t₀), Rx·Ry·Rz] with origin · C = the calibrated
+    origin (t₀, R₀ the URDF's own) and the joint-position offset θ₀; for the two robocal joints their
+    calibrated origins (instrument: root → instrument = base⁻¹; tool: tip → tool)."""
     from scipy.spatial.transform import Rotation
 
     names = arm.parameter_names()
-    nominal = arm.nominal_vector()
     val = {n: float(v) for n, v in zip(names, np.asarray(x, float))}
-    rows = [f"# robocal calibrated parameters of {arm.desc.name} ({arm.desc.root} → {arm.desc.tip}); "
-            "m and rad; corrections to the URDF"]
+    rows = [f"# robocal calibrated parameters of {arm.desc.name} ({arm.desc.root} → {arm.desc.tip}), "
+            "robot_calibration's convention: m and rad"]
 
-    def frame(label: str, head: str, rot: tuple[str, str, str]) -> None:
-        d = [val[f"{head}.{k}"] - float(nominal[names.index(f"{head}.{k}")]) for k in "xyz"]
-        rv = Rotation.from_euler("XYZ" if rot[0] == "rx" else "ZYX",
-                                 [val[f"{head}.{k}"] for k in (rot if rot[0] == "rx" else rot[::-1])]).as_rotvec()
-        rows.extend(f"{label}_{k}: {_num(v)}" for k, v in zip("xyz", d))
-        rows.extend(f"{label}_{k}: {_num(v)}" for k, v in zip("abc", rv))
+    def frame(joint: str, T: np.ndarray) -> None:
+        rows.extend(f"{joint}_{k}: {_num(v)}" for k, v in zip("xyz", T[:3, 3]))
+        rows.extend(f"{joint}_{k}: {_num(v)}" for k, v in zip("abc", Rotation.from_matrix(T[:3, :3]).as_rotvec()))
 
     for j in arm.desc.movable:
         if f"{j.name}.offset" in val:
             rows.append(f"{j.name}: {_num(val[f'{j.name}.offset'])}")
-        frame(j.name, j.name, ("rx", "ry", "rz"))
-    frame("robocal_instrument", "base", ("roll", "pitch", "yaw"))
-    frame("robocal_tool", "tool", ("roll", "pitch", "yaw"))
+        T0 = np.asarray(j.origin, float)
+        C = np.eye(4)
+        C[:3, 3] = T0[:3, :3].T @ (np.array([val[f"{j.name}.{k}"] for k in "xyz"]) - T0[:3, 3])
+        C[:3, :3] = Rotation.from_euler("XYZ", [val[f"{j.name}.r{k}"] for k in "xyz"]).as_matrix()
+        frame(j.name, C)
+    base, tool = arm.frames_of(np.asarray(x, float))
+    frame(INSTRUMENT_JOINT, np.linalg.inv(base))
+    frame(TOOL_JOINT, tool)
     return "\n".join(rows) + "\n"
 
 

@@ -5,7 +5,9 @@ Two families (parameters of `pipeline.measurements.tree_point.TreePointModel`, r
 * ``joint-compliance``: a revolute joint turns by c · τ, τ the axial gravity moment it carries
   (N·m); its physical reading is the stiffness k = 1/c (N·m/rad);
 * ``lateral-compliance``: a revolute joint's child frame tilts about the two axes normal to its
-  axis by c · τ⊥ (bearing play under load, link bending).
+  axis by c · τ⊥ (bearing play under load, link bending);
+* ``load-compliance``: a joint's compliance changes with its load, c + h·|τ| (h in rad/(N·m)²; a harmonic
+  drive stiffens as its load grows: h < 0), so it turns by c·τ + h·τ·|τ|.
 
 `physics` choices (`robocal calibrate/run --physics`): ``auto`` offers every family to the
 held-out model selection (a family is kept only when it lowers the held-out error, like every
@@ -31,7 +33,7 @@ from pipeline.errors import RobocalError
 from pipeline.physics.encoder import BACKLASH_ABSENT, FAMILIES as ENCODER
 from pipeline.physics.gravity import G_M_S2, Load, gravity_load, has_inertials
 
-GRAVITY = ("joint-compliance", "lateral-compliance")
+GRAVITY = ("joint-compliance", "lateral-compliance", "load-compliance")
 FAMILIES = GRAVITY + ENCODER  # the reading errors end with backlash
 MIN_LOAD_NM = 1.0
 EQUILIBRIUM = "first order: gravity loads evaluated at the joint readings (nominal geometry)"
@@ -117,7 +119,8 @@ def candidates(tree, q: np.ndarray, families: tuple[str, ...], payload: tuple = 
     axial = tuple(names[i] for i in revolute if varies(load.axial[:, i]) >= MIN_LOAD_NM)
     lateral = tuple(names[i] for i in revolute if max(varies(load.lateral[:, i, 0]), varies(load.lateral[:, i, 1]))
                     >= MIN_LOAD_NM)
-    return (axial if "joint-compliance" in families else ()), (lateral if "lateral-compliance" in families else ())
+    return (axial if {"joint-compliance", "load-compliance"} & set(families) else ()), \
+        (lateral if "lateral-compliance" in families else ())
 
 
 def document(model, x: np.ndarray, std: np.ndarray | None = None, free: np.ndarray | None = None) -> dict:
@@ -128,7 +131,7 @@ def document(model, x: np.ndarray, std: np.ndarray | None = None, free: np.ndarr
     names = model.parameter_names()
     terms = []
     for i, n in enumerate(names):
-        if not (n.endswith((".compliance", ".lateral1", ".lateral2")) or is_encoder(n)):
+        if not (n.endswith((".compliance", ".lateral1", ".lateral2", ".compliance_load")) or is_encoder(n)):
             continue
         if free is not None and not free[i]:
             continue
@@ -140,6 +143,12 @@ def document(model, x: np.ndarray, std: np.ndarray | None = None, free: np.ndarr
         if is_encoder(n):
             t = describe(model.kin, n, c, s)
             t.pop("reading")
+            terms.append(t)
+            continue
+        if kind == "compliance_load":  # the compliance's change per N·m of load
+            t = {"joint": joint, "family": "load-compliance", "axis": "joint", "compliance_per_load_rad_per_Nm2": c}
+            if s is not None:
+                t["compliance_per_load_std_rad_per_Nm2"] = s
             terms.append(t)
             continue
         t = {"joint": joint, "family": "joint-compliance" if kind == "compliance" else "lateral-compliance",

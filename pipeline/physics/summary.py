@@ -15,7 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 
-SUFFIXES = (".compliance", ".lateral1", ".lateral2")
+SUFFIXES = (".compliance", ".lateral1", ".lateral2", ".compliance_load")
 
 
 def physics_names(model) -> list[str]:
@@ -45,6 +45,12 @@ def term(name: str, c: float, std: float | None, tree=None) -> dict:
     if is_encoder(name):
         return describe(tree, name, c, std)
     joint, kind = name.rsplit(".", 1)
+    if kind == "compliance_load":  # the compliance's change per N·m of load: a stiffness that depends on it
+        return {"joint": joint, "family": "load-compliance", "axis": "joint axis", "parameter": name,
+                "term": "compliance_load", "value": c, "std": std, "unit": "rad/(N·m)²",
+                "compliance_per_load_rad_per_Nm2": c, "compliance_per_load_std_rad_per_Nm2": std,
+                "reading": f"{joint}: compliance {'falls' if c < 0 else 'grows'} by {abs(c):.3g} rad/(N·m) per N·m "
+                           f"of load ({'stiffens' if c < 0 else 'softens'} under load)"}
     family = "joint-compliance" if kind == "compliance" else "lateral-compliance"
     axis = {"compliance": "joint axis", "lateral1": "normal e1", "lateral2": "normal e2"}[kind]
     rel = abs(std / c) if std is not None and c != 0 else None
@@ -87,7 +93,7 @@ def summarise(model, fit, data, options, folds: int, seed: int, holdout_m: float
         std[: s.size] = s if s.size == len(names) else np.nan
     tree = getattr(model, "kin", None)
     terms = [term(names[i], float(fit.x[i]), float(std[i]) if np.isfinite(std[i]) else None, tree) for i in kept]
-    label = {"compliance": "joint", "lateral1": "lateral", "lateral2": "lateral", "ecc_sin": "eccentricity",
+    label = {"compliance": "joint", "compliance_load": "load-dependent", "lateral1": "lateral", "lateral2": "lateral", "ecc_sin": "eccentricity",
              "ecc_cos": "eccentricity", "scale": "scale", "coupling": "coupling", "backlash": "backlash"}
     offered = sorted({f"{n.rsplit('.', 1)[0]} ({label[n.rsplit('.', 1)[1]]})" for n in phys})
     gain = 1.0 - float(holdout_m) / geometry if geometry > 0 else 0.0

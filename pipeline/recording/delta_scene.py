@@ -15,7 +15,7 @@ needs, with the closure carried by the transforms:
   P along the platform's z axis (seed 003 eq. 13).
 
 The messages are the *nominal* robot's (recordings are written before any calibration), like the serial
-arms' in `pipeline.recording.scene`: ``robocal_instrument`` → ``base`` is the identity (the tracker's
+arms' in `pipeline.recording.scene`: ``base`` → ``robocal_instrument`` is the identity (the tracker's
 registration is what the calibration estimates).  Lengths m, angles rad, quaternions (x, y, z, w).
 """
 
@@ -80,7 +80,7 @@ def transforms(delta: dm.Delta, theta: np.ndarray, reflector_offset_m: float = 0
     p, ok = dm.forward(delta, beta, theta)
     p = np.where(ok[:, None], p, [0.0, 0.0, -delta.l2])
     g = dm.geometry(delta, beta, theta, p)
-    pairs, mats = [(INSTRUMENT_FRAME, "base")], [np.broadcast_to(np.eye(4), (n, 4, 4))]
+    pairs, mats = [("base", INSTRUMENT_FRAME)], [np.broadcast_to(np.eye(4), (n, 4, 4))]
     for i, phi in enumerate(delta.phi):
         T = np.zeros((n, 4, 4))
         T[:, 3, 3] = 1.0

@@ -187,3 +187,47 @@ def claim_outputs(force: bool | None, **paths: str | Path | None) -> None:
     NAME.bak (`claim_output`).  Call once the input is checked, before writing."""
     for p, what in check_outputs(force, **paths):
         claim_output(p, what, force)
+
+
+BAG_MARK = "robocal.writer"  # the key of a bag's metadata.yaml custom_data that says robocal wrote it
+
+
+def bag_by_robocal(path: Path) -> bool:
+    """A bag folder whose metadata.yaml carries robocal's mark (custom_data ``robocal.writer``)."""
+    try:
+        text = (Path(path) / "metadata.yaml").read_text(errors="replace")
+    except OSError:
+        return False
+    return f"{BAG_MARK}: robocal/" in text or f"{BAG_MARK}: 'robocal/" in text
+
+
+def check_bag_output(path: str | Path, force: bool = False) -> Path:
+    """`path` if robocal may write a ROS 2 bag folder there: a new path or an empty folder; a bag robocal
+    wrote only with `force` (kept as NAME.bak, never over an existing .bak); anything else refused."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise RobocalError(f"{p}: exists and is not a folder; a ROS 2 bag is a folder (choose another output path)")
+    if not p.exists() or not any(p.iterdir()):
+        return p
+    if not bag_by_robocal(p):
+        raise RobocalError(f"{p}: exists and was not written by robocal; robocal never overwrites a file it did "
+                           "not create (choose another output path)")
+    bak = backup_path(p)
+    if not force:
+        raise RobocalError(f"{p}: holds a bag already; robocal never replaces one silently (choose another output "
+                           f"path, or --force to keep the old one as {bak.name})")
+    if bak.exists():
+        raise RobocalError(f"{p}: --force would keep the old bag as {bak}, which exists already; robocal never "
+                           "overwrites a backup (move it away first)")
+    return p
+
+
+def claim_bag_output(path: str | Path, force: bool = False) -> Path:
+    """`check_bag_output`, then the folder made free for a new bag: an empty folder removed (rosbags writes
+    a new one), a bag robocal wrote moved to NAME.bak with `force`."""
+    p = check_bag_output(path, force)
+    if p.is_dir() and not any(p.iterdir()):
+        p.rmdir()
+    elif p.exists():
+        os.rename(p, backup_path(p))  # checked free above; rename never replaces a folder that appeared
+    return p

@@ -130,7 +130,7 @@ def read_recording(path: str | Path, topics: set[str] | None = None, skip: froze
     from memory (a run reads its recording once).  `foreign`: any MCAP file (a ROS 2 bag's storage
     file being salvaged), not only robocal's recordings."""
     path = Path(path)
-    from pipeline.importers.bagkind import not_a_recording_hint
+    from pipeline.ros2.kind import not_a_recording_hint
 
     if not foreign and (hint := not_a_recording_hint(path)) is not None:
         raise RobocalError(hint)

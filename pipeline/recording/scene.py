@@ -83,19 +83,27 @@ def _quat(R: np.ndarray) -> np.ndarray:
 
 def frame_messages(arm, q: np.ndarray, t_ns: np.ndarray) -> list[dict]:
     """One ``foxglove.FrameTransforms`` message body per posture (q (N, n_joints) rad / m, t_ns (N,))."""
-    q = np.atleast_2d(np.asarray(q, float))
-    names, F = arm.link_frames(arm.vector(), q)
-    names = [INSTRUMENT_FRAME] + names[:-1] + [TOOL_FRAME]
-    rel = np.concatenate([F[:, :1], np.linalg.inv(F[:, :-1]) @ F[:, 1:]], axis=1)  # parent → child
-    quats = _quat(rel[..., :3, :3].reshape(-1, 3, 3)).reshape(len(q), -1, 4)
+    pairs, rel = chain_transforms(arm, q)
+    quats = _quat(rel[..., :3, :3].reshape(-1, 3, 3)).reshape(rel.shape[0], -1, 4)
     out = []
     for i, t in enumerate(np.asarray(t_ns, np.int64)):
         stamp = _stamp(t)
         out.append({"transforms": [
-            {"timestamp": stamp, "parent_frame_id": names[k], "child_frame_id": names[k + 1],
+            {"timestamp": stamp, "parent_frame_id": a, "child_frame_id": b,
              "translation": dict(zip("xyz", map(float, rel[i, k, :3, 3]))),
-             "rotation": dict(zip("xyzw", map(float, quats[i, k])))} for k in range(rel.shape[1])]})
+             "rotation": dict(zip("xyzw", map(float, quats[i, k])))} for k, (a, b) in enumerate(pairs)]})
     return out
+
+
+def chain_transforms(arm, q: np.ndarray, x: np.ndarray | None = None) -> tuple[list[tuple[str, str]], np.ndarray]:
+    """(parent → child frame pairs, their transforms (N, K, 4, 4), m) of a `UrdfArm` at parameters x
+    (default its own) and postures q (N, n_joints): root → ``robocal_instrument`` (the inverse of the
+    instrument → root registration), each joint's parent link → child link, tip → ``robocal_tool``."""
+    q = np.atleast_2d(np.asarray(q, float))
+    names, F = arm.link_frames(arm.vector() if x is None else np.asarray(x, float), q)
+    names = names[:-1] + [TOOL_FRAME]
+    rel = np.concatenate([np.linalg.inv(F[:, :1]), np.linalg.inv(F[:, :-1]) @ F[:, 1:]], axis=1)
+    return [(names[0], INSTRUMENT_FRAME)] + list(zip(names[:-1], names[1:])), rel
 
 
 def postures(stream: tuple[np.ndarray, np.ndarray] | None, measured: tuple[np.ndarray, np.ndarray] | None,

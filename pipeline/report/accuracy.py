@@ -44,33 +44,38 @@ def map_and_coverage(points: np.ndarray, sigma: np.ndarray, measured: np.ndarray
     return _svg(fig)
 
 
-def histograms(before: np.ndarray, after: np.ndarray, floor_m: float | None) -> str:
+def histograms(before: np.ndarray, after: np.ndarray, floor_m: float | None, residual_unit: str | None = None) -> str:
     """Residual histograms before and after (separate axes: their scales differ by orders),
-    with ±the noise floor (residual σ) marked."""
+    with ±the noise floor (residual σ) marked; mm, a camera's px (`residual_unit`)."""
+    from pipeline.report.labels import residual_display
+
+    scale, mm = residual_display(residual_unit)
     with rc_context(RC):
         fig, ax = _fig(7.6, 2.8, 1, 2)
         for a, r, name, col in ((ax[0, 0], before, "before", "#d62728"), (ax[0, 1], after, "after", "#2ca02c")):
             r = np.asarray(r, float).ravel()
-            r = r[np.isfinite(r)] * MM
+            r = r[np.isfinite(r)] * scale
             r, bins = hist_bins(r, 30)
             a.hist(r, bins=bins, color=col)
             if floor_m:
                 for s in (-floor_m, floor_m):
-                    a.axvline(s * MM, color="k", ls="--", lw=0.8)
-            a.set_xlabel(f"residual {name} (mm)")
+                    a.axvline(s * scale, color="k", ls="--", lw=0.8)
+            a.set_xlabel(f"residual {name} ({mm})")
             a.set_ylabel("residuals")
         if floor_m:
-            ax[0, 1].set_title(f"dashed: ±noise floor σ = {floor_m * MM:.3g} mm", fontsize=9)
+            ax[0, 1].set_title(f"dashed: ±noise floor σ = {floor_m * scale:.3g} {mm}", fontsize=9)
     return _svg(fig)
 
 
 def joints_before_after(joints: dict[str, np.ndarray], before: np.ndarray, after: np.ndarray,
-                        prismatic: frozenset = frozenset()) -> str:
+                        prismatic: frozenset = frozenset(), residual_unit: str | None = None) -> str:
     """|residual| against each joint angle (deg; a prismatic joint's travel mm), before (upper panel of
-    each pair) and after (lower); of a pose, its position part.  Wrapped as the residuals section's
-    per-joint figure: at most `JOINT_COLUMNS` joints a row, so a humanoid's 18 joints stay readable."""
-    from pipeline.report.labels import joint_scale
+    each pair) and after (lower); of a pose, its position part; mm, a camera's px (`residual_unit`).
+    Wrapped as the residuals section's per-joint figure: at most `JOINT_COLUMNS` joints a row, so a
+    humanoid's 18 joints stay readable."""
+    from pipeline.report.labels import joint_scale, residual_display
 
+    rs, mm = residual_display(residual_unit)  # mm, a camera's px
     names = list(joints)
     ncols = JOINT_COLUMNS if len(names) > 4 else max(len(names), 1)
     nrows = max(int(np.ceil(len(names) / ncols)), 1)
@@ -88,14 +93,15 @@ def joints_before_after(joints: dict[str, np.ndarray], before: np.ndarray, after
             for row, (r, col) in enumerate(((before, "#d62728"), (after, "#2ca02c"))):
                 a = pair[row]
                 for k in range(min(r.shape[1], 3)):  # a pose's position part (its rotation part is not mm)
-                    a.scatter(q, r[:, k] * MM, s=5, color=AXIS_RGB[k] if r.shape[1] > 1 else col, linewidths=0)
+                    a.plot(q, r[:, k] * rs, ls="", marker="o", ms=2.2, mew=0,  # markers: Agg draws them in C
+                           color=AXIS_RGB[k] if r.shape[1] > 1 else col)
                 a.axhline(0, color="k", lw=0.5)
                 if row == 1:
                     a.set_xlabel(f"{n} ({unit})")
                 else:
                     a.tick_params(labelbottom=False)
                 if j % ncols == 0:
-                    a.set_ylabel(("before" if row == 0 else "after") + " (mm)")
+                    a.set_ylabel(("before" if row == 0 else "after") + f" ({mm})")
     return _svg(fig)
 
 
@@ -191,7 +197,8 @@ def accuracy_section(art: RunArtefacts) -> str:
     before, after = residual_matrix(art.residuals, "before"), residual_matrix(art.residuals, "after")
     used = art.used
     if after.size:
-        html += _fig_html(histograms(before[used], after[used], art.fit.get("sigma_m")),
+        ru = art.fit.get("residual_unit")
+        html += _fig_html(histograms(before[used], after[used], art.fit.get("sigma_m"), ru),
                           "Residual histograms before and after calibration (separate scales), the noise floor "
                           "(residual σ) dashed.", "fig-histograms")
         joints = art.joint_columns()
@@ -199,9 +206,10 @@ def accuracy_section(art: RunArtefacts) -> str:
             from pipeline.report.labels import joints_unit_phrase
 
             unit = joints_unit_phrase(joints, art.prismatic_joints())
-            html += _fig_html(joints_before_after(joints, before, after, art.prismatic_joints()),
+            html += _fig_html(joints_before_after(joints, before, after, art.prismatic_joints(), ru),
                               "Residuals against each joint angle, before "
-                              f"(top) and after (bottom) calibration (mm vs {unit}); x/y/z components red/green/blue.",
+                              f"(top) and after (bottom) calibration ({'px' if ru == 'px' else 'mm'} vs {unit}); "
+                              + ("u/v components red/green." if ru == "px" else "x/y/z components red/green/blue."),
                               "fig-joints-before-after")
         meas = art.measurements or {}
         if art.system == "scorbot-scanner" and "pixel" in meas:

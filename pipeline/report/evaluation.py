@@ -25,9 +25,16 @@ def _mm(v) -> str:
     return "—" if v is None else f"{v * 1e3:.3f}"
 
 
+def _px(v) -> str:
+    return "—" if v is None else f"{v:.3f}"
+
+
 def _heads(measure: str) -> list[str]:
     if measure == "plane":
         return ["recording / group", "n", "RMS along the normal (mm)", "mean |d| (mm)", "max |d| (mm)"]
+    if measure == "camera":
+        return ["recording / image", "corners", "RMS of the 2-D reprojection error (px)", "mean 2-D (px)",
+                "max 2-D (px)", "RMS per axis (px)"]
     heads = ["recording / group", "n", "RMS of the 3-D error (mm)", "mean 3-D (mm)", "max 3-D (mm)",
              "RMS per axis (mm)"]
     return heads + (["RMS rotation (mrad)"] if measure == "pose" else []) + (
@@ -38,6 +45,9 @@ def _row(name: str, d: dict, measure: str) -> list[str]:
     if measure == "plane":
         return [name, str(d.get("n", 0)), _mm(d.get("rms_normal_m")), _mm(d.get("mean_abs_normal_m")),
                 _mm(d.get("max_abs_normal_m"))]
+    if measure == "camera":
+        return [name, str(d.get("n", 0))] + [_px(d.get(k)) for k in ("rms_2d_px", "mean_2d_px", "max_2d_px",
+                                                                      "rms_axis_px")]
     cells = [name, str(d.get("n", 0)), _mm(d.get("rms_3d_m")), _mm(d.get("mean_3d_m")), _mm(d.get("max_3d_m")),
              _mm(d.get("rms_axis_m"))]
     if measure == "pose":
@@ -77,8 +87,10 @@ def render(doc: dict, errors: dict[str, np.ndarray]) -> str:
         norms = [np.asarray(errors["norm_m"], float)[m & (paths == r["path"])] for r in recs]
         kinds = [np.asarray(errors.get("posture", np.full(len(paths), "", object)), object)[m & (paths == r["path"])]
                  for r in recs]
-        y = "distance along the normal (mm)" if measure == "plane" else "norm of the 3-D error (mm)"
-        body += figure(plots.error_norms(names, norms, kinds, y), "Every measurement's error, one column per "
+        y = {"plane": "distance along the normal (mm)", "camera": "2-D reprojection error (px)"}.get(
+            measure, "norm of the 3-D error (mm)")
+        body += figure(plots.error_norms(names, norms, kinds, y, 1.0 if measure == "camera" else plots.MM),
+                       "Every measurement's error, one column per "
                        "recording" + (", coloured by posture group" if any(k.any() for k in kinds) else ""),
                        "evaluation-errors")
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'

@@ -65,13 +65,15 @@ def summary(art: RunArtefacts) -> dict[str, Any]:
 
 
 def parameter_rows(fit: dict) -> list[dict[str, Any]]:
-    """One row per parameter in display units: name, unit, nominal, estimate, change, std, free, reason."""
+    """One row per parameter in display units: name, unit, nominal, estimate, change, std, free, reason, and
+    std_independent (the independent-row σ the stated std replaced, `fit.json` ``std_independent``) or None."""
     names = fit["names"]
     units = fit.get("units", ["m"] * len(names))
     nom = np.asarray(fit["nominal"], float)
     x = np.asarray(fit["x"], float)
     std = np.asarray(fit.get("std", np.zeros(len(names))), float)
     free = np.asarray(fit.get("free", np.ones(len(names), bool)), bool)
+    iid = np.asarray(fit["std_independent"], float) if fit.get("std_independent") is not None else None
     reasons = fit.get("reasons", {}) or {}
     rows = []
     for i, n in enumerate(names):
@@ -80,7 +82,8 @@ def parameter_rows(fit: dict) -> list[dict[str, Any]]:
         reason = reasons.get(n, reasons.get(str(i), "")) if isinstance(reasons, dict) else ""
         rows.append({"name": n, "unit": u, "nominal": nom[i] * k, "estimate": x[i] * k,
                      "change": (x[i] - nom[i]) * k, "std": std[i] * k if free[i] else None,
-                     "free": bool(free[i]), "reason": "" if free[i] else str(reason)})
+                     "free": bool(free[i]), "reason": "" if free[i] else str(reason),
+                     "std_independent": iid[i] * k if iid is not None and free[i] else None})
     return rows
 
 

@@ -95,6 +95,14 @@ def summary_section(s: dict[str, Any], warnings: list[str]) -> str:
     html += (f'<p class="note">System <b>{escape(s["system"])}</b>; loss <code>{escape(str(s["loss"]))}</code>; '
              f'{s["solver_evaluations"]} solver evaluations. Held-out: each measurement predicted by a fit without it '
              f"(cross-validation).</p>")
+    corr = s.get("correction")
+    if isinstance(corr, dict) and not corr.get("applied", True):  # the nominal robot kept: said first, with why
+        tried = "".join(f"<li>{escape(str(t['candidate']))}: held-out {_mm(t.get('holdout_rms_m'))}"
+                        + (f" — {escape(str(t['reason']))}" if t.get("reason") else "") + "</li>"
+                        for t in corr.get("tried", []))
+        html = (f'<p class="correction" id="no-correction"><b>No correction applied</b>: the nominal robot was kept '
+                f'(registration only). {escape(str(corr.get("reason", "")))}</p>'
+                + (f'<ul class="tried">{tried}</ul>' if tried else "")) + html
     if warnings:
         html += "<h3>Warnings</h3><ul class=\"warnings\">" + "".join(f"<li>{escape(w)}</li>" for w in warnings) + "</ul>"
     return _section("summary", "Summary", html)
@@ -122,12 +130,17 @@ def residual_section(art, series: fg.ResidualSeries) -> str:
 
 def parameter_section(fit: dict) -> str:
     rows = fg.parameter_rows(fit)
+    iid = fit.get("std_independent") is not None  # the stated σ is a resampling σ (a camera: image jackknife)
     body = [[f"<code>{escape(r['name'])}</code>", escape(r["unit"]), _sig(r["nominal"]), _sig(r["estimate"]),
-             _sig(r["change"]), _sig(r["std"]), "yes" if r["free"] else "fixed", escape(r["reason"])] for r in rows]
-    html = ('<p class="note">Lengths in mm, angles in deg. σ: 1σ standard deviation from the covariance '
-            "(residual σ²·(JᵀJ)⁻¹). Fixed parameters stay at their nominal value; the reason says why.</p>")
-    html += _table(["parameter", "unit", "nominal", "estimate", "change", "σ", "identified", "reason"], body,
-                   {2, 3, 4, 5}, row_class=lambda i: "" if rows[i]["free"] else "fixed")
+             _sig(r["change"]), _sig(r["std"])] + ([_sig(r["std_independent"])] if iid else []) +
+            ["yes" if r["free"] else "fixed", escape(r["reason"])] for r in rows]
+    how = (f"by the {escape(str(fit.get('std_kind', 'resampling')))}; σ independent: what σ²·(JᵀJ)⁻¹ would state, "
+           "too small where measurements share errors" if iid else "from the covariance (residual σ²·(JᵀJ)⁻¹)")
+    html = (f'<p class="note">Lengths in mm, angles in deg. σ: 1σ standard deviation {how}. '
+            "Fixed parameters stay at their nominal value; the reason says why.</p>")
+    heads = ["parameter", "unit", "nominal", "estimate", "change", "σ"] + (["σ independent"] if iid else [])
+    html += _table(heads + ["identified", "reason"], body, {2, 3, 4, 5} | ({6} if iid else set()),
+                   row_class=lambda i: "" if rows[i]["free"] else "fixed")
     return _section("parameters", "Parameters", html)
 
 
@@ -318,6 +331,8 @@ def render(art, version: str, params: dict[str, Any], rrd_name: str | None = "ru
     s = fg.summary(art)
     if art.fit.get("residual_unit"):  # a camera's residuals: px
         s["residual_unit"] = art.fit["residual_unit"]
+    if art.fit.get("correction"):  # the nominal robot kept (`pipeline.identify.correction`)
+        s["correction"] = art.fit["correction"]
     if isinstance(art.accuracy, dict) and art.accuracy.get("map_rms_1sigma_m") is not None:
         s["accuracy_map_rms_1sigma_m"] = art.accuracy["map_rms_1sigma_m"]
     series = fg.residual_series(art)

@@ -26,10 +26,32 @@ COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e3
           "#bcbd22", "#17becf"]
 
 
+RASTER_POINTS = 3000  # an axes whose scatters and lines hold more points than this draws them as an image
+RASTER_DPI = 150
+
+
+def _raster_large(fig: Figure) -> bool:
+    """Rasterise the collections and lines of every (2-D) axes of `fig` that hold more than RASTER_POINTS
+    points together (axes, labels and text stay vector): thousands of SVG markers (a camera's corners)
+    cost minutes to write and to display."""
+    big = False
+    for ax in fig.axes:
+        if ax.name == "3d":  # matplotlib cannot rasterise 3-D collections
+            continue
+        arts = [*ax.collections, *ax.lines]
+        n = sum(len(a.get_xydata()) if hasattr(a, "get_xydata") else len(a.get_offsets()) for a in arts)
+        if n > RASTER_POINTS:
+            for a in arts:
+                a.set_rasterized(True)
+            big = True
+    return big
+
+
 def _svg(fig: Figure) -> str:
     buf = io.StringIO()
     with rc_context(RC):
-        fig.savefig(buf, format="svg", metadata={"Date": None})
+        big = _raster_large(fig)
+        fig.savefig(buf, format="svg", metadata={"Date": None}, **({"dpi": RASTER_DPI} if big else {}))
     s = buf.getvalue()
     return s[s.index("<svg"):]
 
@@ -58,6 +80,30 @@ def hist_bins(v: np.ndarray, n: int) -> tuple[np.ndarray, int | np.ndarray]:
 
 def group_colors(groups: Sequence[str]) -> dict[str, str]:
     return {g: COLORS[i % len(COLORS)] for i, g in enumerate(sorted(set(groups)))}
+
+
+def _scatter_groups(a, x: np.ndarray, y: np.ndarray, group: np.ndarray, colors: dict[str, str], size: float,
+                    hollow: bool = False, lw: float = 0.0) -> None:
+    """Every point as a marker coloured by its group (`size` a scatter's area, pt²): one marker line per
+    group, which Agg draws in C — a scatter with per-point colours is drawn path by path in Python (a
+    camera's ten thousand corners: seconds per figure)."""
+    g = np.asarray(group).astype(str)
+    ms = float(np.sqrt(size))
+    for k, c in colors.items():
+        m = g == str(k)
+        if not m.any():
+            continue
+        if hollow:
+            a.plot(x[m], y[m], ls="", marker="o", ms=ms, mfc="none", mec=c, mew=lw)
+        else:
+            a.plot(x[m], y[m], ls="", marker="o", ms=ms, color=c, mew=0)
+
+
+def _group_handles(colors: dict[str, str]) -> list:
+    """Legend entries of `_scatter_groups`' groups."""
+    from matplotlib.lines import Line2D
+
+    return [Line2D([], [], ls="", marker="o", markersize=4, color=c, label=g) for g, c in colors.items()]
 
 
 def residuals_by_group(s: ResidualSeries) -> str:
@@ -90,11 +136,9 @@ def residuals_vs_time(s: ResidualSeries) -> str:
     colors = group_colors(s.group)
     with rc_context(RC):
         fig, ax = _fig(9.5, 4.6, 2, 1, sharex=True)
-        for g, c in colors.items():
-            m = s.group == g
-            ax[0, 0].scatter(s.t_s[m], s.before[m] * s.scale, s=12, color=c, label=g, linewidths=0)
-            ax[1, 0].scatter(s.t_s[m], s.after[m] * s.scale, s=12, color=c, linewidths=0)
-            ax[1, 0].scatter(s.t_s[m], s.holdout[m] * s.scale, s=14, facecolors="none", edgecolors=c, linewidths=0.7)
+        _scatter_groups(ax[0, 0], s.t_s, s.before * s.scale, s.group, colors, 12)
+        _scatter_groups(ax[1, 0], s.t_s, s.after * s.scale, s.group, colors, 12)
+        _scatter_groups(ax[1, 0], s.t_s, s.holdout * s.scale, s.group, colors, 14, hollow=True, lw=0.7)
         rej = ~s.used
         if rej.any():
             ax[1, 0].scatter(s.t_s[rej], s.after[rej] * s.scale, s=30, marker="x", color="k", label="rejected outlier")
@@ -105,7 +149,8 @@ def residuals_vs_time(s: ResidualSeries) -> str:
             a.axhline(0, color="k", lw=0.6)
             a.set_ylabel(f"residual ({s.unit})")
         ax[1, 0].set_xlabel(s.time_label)
-        ax[0, 0].legend(loc="center left", bbox_to_anchor=(1.0, 0.0), title=s.group_title)
+        ax[0, 0].legend(handles=_group_handles(colors), loc="center left", bbox_to_anchor=(1.0, 0.0),
+                        title=s.group_title)
     return _svg(fig)
 
 
@@ -123,16 +168,14 @@ def residuals_vs_joints(s: ResidualSeries) -> str:
                 continue
             scale, unit = joint_scale(joints[i], s.prismatic)  # deg; a prismatic joint's m in mm
             q = s.joints[joints[i]] * scale
-            for g, c in colors.items():
-                m = s.group == g
-                a.scatter(q[m], s.after[m] * s.scale, s=10, color=c, label=g if i == 0 else None, linewidths=0)
-                a.scatter(q[m], s.holdout[m] * s.scale, s=12, facecolors="none", edgecolors=c, linewidths=0.6)
+            _scatter_groups(a, q, s.after * s.scale, s.group, colors, 10)
+            _scatter_groups(a, q, s.holdout * s.scale, s.group, colors, 12, hollow=True, lw=0.6)
             a.axhline(0, color="k", lw=0.6)
             a.set_xlabel(f"{joints[i]} ({unit})")
             if i % ncols == 0:
                 a.set_ylabel(f"residual after ({s.unit})")
         if joints:
-            fig.legend(loc="outside right center", title=s.group_title)
+            fig.legend(handles=_group_handles(colors), loc="outside right center", title=s.group_title)
     return _svg(fig)
 
 
@@ -236,9 +279,9 @@ def bars(labels: Sequence[str], values: Sequence[float], y_label: str, title: st
 
 
 def error_norms(recordings: Sequence[str], norms: Sequence[np.ndarray], kinds: Sequence[np.ndarray],
-                y_label: str) -> str:
-    """Each measurement's error (m; shown in mm) of each evaluated recording, one column per recording,
-    coloured by its kind (e.g. its posture group relative to the training postures)."""
+                y_label: str, scale: float = MM) -> str:
+    """Each measurement's error (m, shown in mm; a camera's px with `scale` 1) of each evaluated recording,
+    one column per recording, coloured by its kind (e.g. its posture group relative to the training postures)."""
     with rc_context(RC):
         fig, ax = _fig(6.4, 3.0)
         a = ax[0, 0]
@@ -249,7 +292,7 @@ def error_norms(recordings: Sequence[str], norms: Sequence[np.ndarray], kinds: S
             v, ks = np.asarray(v, float), np.asarray(ks).astype(str)
             for k in sorted(set(ks)):
                 s = ks == k
-                a.scatter(i + rng.uniform(-0.25, 0.25, int(s.sum())), v[s] * MM, s=10, color=colors[k],
+                a.scatter(i + rng.uniform(-0.25, 0.25, int(s.sum())), v[s] * scale, s=10, color=colors[k],
                           label=None if k in seen or not k else k, alpha=0.8, linewidths=0)
                 seen.add(k)
         a.set_xticks(range(len(recordings)), list(recordings), rotation=15, ha="right")

@@ -40,6 +40,7 @@ class BagLayout:
     corrupt: tuple[str, int] | None = None  # (topic, record): raw bytes that are not valid CDR
     zero_stamps: tuple[str, ...] = ()  # topics whose header.stamp is left 0 (publishers that never set it)
     clock_offset_s: float = 0.0  # the instrument's clock minus the controller's (header stamps and receive times)
+    description: str | None = None  # a URDF text latched on /robot_description first (as robot_state_publisher)
 
 
 def timeline(q_stops: np.ndarray, layout: BagLayout) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -94,6 +95,10 @@ def write_bag(out: str | Path, joint_names: list[str], t_joint_s: np.ndarray, q_
     with Writer(Path(out), version=9, storage_plugin=plugin) as w:
         cj = w.add_connection(layout.joint_topic, JOINT_STATE, typestore=store) if layout.joint_topic else None
         cm = w.add_connection(layout.measure_topic, mtype, typestore=store)
+        if layout.description is not None:
+            cd = w.add_connection("/robot_description", "std_msgs/msg/String", typestore=store)
+            w.write(cd, min(e[0] for e in events), bytes(store.serialize_cdr(T["std_msgs/msg/String"](
+                data=layout.description), "std_msgs/msg/String")))
         count = {0: 0, 1: 0}
         for t, kind, i in events:
             topic = layout.joint_topic if kind == 0 else layout.measure_topic

@@ -116,7 +116,7 @@ def write_images_bag(out: str | Path, joint_names: list[str], q_stops: np.ndarra
     None: no CameraInfo).  Returns the timing as `write_camera_bag`."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from pipeline.importers.ros2_images import typestore
+    from pipeline.ros2.images import typestore
 
     store = typestore()
     bl = BagLayout(rate_hz=layout.rate_hz, move_s=layout.move_s, dwell_s=layout.dwell_s)

@@ -13,8 +13,9 @@ from pipeline.identify.complexity import explain, relabel, select
 from pipeline.identify.exports import describe, write_exports
 from pipeline.identify.least_squares import FitOptions, cross_validate, holdout_warning, point_accuracy
 from pipeline.identify.model import take, uncalibrated
+from pipeline.identify.natural_groups import holdout_groups
 from pipeline.identify.outliers import fit_rejecting
-from pipeline.identify.results import parameter_table, with_3d
+from pipeline.identify.results import STATED_KIND, parameter_table, stated_uncertainty, with_3d
 from pipeline.identify.plausibility import implausible, warnings_of
 from pipeline.identify.shrinkage import shrinkage_document
 from pipeline.ingest.tables import model_columns
@@ -38,13 +39,6 @@ def group_column(system, table: dict) -> np.ndarray:
     return np.full(n, system.MEASUREMENT_CHANNEL, dtype=object)
 
 
-def holdout_groups(model, data: dict) -> np.ndarray | None:
-    """Rows a held-out split keeps together (a camera image's corners), from the model's optional
-    ``holdout_groups`` hook; None: rows are split one by one."""
-    hook = getattr(model, "holdout_groups", None)
-    return None if hook is None else hook(data)
-
-
 def options_of(params: dict, model=None, rec=None) -> FitOptions:
     """Solver settings from the stage's params; with the model and recording, each parameter's prior 1σ
     (the robot model file's prior_sigma, then `prior` — the CLI's --prior — over the defaults)."""
@@ -53,7 +47,8 @@ def options_of(params: dict, model=None, rec=None) -> FitOptions:
         from pipeline.accuracy.prior import prior_sigma
 
         file_priors = (rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {}) if rec is not None else {}
-        prior = prior_sigma(model, file_priors, params.get("prior") or {})[0]
+        asked = str(params.get("robot_class", "auto"))
+        prior = prior_sigma(model, file_priors, params.get("prior") or {}, None if asked == "auto" else asked)[0]
     return FitOptions(loss=str(params.get("loss", "linear")), f_scale=float(params.get("f_scale_m", 1e-4)),
                       prior_sigma=prior)
 
@@ -109,6 +104,10 @@ def run(run_dir: Path, params: dict) -> dict:
         kept_data = take(data, rf.kept)
         holdout_kept = cross_validate(model, kept_data, k=folds, seed=int(params.get("seed", 0)), options=opts,
                                       groups=holdout_groups(model, kept_data))
+    extra = model.extra_metrics(f.nominal, f.x, kept_data) if hasattr(model, "extra_metrics") else None
+    f, std_independent, resampled = stated_uncertainty(model, f, kept_data)  # a camera: the image jackknife
+    if resampled:
+        extra = (extra or {}) | resampled
     tip_sigma = point_accuracy(model, f, kept_data)
 
     n, k = len(table["record"]), model.residual_dim
@@ -168,8 +167,22 @@ def run(run_dir: Path, params: dict) -> dict:
         doc["model_selection"] = shrinkage_document(shrunk)
         if shrunk.per_group:
             doc["holdout_kind"] = "whole groups left out (sessions, placements or sockets), own parameters refitted"
-    if hasattr(model, "extra_metrics"):  # optional system hook: system-specific figures
-        doc["extra"] = model.extra_metrics(f.nominal, f.x, kept_data)
+    if grouped:  # the nominal robot kept: said plainly, with the candidates tried and why none was kept
+        from pipeline.identify.correction import document as correction, line
+
+        corr = correction(model, f, selection, shrunk)
+        if corr is not None:
+            doc["correction"] = corr  # results.json: summary.correction and the status' reason (not a warning too)
+            doc["status"] = "warn"
+            if shown:
+                _progress(line(corr))
+    if extra is not None:  # optional system hook: system-specific figures
+        doc["extra"] = extra
+    if std_independent is not None:
+        doc["std_kind"] = STATED_KIND
+        doc["std_independent"] = std_independent
+    if hasattr(model, "hand_eye_names"):  # a camera: the hand-eye transform and its stated σ, in the summary
+        doc["hand_eye"] = hand_eye(model, f, std_independent)
     out.mkdir(parents=True, exist_ok=True)
     doc["exports"] = write_exports(model, f.x, out, f.std, f.free)
     write_json(out / "fit.json", doc)
@@ -178,14 +191,39 @@ def run(run_dir: Path, params: dict) -> dict:
     keys = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m", "holdout_rms_m",
             "holdout_folds", "max_abs_after_m", "sigma_m", "n_parameters", "n_identifiable", "rejected_records",
             "loss", "function_evaluations", "predicted_point_sigma_rms_m", "warnings")
-    if opts.prior_sigma is not None and grouped:  # robot parameters beyond their prior: named, never a silent pass
+    prior = opts.prior_sigma
+    if prior is not None and grouped:  # the robot class whose compliance prior the estimates are judged by
+        from pipeline.accuracy.prior import choose_class, prior_sigma
+
+        cls = choose_class(model, f.x, f.free, str(params.get("robot_class", "auto")))
+        if cls is not None:
+            doc["prior_class"] = cls
+            file_priors = rec.metadata.get(META_ROBOT, {}).get("prior_sigma") or {}
+            prior = prior_sigma(model, file_priors, params.get("prior") or {}, cls["class"])[0]
+            if shown:
+                _progress(f"prior: robot class {cls['class']} ({cls['reason']})")
+    if prior is not None and grouped:  # robot parameters beyond their prior: named, never a silent pass
         by_sign = tuple((shrunk.physics or {}).get("terms", ())) if shrunk is not None else ()
-        doc["implausible"] = implausible(model, f.x, f.free, opts.prior_sigma, by_sign)
+        doc["implausible"] = implausible(model, f.x, f.free, prior, by_sign)
         if doc["implausible"]:
             doc["warnings"] += warnings_of(doc["implausible"])
             doc["status"] = "warn"
-    keys += tuple(k_ for k_ in ("status", "model_choice", "residual_unit", "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
+    keys += tuple(k_ for k_ in ("status", "correction", "prior_class", "model_choice", "residual_unit", "hand_eye",
+                                "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind") if k_ in doc)
     return {k_: doc[k_] for k_ in keys} | {k_: doc[k_] for k_ in ("extra", "physics") if k_ in doc}
+
+
+def hand_eye(model, f, std_independent: np.ndarray | None) -> dict:
+    """{parameter: {estimate, sigma, sigma_kind, sigma_independent, unit}} of a camera's hand-eye transform."""
+    out = {}
+    for n in model.hand_eye_names():
+        i = f.names.index(n)
+        row = {"estimate": float(f.x[i]), "sigma": float(f.std[i]), "unit": f.units[i],
+               "sigma_kind": "image jackknife" if std_independent is not None else "independent corners"}
+        if std_independent is not None:
+            row["sigma_independent"] = float(std_independent[i])
+        out[n] = row
+    return out
 
 
 def read_fit(run_dir: Path) -> dict:

@@ -12,7 +12,10 @@ HEADLINE = ("system", "n_measurements", "n_used", "rms_before_m", "rms_after_m",
             "n_identifiable", "n_parameters", "predicted_point_sigma_rms_m",
             "rms_3d_before_m", "rms_3d_after_m", "holdout_rms_3d_m", "holdout_kind",  # 3-D: URDF points/poses
             "model_choice",  # URDF robots: {asked, route, reason}
+            "prior_class",  # robots with compliance terms: {class, asked, reason, compliance_sigma}
+            "correction",  # present only when the nominal robot was kept: {applied: false, statement, reason, tried}
             "residual_unit",  # px for a camera (its *_m residual figures are px); absent: m
+            "hand_eye",  # a camera: the hand-eye transform, its stated σ (image jackknife) and the independent-corner σ
             "family", "rms_after_Nm", "holdout_rms_Nm", "condition_number", "model_choice_label")  # dynamics
 
 
@@ -55,6 +58,12 @@ def gather(run_dir: Path) -> dict:
         for k in ("reason", "advice"):
             if acc.get(k):
                 summary[f"status_{k}"] = acc[k]
+    corr = summary.get("correction")
+    if isinstance(corr, dict) and not corr.get("applied", True):  # the status says the robot was not corrected
+        from pipeline.identify.correction import line
+
+        summary["status_reason"] = line(corr) + (f"; {summary['status_reason']}" if summary.get("status_reason")
+                                                 else "")
         for k in ("map_rms_1sigma_m", "map_max_bound95_m", "new_measurement_rms_3d_m"):
             if k in acc:
                 summary[f"predicted_{k}"] = acc[k]

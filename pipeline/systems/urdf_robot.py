@@ -131,7 +131,10 @@ def physics_model(rec, table: dict, physics: str | None = None, payload: tuple =
     reading = encoder.candidates(rigid, table["joint_positions"], tuple(f for f in families if f in encoder.FAMILIES),
                                  table.get("approach"))
     carried = any(n.endswith(".backlash") for n in reading)
+    stiffening = compliant if "load-compliance" in gravity else ()
+    compliant = compliant if "joint-compliance" in gravity else ()
     return TreePointModel(tree_of(rec, lateral), compliant=compliant, payload=payload, forced=mode == "fixed",
+                          stiffening=stiffening,
                           encoder=reading, absent=("backlash",) if "backlash" in families and not carried else ())
 
 
@@ -144,17 +147,18 @@ def model_like(rec, names: list[str], payload: tuple = ()):
     from pipeline.physics.encoder import is_encoder
 
     compliant = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".compliance"))
+    stiffening = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".compliance_load"))
     lateral = tuple(n.rsplit(".", 1)[0] for n in names if n.endswith(".lateral1"))
     reading = tuple(n for n in names if is_encoder(n))
-    if not (compliant or lateral or reading or is_tree(rec)):
+    if not (compliant or stiffening or lateral or reading or is_tree(rec)):
         return None
     tree = tree_of(rec, lateral)
     known = {j.name for j in tree.all_joints}
-    used = set(compliant + lateral + tuple(n.rsplit(".", 1)[0] for n in reading))
+    used = set(compliant + stiffening + lateral + tuple(n.rsplit(".", 1)[0] for n in reading))
     if not used <= known:
         raise RobocalError(f"{rec.path}: the calibration's physics terms name joints {sorted(used - known)} "
                            "that are not in this recording's chains")
-    return TreePointModel(tree, compliant=compliant, payload=payload, encoder=reading)
+    return TreePointModel(tree, compliant=compliant, payload=payload, encoder=reading, stiffening=stiffening)
 
 
 def model_for(arm: UrdfArm, measure: str, campaign: dict, labels: list[str] | None = None):

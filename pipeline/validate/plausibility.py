@@ -12,6 +12,12 @@ robot's (`spread_ratio`).
 
 σ: the campaign's ``sigma_m`` (`robocal import csv --sigma-m`) or ``tracker_sigma_m``; without a
 declared one, DEFAULT_SIGMA_M (a loose ceiling: no calibration instrument leaves 30 mm after a fit).
+A model whose residuals are not lengths states its unit (``residual_unit``: a camera's px); its σ is
+the campaign's ``sigma_px``, else DEFAULT_SIGMA_PX (30 px after a fit is no lens, but a wrong pose
+convention or target).
+
+The short fits use a subsample of whole natural groups (`pipeline.identify.natural_groups`: a
+camera's images, a coincidence's sockets, one posture's tips), spread evenly over the table.
 """
 
 from __future__ import annotations
@@ -24,14 +30,16 @@ GROSS_FACTOR = 30.0
 EXPLAINED_FACTOR = 5.0  # a mistake undone explains the misfit when the RMS falls within this × σ
 DEFAULT_SIGMA_M = 1e-3
 SCREEN_NFEV = 40  # function evaluations per solve of the short fit
-SCREEN_ROWS = 40  # measurements the short fits use (evenly spaced)
+SCREEN_ROWS = 40  # measurements the short fits use at least (whole groups, evenly spaced)
+SCREEN_GROUPS = 5  # and at least this many whole groups (a camera's start needs several views)
+DEFAULT_SIGMA_PX = 1.0
 UNIT_BAND = (300.0, 3000.0)  # measured / predicted spread of the points in this band (or its inverse): mm vs m
 LENGTH_COLUMNS = ("position", "point", "coordinate")
 
 
-def declared_sigma(campaign: dict) -> float | None:
-    """The instrument's 1σ (m) the campaign declares, or None."""
-    for k in ("sigma_m", "tracker_sigma_m", "instrument_sigma_m"):
+def declared_sigma(campaign: dict, unit: str = "m") -> float | None:
+    """The instrument's 1σ (in `unit`: m, or px for a camera) the campaign declares, or None."""
+    for k in (("sigma_m", "tracker_sigma_m", "instrument_sigma_m") if unit == "m" else (f"sigma_{unit}",)):
         v = (campaign or {}).get(k)
         if isinstance(v, (int, float)) and np.isfinite(v) and v > 0:
             return float(v)
@@ -97,17 +105,34 @@ def spread_ratio(model, table: dict) -> float | None:
     return a / b if b > 0 else None
 
 
-def _subset(table: dict) -> dict:
+def _subset(model, table: dict) -> dict:
+    """Whole natural groups spread evenly: at least SCREEN_ROWS rows and SCREEN_GROUPS groups.  Known-distance
+    rows between sockets (``group_b``) stay only where both sockets do."""
     from pipeline.identify.model import n_rows, take
+    from pipeline.identify.natural_groups import natural_groups, whole_groups
 
     n = n_rows(table)
-    return dict(table) if n <= SCREEN_ROWS else take(table, np.unique(np.linspace(0, n - 1, SCREEN_ROWS).astype(int)))
+    if n <= SCREEN_ROWS:
+        return dict(table)
+    keep = np.zeros(n, bool)
+    keep[whole_groups(natural_groups(model, table), SCREEN_ROWS, SCREEN_GROUPS)] = True
+    if "group_b" in table and "kind" in table:
+        dist = np.asarray(table["kind"]) == 1
+        touched = np.asarray(table["group"])[keep & ~dist]
+        keep &= ~dist | np.isin(np.asarray(table["group_b"]), touched)
+    return take(table, keep)
+
+
+def _fmt(v: float, unit: str, digits: int = 3) -> str:
+    """A residual figure for display: mm for lengths (m), else as is (px)."""
+    return f"{v * 1e3:.{digits}g} mm" if unit == "m" else f"{v:.{digits}g} {unit}"
 
 
 def screen(model, table: dict, campaign: dict | None, options=None) -> dict:
     """{status pass|fail, rms_m, sigma_m, declared, cause, message}: the screen of the module docstring."""
-    sigma = declared_sigma(campaign or {})
-    ref = sigma if sigma is not None else DEFAULT_SIGMA_M
+    unit = getattr(model, "residual_unit", "m")
+    sigma = declared_sigma(campaign or {}, unit)
+    ref = sigma if sigma is not None else (DEFAULT_SIGMA_M if unit == "m" else DEFAULT_SIGMA_PX)
     ratio = spread_ratio(model, table)
     lo, hi = UNIT_BAND
     if ratio is not None and (lo < ratio < hi or 1 / hi < ratio < 1 / lo):
@@ -115,15 +140,17 @@ def screen(model, table: dict, campaign: dict | None, options=None) -> dict:
         return {"status": "fail", "rms_m": None, "sigma_m": ref, "declared": sigma is not None, "cause": unit,
                 "message": f"the measured points spread {ratio:.3g}× as far as the robot's points at the same joints "
                            f"(a registration does not scale): likely cause: {unit}"}
-    table = _subset(table)
+    table = _subset(model, table)
     rms = quick_rms(model, table, options)
     out = {"rms_m": rms, "sigma_m": ref, "declared": sigma is not None, "cause": None}
+    if unit != "m":
+        out["residual_unit"] = unit
     if np.isnan(rms):  # the short fit could not be evaluated: the other checks name the rows
         return out | {"rms_m": None, "status": "pass",
                       "message": "not judged: the short fit could not be evaluated (a singular configuration)"}
     if rms <= GROSS_FACTOR * ref:
-        out |= {"status": "pass", "message": f"robust residual RMS after a short fit {rms * 1e3:.3g} mm, within "
-                                             f"{GROSS_FACTOR:g}× the instrument's σ {ref * 1e3:.3g} mm"}
+        out |= {"status": "pass", "message": f"robust residual RMS after a short fit {_fmt(rms, unit)}, within "
+                                             f"{GROSS_FACTOR:g}× the instrument's σ {_fmt(ref, unit)}"}
         return out
     tried = []
     for what, t in _variants(table):  # stop at the first that explains the misfit
@@ -132,16 +159,16 @@ def screen(model, table: dict, campaign: dict | None, options=None) -> dict:
         if tried[-1][1] <= min(EXPLAINED_FACTOR * ref, rms / 10):
             break
     best = min(tried, key=lambda t: t[1]) if tried else None
-    what = ("declared" if sigma is not None else "assumed (none declared; --sigma-m)")
-    head = (f"robust residual RMS after the fit {rms * 1e3:.4g} mm is {rms / ref:.3g}× the instrument's {what} σ "
-            f"{ref * 1e3:.3g} mm: the measurements do not fit the robot")
+    what = ("declared" if sigma is not None else f"assumed (none declared{'; --sigma-m' if unit == 'm' else ''})")
+    head = (f"robust residual RMS after the fit {_fmt(rms, unit, 4)} is {rms / ref:.3g}× the instrument's {what} σ "
+            f"{_fmt(ref, unit)}: the measurements do not fit the robot")
     if best is not None and best[1] < rms / 10 and best[1] <= EXPLAINED_FACTOR * ref:
         out["cause"] = best[0]
-        out["message"] = f"{head}; likely cause: {best[0]} (undone, the RMS is {best[1] * 1e3:.3g} mm)"
+        out["message"] = f"{head}; likely cause: {best[0]} (undone, the RMS is {_fmt(best[1], unit)})"
     else:
         out["cause"] = "chain"
         out["message"] = (f"{head}; no unit or column mix-up explains it (best: "
-                          f"{best[0] if best else 'none'}, {best[1] * 1e3 if best else float('nan'):.3g} mm): likely "
+                          f"{best[0] if best else 'none'}, {_fmt(best[1] if best else float('nan'), unit)}): likely "
                           f"the wrong chain (root/tip), the wrong robot description, or an understated σ")
     out["status"] = "fail"
     return out

@@ -101,11 +101,37 @@ def tips_of(kin) -> list[str]:
     return tips if len(tips) > 1 else []
 
 
+def log_urdf_robots(rec: rr.RecordingStream, kin, x_kin: dict[str, np.ndarray], q: np.ndarray, t_ns: np.ndarray,
+                    mesh_path: list[str] | tuple = (), base=None) -> list[str]:
+    """A URDF robot (a chain or a tree) through rerun's URDF support (`pipeline.visualize.urdf_scene`): each
+    of `x_kin` ("nominal"/"calibrated" → parameter vector) from its own calibrated URDF text, placed at its
+    registration, its joints moving at postures q (N, read joints) on `time` t_ns (N,)."""
+    from pipeline.visualize.urdf_scene import log_urdf_robot, mesh_dirs
+
+    q = np.atleast_2d(np.asarray(q, float))
+    dirs = mesh_dirs(mesh_path)
+    paths: list[str] = []
+    tree = hasattr(kin, "descs")
+    qf = kin.expand(q) if tree else q
+    joints = [j.name for j in kin.all_joints] if tree else list(kin.joint_names)
+    for which, x in x_kin.items():
+        names, F = kin.link_frames(x, q[:1], 0) if tree else kin.link_frames(x, q[:1])
+        p, _ = log_urdf_robot(rec, which, kin.urdf_text(x), names[0], F[0, 0], joints, qf, t_ns, dirs, base)
+        paths += p
+    o, v = axes(np.eye(4), 0.2)
+    rec.log("world/instrument", rr.Arrows3D(origins=o, vectors=v, colors=AXIS_RGB, radii=[0.004],
+                                            labels=["instrument x", "y", "z"]), static=True)
+    return paths + ["world/instrument"]
+
+
 def log_robot(rec: rr.RecordingStream, kin, x_kin: dict[str, np.ndarray], q: np.ndarray, t_ns: np.ndarray,
-              scale_m: float | None = None) -> list[str]:
+              scale_m: float | None = None, mesh_path: list[str] | tuple = ()) -> list[str]:
     """Both robots (`x_kin`: "nominal"/"calibrated" → kinematic parameter vector) at postures q
     (N, n_joints) on `time` t_ns (N,), every chain of a tree; returns the entity paths logged (see
-    module docstring)."""
+    module docstring).  A URDF robot (one with `urdf_text`) through rerun's URDF support
+    (`log_urdf_robots`); seed 000's D-H arm as capsules."""
+    if hasattr(kin, "urdf_text") and hasattr(kin, "link_frames"):
+        return log_urdf_robots(rec, kin, x_kin, q, t_ns, mesh_path)
     q = np.atleast_2d(np.asarray(q, float))
     t = np.asarray(t_ns, np.int64)
     paths: list[str] = []
@@ -243,7 +269,8 @@ def nominal_registered(model, table: dict, nominal: np.ndarray, warnings: list[s
 
 
 def log_robots(rec: rr.RecordingStream, model, table: dict, x_before: np.ndarray, x_after: np.ndarray,
-               encoder: dict | None, warnings: list[str], rate_hz: float = 5.0) -> list[str]:
+               encoder: dict | None, warnings: list[str], rate_hz: float = 5.0,
+               mesh_path: list[str] | tuple = ()) -> list[str]:
     """The serial arm, nominal and calibrated, along the campaign; without an encoder stream, the
     measurement postures as joint series too (`log_postures`)."""
     k0, k1 = kinematics(model, x_before), kinematics(model, x_after)
@@ -255,7 +282,7 @@ def log_robots(rec: rr.RecordingStream, model, table: dict, x_before: np.ndarray
         paths += log_postures(rec, table, joint_names_of(kin), joint_units(kin))
     try:
         q, t = postures(table, encoder, joint_names_of(kin), rate_hz)
-        return paths + log_robot(rec, kin, {"nominal": k0[1], "calibrated": k1[1]}, q, t)
+        return paths + log_robot(rec, kin, {"nominal": k0[1], "calibrated": k1[1]}, q, t, mesh_path=mesh_path)
     except Exception as e:  # a drawing error must not lose the rest of the recording
         warnings.append(f"robot not drawn: {type(e).__name__}: {e}")
         return paths

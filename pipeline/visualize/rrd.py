@@ -139,14 +139,12 @@ def log_points(rec: rr.RecordingStream, model, table: dict, x_before: np.ndarray
         rec.log(f"world/residuals/after_x{k}", rr.Arrows3D(origins=p1, vectors=-k * residual_after,
                                                            colors=[CALIBRATED_RGB]), static=True)
         paths.append(f"world/residuals/after_x{k}")
-    # the measurement being made, on the recording's timeline
+    # the measurement being made, on the recording's timeline (one column send, not a log call per row)
     t = np.asarray(table.get("timestamp_ns", []), np.int64)
-    if t.size == len(p1):
-        for i in range(len(p1)):
-            rec.set_time(TIMELINE, timestamp=np.datetime64(int(t[i]), "ns"))
-            rec.log("world/tips/current", rr.Points3D(p1[i:i + 1], colors=[(250, 200, 0)], radii=[0.005],
-                                                     labels=[labels[i]]))
-        rec.reset_time()
+    if t.size == len(p1) and t.size:
+        rec.log("world/tips/current", rr.Points3D.from_fields(colors=[(250, 200, 0)], radii=[0.005]), static=True)
+        rr.send_columns("world/tips/current", indexes=[rr.TimeColumn(TIMELINE, timestamp=t.astype("datetime64[ns]"))],
+                        columns=rr.Points3D.columns(positions=p1, labels=labels), recording=rec)
         paths.append("world/tips/current")
     return paths
 
@@ -310,7 +308,8 @@ def write_rrd(art: RunArtefacts, path: str | Path, figures: dict[str, Any],
         x_after = np.asarray(art.fit["x"], float)
         x_before = robot.nominal_registered(model, table, np.asarray(art.fit["nominal"], float), warnings)
         entities += log_points(rec, model, table, x_before, x_after, residual_matrix(art.residuals, "after"))
-        entities += robot.log_robots(rec, model, table, x_before, x_after, art.encoder, warnings)
+        entities += robot.log_robots(rec, model, table, x_before, x_after, art.encoder, warnings,
+                                     mesh_path=tuple((params or {}).get("mesh_path") or ()))
         arm = getattr(model, "arm", None)
         if arm is not None and hasattr(arm, "joints") and "joint_positions" in table:
             x_arm = arm_vector(model, arm, x_after)

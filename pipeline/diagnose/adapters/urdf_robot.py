@@ -17,7 +17,10 @@ a joint reading, whatever the measurement type —
   (``J.compliance_per_ampere``, rad/A = c·k, source "motor current");
 
 and the lack-of-fit test against smooth functions of every joint reading and of the measurement
-order, which locates structure no term names.  Each effect's signature is the residual's
+order, which locates structure no term names.  A camera's corners are clustered by image (they share
+the robot's pose error at it: the tests run under that random-effects model, as the scanner's stripes
+by pose); a camera whose flange poses were measured (``kinematics_known``: the "joints" are the pose's
+x, y, z, yaw, pitch, roll) has no joint reading for a reading error to act on — no candidate terms.  Each effect's signature is the residual's
 derivative with respect to the joint reading (central differences of the model's own residuals,
 so it holds for points, poses, planes and coincidence alike) times the form of the error.
 """
@@ -221,11 +224,23 @@ def adapter(model, table, held: tuple[str, ...] | None = None):
 
     if held is None:
         held = select(model, table).fixed if model.groups() else ()
-    return Adapter(library=library(model, table), held=tuple(held), advice=load_advice(model, table),
+    camera = getattr(model, "residual_unit", "m") == "px"
+    lib = [] if camera and getattr(model, "kinematics_known", False) else library(model, table)
+    return Adapter(library=lib, held=tuple(held), advice=load_advice(model, table),
                    signatures=lambda x, data, effects: signatures(model, x, data, effects),
                    variables=lambda x: variables(model, x, table),
                    time_s=np.asarray(table["time_since_start_s"], float),
-                   located=lambda e: e.data.get("located"))
+                   located=lambda e: e.data.get("located"),
+                   cluster=np.asarray(table["image"]) if camera else None,
+                   cluster_basis=(lambda x: image_pose_basis(model, x, table)) if camera else None)
+
+
+def image_pose_basis(model, x: np.ndarray, table) -> np.ndarray:
+    """How one image's pose error reaches its corners, (n, 2, 6) px per unit: the residual's derivative with
+    respect to the chain's base frame (board ↔ robot for eye-in-hand, camera ↔ robot for eye-to-hand) —
+    a rigid error of the board-camera pose at that image (`pipeline.camera.uncertainty`)."""
+    ib = model.parameter_names().index("base.x")
+    return np.asarray(model.jacobian(x, table), float)[:, :, ib:ib + 6]
 
 
 def from_recording(rec, stream=None, physics: dict | None = None):

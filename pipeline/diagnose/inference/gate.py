@@ -132,7 +132,7 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
             cache.update(parts)
     proj, basis = parts["proj"], parts["basis"]
     m = len(effects)
-    z = scipy.stats.norm.ppf(1 - alpha / (2 * m)) + POWER_Z
+    z = scipy.stats.norm.ppf(1 - alpha / (2 * max(m, 1))) + POWER_Z  # no candidates (a camera on measured poses)
     order = np.argsort([e.priority for e in effects], kind="stable")
     gates: list[Gate | None] = [None] * m
     kept: list[int] = []

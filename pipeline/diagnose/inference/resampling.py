@@ -63,10 +63,17 @@ def holdout_over_insample(before_cv: np.ndarray, after_cv: np.ndarray, sigma: fl
 
 
 def time_blocks(t: np.ndarray, size: int = 5) -> np.ndarray:
-    """Group label of each measurement: consecutive blocks of `size` in time order."""
-    order = np.argsort(np.asarray(t), kind="stable")
+    """Group label of each measurement: consecutive blocks of about `size` in time order that never split
+    the measurements of one instant (a camera image's corners, a scanner pose's stripe points): each run of
+    equal times is labelled by the count of measurements before it // `size` (for distinct times: blocks
+    of exactly `size`)."""
+    t = np.asarray(t)
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
+    start = np.r_[True, ts[1:] != ts[:-1]] if ts.size else np.zeros(0, bool)
+    first = np.maximum.accumulate(np.where(start, np.arange(ts.size), 0))  # the index where each row's run starts
     g = np.empty(order.size, int)
-    g[order] = np.arange(order.size) // size
+    g[order] = first // size
     return g
 
 

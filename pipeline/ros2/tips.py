@@ -1,6 +1,6 @@
 """The measurement topics of a ROS 2 bag of a robot measured on several links (`robocal import ros2
 --measure-topic LINK=TOPIC`, one ``geometry_msgs/msg/PointStamped`` topic per tip): the topics checked,
-and their measurements read as one table with the tip index of each row (`pipeline.importers.ros2`)."""
+and their measurements read as one table with the tip index of each row (`pipeline.ros2.points`)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import RobocalError
-from pipeline.importers.ros2_messages import MEASURE_TYPES, POINT, _times, at, read_measurements
+from pipeline.ros2.messages import MEASURE_TYPES, POINT, _times, at, read_measurements
 
 
 def tip_topics(path: Path, topics: dict[str, str], spec) -> list[str]:

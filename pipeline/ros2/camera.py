@@ -1,6 +1,6 @@
 """A ROS 2 bag with a camera → the detections of a camera calibration (`robocal import ros2 --target`).
 
-Reads with **rosbags**: ``sensor_msgs/msg/JointState`` on the joint topic (as `pipeline.importers.ros2`),
+Reads with **rosbags**: ``sensor_msgs/msg/JointState`` on the joint topic (as `pipeline.ros2.points`),
 ``sensor_msgs/msg/Image`` or ``CompressedImage`` on the image topic and ``sensor_msgs/msg/CameraInfo``
 (the image size, and its K and D as the calibration's starting intrinsics).
 
@@ -32,13 +32,13 @@ import numpy as np
 from pipeline.camera.detect import MAX_EDGE_PX, Detection, detect_array, pool
 from pipeline.errors import RobocalError
 from pipeline.importers import standstill
-from pipeline.importers.ros2 import (BagSpec, _Damaged, _open, _stream, _topics_line, choose_joint_topic,
+from pipeline.ros2.points import (BagSpec, _topics_line, choose_joint_topic, split,
                                      read_joint_states)
-from pipeline.importers.ros2_images import (CAMERA_INFO, IMAGE_TYPES, camera_info, decode_image, header_stamp,
+from pipeline.ros2.images import (CAMERA_INFO, IMAGE_TYPES, camera_info, decode_image, header_stamp,
                                             typestore)
-from pipeline.importers.ros2_messages import _times, at
+from pipeline.ros2.messages import _times, at
 
-BAD = ("unreadable", "wrong size", "unsupported encoding")  # bad input: an error unless skip_bad
+BAD = ("unreadable", "too large", "wrong size", "unsupported encoding")  # bad input: an error unless skip_bad
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class CameraSpec:
 
 
 class _Stamps:
-    """The `side` of `_stream`: keeps each image's stamp and receive time (not its bytes) and the
+    """The `side` of `split`: keeps each image's stamp and receive time (not its bytes) and the
     CameraInfo messages' bytes."""
 
     def __init__(self, image_topic: str) -> None:
@@ -162,37 +162,28 @@ def _detect_message(args) -> Detection:
     return detect_array(img, name, target, max_edge_px)
 
 
-def _detect(path: Path, topic: str, typename: str, wanted: dict[int, str], cam: CameraSpec, size, progress,
-            salvaged=None):
-    """Second pass: the `wanted` records (index → name) of the image topic, detected in a process
-    pool with a bounded number of images in flight (from `salvaged`'s messages when the bag is damaged)."""
-    reader = _open(path) if salvaged is None else None
+def _detect(bag, topic: str, typename: str, wanted: dict[int, str], cam: CameraSpec, size, progress):
+    """Second pass over the open `bag` (`pipeline.ros2.bag.Bag`): the `wanted` records (index → name) of the
+    image topic, each decoded once and searched for the target in a process pool with a bounded number of
+    images in flight."""
     workers = cam.workers or min(os.cpu_count() or 1, max(1, len(wanted) // 4))
     out: dict[int, Detection] = {}
-    try:
-        if reader is not None:
-            conns = [c for c in reader.connections if c.topic == topic]
-            bodies = (data for _, _, data in reader.messages(connections=conns))
-        else:
-            bodies = (data for _, data in salvaged.messages.get(topic, []))
-        jobs = ((i, (typename, bytes(data), wanted[i], cam.target, cam.max_edge_px, size))
-                for i, data in enumerate(bodies) if i in wanted)
-        if workers <= 1:
-            for i, job in jobs:
-                out[i] = _detect_message(job)
-                if progress:
-                    progress(len(out), len(wanted))
-        else:
-            from concurrent.futures.process import BrokenProcessPool
+    bodies = (data for _, _, data in bag.messages([topic]))
+    jobs = ((i, (typename, bytes(data), wanted[i], cam.target, cam.max_edge_px, size))
+            for i, data in enumerate(bodies) if i in wanted)
+    if workers <= 1:
+        for i, job in jobs:
+            out[i] = _detect_message(job)
+            if progress:
+                progress(len(out), len(wanted))
+    else:
+        from concurrent.futures.process import BrokenProcessPool
 
-            try:
-                _pooled(jobs, workers, wanted, out, progress)
-            except BrokenProcessPool as e:
-                raise RobocalError(f"{at(path, topic)}: a detection process died ({e}); --workers 1 detects in this "
-                                   "process") from None
-    finally:
-        if reader is not None:
-            reader.close()
+        try:
+            _pooled(jobs, workers, wanted, out, progress)
+        except BrokenProcessPool as e:
+            raise RobocalError(f"{at(bag.path, topic)}: a detection process died ({e}); --workers 1 detects in this "
+                               "process") from None
     return out
 
 
@@ -215,44 +206,29 @@ def _pooled(jobs, workers: int, wanted: dict, out: dict, progress) -> None:
             collect()
 
 
-def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: CameraSpec, progress=None,
+def read_camera_bag(bag, joints: list[str], spec: BagSpec, cam: CameraSpec, progress=None,
                     on_paired=None):
     """(detections (each paired image, `q` its joint positions and `t_ns` its stamp attached),
     campaign extras, the problems that make the bag bad input (one line each; empty if none), the
     `CameraInfo` or None).  `on_paired(extras)` sees the pairing before the detection starts.
     Bad images (unreadable, unsupported encoding, wrong size) are among the detections with their
-    status; the caller decides (`skip_bad`)."""
-    path = Path(path)
+    status; the caller decides (`skip_bad`).  `bag`: an open `pipeline.ros2.bag.Bag`."""
+    path = bag.path
     if spec.time not in ("header", "log"):
         raise RobocalError(f"--time {spec.time!r}: expected header or log")
     if cam.clock_bound_s < 0:
-        raise RobocalError(f"--clock-offset-bound {cam.clock_bound_s}: must be 0 or more (s)")
-    warnings: list[str] = []
-    sal = None
-    try:
-        reader = _open(path)
-        try:
-            topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
-            jt = choose_joint_topic(path, topics, spec.joint_topic)
-            it, ct = choose_camera_topics(path, topics, cam)
-            side = _Stamps(it)
-            js, jlog, Q, jreport, _ = read_joint_states(
-                path, jt, _stream(path, reader, jt, [it] + ([ct] if ct else []), side), joints)
-        finally:
-            reader.close()
-    except _Damaged as e:  # a bag cut short: calibrate from the images that can be read, saying what was lost
-        from pipeline.importers.ros2_salvage import salvage
-
-        sal = salvage(path, e.why, str(e))
-        topics = sal.topics
+        raise RobocalError(f"--clock-offset-bound-s {cam.clock_bound_s}: must be 0 or more (s)")
+    def one_pass(b):
+        topics = b.topics
         jt = choose_joint_topic(path, topics, spec.joint_topic)
         it, ct = choose_camera_topics(path, topics, cam)
         side = _Stamps(it)
-        for topic in (it, ct) if ct else (it,):
-            for t, data in sal.messages.get(topic, []):
-                side.append((topic, t, data))
-        js, jlog, Q, jreport, _ = read_joint_states(path, jt, iter(sal.messages.get(jt, [])), joints)
-        warnings += sal.warnings
+        wanted = [jt, it] + ([ct] if ct else [])
+        got = read_joint_states(path, jt, split(b.messages(wanted), jt, side, several=True), joints)
+        return topics, jt, it, ct, side, got
+
+    topics, jt, it, ct, side, (js, jlog, Q, jreport, _) = bag.read(one_pass)
+    warnings: list[str] = list(bag.warnings)
     if not side.stamp:
         raise RobocalError(f"{at(path, it)}: no messages")
     problems: list[str] = []
@@ -297,13 +273,13 @@ def read_camera_bag(path: str | Path, joints: list[str], spec: BagSpec, cam: Cam
                         "starts from OpenCV's calibrateCamera alone")
     if warnings:
         extras["import_warnings"] = warnings
-    if sal is not None:
-        extras["data_lost"] = sal.warnings  # the bag's damage: ingest's status is then warn, never pass
+    if bag.data_lost:
+        extras["data_lost"] = bag.data_lost  # the bag's damage: ingest's status is then warn, never pass
     if on_paired is not None:
         on_paired(extras)
     names = {int(i): f"{it}#{i}" for i in keep}
     size = info.size if info is not None else None
-    dets = _detect(path, it, topics[it], names, cam, size, progress, sal)
+    dets = _detect(bag, it, topics[it], names, cam, size, progress)
     out = []
     for i in keep:
         d = dets[int(i)]

@@ -11,23 +11,31 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import RobocalError
-from pipeline.importers.ros2 import JOINT_STATE, _decoder, _open, _Rows, _stamp, _stream, at, choose_joint_topic
+from pipeline.ros2.bag import Bag
+from pipeline.ros2.points import JOINT_STATE, _decoder, _Rows, _stamp, at, choose_joint_topic
 from pipeline.models.urdf import RobotDescription
 
 
-def read_effort_bag(path: Path, desc: RobotDescription, joint_topic: str = "/joint_states",
-                    time: str = "header") -> dict[str, np.ndarray]:
-    """{t_ns (T,), q (T, J), v (T, J) or absent, effort (T, J)} in the chain's joint order."""
+def read_effort_bag(path: Path, urdf: Path | None, root: str, tip: str, joint_topic: str = "/joint_states",
+                    time: str = "header") -> tuple[RobotDescription, str, dict[str, np.ndarray]]:
+    """(the chain `root` → `tip` of the URDF (a file, a .xacro, or None: the bag's /robot_description), where
+    it came from, {t_ns (T,), q (T, J), v (T, J) or absent, effort (T, J)} in the chain's joint order); the
+    bag opened once."""
+    from pipeline.models import urdf as urdf_mod
+    from pipeline.ros2.importer import urdf_text
+
     path = Path(path)
-    joints = desc.joint_names
-    reader = _open(path)
+    bag = Bag(path)
     try:
-        topics = {c.topic: c.msgtype for c in reader.connections}
+        text, source = urdf_text(bag, urdf)
+        desc = urdf_mod.parse(text, root, tip, source=source)
+        joints = desc.joint_names
+        topics = bag.topics
         jt = choose_joint_topic(path, topics, joint_topic)
         decode = _decoder(path, jt, JOINT_STATE)
         Q, V, E, T = _Rows(len(joints)), _Rows(len(joints)), _Rows(len(joints)), _Rows(1, np.int64)
         prev, idx, velocities, rec = None, None, True, []
-        for i, (log_t, data) in enumerate(_stream(path, reader, jt, None, [])):
+        for i, (log_t, data) in enumerate((t, d) for _, t, d in bag.messages([jt])):
             msg = decode(i, data)
             if msg.name != prev:
                 prev = list(msg.name)
@@ -50,7 +58,7 @@ def read_effort_bag(path: Path, desc: RobotDescription, joint_topic: str = "/joi
             T.append((_stamp(msg) if time == "header" and _stamp(msg) > 0 else log_t,))
             rec.append(i)
     finally:
-        reader.close()
+        bag.close()
     if not rec:
         raise RobocalError(f"{at(path, jt)}: no messages")
     out = {"t_ns": T.array()[:, 0], "q": Q.array(), "effort": E.array()}
@@ -64,4 +72,4 @@ def read_effort_bag(path: Path, desc: RobotDescription, joint_topic: str = "/joi
     if back.size:
         raise RobocalError(f"{at(path, jt, rec[back[0] + 1])}: time does not increase after the previous record "
                            "(a dynamics recording needs strictly increasing times)")
-    return out
+    return desc, source, out

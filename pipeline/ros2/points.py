@@ -24,7 +24,7 @@ import numpy as np
 from pipeline.errors import RobocalError
 from pipeline.importers import standstill
 from pipeline.importers.bounds import check_values
-from pipeline.importers.ros2_messages import (  # noqa: F401 — the names other importers use from here
+from pipeline.ros2.messages import (  # noqa: F401 — the names other importers use from here
     JOINT_STATE,
     MEASURE_TYPES,
     POINT,
@@ -50,26 +50,6 @@ class BagSpec:
     max_speed: float = standstill.DEFAULT_MAX_SPEED
     time: str = "header"  # header (header.stamp, falling back to receive time) | log (receive time)
     tips: tuple = ()  # ((link, PointStamped topic), …): a tree measured on several tips, one topic each
-
-
-class _Damaged(RobocalError):
-    """rosbags cannot open or read on: the storage is damaged (its messages may be salvaged)."""
-
-    def __init__(self, message: str, why: str) -> None:
-        super().__init__(message)
-        self.why = why
-
-
-def _open(path: Path):
-    from rosbags.rosbag2 import Reader
-
-    try:
-        reader = Reader(path)
-        reader.open()
-    except Exception as e:  # noqa: BLE001 — any failure of the storage layer is the file's problem
-        why = f"{type(e).__name__}: {e}"
-        raise _Damaged(f"{path}: cannot read as a ROS 2 bag ({why})", why) from None
-    return reader
 
 
 def _topics_line(topics: dict[str, str]) -> str:
@@ -115,29 +95,15 @@ def choose_topics(path: Path, topics: dict[str, str], spec: BagSpec) -> tuple[st
     return jt, mt, measure
 
 
-def _stream(path: Path, reader, joint_topic: str, measure_topic, side: list):
-    """Yield (receive time ns, CDR bytes) of the joint topic in bag order, one message at a time (the
-    long topic is never held whole); the measurement topics' (`measure_topic`: one or a list) go to
-    `side` as (receive time, bytes) or, for a list, (topic, receive time, bytes).  A storage failure is
-    one line saying how far the bag was read."""
-    several = isinstance(measure_topic, (list, tuple))
-    wanted = {joint_topic, *(measure_topic if several else (measure_topic,))}
-    conns = [c for c in reader.connections if c.topic in wanted]
-    it = reader.messages(connections=conns)
-    n = 0
-    while True:
-        try:
-            conn, t, data = next(it)
-        except StopIteration:
-            return
-        except Exception as e:  # noqa: BLE001 — the storage layer's failure is the file's problem
-            why = f"{type(e).__name__}: {e}"
-            raise _Damaged(f"{path}: cannot read the bag after message {n} ({why})", f"read stops after message {n}: {why}") from None
-        n += 1
-        if conn.topic == joint_topic:
+def split(messages, joint_topic: str, side: list, several: bool = False):
+    """Yield (receive time ns, CDR bytes) of the joint topic from `messages` ((topic, time, bytes), bag
+    order), one at a time (the long topic is never held whole); the other topics' go to `side` as
+    (receive time, bytes) or, `several`, (topic, receive time, bytes)."""
+    for topic, t, data in messages:
+        if topic == joint_topic:
             yield t, data
         else:
-            side.append((conn.topic, t, bytes(data)) if several else (t, bytes(data)))
+            side.append((topic, t, bytes(data)) if several else (t, bytes(data)))
 
 
 class _Rows:
@@ -256,20 +222,22 @@ def _approach(tj: np.ndarray, Q: np.ndarray, tm: np.ndarray) -> np.ndarray | Non
     return d if d.any() else None
 
 
-def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()) -> tuple[dict, dict]:
-    """(table for `write_urdf_recording`, campaign extras) of a ROS 2 bag: the paired measurements
-    (joint positions in the chain's order, rad / m; positions m; orientations x,y,z,w); where the joint
-    states carry efforts, ``table["stream"]``: the encoder stream for `write_urdf_recording`'s `stream`
-    (t_ns (T,), q (T, J), effort (T, J) N·m)."""
-    path = Path(path)
+def read_bag(bag, desc: RobotDescription, spec: BagSpec = BagSpec()) -> tuple[dict, dict]:
+    """(table for `write_urdf_recording`, campaign extras) of an open `pipeline.ros2.bag.Bag`: the paired
+    measurements (joint positions in the chain's order, rad / m; positions m; orientations x,y,z,w); where
+    the joint states carry efforts, ``table["stream"]``: the encoder stream for `write_urdf_recording`'s
+    `stream` (t_ns (T,), q (T, J), effort (T, J) N·m).  `bag` may be the bag's path (opened here)."""
+    from pipeline.ros2.bag import Bag
+
+    if not isinstance(bag, Bag):
+        with Bag(bag) as b:
+            return read_bag(b, desc, spec)
+    path = bag.path
     if spec.time not in ("header", "log"):
         raise RobocalError(f"--time {spec.time!r}: expected header or log")
-    side: list = []
     joints = desc.joint_names
-    warnings: list[str] = []
-    data_lost: list[str] = []  # the bag's damage: ingest's status is then warn, never pass
 
-    from pipeline.importers.ros2_tips import tip_measurements, tip_topics
+    from pipeline.ros2.tips import tip_measurements, tip_topics
 
     def topics_of(topics):
         if spec.tips:
@@ -279,27 +247,17 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
         jt, mt, measure = choose_topics(path, topics, spec)
         return jt, mt, measure
 
-    try:
-        reader = _open(path)
-        try:
-            topics = {t: (info.msgtype or "(several types)") for t, info in reader.topics.items()}
-            jt, mts, measure = topics_of(topics)
-            js, jlog, Q, jreport, effort = read_joint_states(path, jt, _stream(path, reader, jt, mts, side), joints)
-        finally:
-            reader.close()
-    except _Damaged as e:  # a bag cut short: calibrate from what can be read, saying what was lost
-        from pipeline.importers.ros2_salvage import salvage
-
-        sal = salvage(path, e.why, str(e))
-        topics = sal.topics
+    def one_pass(b):
+        side: list = []
+        topics = b.topics
         jt, mts, measure = topics_of(topics)
-        if spec.tips:
-            side = [(tp, t, d) for tp in mts for t, d in sal.messages.get(tp, [])]
-        else:
-            side = sal.messages.get(mts, [])
-        js, jlog, Q, jreport, effort = read_joint_states(path, jt, iter(sal.messages.get(jt, [])), joints)
-        warnings += sal.warnings
-        data_lost = sal.warnings
+        wanted = [jt, *(mts if spec.tips else [mts])]
+        got = read_joint_states(path, jt, split(b.messages(wanted), jt, side, bool(spec.tips)), joints)
+        return topics, jt, mts, measure, side, got
+
+    topics, jt, mts, measure, side, (js, jlog, Q, jreport, effort) = bag.read(one_pass)
+    warnings: list[str] = list(bag.warnings)
+    data_lost: list[str] = list(bag.data_lost)
     mt = ", ".join(mts) if spec.tips else mts
     tj, jsrc = _times(js, jlog, spec.time == "header")
     if spec.tips:
@@ -323,7 +281,7 @@ def read_bag(path: str | Path, desc: RobotDescription, spec: BagSpec = BagSpec()
     if not ok.any():
         raise RobocalError(f"{at(path, mt)}: none of the {len(tm)} measurements was taken while the robot stood "
                            f"still ({summ['n_moving']} moving, {summ['n_not_covered']} outside the joint states; "
-                           f"window {spec.window_s} s, max speed {spec.max_speed}; see --still-window, --still-speed)")
+                           f"window {spec.window_s} s, max speed {spec.max_speed}; see --still-window-s, --still-speed-rad-s)")
     keep = np.flatnonzero(ok)
     keep = keep[np.argsort(tm[keep], kind="stable")]  # recorded in time order (bag order is receive order)
     table: dict = {"joint_positions": pairing.q[keep], "position": P[keep], "timestamp_ns": tm[keep]}

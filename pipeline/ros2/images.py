@@ -5,8 +5,9 @@ intrinsics vector of `pipeline.camera.projection` (fx, fy, cx, cy px, then OpenC
 Image encodings read: ``mono8`` / ``8UC1``, ``mono16`` / ``16UC1`` (scaled to 8 bits), ``bgr8`` /
 ``8UC3``, ``rgb8``, ``bgra8`` / ``8UC4``, ``rgba8``; compressed ``jpeg`` and ``png`` (decoded by
 OpenCV's ``imdecode``).  A message that cannot be read gives a status and a reason, never an
-exception: ``unsupported encoding``, ``unreadable`` (corrupt data or CDR), ``wrong size`` (not the
-size CameraInfo says).
+exception: ``unsupported encoding``, ``unreadable`` (corrupt data or CDR), ``too large`` (a compressed
+image whose header states more pixels than `pipeline.camera.detect.MAX_PIXELS`: not decoded),
+``wrong size`` (not the size CameraInfo says).
 """
 
 from __future__ import annotations
@@ -54,6 +55,12 @@ def grey(msg, typename: str) -> tuple[np.ndarray | None, str, str]:
         if "compresseddepth" in fmt:
             return None, "unsupported encoding", f"compressed format {msg.format!r} (depth) is not a camera image"
         buf = np.asarray(msg.data, np.uint8)
+        import io
+
+        from pipeline.camera.detect import header_size, too_large
+
+        if (why := too_large(header_size(io.BytesIO(buf.tobytes())))) is not None:
+            return None, "too large", why  # judged from the header, never decoded
         img = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE) if buf.size else None
         if img is None:
             return None, "unreadable", f"{len(buf)} bytes of {msg.format or 'compressed'} data OpenCV cannot decode (corrupt)"

@@ -375,15 +375,25 @@ def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float
     search shorter than the play does not turn the link, so `at_size` takes the secant at the effect's size).
     `drop_top` contacts carrying the largest shares of the ⊥ signature are left out, one at a time and
     re-projected: the figure for a test that must not rest on those few contacts."""
+    return mds_dropping(nominal, truth, targets, effect, sigma, n, jig, at_size=at_size, upto=drop_top,
+                        runner=runner, **campaign)[-1]
+
+
+def mds_dropping(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
+                 jig: Jig | None = None, *, at_size: bool = False, upto: int = 0, runner=None,
+                 **campaign) -> list[float]:
+    """`mds` with 0, 1, …, `upto` top contacts left out, from one signature: [m₀, m₁, …]."""
     S, J = signature(nominal, truth, targets, effect, n, jig, at_size=at_size, runner=runner, **campaign)
     keep = np.ones(S.size, bool)
-    for k in range(drop_top + 1):
+    out = []
+    for k in range(upto + 1):
         U, sv, _ = np.linalg.svd(J[keep], full_matrices=False)
         U = U[:, sv > sv[0] * 1e-9]
         Sp = S[keep] - U @ (U.T @ S[keep])
-        if k < drop_top:
+        out.append(3 * sigma / max(np.linalg.norm(Sp), 1e-300))
+        if k < upto:
             keep[np.flatnonzero(keep)[np.argmax(Sp**2)]] = False
-    return 3 * sigma / max(np.linalg.norm(Sp), 1e-300)
+    return out
 
 
 def two_stations(dx: float = 0.45, dz: float = -0.35) -> Jig:

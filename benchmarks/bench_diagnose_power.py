@@ -151,8 +151,9 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
     return out
 
 
-def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, backlash: bool = False) -> it.Targets:
-    """robocal's own campaign (`robocal plan arc-welder --select SELECT`), written to a plan file and read back
+def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, backlash: bool = False,
+                    candidates: int = 1000) -> it.Targets:
+    """robocal's own campaign (`robocal plan arc-welder --candidates CANDIDATES --select SELECT`), written to a plan file and read back
     by the generator as plain JSON (`independent_campaign_file.from_campaign`): its first m contacts whose search
     touches on the true arm (`independent_campaign_file.touching`), in the plan's order."""
     import tempfile
@@ -162,7 +163,7 @@ def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, ba
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "campaign.json"
-        write_document(path, touch_campaign(1000, select, seed, backlash=backlash))
+        write_document(path, touch_campaign(candidates, select, seed, backlash=backlash))
         targets = icf.from_campaign(json.loads(path.read_text()))
     ok = np.flatnonzero(icf.touching(nom, tru, targets))
     if ok.size < m:
@@ -170,12 +171,13 @@ def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, ba
     return icf.take(targets, ok[:m])
 
 
-def world(plan: str = "robocal", m: int = 120):
+def world(plan: str = "robocal", m: int = 120, candidates: int = 1000):
     """(nominal, truth, targets, σ along the normal): the campaign robocal plans (`plan` "robocal"; "robocal-backlash":
     planned for every joint's backlash too, `robocal plan --backlash`), or the
     generator's own random one (`plan` "generator": m approach poses on random face points, random order)."""
     nom, tru = it.default_arms()
-    targets = (planned_targets(nom, tru, backlash=plan == "robocal-backlash") if plan.startswith("robocal")
+    targets = (planned_targets(nom, tru, backlash=plan == "robocal-backlash", candidates=candidates)
+               if plan.startswith("robocal")
                else it.plan(nom, it.stepped_block(), m=m, seed=1))
     return nom, tru, targets, it.run(nom, tru, targets, (), seed=0).along_normal_noise_sigma_m
 

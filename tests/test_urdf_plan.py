@@ -65,7 +65,7 @@ def test_plan_urdf_cli_bad_input(tmp_path):
 
     robot = tmp_path / "r6.urdf"
     robot.write_text(URDF)
-    for args, words in [(("--measure", "plane"), "point or pose"), ((), "--urdf ROBOT.urdf --root LINK --tip LINK"),
+    for args, words in [(("--measure", "plane"), "'plane' is not one of 'point', 'pose'"), ((), "--urdf ROBOT.urdf --root LINK --tip LINK"),
                         (("--candidates", "10", "--select", "20"), "cannot select 20 of 10 candidates")]:
         extra = ("--urdf", robot, "--root", "b", "--tip", "l6") if args else ()
         r = run_cli("plan", "urdf", *extra, *args, "--out", tmp_path / "p.json")

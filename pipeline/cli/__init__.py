@@ -172,7 +172,8 @@ def main() -> None:
         if not e.format_message().strip():  # no arguments: the help was printed
             sys.exit(e.exit_code)
         cmd = e.ctx.command_path if e.ctx is not None else "robocal"
-        err.print(f"[bold red]robocal: error:[/] {escape(e.format_message())} (see {escape(cmd)} --help)",
+        message = e.format_message().replace("Value error, ", "")  # the validator's prefix says nothing to a user
+        err.print(f"[bold red]robocal: error:[/] {escape(message)} (see {escape(cmd)} --help)",
                   highlight=False, soft_wrap=True)
         sys.exit(2)
     except RobocalError as e:

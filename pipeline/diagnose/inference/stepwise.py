@@ -1,5 +1,4 @@
-"""Stepwise selection of candidate terms by grouped F tests under Holm, and look-alikes (the
-cluster sign-flip checks are `sign_flips`).
+"""Stepwise selection of candidate terms by grouped F tests under Holm, and look-alikes (sign flips: `sign_flips`).
 
 Linear algebra at the geometric solution (Frisch–Waugh–Lovell): with Q an orthonormal basis
 of the free geometric Jacobian columns, a candidate's *projected signature* S⊥ = (I − QQᵀ)S
@@ -365,8 +364,7 @@ def _holm_steps(A: list[int], cond: list, m: int) -> list[Step]:
 
 def conditional_steps(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, A: list[int],
                       tolerances: list[float] | None = None, n_family: int | None = None) -> list[Step]:
-    """The grouped F test of each block of A given the others (as `forward_select` reports its
-    final set), for a set chosen otherwise (`cluster_sign_flip_p` dropped some)."""
+    """Each block of A's grouped F test given the others, for a set chosen otherwise (as `forward_select`)."""
     if not A:
         return []
     D = _Design(r, candidates, None, tolerances or [0.0] * len(candidates))
@@ -379,15 +377,11 @@ LOOK_ALIKE_SHARE = 0.1  # a rival explaining all but this share of a finding's o
 def look_alikes(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, A: list[int],
                 tolerances: list[float] | None = None, level: float = 0.95,
                 share: float = LOOK_ALIKE_SHARE) -> dict[int, list[tuple[int, float]]]:
-    """Candidates the data can hardly tell from each accepted block: for b in A and every c not in A,
-    Δ = (RSS with c in b's place − RSS of A)/σ̂² (σ̂² = RSS of A / its residual dof; r and the candidates as
-    `forward_select` takes them).  The swap fits worse by Δ (a likelihood-ratio distance, χ²-scaled; negative
-    when c, with more directions, fits better).  c is a look-alike of b when Δ < max(χ²_{k_b}(level),
-    `share`·G_b), G_b b's own gain given the others (σ̂² units): a name the campaign cannot reject beside b's, or
-    one that explains all but `share` of what b explains — near-collinear on this campaign, so a modest error in
-    either signature's shape (a mass, a play, a form) could swap them.  Candidates with more directions than b
-    count too (a two-parameter eccentricity that a one-parameter coupling imitates).  Returned per block, closest
-    first, as [(c, Δ)]."""
+    """Candidates the data can hardly tell from each accepted block b (r and candidates as `forward_select`
+    takes them): Δ = (RSS with c in b's place − RSS of A)/σ̂², σ̂² = RSS of A / its residual dof (χ²-scaled;
+    negative when c, with more directions, fits better).  c is b's look-alike when Δ < max(χ²_{k_b}(level),
+    `share`·G_b), G_b b's own gain given the others: a name the campaign cannot reject, or one explaining all but
+    `share` of what b explains (near-collinear: a small error in a shape could swap them).  [(c, Δ)] per b."""
     if not A:
         return {}
     D = _Design(r, candidates, None, tolerances or [0.0] * len(candidates))
@@ -400,8 +394,7 @@ def look_alikes(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, A: 
         ok = kc > 0
         ok[A] = False
         delta = np.where(ok, (rss - gain - rss_A) / s2, np.inf)
-        bound = max(scipy.stats.chi2.ppf(level, D.k[b]), share * (rss - rss_A) / s2) if share else \
-            scipy.stats.chi2.ppf(level, D.k[b])
+        bound = max(scipy.stats.chi2.ppf(level, D.k[b]), share * (rss - rss_A) / s2 if share else 0.0)
         near = np.flatnonzero((delta < bound) & ((kc <= D.k[b]) | (share > 0)))
         out[b] = [(int(c), float(delta[c])) for c in near[np.argsort(delta[near], kind="stable")]]
     return out

@@ -62,7 +62,8 @@ def one(seed: int, n: int, noise: float, tmp: Path, physics: str | None) -> dict
             "--out", recs[part])
     out = tmp / f"run{seed}"
     log, wall, cpu = cli("run", recs["fit"], "--out", out, *(("--physics", physics) if physics else ()))
-    stages = {m.group(1): float(m.group(2)) for m in re.finditer(r"^(\w+): ran in ([0-9.]+) s", log, re.M)}
+    stages = {m.group(1): (float(m.group(2)), float(m.group(3) or "nan"))
+              for m in re.finditer(r"^(\w+): ran in ([0-9.]+) s(?:, CPU ([0-9.]+) s)?", log, re.M)}
     cli("evaluate", out, recs["test"], "--out", out / "evaluate")
     ev = json.loads((out / "evaluate" / "evaluation.json").read_text())["recordings"][0]
     res = json.loads((out / "results.json").read_text())
@@ -70,10 +71,22 @@ def one(seed: int, n: int, noise: float, tmp: Path, physics: str | None) -> dict
     fit = json.loads((out / "identify" / "fit.json").read_text())
     refused = [p["name"] for p in fit["parameters"] if "estimated negative" in str(p.get("reason", ""))]
     kept = (fit.get("model_selection") or {}).get("kept_groups", [])
-    return {"seed": seed, "mean": ev["mean_3d_m"], "rms": ev["rms_3d_m"], "stated": s.get("predicted_new_measurement_rms_3d_m"),
+    return {"seed": seed, "mean": ev["mean_3d_m"], "rms": ev["rms_3d_m"], "stated": s.get("predicted_new_measurement_rms_3d_m") or ((res.get("stages") or {}).get("accuracy") or {})
+            .get("summary", {}).get("new_measurement_rms_3d_m"),
             "floor_mean": np.sqrt(8 / np.pi) * noise, "floor_rms": np.sqrt(3) * noise, "wall": wall, "cpu": cpu,
             "stages": stages, "kept": kept, "refused": refused, "prior": (s.get("prior_class") or {}).get("class"),
-            "physics": [t["parameter"] for t in (res.get("physics") or {}).get("terms", [])]}
+            "physics": [t["parameter"] for t in (res.get("physics") or {}).get("terms", [])],
+            "diagnosis": diagnosis(out)}
+
+
+def diagnosis(out: Path) -> str:
+    """Diagnose's status and what it named (one line), to compare runs."""
+    p = out / "diagnose" / "diagnosis.json"
+    if not p.exists():
+        return "no diagnosis"
+    d = json.loads(p.read_text())
+    named = [f.get("effect") or f.get("name") for f in d.get("findings", []) if isinstance(f, dict)]
+    return f"{d.get('status')}; findings: {', '.join(map(str, named)) or 'none'}"
 
 
 def main() -> None:
@@ -82,21 +95,25 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=250, help="postures fitted (as many held out), two hands each")
     ap.add_argument("--noise-m", type=float, default=2e-4)
     ap.add_argument("--physics", default=None, help="robocal run --physics (default: its default, auto)")
+    ap.add_argument("--keep", type=Path, default=None, help="keep the recordings and runs in this folder")
     a = ap.parse_args()
     print(f"whole soft humanoid, {a.n} postures fitted / {a.n} held out × 2 hands, noise {a.noise_m * 1e3:.2f} mm "
           f"per axis, robocal run {'--physics ' + a.physics if a.physics else '(default)'} then robocal evaluate")
     print("seed | held-out mean / floor mm | RMS / floor mm | stated mm | measured/stated | run wall / CPU s | "
-          "stages wall s")
+          "stages wall/CPU s")
     with tempfile.TemporaryDirectory() as tmp:
+        if a.keep is not None:
+            a.keep.mkdir(parents=True, exist_ok=True)
         for seed in a.seeds:
-            r = one(seed, a.n, a.noise_m, Path(tmp), a.physics)
+            r = one(seed, a.n, a.noise_m, a.keep or Path(tmp), a.physics)
             ratio = r["rms"] / r["stated"] if r["stated"] else float("nan")
-            st = ", ".join(f"{k} {v:.1f}" for k, v in r["stages"].items())
+            st = ", ".join(f"{k} {w:.1f}/{c:.1f}" for k, (w, c) in r["stages"].items())
             print(f"{seed:4d} | {r['mean'] * 1e3:.3f} / {r['floor_mean'] * 1e3:.3f} | {r['rms'] * 1e3:.3f} / "
                   f"{r['floor_rms'] * 1e3:.3f} | {(r['stated'] or float('nan')) * 1e3:.3f} | {ratio:.2f} | "
                   f"{r['wall']:.0f} / {r['cpu']:.0f} | {st}", flush=True)
             print(f"     kept: {', '.join(r['kept'])}; {len(r['physics'])} physics terms; refused as negative: "
                   f"{', '.join(r['refused']) or 'none'}; prior: {r['prior']}", flush=True)
+            print(f"     diagnose: {r['diagnosis']}", flush=True)
 
 
 if __name__ == "__main__":

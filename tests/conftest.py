@@ -12,9 +12,12 @@ import pytest
 ROBOCAL = str(Path(sys.executable).parent / "robocal")
 
 
-def run_cli(*args: str, check: bool = False) -> subprocess.CompletedProcess:
-    """Run the installed `robocal` console script; capture text output."""
-    return subprocess.run([ROBOCAL, *map(str, args)], capture_output=True, text=True, check=check, timeout=600)
+def run_cli(*args: str, check: bool = False, env: dict | None = None) -> subprocess.CompletedProcess:
+    """Run the installed `robocal` console script; capture text output (`env`: variables added to ours)."""
+    import os
+
+    return subprocess.run([ROBOCAL, *map(str, args)], capture_output=True, text=True, check=check, timeout=600,
+                          env=None if env is None else {**os.environ, **env})
 
 
 def _simulate(tmp: Path, name: str, *args: str) -> tuple[Path, dict]:

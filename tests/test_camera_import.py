@@ -51,16 +51,23 @@ def _joints(tmp, folder, out, *extra):
                 "--root", "b", "--tip", "l6", "--workers", "1", "--out", out, *extra)
 
 
-def test_import_writes_every_corner_with_its_joints(images, tmp_path):
-    r = _joints(images, images / "img", tmp_path / "rec.mcap", "--keep-images")
+@pytest.fixture(scope="module")
+def imported(images, tmp_path_factory) -> Path:
+    """The six views imported by joints (images kept): one import for the two tests that read it."""
+    out = tmp_path_factory.mktemp("imported") / "rec.mcap"
+    r = _joints(images, images / "img", out, "--keep-images")
     assert r.returncode == 0, r.stderr
-    rec = read_recording(tmp_path / "rec.mcap")
+    return out
+
+
+def test_import_writes_every_corner_with_its_joints(images, imported):
+    rec = read_recording(imported)
     model, table = urdf_robot.load(rec)
     assert model.mount == "tip" and model.image_size == (640, 480)
     assert len(np.unique(table["image"])) == 6 and len(table["corner"]) == 6 * 54
     d = detect_image(images / "img" / "img_000.png", TARGET)
     np.testing.assert_array_equal(table["pixel"][table["image"] == 0], d.pixels)  # stored as detected
-    with open(tmp_path / "rec.mcap", "rb") as f:  # the images are kept byte for byte
+    with open(imported, "rb") as f:  # the images are kept byte for byte
         from mcap.reader import make_reader
 
         att = {a.name: a.data for a in make_reader(f).iter_attachments()}
@@ -142,15 +149,13 @@ def test_charuco_and_aprilgrid_boards_are_found(tmp_path):
         assert np.array_equal(d.ids, np.arange(tgt.n_corners))
 
 
-def test_robocal_run_calibrates_the_imported_recording(images, tmp_path):
+def test_robocal_run_calibrates_the_imported_recording(imported, tmp_path):
     """ingest → validate → identify on a camera recording (6 views of an arm with origin errors the
     registration cannot absorb): residuals and held-out error in px, model selection explained,
     the jackknife σ of the fitted parameters in fit.json."""
     import json
 
-    r = _joints(images, images / "img", tmp_path / "rec.mcap")
-    assert r.returncode == 0, r.stderr
-    run = subprocess.run([ROBOCAL, "run", str(tmp_path / "rec.mcap"), "--out", str(tmp_path / "run"),
+    run = subprocess.run([ROBOCAL, "run", str(imported), "--out", str(tmp_path / "run"),
                           "--stages", "ingest,validate,identify", "--folds", "3"], capture_output=True, text=True,
                          timeout=900)
     assert run.returncode == 0, run.stderr

@@ -36,12 +36,20 @@ def truth() -> np.ndarray:
     return s
 
 
+_DIAGNOSED: dict = {}
+
+
 def run(effects=(), poses=20, corners=5, speed=0.1, seed=0, spread=False):
-    c = ss.Campaign(poses=poses, corners=corners, seed=seed, capture_speed_rad_s=speed, spread=spread)
-    sim, tab = ss.simulate_in_memory(ARM, ARM, truth(), c, effects=tuple(parse_effect(e) for e in effects))
-    tab = ds.add_context(tab, sim.stream_t_ns, sim.stream_q)
-    model = sc.ScannerModel(arm=ARM)
-    return diagnose(model, tab, adapter=ds.adapter(model, tab), settings=FAST)
+    """The diagnosis (FAST) of a simulated campaign, once per campaign in this file: the clean campaigns
+    of seeds 0 and 3 serve three tests (the documents are read, never changed)."""
+    key = (tuple(effects), poses, corners, speed, seed, spread)
+    if key not in _DIAGNOSED:
+        c = ss.Campaign(poses=poses, corners=corners, seed=seed, capture_speed_rad_s=speed, spread=spread)
+        sim, tab = ss.simulate_in_memory(ARM, ARM, truth(), c, effects=tuple(parse_effect(e) for e in effects))
+        tab = ds.add_context(tab, sim.stream_t_ns, sim.stream_q)
+        model = sc.ScannerModel(arm=ARM)
+        _DIAGNOSED[key] = diagnose(model, tab, adapter=ds.adapter(model, tab), settings=FAST)
+    return _DIAGNOSED[key]
 
 
 def named(doc):
@@ -190,9 +198,10 @@ def test_k2_at_four_times_its_mds_is_found_on_a_spread_campaign():
     of the clean diagnosis of the same campaign it is found, named and estimated in the fitted
     gauge (f held at its nominal: k2 reads k2_true/λ⁴, λ = f_fit/f_true).  Before the refit took
     effect parameters in units of their plausible size, k2 (1/m⁴, ~1e-9 m per unit) was held at
-    0 as a 'zero Jacobian column'."""
+    0 as a 'zero Jacobian column'.  One spread campaign, seed 20 000 (a second, 20 001, doubled this test's
+    time and asserted the same)."""
     cache: dict = {}
-    for seed in (20_000, 20_001):
+    for seed in (20_000,):
         c = ss.Campaign(poses=20, corners=8, seed=seed, capture_speed_rad_s=0.1, spread=True)
 
         def diag(effects=()):

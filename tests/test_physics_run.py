@@ -6,6 +6,7 @@ compensated under a payload checked on the generator's true robot."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -27,8 +28,25 @@ def run(tmp_path_factory):
     rec = tmp / "humanoid.mcap"
     import_humanoid(d, rec)
     out = tmp / "run"
-    r = run_cli("run", rec, "--out", out, "--physics", "joint-compliance", "--folds", "3")
+    # every progress line written (not one per 10 s): the short diagnosis of a small tree shows its steps
+    r = run_cli("run", rec, "--out", out, "--physics", "joint-compliance", "--folds", "3",
+                env={"ROBOCAL_PROGRESS_EVERY_S": "0"})
     return out, r, json.loads((d / "truth.json").read_text())
+
+
+def test_diagnose_progress_in_the_run_folder_log_off_a_terminal(run):
+    """stderr is a pipe here: the diagnosis' progress goes, line by line, to stderr and DIR/diagnose/progress.log —
+    the joint-by-joint signatures (which joint of how many), the bootstrap's resamples, the verdict, and a last line."""
+    out, r, _ = run
+    log = (out / "diagnose" / "progress.log").read_text().splitlines()
+    assert all(line.startswith("diagnose: ") and "\r" not in line for line in log)
+    joints = [ln for ln in log if ln.startswith("diagnose: signatures: joint ")]
+    assert "diagnose: signatures: joint 1 of 14 (torso_j1)" in joints[0] and "joint 14 of 14 (right_j6)" in joints[-1]
+    assert any(ln.startswith("diagnose: lack of fit and verdict") for ln in log)
+    assert log[-1].startswith("diagnose: done, ")
+    assert "diagnose: signatures: joint 1 of 14 (torso_j1)" in r.stderr and "diagnose: done, " in r.stderr
+    # identify's model choice names each candidate it scores, k of n
+    assert re.search(r"^identify: model choice \(candidate 1 of \d+\): registration \+ ", r.stderr, re.M), r.stderr[-2000:]
 
 
 def test_run_every_stage_on_a_tree_with_physics(run):

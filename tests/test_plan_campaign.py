@@ -170,7 +170,7 @@ def test_planned_campaign_with_an_effect_is_executed_and_diagnose_finds_it(tmp_p
     """`simulate arc-welder --campaign C.json --effect …`: the planned searches run on the true robot
     with the effect (misses still logged as misses), and `robocal diagnose` names and sizes it."""
     c, rec, truth = tmp_path / "c.json", tmp_path / "r.mcap", tmp_path / "t.json"
-    assert run_cli("plan", "arc-welder", "--select", "120", "--seed", "1", "--out", c).returncode == 0
+    assert run_cli("plan", "arc-welder", "--candidates", "400", "--select", "120", "--seed", "1", "--out", c).returncode == 0
     r = run_cli("simulate", "arc-welder", "--campaign", c, "--effect", "joint_scale=1e-3@J3", "--out", rec,
                 "--truth", truth)
     assert r.returncode == 0, r.stderr

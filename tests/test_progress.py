@@ -46,6 +46,31 @@ def test_terminal_redraws_one_line():
     assert out.count("\r\033[K") == 3 and out.endswith("report: 2/2 — done, 0 s\n")
 
 
+def test_steps_reach_the_ticker_and_its_log_only_off_a_terminal(tmp_path, monkeypatch):
+    """`step` inside `reporting` reaches the ticker (nothing outside it); off a terminal the lines also go to the
+    log file, on a terminal only to the redrawn line; ROBOCAL_PROGRESS_EVERY_S sets the interval."""
+    from pipeline.progress import reporting, step
+
+    monkeypatch.setenv("ROBOCAL_PROGRESS_EVERY_S", "0")
+    step("nobody listens")  # no reporter: nothing happens
+    for tty in (False, True):
+        out, log = io.StringIO(), tmp_path / f"progress{tty}.log"
+        t = Ticker("diagnose", stream=out, tty=tty, log=log, count=False)
+        assert t.every_s == 0
+        with reporting(t):
+            for j in range(3):
+                step(f"signatures: joint {j + 1} of 3")
+        step("after the block")
+        t.done()
+        if tty:
+            assert not log.exists() and out.getvalue().count("\r\033[K") == 4
+        else:
+            lines = log.read_text().splitlines()
+            assert [ln.split(",")[0] for ln in lines] == [f"diagnose: signatures: joint {j} of 3" for j in (1, 2, 3)] + [
+                "diagnose: done"]
+            assert out.getvalue().splitlines() == lines and "after the block" not in out.getvalue()
+
+
 def test_reprocess_reports_counts_in_a_log(tmp_path):
     arch = tmp_path / "archive"
     arch.mkdir()

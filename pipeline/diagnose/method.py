@@ -36,6 +36,7 @@ from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.touch_probe import tip_speed_vector
 from pipeline.diagnose.verdict import arbiter, grading, outliers
 from pipeline.identify.least_squares import Fit, FitOptions, fit
+from pipeline.progress import step
 
 
 @dataclass(frozen=True)
@@ -84,10 +85,13 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     s = settings
     ad = adapter or touch_adapter(model, table, jig_tolerance_m, library, s.repeatability_3sigma_m)
     # 1. the geometry, 2. every candidate's signature at its solution and the noise the tests assume
+    step("geometric fit" if geometry_fit is None else "geometric fit (identify's)")
     f = _geometry(model, table, ad, x0, geometry_fit)
+    step(f"signatures of {len(ad.library)} candidates")
     p = screen.problem(model, table, f, ad)
     nz = screen.noise_model(ad, f.x, p)
     # 3. gate and selection (iterated with the noise model), each finding's form by held-out error
+    step(f"gate and selection of {len(p.lib)} candidates")
     sel = screen.select(p, nz, s)
     groups = np.repeat(resampling.time_blocks(ad.time_s, s.block), p.k)
     # folds that keep the selected model's design too: a contact that alone carries a direction of the geometry
@@ -104,8 +108,11 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
               if sel.accepted else {})
     # 4. joint refit, 5. evidence per finding (ablation CV, ΔBIC, bootstrap)
     before_cv = resampling.holdout(p.Jf, p.r, folds)
-    rf = refit.joint_refit(model, table, f, ad, adapter, p.lib, sel.accepted, p.Jf, p.r, p.dof, nz.cl, nz.nm, nz.src)
+    step(f"joint refit of {len(sel.accepted)} finding(s)")
+    rf = refit.joint_refit(model, table, f, ad, adapter, p.lib, sel.accepted, p.Jf, p.r, p.dof, nz.cl, nz.nm, nz.src,
+                           p.S)
     after_cv = resampling.holdout(rf.A, rf.r_final, folds)
+    step("bootstrap of the selection")
     boot = (resampling.bootstrap_frequency(sel.Jf_w, sel.r_w, sel.Sp, sel.tols, groups, s.alpha, s.n_boot, s.seed)
             if sel.accepted and s.n_boot else np.zeros(len(sel.testable)))
     ng = len(f.names)
@@ -128,6 +135,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     carried = arbiter.carried(fin, p.k, s.alpha) if influence and W is None else {}
     # lack of fit, the confidence of each name, back to the floor (`verdict.grading`)
     nk = p.n * p.k
+    step("lack of fit and verdict")
     variables, lof, where = grading.locate(ad, rf.z[:ng], fin.r_final, fin.A, W, nk, s.alpha, s.seed, nz.src, nz.nm,
                                            nz.cl, nz.M)
     effects = [p.lib[i] for i in fin.accepted]

@@ -20,6 +20,7 @@ from pipeline.diagnose.method import Settings
 NAME = "diagnose"
 PHYSICS_SUFFIXES = (".compliance", ".lateral1", ".lateral2", ".compliance_load")
 SUPPORTED = ("arc-welder", "delta-tracker", "scorbot-scanner", "urdf")
+PROGRESS_LOG = "progress.log"  # DIR/diagnose/progress.log: the progress lines when stderr is not a terminal
 
 
 def settings_of(params: dict) -> Settings:
@@ -33,13 +34,15 @@ def settings_of(params: dict) -> Settings:
 
 def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | None = None,
                        drop_records: list[int] | None = None, stream=None, physics: dict | None = None,
-                       held: tuple[str, ...] | None = None, chosen: bool = False) -> dict:
+                       held: tuple[str, ...] | None = None, chosen: bool = False,
+                       identified: dict | None = None) -> dict:
     """Diagnosis document of a decoded recording (arc welder, Delta + laser tracker, SCORBOT scanner);
     `stream`: its encoder stream when already decoded (the ingest stage's `encoder.parquet`); `physics`:
     the run's gravity-term choice ({physics, payload}, ingest's recording.json) and `held`: the parameters
     identify's model selection held, for a URDF tree or a model with physics terms (the same model as
     identify's, not selected again) or, `chosen`, whenever identify made a model choice (its groups, or
-    after a shrinkage fit what it did not estimate)."""
+    after a shrinkage fit what it did not estimate); `identified`: identify's fit.json, whose least-squares
+    solution is the diagnosis' geometric fit where it is the same problem (`inference.reuse.identify_fit`)."""
     from pipeline.diagnose.adapters import touch_table as dtable
     from pipeline.diagnose.method import diagnose
     from pipeline.identify.model import take
@@ -66,7 +69,12 @@ def diagnose_recording(rec, settings: Settings = Settings(), x0: np.ndarray | No
             x0 = None
         # a TreePointModel, or identify's own model choice (`held`): identify's selection stands (it is costly)
         keep = hasattr(model, "deflected") or chosen
-        doc = diagnose(model, tab, x0=x0, settings=settings,
+        gf = None
+        if keep and x0 is not None and identified is not None:  # identify's own fit: not solved again
+            from pipeline.diagnose.inference.reuse import identify_fit
+
+            gf = identify_fit(identified, model, tab)
+        doc = diagnose(model, tab, x0=x0, settings=settings, geometry_fit=gf,
                        adapter=durdf.adapter(model, tab, held if keep and x0 is not None else None))
         doc["dropped_records"] = sorted(int(r) for r in (drop_records or []))
         if getattr(model, "residual_unit", "m") != "m":  # a camera: every *_m figure of the document is px
@@ -122,7 +130,7 @@ def run(run_dir: Path, params: dict) -> dict:
         fit_path = run_dir / "identify" / "fit.json"
         from pipeline.stages.ingest import recording_info
 
-        x0, drop, held, chosen = None, None, None, False
+        x0, drop, held, chosen, fj = None, None, None, False, None
         if fit_path.is_file():
             fj = read_json(fit_path)
             x0 = np.asarray(fj["x"], float)
@@ -135,8 +143,13 @@ def run(run_dir: Path, params: dict) -> dict:
         physics = recording_info(run_dir).get("physics")
         if physics is None and x0 is not None and any(n.endswith(PHYSICS_SUFFIXES) for n in fj.get("names", [])):
             physics = {"physics": "auto"}  # identify's default gravity terms: the same model, not selected again
-        doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=stream,
-                                 physics=physics, held=held, chosen=chosen)
+        from pipeline.progress import Ticker, reporting
+
+        tick = Ticker(NAME, log=out / PROGRESS_LOG, count=False)
+        with reporting(tick):
+            doc = diagnose_recording(rec, settings_of(params), x0=x0, drop_records=drop, stream=stream,
+                                     physics=physics, held=held, chosen=chosen, identified=fj)
+        tick.done()
         doc["supported"] = True
     write_json(out / "diagnosis.json", doc)
     return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],

@@ -35,6 +35,7 @@ class Selection:
     rounds: list[dict]  # [{"candidate": group, "holdout_rms_m": …, "kept": bool}, …]
     holdout_registration_m: float
     holdout_rms_m: float
+    x: np.ndarray | None = None  # the kept model's solution where the choice solved it (closed form), else None
 
 
 def _rms(r: np.ndarray) -> float:
@@ -51,13 +52,18 @@ def fixed_for(model: MeasurementModel, kept: list[str]) -> tuple[str, ...]:
 
 def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, options: FitOptions = FitOptions(),
            min_gain: float = MIN_GAIN, groups_of_rows: np.ndarray | None = None, z: float = Z_KEEP,
-           progress=None) -> Selection:
+           progress=None, closed_form: bool = False) -> Selection:
     """Forward selection of parameter groups by k-fold held-out error (see module docstring).
 
     A candidate is kept when it lowers the held-out RMS by `min_gain` AND the row-wise paired
     improvement of the squared held-out errors is significant: its mean exceeds `z` standard
     errors (one-sided).  On a few dozen rows a group can win the cross-validation by chance; the
-    paired test asks that the win be carried by the rows, not by one or two of them."""
+    paired test asks that the win be carried by the rows, not by one or two of them.
+
+    `closed_form` (k-fold only, not whole groups left out): each round's candidates are scored on the problem
+    linearised at the solution of the model they extend, the folds in closed form (`linear_folds.Linearised`),
+    and only the round's best are solved and rescored at their own solution — a fit per candidate chosen
+    instead of a fit per fold of every candidate (a whole robot's few hundred parameters, 20 candidates)."""
     from pipeline.identify.group_holdout import held_out, row_groups
 
     late = [g for g in (getattr(model, "late_groups", lambda: ())()) if g in model.groups()]
@@ -66,17 +72,36 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
     # sessions, placements, sockets: leave whole ones out, their own points / frames refitted from their rows
     whole = row_groups(model, data) if groups_of_rows is None else None
 
-    def errors(groups: list[str]) -> np.ndarray:
+    def options_for(groups: list[str]) -> FitOptions:
         # candidates scored without refusing negative compliances (a refit per fold); the model kept is refitted
         # with the refusal and its held-out error measured so (`pipeline.stages.identify`)
-        opts = replace(options, fixed=tuple(set(options.fixed) | set(fixed_for(model, groups))), physical=False)
+        return replace(options, fixed=tuple(set(options.fixed) | set(fixed_for(model, groups))), physical=False)
+
+    lin = None
+    if closed_form and whole is None:
+        from pipeline.identify.folds import design_folds
+        from pipeline.identify.linear_folds import Linearised
+
+        lin = Linearised(model, data, design_folds(len(next(iter(data.values()))), k, seed, groups_of_rows, data),
+                         options_for)
+
+    def errors(groups: list[str], base: list[str] | None = None, which: str = "") -> np.ndarray:
+        opts = options_for(groups)
+        head = f"model choice{which}: {' + '.join(groups)}"
+        if lin is not None:  # scored on the problem linearised at `base`'s solution (or solved: registration)
+            if base is None:
+                lin.solve(groups)
+            if progress is not None:
+                progress(f"{head}, {k}-fold in closed form"
+                         + (f", linearised at {' + '.join(base)}" if base is not None else ""))
+            return lin.errors(groups, base or groups)
         if whole is not None:
             if progress is not None:
-                progress(f"model choice: {' + '.join(groups)}, {len(np.unique(whole))} groups left out in turn")
+                progress(f"{head}, {len(np.unique(whole))} groups left out in turn")
             r = held_out(model, data, whole, lambda d, _: fit(model, d, replace(opts, before=False)).x, None)
         else:
             if progress is not None:
-                progress(f"model choice: {' + '.join(groups)}, {k}-fold")
+                progress(f"{head}, {k}-fold")
             r = cross_validate(model, data, k=k, seed=seed, options=opts, groups=groups_of_rows)
         return np.nansum(r**2, axis=1)  # squared held-out error per row
 
@@ -106,13 +131,20 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
 
     def grow(pool: list[str], label=lambda c: c) -> str | None:
         nonlocal e_best
-        trial = {c: errors(kept + [c]) for c in pool}
-        c = min(trial, key=lambda c: rms(trial[c]))
+        trial = {c: errors(kept + [c], list(kept) if lin is not None else None, f" (candidate {i} of {len(pool)})")
+                 for i, c in enumerate(pool, 1)}
+        if lin is not None:  # the best solved and rescored at their own solution; the others stay linearised
+            c, exact = lin.settle(trial, kept, rms)
+            if progress is not None:
+                progress(f"model choice: {len(exact)} of {len(trial)} candidates solved ({', '.join(sorted(exact))})")
+        else:
+            c, exact = min(trial, key=lambda c: rms(trial[c])), set(trial)
         ok = better(trial[c], e_best)[0]
         for c2, e in trial.items():
             rounds.append({"candidate": label(c2), "holdout_rms_m": rms(e), "kept": bool(ok and c2 == c),
                            "against_m": rms(e_best),
-                           "why": better(e, e_best)[1] if c2 == c or not ok else "another candidate lowered it more"})
+                           "why": better(e, e_best)[1] if c2 == c or not ok else "another candidate lowered it more",
+                           **({} if c2 in exact else {"linearised": True})})
         if not ok:
             return None
         kept.append(c)
@@ -133,8 +165,9 @@ def select(model: MeasurementModel, data: Table, k: int = 5, seed: int = 0, opti
         singles.remove(n)
     while late and (g := grow(late)) is not None:  # second-order groups, against the model chosen without them
         late.remove(g)
+    solved = lin.solved.get(tuple(kept)) if lin is not None else None
     return Selection(kept=kept, fixed=fixed_for(model, kept), rounds=rounds, holdout_registration_m=reg,
-                     holdout_rms_m=rms(e_best))
+                     holdout_rms_m=rms(e_best), x=None if solved is None else solved[0])
 
 
 def _screen(model: MeasurementModel, data: Table, kept: list[str], singles: list[str],
@@ -162,7 +195,8 @@ def explain(sel: Selection, unit: str = "m") -> list[str]:
     lines = [f"registration only: held-out RMS {sel.holdout_registration_m * k:.3f} {u}"]
     for r in sel.rounds[1:]:
         verdict = "kept" if r["kept"] else "not kept"
-        lines.append(f"+ {r['candidate']}: held-out {r['holdout_rms_m'] * k:.3f} {u} against "
+        lines.append(f"+ {r['candidate']}: held-out {r['holdout_rms_m'] * k:.3f} {u}"
+                     + (" (linearised)" if r.get("linearised") else "") + f" against "
                      f"{r['against_m'] * k:.3f} {u} → {verdict}" + (f" ({r['why']})" if r.get("why") else ""))
     return lines
 

@@ -12,6 +12,7 @@ from pipeline.accuracy.propagate import fixture_covariance
 from pipeline.identify.complexity import explain, relabel, select
 from pipeline.identify.exports import describe, write_exports
 from pipeline.identify.least_squares import FitOptions, cross_validate, holdout_warning, point_accuracy
+from pipeline.identify.linear_folds import CLOSED_FORM_PARAMETERS, kfold_at
 from pipeline.identify.model import take, uncalibrated
 from pipeline.identify.natural_groups import holdout_groups
 from pipeline.identify.outliers import fit_rejecting
@@ -93,17 +94,27 @@ def run(run_dir: Path, params: dict) -> dict:
         rf = RobustFit(f, np.ones(len(table["record"]), bool))
         kept_data = data
     else:
+        # whole URDF robots measured in lengths: candidates and the kept model's k-fold scored in closed form
+        closed = (system.SYSTEM == "urdf" and getattr(model, "residual_unit", "m") == "m"
+                  and len(model.parameter_names()) >= CLOSED_FORM_PARAMETERS)
         if grouped:  # keep only groups that improve held-out error
             selection = select(model, data, k=folds, seed=int(params.get("seed", 0)), options=opts, progress=_progress,
-                               groups_of_rows=holdout_groups(model, data))
+                               groups_of_rows=holdout_groups(model, data), closed_form=closed)
             opts = replace(opts, fixed=tuple(sorted(set(opts.fixed) | set(selection.fixed))))
-        rf = fit_rejecting(model, data, opts, threshold=float(params.get("outlier_threshold", 5.0)))
+        # the kept model, warm from its solution where the choice solved it (the start stays the model's own)
+        warm = selection is not None and selection.x is not None
+        rf = fit_rejecting(model, data, replace(opts, x0=selection.x) if warm else opts,
+                           threshold=float(params.get("outlier_threshold", 5.0)))
+        if warm:
+            start = model.initial_guess(data) if hasattr(model, "initial_guess") else model.nominal()
+            rf = replace(rf, fit=replace(rf.fit, nominal=np.asarray(start, float)))
         f = rf.fit
         if selection is not None:
             relabel(f, selection)
         kept_data = take(data, rf.kept)
-        holdout_kept = cross_validate(model, kept_data, k=folds, seed=int(params.get("seed", 0)), options=opts,
-                                      groups=holdout_groups(model, kept_data))
+        cv = kfold_at if closed else cross_validate
+        holdout_kept = cv(model, kept_data, k=folds, seed=int(params.get("seed", 0)), options=opts,
+                          groups=holdout_groups(model, kept_data), **({"solution": f} if closed else {}))
     extra = model.extra_metrics(f.nominal, f.x, kept_data) if hasattr(model, "extra_metrics") else None
     f, std_independent, resampled = stated_uncertainty(model, f, kept_data)  # a camera: the image jackknife
     if resampled:

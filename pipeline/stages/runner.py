@@ -40,6 +40,7 @@ class Outcome:
     elapsed_s: float
     key: str
     summary: dict
+    cpu_s: float = 0.0  # CPU time of this process (user + system) while the stage ran
 
 
 @functools.cache
@@ -161,7 +162,7 @@ def _run_stage(run_dir: Path, name: str, params: dict | None, recording: Path | 
         out = Outcome(name, True, 0.0, key, prev.get("summary", {}))
     else:
         mod = load_module(stage)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         fresh_stage_dir(run_dir, name)
         call_params = dict(p)
         if recording is not None:
@@ -176,16 +177,16 @@ def _run_stage(run_dir: Path, name: str, params: dict | None, recording: Path | 
             except OSError:
                 pass
             raise
-        elapsed = time.perf_counter() - t0
+        elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
         doc = {"stage": name, "key": key, "params": {**p, **({"recording": call_params["recording"]}
                                                               if "recording" in call_params else {})},
-               "inputs": inputs, "elapsed_s": elapsed, "robocal_version": __version__,
+               "inputs": inputs, "elapsed_s": elapsed, "cpu_s": cpu, "robocal_version": __version__,
                "summary": summary, "outputs": _outputs(run_dir, name, summary)}
         (run_dir / name / STAGE_FILE).write_text(dumps(doc))
         record_manifest(run_dir / name)
-        out = Outcome(name, False, elapsed, key, summary)
+        out = Outcome(name, False, elapsed, key, summary, cpu)
     if log:
-        log(f"{name}: " + ("cached" if out.cached else f"ran in {out.elapsed_s:.2f} s") + f" (key {key[:12]})")
+        log(f"{name}: " + ("cached" if out.cached else f"ran in {out.elapsed_s:.2f} s, CPU {out.cpu_s:.2f} s") + f" (key {key[:12]})")
     write_results(run_dir)
     if out.summary.get("status") == "fail":
         raise StageFailed(f"{name} failed: {out.summary.get('reason', 'see ' + str(run_dir / name))}")

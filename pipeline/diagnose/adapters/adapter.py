@@ -56,3 +56,7 @@ class Adapter:
     # advice(variable): what to do about structure located along a variable when the campaign knows
     # better than the variable's name (a joint reading that tracks the joint's gravity load), or None
     advice: Callable[[str], str | None] | None = None
+    # the joint refit holds the effects' signatures at the geometric solution (`augmented.AugmentedModel.frozen`)
+    # instead of re-evaluating them at every trial point: for signatures that cost a model evaluation per joint
+    # (the URDF adapter's central differences); the change it neglects is second order (effect × geometry move)
+    frozen_refit: bool = False

@@ -33,6 +33,7 @@ from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.urdf_gravity import gravity_torques
 from pipeline.diagnose.verdict import lack_of_fit
 from pipeline.physics.gravity import has_inertials
+from pipeline.progress import step
 
 PLAUSIBLE = {"joint_scale": 1e-2, "encoder_eccentricity": 5e-3, "joint_compliance": 1e-4,
              "joint_compliance_per_ampere": 1e-2}  # rad/A: 1e-4 rad/(N·m) × a torque constant up to 100 N·m/A
@@ -48,7 +49,9 @@ def joint_derivative(model, x: np.ndarray, data) -> np.ndarray:
     """d residual / d joint reading, (n, residual_dim, n_joints), by central differences."""
     q = np.asarray(data["joint_positions"], float)
     out = np.empty((q.shape[0], model.residual_dim, q.shape[1]))
+    names = list(model.kin.joint_names)
     for j in range(q.shape[1]):
+        step(f"signatures: joint {j + 1} of {q.shape[1]} ({names[j] if j < len(names) else j})")
         dq = np.zeros_like(q)
         dq[:, j] = _H
         hi = model.residuals(x, {**data, "joint_positions": q + dq})
@@ -135,11 +138,12 @@ def load_torques(model, data) -> np.ndarray:
     return gravity_torques(model.kin.desc, q)
 
 
-def signatures(model, x: np.ndarray, data, effects) -> list[np.ndarray]:
-    """Signature (n, residual_dim, k_e) of each effect at parameters x, m per unit."""
+def signatures(model, x: np.ndarray, data, effects, derivative=joint_derivative) -> list[np.ndarray]:
+    """Signature (n, residual_dim, k_e) of each effect at parameters x, m per unit; `derivative(model, x, data)`
+    the joint derivative (`joint_derivative`, or a memo of it)."""
     if not effects:
         return []
-    D = joint_derivative(model, x, data)
+    D = derivative(model, x, data)
     q = np.asarray(data["joint_positions"], float)
     live = _rows(data)[:, None]
     tau = load_torques(model, data) if any(e.basis[0].startswith("compliance") for e in effects) else None
@@ -156,12 +160,12 @@ def signatures(model, x: np.ndarray, data, effects) -> list[np.ndarray]:
     return out
 
 
-def variables(model, x: np.ndarray, table) -> list:
+def variables(model, x: np.ndarray, table, derivative=joint_derivative) -> list:
     """Lack-of-fit variables: each joint reading (acting through d residual / d q) and the
     measurement order (a drift, per residual axis)."""
     q = np.asarray(table["joint_positions"], float)
     n, k = q.shape[0], model.residual_dim
-    D = joint_derivative(model, x, table) * _rows(table)[:, None, None]
+    D = derivative(model, x, table) * _rows(table)[:, None, None]
     out = []
     for j, name in enumerate(model.kin.joint_names):
         v = lack_of_fit.smooth_variable(f"q_{name}", "rad", np.repeat(q[:, j], k), D[:, :, j].reshape(n * k, 1))
@@ -224,13 +228,21 @@ def adapter(model, table, held: tuple[str, ...] | None = None):
 
     if held is None:
         held = select(model, table).fixed if model.groups() else ()
+    last: dict = {}
+
+    def derivative(model, x, data):  # the signatures and the lack-of-fit variables at one x share it
+        key = np.asarray(x, float).tobytes()
+        if last.get("key") != key or last.get("data") is not data:
+            last.update(key=key, data=data, D=joint_derivative(model, x, data))
+        return last["D"]
+
     camera = getattr(model, "residual_unit", "m") == "px"
     lib = [] if camera and getattr(model, "kinematics_known", False) else library(model, table)
     return Adapter(library=lib, held=tuple(held), advice=load_advice(model, table),
-                   signatures=lambda x, data, effects: signatures(model, x, data, effects),
-                   variables=lambda x: variables(model, x, table),
+                   signatures=lambda x, data, effects: signatures(model, x, data, effects, derivative),
+                   variables=lambda x: variables(model, x, table, derivative),
                    time_s=np.asarray(table["time_since_start_s"], float),
-                   located=lambda e: e.data.get("located"),
+                   located=lambda e: e.data.get("located"), frozen_refit=True,
                    cluster=np.asarray(table["image"]) if camera else None,
                    cluster_basis=(lambda x: image_pose_basis(model, x, table)) if camera else None)
 

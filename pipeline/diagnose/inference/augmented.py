@@ -34,13 +34,17 @@ class AugmentedModel:
     for a zero one (≤ 1e-12 of the largest) and hold at 0.  With `exact(x, θ, data, effects,
     jac)` (θ in the effects' own units) the residual (n, residual_dim) and, with jac, the
     Jacobian (n, residual_dim, n_geom + Σk) come from it instead: a system whose effects are not
-    all small enough for the additive term (the scanner's lens terms)."""
+    all small enough for the additive term (the scanner's lens terms).  With `frozen` (n, residual_dim,
+    Σk_e; m per each effect's own unit) the effect columns are those, held at the geometric solution
+    they were computed at, whatever x: S(x)·θ − S(x₀)·θ is of the second order (effect × geometry move),
+    the order the additive term already neglects, and a refit then costs what a geometric fit does."""
 
     base: object
     effects: tuple[Effect, ...]
     signatures: Callable | None = None
     scaled: bool = False
     exact: Callable | None = None
+    frozen: np.ndarray | None = None
     _last: dict = field(default_factory=dict, compare=False, repr=False)  # memo of `_S`
 
     def scales(self) -> np.ndarray:
@@ -91,7 +95,9 @@ class AugmentedModel:
         return S
 
     def _S_at(self, x: np.ndarray, data) -> np.ndarray:
-        if self.signatures is not None:
+        if self.frozen is not None:
+            S = np.array(self.frozen, float)
+        elif self.signatures is not None:
             cols = self.signatures(x, data, self.effects)
             n = np.asarray(data["joint_positions"]).shape[0]
             S = np.concatenate(cols, axis=2) if cols else np.zeros((n, self.residual_dim, 0))

@@ -38,23 +38,32 @@ class Refit:
     par_dof: np.ndarray
     sigma_after: float
     free_a: np.ndarray
+    S: np.ndarray | None = None  # (n, k, Σk_e) the effects' columns the refit held (m per unit), None: at z
 
 
 def joint_refit(model, table, f: Fit, ad, adapter, lib: list, accepted: list[int], Jf: np.ndarray,
-                r: np.ndarray, dof: int, cl: np.ndarray | None, nm, src: list | None) -> Refit:
+                r: np.ndarray, dof: int, cl: np.ndarray | None, nm, src: list | None,
+                S: list[np.ndarray] | None = None) -> Refit:
     """Step 4 (module docstring).  `f` the geometry fit, `ad` the adapter (`adapter` the caller's, or
-    None for the touch default), `cl` per-row cluster ids, `nm`/`src` the noise model and its sources."""
+    None for the touch default), `cl` per-row cluster ids, `nm`/`src` the noise model and its sources;
+    `S` every library effect's signature at the geometric solution (nk, k_e), held by the refit where the
+    adapter asks for it (`Adapter.frozen_refit`)."""
     nk = r.size
     x, free, names = f.x, f.free, f.names
     if not accepted:
         return Refit(x, r, Jf, f.std, np.full(x.size, float(max(dof, 1))), f.sigma, free)
     acc_eff = tuple(lib[i] for i in accepted)
+    n = f.residuals_after.shape[0]
+    frozen = (np.concatenate([S[i].reshape(n, -1, lib[i].k) for i in accepted], axis=2)
+              if S is not None and ad.frozen_refit and ad.refit is None else None)
     aug = augmented.AugmentedModel(model, acc_eff, None if adapter is None else ad.signatures, scaled=True,
-                                 exact=None if ad.refit is None else ad.refit(acc_eff))
+                                   exact=None if ad.refit is None else ad.refit(acc_eff), frozen=frozen)
     z0 = np.concatenate([x, np.zeros(sum(lib[i].k for i in accepted))])
     # the weak gauges the baseline held stay held: an exact lens term (`Adapter.refit`) lifts their
     # exact degeneracy slightly, and freed they would absorb part of the lens effect
     held = tuple(h for h in ad.held if h in names and not free[names.index(h)])
+    if frozen is not None:  # the design the selection tested against: the geometry fit's free columns + the effects
+        held = tuple(name for name, b in zip(names, free) if not b)
     fa = fit(aug, table, FitOptions(x0=z0, fixed=held))
     z, r_final, free_a = fa.x, fa.residuals_after.reshape(nk), fa.free
     A = aug.jacobian(z, table)[:, :, free_a].reshape(nk, -1)
@@ -72,7 +81,7 @@ def joint_refit(model, table, f: Fit, ad, adapter, lib: list, accepted: list[int
         std[free_a] = np.sqrt(np.clip(np.diag(cov), 0, None))
         par_dof[free_a] = nu
     z, std = aug.physical(z), aug.physical(std)  # A stays per fitted (scaled) unit
-    return Refit(z, r_final, A, std, par_dof, fa.sigma, free_a)
+    return Refit(z, r_final, A, std, par_dof, fa.sigma, free_a, frozen)
 
 
 def _family_frequency(lib: list, i: int, testable: list[int], boot: np.ndarray) -> float:
@@ -99,7 +108,10 @@ def finding_records(rf: Refit, table, ad, lib: list, accepted: list[int], steps:
     findings = []
     contributions = []  # (n, k) fitted contribution of each accepted effect, m
     pos = ng
-    S_final = ad.signatures(z[:ng], table, tuple(lib[i] for i in accepted)) if accepted else []
+    if rf.S is not None:  # the columns the refit held: the contributions are those it fitted
+        S_final = np.split(rf.S, np.cumsum([lib[i].k for i in accepted])[:-1], axis=2)
+    else:
+        S_final = ad.signatures(z[:ng], table, tuple(lib[i] for i in accepted)) if accepted else []
     for st, i, Se in zip(steps, accepted, S_final):
         e = lib[i]
         keep_cols = np.setdiff1d(np.arange(A.shape[1]), col_of[i])

@@ -10,6 +10,7 @@ import numpy as np
 from pipeline.diagnose.inference.projection import orthonormal, project_out
 from pipeline.diagnose.inference.stepwise import forward_select
 from pipeline.identify.least_squares import kfold_indices
+from pipeline.progress import step
 
 
 HOLDOUT_OVER_SIGMA_MAX = 3.0  # a held-out RMS above this many in-sample σ: the campaign cannot predict itself
@@ -105,7 +106,8 @@ def bootstrap_frequency(J: np.ndarray, r: np.ndarray, S: list[np.ndarray], toler
     members = [np.flatnonzero(groups == u) for u in uniq]
     count = np.zeros(len(S))
     p_geo = orthonormal(J).shape[1]
-    for _ in range(n_boot):
+    for b in range(n_boot):
+        step(f"bootstrap: resample {b + 1} of {n_boot}")
         pick = rng.integers(0, uniq.size, uniq.size)
         idx = np.concatenate([members[i] for i in pick])
         Q = orthonormal(J[idx])

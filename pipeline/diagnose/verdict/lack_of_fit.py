@@ -24,6 +24,7 @@ import scipy.stats
 from pipeline.diagnose.inference.projection import orthonormal, project_out
 from pipeline.diagnose.inference.sign_flips import wild_cluster_p
 from pipeline.models import serial_arm
+from pipeline.progress import step
 
 
 @dataclass(frozen=True)
@@ -265,7 +266,8 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
     res = project_out(r[:, None], QA)[:, 0]
     rss = float(res @ res)
     raw = []
-    for v in variables:
+    for i, v in enumerate(variables):
+        step(f"lack of fit: variable {i + 1} of {len(variables)} ({v.name})")
         Bp = project_out(v.columns, QA)
         Qb = orthonormal(Bp, 1e-6)
         kb = Qb.shape[1]

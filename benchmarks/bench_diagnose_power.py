@@ -15,7 +15,7 @@ order: `independent_touch.plan`).
 
 Per case: `named` (the right effect at the right place among the findings; thermal: the family
 thermal_growth@links, any form), `named_high` (and with high confidence), `located` (out of library: status
-partially_explained / unexplained), `misnamed_high` (a high-confidence finding that is not the injected
+partially_explained / unexplained, or a place named in `unexplained_where`), `misnamed_high` (a high-confidence finding that is not the injected
 effect), `worse` (the final model's held-out RMS above geometry alone's), and the gate's own minimum
 detectable size on that campaign (Bonferroni over the library and 80 % power: stricter than the
 generator's 3σ), and for backlash the generator's figure at the injected size without the one contact that carries most
@@ -108,7 +108,8 @@ def score(d: dict, key: tuple | None) -> dict:
     named = any(right(f) for f in d["findings"])
     return {"status": d["status"], "named": named,
             "named_high": any(right(f) and f["confidence"] == "high" for f in d["findings"]),
-            "located": d["status"] in ("partially_explained", "unexplained"),
+            # out of library: a status that says something is left, or a located place (unexplained_where)
+            "located": d["status"] in ("partially_explained", "unexplained") or bool(d["unexplained_where"]),
             "misnamed_high": any(f["confidence"] == "high" and not right(f) for f in d["findings"]),
             "worse": d["holdout_rms_after_m"] > d["holdout_rms_before_m"] + 1e-15,
             "findings": [f"{f['effect']}@{f['location']}:{f['confidence']}" for f in d["findings"]],
@@ -150,8 +151,9 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
     return out
 
 
-def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, backlash: bool = False) -> it.Targets:
-    """robocal's own campaign (`robocal plan arc-welder --select SELECT`), written to a plan file and read back
+def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, backlash: bool = False,
+                    candidates: int = 1000) -> it.Targets:
+    """robocal's own campaign (`robocal plan arc-welder --candidates CANDIDATES --select SELECT`), written to a plan file and read back
     by the generator as plain JSON (`independent_campaign_file.from_campaign`): its first m contacts whose search
     touches on the true arm (`independent_campaign_file.touching`), in the plan's order."""
     import tempfile
@@ -161,7 +163,7 @@ def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, ba
 
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "campaign.json"
-        write_document(path, touch_campaign(1000, select, seed, backlash=backlash))
+        write_document(path, touch_campaign(candidates, select, seed, backlash=backlash))
         targets = icf.from_campaign(json.loads(path.read_text()))
     ok = np.flatnonzero(icf.touching(nom, tru, targets))
     if ok.size < m:
@@ -169,12 +171,13 @@ def planned_targets(nom, tru, m: int = 100, select: int = 115, seed: int = 0, ba
     return icf.take(targets, ok[:m])
 
 
-def world(plan: str = "robocal", m: int = 120):
+def world(plan: str = "robocal", m: int = 120, candidates: int = 1000):
     """(nominal, truth, targets, σ along the normal): the campaign robocal plans (`plan` "robocal"; "robocal-backlash":
     planned for every joint's backlash too, `robocal plan --backlash`), or the
     generator's own random one (`plan` "generator": m approach poses on random face points, random order)."""
     nom, tru = it.default_arms()
-    targets = (planned_targets(nom, tru, backlash=plan == "robocal-backlash") if plan.startswith("robocal")
+    targets = (planned_targets(nom, tru, backlash=plan == "robocal-backlash", candidates=candidates)
+               if plan.startswith("robocal")
                else it.plan(nom, it.stepped_block(), m=m, seed=1))
     return nom, tru, targets, it.run(nom, tru, targets, (), seed=0).along_normal_noise_sigma_m
 
@@ -187,10 +190,29 @@ def main() -> None:
     ap.add_argument("--cases", default="")
     ap.add_argument("--n-boot", type=int, default=20)
     ap.add_argument("--out", default="")
-    ap.add_argument("--plan", default="robocal", choices=("robocal", "robocal-backlash", "generator"),
-                    help="the campaign: robocal's plan (robocal plan arc-welder [--backlash]) or the generator's random one")
+    ap.add_argument("--plan", default="robocal", choices=("robocal", "robocal-backlash", "generator", "random"),
+                    help="the campaign: robocal's plan (robocal plan arc-welder [--backlash]), the generator's random one "
+                         "(searches along the face normals), or (random) a new random campaign per seed with random "
+                         "search directions and speeds, mixed payloads and a servo's encoder stream "
+                         "(benchmarks/power_random.py)")
+    ap.add_argument("--mults", default="4,2", help="--plan random: the multiples of the ideal MDE injected")
+    ap.add_argument("--no-budget", action="store_true", help="--plan random: skip the power budget per term")
+    ap.add_argument("--stream-noise", type=float, default=1.0,
+                    help="--plan random: the logged encoder stream's reading noise, counts (the latches have none)")
+    ap.add_argument("--clean-only", action="store_true", help="--plan random: only the clean campaigns (false findings)")
     a = ap.parse_args()
     t0 = time.time()
+    if a.plan == "random":
+        import power_random as pr
+
+        rows: list = []
+        summary = pr.report(range(a.first_seed, a.first_seed + a.seeds), tuple(float(v) for v in a.mults.split(",")),
+                            a.cases.split(",") if a.cases else None, a.n_boot, budgets=not a.no_budget, out=rows,
+                            stream_noise_counts=a.stream_noise, clean_only=a.clean_only)
+        print(f"elapsed {time.time() - t0:.0f} s")
+        if a.out:
+            Path(a.out).write_text(json.dumps(summary, indent=1))
+        return
     w = world(a.plan)
     names = a.cases.split(",") if a.cases else list(cases(w[2]))
     seeds = range(a.first_seed, a.first_seed + a.seeds)

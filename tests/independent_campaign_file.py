@@ -15,15 +15,24 @@ def touching(nominal: Arm, truth: Arm, targets: Targets, jig: Jig | None = None,
     effects or noise (a search that has not touched by then grazes its face or misses it: a controller reports
     "no contact" and the campaign goes on without it)."""
     ok = np.zeros(targets.face.size, bool)
-    for i in range(ok.size):
-        one = Targets(targets.face[i:i + 1], targets.q_a[i:i + 1], targets.dq[i:i + 1])
-        try:
-            q = run(nominal, truth, one, (), n=1, jig=jig, noise=0.0).truth_joint_q[0]
-        except RuntimeError:
-            continue
-        k = np.argmax(np.abs(one.dq[0]))
-        ok[i] = 0 < (q[k] - one.q_a[0, k]) / one.dq[0, k] <= travel_m
+    _touching(nominal, truth, targets, jig, travel_m, np.arange(ok.size), ok)
     return ok
+
+
+def _touching(nominal, truth, targets, jig, travel_m, idx, ok) -> None:
+    """`touching` on the contacts `idx`, run together (each contact's search is its own: no effects, no noise);
+    a batch where one search does not settle is halved until that contact stands alone (and is left out)."""
+    part = take(targets, idx)
+    try:
+        q = run(nominal, truth, part, (), n=idx.size, jig=jig, noise=0.0).truth_joint_q
+    except RuntimeError:
+        if idx.size > 1:
+            for half in np.array_split(idx, 2):
+                _touching(nominal, truth, targets, jig, travel_m, half, ok)
+        return
+    rows = np.arange(idx.size)
+    k = np.argmax(np.abs(part.dq), axis=1)
+    ok[idx] = (lambda t: (0 < t) & (t <= travel_m))((q[rows, k] - part.q_a[rows, k]) / part.dq[rows, k])
 
 
 def from_campaign(doc: dict, jig: Jig | None = None) -> Targets:

@@ -349,32 +349,70 @@ def geometric_jacobian(arm: Arm, q: np.ndarray, ax: np.ndarray) -> np.ndarray:
     return np.stack([(f(v0 + h * np.eye(v0.size)[i]) - f0) / h for i in range(v0.size)], axis=1)
 
 
-def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
-        jig: Jig | None = None, *, at_size: bool = False, drop_top: int = 0, **campaign) -> float:
-    """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable (`campaign`: `run`'s
-    options, e.g. payload_kg).  The signature is the tangent at 10⁻³ × the effect's size, or (`at_size`) the
-    secant at its size (a dead band's shape changes with its play: a search shorter than the play does not
-    turn the link).  `drop_top` contacts carrying the largest shares of the ⊥ signature are left out, one at
-    a time and re-projected: the figure for a test that must not rest on those few contacts."""
+_CLEAN: list = []  # the last few noise-free, effect-free campaigns: (inputs, campaign)
+
+
+def _clean(runner, nominal, truth, targets, n, jig, campaign):
+    """`runner`'s noise-free campaign without effects, kept for the same inputs (the same objects): every
+    signature on one plan starts from it."""
+    key = (runner, nominal, truth, n, jig, tuple(sorted(campaign.items())))
+    for (t, k), c in _CLEAN:
+        try:
+            if t is targets and k == key:
+                return c
+        except ValueError:  # array-valued options: not compared
+            pass
+    c = runner(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0, **campaign)
+    _CLEAN.append(((targets, key), c))
+    del _CLEAN[:-4]
+    return c
+
+
+def signature(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, n: int = 100, jig: Jig | None = None, *,
+              at_size: bool = False, runner=None, **campaign) -> tuple[np.ndarray, np.ndarray]:
+    """(S (n,) m per unit of the effect, J (n, 42) the geometric Jacobian): the change of each contact's residual
+    (the model tip at the latched q, along the measured axis) per unit effect, the tangent at 10⁻³ × the
+    effect's size or (`at_size`) the secant at its size, noise-free; `runner` the campaign's `run` (default this
+    module's; `independent_search.run` for its plans), `campaign` its options."""
     jig = jig or stepped_block()
-    c0 = run(nominal, truth, targets, (), seed=0, n=n, jig=jig, noise=0.0, **campaign)
+    runner = runner or run
+    c0 = _clean(runner, nominal, truth, targets, n, jig, campaign)
     unit = effect if at_size else Effect(effect.kind, 1e-3 * (effect.size or 1.0), effect.where)
-    c1 = run(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0, **campaign)
+    c1 = runner(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0, **campaign)
     ax = c0.table["axis"]
     rows = np.arange(ax.size)
     # residual change: the same coordinates, the model tip at the latched q moves
     r0 = tip(truth, c0.truth_joint_q)[rows, ax]
     r1 = tip(truth, c1.truth_joint_q)[rows, ax]
-    S = (r1 - r0) / unit.size
-    J = geometric_jacobian(truth, c0.truth_joint_q, ax)
+    return (r1 - r0) / unit.size, geometric_jacobian(truth, c0.truth_joint_q, ax)
+
+
+def mds(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
+        jig: Jig | None = None, *, at_size: bool = False, drop_top: int = 0, runner=None, **campaign) -> float:
+    """3σ / ‖signature ⊥ geometry‖: the effect size (in its own unit) just detectable (`campaign`: `run`'s
+    options, e.g. payload_kg), the signature of `signature` (a dead band's shape changes with its play: a
+    search shorter than the play does not turn the link, so `at_size` takes the secant at the effect's size).
+    `drop_top` contacts carrying the largest shares of the ⊥ signature are left out, one at a time and
+    re-projected: the figure for a test that must not rest on those few contacts."""
+    return mds_dropping(nominal, truth, targets, effect, sigma, n, jig, at_size=at_size, upto=drop_top,
+                        runner=runner, **campaign)[-1]
+
+
+def mds_dropping(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sigma: float, n: int = 100,
+                 jig: Jig | None = None, *, at_size: bool = False, upto: int = 0, runner=None,
+                 **campaign) -> list[float]:
+    """`mds` with 0, 1, …, `upto` top contacts left out, from one signature: [m₀, m₁, …]."""
+    S, J = signature(nominal, truth, targets, effect, n, jig, at_size=at_size, runner=runner, **campaign)
     keep = np.ones(S.size, bool)
-    for k in range(drop_top + 1):
+    out = []
+    for k in range(upto + 1):
         U, sv, _ = np.linalg.svd(J[keep], full_matrices=False)
         U = U[:, sv > sv[0] * 1e-9]
         Sp = S[keep] - U @ (U.T @ S[keep])
-        if k < drop_top:
+        out.append(3 * sigma / max(np.linalg.norm(Sp), 1e-300))
+        if k < upto:
             keep[np.flatnonzero(keep)[np.argmax(Sp**2)]] = False
-    return 3 * sigma / max(np.linalg.norm(Sp), 1e-300)
+    return out
 
 
 def two_stations(dx: float = 0.45, dz: float = -0.35) -> Jig:

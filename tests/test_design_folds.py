@@ -108,8 +108,9 @@ def test_the_arbiter_keeps_a_correct_thermal_growth_when_naive_folds_lose_a_face
     assert "repaired" in d["cross_validation"]
     monkeypatch.setattr(F, "design_folds", lambda n, k, seed=0, groups=None, *a, **kw: kfold_indices(n, k, seed, groups))
     dn = diagnose(aw.TouchModel(aw.nominal_arm()), tab, settings=s)
-    # the naive split reads the design as error: the geometry's held-out far above the design's
-    assert dn["holdout_rms_before_m"] > 1.5 * d["holdout_rms_before_m"]
+    # the naive split reads the design as error: the geometry's held-out above the design's (1.39×; > 1.5× before
+    # the held-out figures left out contacts the selected model extrapolates to, as the lost face's two are here)
+    assert dn["holdout_rms_before_m"] > 1.3 * d["holdout_rms_before_m"]
     assert d["holdout_rms_after_m"] < d["holdout_rms_before_m"] / 2
 
 

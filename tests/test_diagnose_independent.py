@@ -120,20 +120,19 @@ def test_a_linear_link_growth_keeps_the_linear_form(world):
 
 
 def test_a_linear_J2_J3_coupling_is_named_once_a_second_station_takes_J2_wider(world):
-    """δq3 = k·q2 at 4× its MDS.  On the block alone the gate cannot tell it from a J2 encoder eccentricity
-    (J2 ∥ J3: cos² of the principal angle of their signatures ⊥ the geometry 0.97 > 0.95): the coupling is
-    `not_identifiable` with the advice to move J2 alone, and the eccentricity that takes its place is not a
-    high-confidence name and lists the coupling among what it cannot be told from.  With the campaign the
-    advice asks for — a second station, the block shifted 0.45 m along x and 0.35 m down (`it.two_stations`) —
-    the angle opens (cos² 0.70), the coupling is identifiable, named, its k recovered within 3σ, and the fit is
-    back to the floor."""
+    """δq3 = k·q2 at 4× its MDS.  On the block alone it is near-collinear with a J2 encoder eccentricity (J2 ∥ J3:
+    cos² of the principal angle of their signatures ⊥ the geometry 0.97), yet a plausible size separates them, so
+    both are tested and the data decide: the coupling is named, and the eccentricity, which the fit cannot reject
+    on this seed, is listed beside it as a look-alike — the name is `medium`, never a confident one.
+    With the campaign the advice asks for — a second station, the block shifted 0.45 m along x and 0.35 m down
+    (`it.two_stations`) — the angle opens (cos² 0.70), the coupling is named, its k recovered within 3σ, and the
+    fit is back to the floor, keeping the contact the coupling moves most (not an outlier record)."""
     c, d = _diagnose(world, it.Effect("coupling", 1.0, {"pair": (1, 2)}), 107)
-    (ni,) = [n for n in d["not_identifiable"] if (n["effect"], n["location"]) == ("joint_coupling", "J2->J3")]
-    assert "indistinguishable from encoder_eccentricity@J2" in ni["reason"] and "driving joint alone" in ni["advice"]
-    assert not [f for f in d["findings"] if f["confidence"] == "high"]
-    (ecc,) = [f for f in d["findings"] if (f["effect"], f["location"]) == ("encoder_eccentricity", "J2")]
-    assert {"effect": "joint_coupling", "location": "J2->J3"} in [
-        {k: v for k, v in t.items() if k != "advice"} for t in ecc["indistinguishable_from"]]
+    assert not [n for n in d["not_identifiable"] if (n["effect"], n["location"]) == ("joint_coupling", "J2->J3")]
+    (f,) = [f for f in d["findings"] if (f["effect"], f["location"]) == ("joint_coupling", "J2->J3")]
+    assert ("encoder_eccentricity", "J2") in [(a["effect"], a["location"]) for a in f["look_alikes"]]
+    assert f["confidence"] == "medium" and "hardly tell it from encoder_eccentricity@J2" in f["note"]
+    assert not [g for g in d["findings"] if g["confidence"] == "high"]
 
     nom, tru = world[:2]
     jig = it.two_stations()
@@ -152,4 +151,8 @@ def test_a_linear_J2_J3_coupling_is_named_once_a_second_station_takes_J2_wider(w
     assert abs(p["value"] - k) < 0.3 * k and abs(p["value"] - k) < 3 * p["std"], (p, k)
     assert [c["identifiable"] for c in d["candidates"] if (c["effect"], c["location"]) == ("joint_coupling",
                                                                                             "J2->J3")] == [True]
-    assert d["holdout_rms_after_m"] <= 1.2 * clean["holdout_rms_before_m"]  # back to the floor
+    # back to the floor; and the contact the coupling moves most (record 78, −0.25 mm off the geometric fit) is its
+    # evidence, not an outlier record — it stays (its leverage in the final design is 0.987, so its held-out error is
+    # an extrapolation, and the held-out RMS is no longer the figure of the floor here)
+    assert d["status"] == "explained" and d["noise_floor"]["rms_over_floor"] < 1.3
+    assert d["holdout_rms_after_m"] < 0.5 * d["holdout_rms_before_m"] and not d["outlier_records"]

@@ -60,7 +60,8 @@ def diagnose_cmd(
         pars = ", ".join(f"{p['name']}={p['value']:.4g}±{p['std']:.2g}"
                          + (f" [{p['ci95'][0]:.4g}, {p['ci95'][1]:.4g}]" if p.get("ci95") else "") + f" {p['unit']}"
                          for p in f["parameters"])
-        alike = ", ".join(f"{a['effect']}@{a['location']}" for a in f.get("look_alikes", []))
+        alike = ", ".join(f"{a['effect']}@{a['location']}"
+                          for a in f.get("look_alikes", []) + f.get("untested_look_alikes", []))
         t.add_row(f["effect"] + ("" if f["confidence"] == "high" else f" ({f['confidence']} confidence)")
                   + (f" (or {alike}: the campaign can hardly tell)" if alike else "")
                   + (f" (runner-up {ru['effect']}@{ru['location']}, Δχ² {ru['delta_chi2']:.3g})"
@@ -90,6 +91,13 @@ def diagnose_cmd(
         con.print(f"status: [bold]{doc['status'].replace('_', ' ')}[/] — {doc['status_reason']}"
                   + (f" (residual RMS {fl['rms_over_floor']:.2f}× the declared floor {mm(fl['sigma_floor_m'])})"
                      if fl else ""), highlight=False)
+    if doc.get("unseen"):  # every status: what the campaign could not have seen, and what would show it
+        from pipeline.diagnose.document.unseen import summary_lines
+
+        con.print(f"looked for, and the size each could have had unseen here (found with {doc['unseen'][0]['power']:.0%} "
+                  "probability at that size):", highlight=False)
+        for line in summary_lines(doc["unseen"]):
+            con.print(f"  {line}", highlight=False, soft_wrap=True)
     shown = [n for n in doc["not_identifiable"] if "no effect" not in n["reason"]]
     if shown:
         con.print(f"{len(shown)} effect(s) this campaign cannot separate from the "

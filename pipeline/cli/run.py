@@ -97,6 +97,12 @@ def _summary(run_dir: Path, failed: bool = False) -> None:
         err.print(f"[{colour}]{s.get('status')}:[/] {s['status_reason']}", highlight=False, soft_wrap=True)
     if s.get("status_advice"):
         err.print(f"advice: {s['status_advice']}", highlight=False, soft_wrap=True)
+    if diag.get("unseen"):  # whatever the diagnosis's status: the sizes that could have hidden on this campaign
+        from pipeline.diagnose.document.unseen import summary_lines
+
+        err.print("diagnosis, effects looked for and the size each could have had unseen:", highlight=False)
+        for line in summary_lines(diag["unseen"], width=3):
+            err.print(f"  {line}", highlight=False, soft_wrap=True)
     for label, f in (("report", "report.html"), ("rerun", "run.rrd")):
         if (run_dir / f).is_file():
             err.print(f"{label}: {run_dir / f}" + (f"  (open with: robocal view {run_dir})" if label == "rerun" else ""),

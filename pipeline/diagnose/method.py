@@ -23,13 +23,15 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.stats
 
 from pipeline.blas import one_thread
 from pipeline.diagnose.adapters.adapter import Adapter
 from pipeline.diagnose.adapters.touch import touch_adapter
 from pipeline.diagnose.document.assemble import add_plots, assemble, clustered_summary
 from pipeline.diagnose.inference import forms, refit, resampling, screen
-from pipeline.diagnose.inference.stepwise import look_alikes
+from pipeline.diagnose.inference.projection import orthonormal, project_out
+from pipeline.diagnose.inference.stepwise import LOOK_ALIKE_SHARE, look_alikes
 from pipeline.diagnose.library.term import Effect
 from pipeline.diagnose.library.touch_probe import tip_speed_vector
 from pipeline.diagnose.verdict import arbiter, grading, outliers
@@ -92,7 +94,14 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     step(f"gate and selection of {len(p.lib)} candidates")
     sel = screen.select(p, nz, s)
     groups = np.repeat(resampling.time_blocks(ad.time_s, s.block), p.k)
-    folds, moved, alone = resampling.design_folds(p.n, p.k, s, ad.time_s, table, p.Jf)
+    # folds that keep the selected model's design too: a contact that alone carries a direction of the geometry
+    # and the selected effects (a stretched pose under the heaviest payload for a compliance) is in every training
+    # set — its held-out error would be an extrapolation, not a test of the effect
+    selected = np.hstack([p.Jf] + [p.S[i] for i in sel.accepted])
+    folds, moved, alone = resampling.design_folds(p.n, p.k, s, ad.time_s, table, selected)
+    if sel.accepted:
+        folds, far = resampling.without_extrapolated(folds, selected, p.n, p.k)
+        alone = sorted(set(alone) | set(far))
     form_cv = _choose_forms(p, nz, sel, folds)
     # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
     alikes = (look_alikes(sel.r_w, sel.Sp, p.dof, [sel.testable.index(i) for i in sel.accepted], sel.tols)
@@ -114,6 +123,8 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         if i in form_cv:
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
     _runner_ups(findings, sel, p)
+    _alike_evidence(findings, sel, p, folds)
+    _untested_alikes(findings, sel)
     # 6. the held-out arbiter and the records that carry a finding (`verdict.arbiter`); pose-clustered
     # campaigns: the unweighted CV ignores the shared pose errors, so there the findings rest on the
     # pose sign-flip check instead and a finding without CV improvement is graded `low`
@@ -136,13 +147,16 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
     # 7. visual proof (added-variable plots, the re-simulated campaign: pure arrays) and the document
     resim = add_plots(ad, fin.findings, effects, fin.contributions, where, variables, p.r, fin.r_final, fin.A, p.Jf,
                       p.n, p.k)
-    return assemble(
+    doc = assemble(
         system=model.system, n=p.n, k=p.k, sigma=p.sigma, sigma_after=rf.sigma_after, s=s,
         clustered=None if W is None else clustered_summary(W, nz.nm, s, ad, p.lib, sel.dropped),
         status=(st_name, st_reason), floor=floor, findings=fin.findings, rejected=rejected,
         carried=carried if influence else None, gates=sel.gates, where=where, lof=lof, before_cv=before_cv,
         after_cv=fin.after_cv, all_cv=all_cv, names=f.names, z=rf.z, free=f.free, resim=resim, moved=moved,
         alone=alone, design=design)
+    if influence:  # the final design and residual: the records' screen judges them against this model
+        doc["_final"] = (fin.A, fin.r_final)
+    return doc
 
 
 def _geometry(model, table, ad: Adapter, x0: np.ndarray | None, geometry_fit: Fit | None) -> Fit:
@@ -166,7 +180,7 @@ def _runner_ups(findings: list, sel: screen.Selection, p: screen.Problem) -> Non
     if not joint:
         return
     pos = [sel.testable.index(i) for i in sel.accepted]
-    every = look_alikes(sel.r_w, sel.Sp, p.dof, pos, sel.tols, level=1.0)
+    every = look_alikes(sel.r_w, sel.Sp, p.dof, pos, sel.tols, level=1.0, share=0.0)
     for j in joint:  # another form of its own family is not a rival name (`inference.forms` chose among them)
         near = [(c, dl) for c, dl in every.get(pos[j], [])
                 if p.lib[sel.testable[c]].family != p.lib[sel.accepted[j]].family]
@@ -174,6 +188,79 @@ def _runner_ups(findings: list, sel: screen.Selection, p: screen.Problem) -> Non
             c, dl = near[0]
             e = p.lib[sel.testable[c]]
             findings[j]["runner_up"] = {"effect": e.name, "location": str(e.location), "delta_chi2": dl}
+
+
+def _alike_evidence(findings: list, sel: screen.Selection, p: screen.Problem, folds: list) -> None:
+    """Each look-alike with its evidence beside the finding's: the grouped cross-validated RMS of the linearised
+    model with it in the finding's place (`cv_rms_m`; the finding's own: `evidence.cv_rms_linearised_m`) and the
+    share of the finding's own gain it explains.  A rival the fit cannot reject (Δχ² below χ²_k(95 %)) stays a
+    look-alike; a near-collinear one (explaining ≥ 90 % of the finding's gain, `stepwise.LOOK_ALIKE_SHARE`) stays
+    one unless the held-out error separates them — the finding's lower by more than two standard errors of the
+    paired difference: the held-out arbiter decides where the data separate them, never the order of the library."""
+    if not any(fd.get("look_alikes") for fd in findings):
+        return
+    label = {(p.lib[i].name, str(p.lib[i].location)): i for i in sel.testable}
+    for j, fd in enumerate(findings):
+        if not fd.get("look_alikes") or j >= len(sel.accepted):
+            continue
+        own = forms._cv(p.Jf, p.S, sel.accepted, p.r, folds) ** 2
+        fd["evidence"]["cv_rms_linearised_m"] = float(np.sqrt(np.mean(own)))
+        kb = p.lib[sel.accepted[j]].k
+        kept = []
+        for a in fd["look_alikes"]:
+            c = label.get((a["effect"], a["location"]))
+            if c is None:
+                continue
+            swap = sel.accepted[:j] + [c] + sel.accepted[j + 1:]
+            e2 = forms._cv(p.Jf, p.S, swap, p.r, folds) ** 2
+            d = e2 - own
+            a["cv_rms_m"] = float(np.sqrt(np.mean(e2)))
+            separated = np.mean(d) > 2 * np.std(d, ddof=1) / np.sqrt(d.size)
+            if a["delta_chi2"] < scipy.stats.chi2.ppf(0.95, kb):
+                a["why"] = "the fit cannot reject the swap"
+            elif separated:
+                continue  # near-collinear, but the held-out error prefers the finding: not a look-alike
+            else:
+                a["why"] = "near-collinear here, and the held-out error does not separate them"
+            kept.append(a)
+        fd["look_alikes"] = kept
+
+
+def _untested_alikes(findings: list, sel: screen.Selection) -> None:
+    """A candidate the gate set aside — too weak along one direction of its parameters to be tested at a plausible
+    size, not a twin — that reproduces a finding's fitted contribution (all but `LOOK_ALIKE_SHARE` of it, ⊥ the
+    geometry and the other findings) is listed as `untested_look_alikes`: the campaign could not test it, and it
+    would explain this finding as well (a J2 transmission error standing for a J2 eccentricity the geometry all but
+    absorbs), so the name is not a confident one."""
+    if not sel.accepted:
+        return
+    pos = [sel.testable.index(i) for i in sel.accepted]
+    B = np.hstack([sel.Sp[c] for c in pos])
+    coef, *_ = np.linalg.lstsq(B, sel.r_w, rcond=None)
+    at = np.cumsum([0] + [sel.Sp[c].shape[1] for c in pos])
+    aside = [g for g in sel.gates if not g.identifiable and np.any(g.projected) and not g.effect.data.get("blocked")
+             and not g.reason.startswith("indistinguishable")]
+    for j, fd in enumerate(findings[:len(pos)]):
+        u = sel.Sp[pos[j]] @ coef[at[j]:at[j + 1]]
+        others = [sel.Sp[c] for c in pos if c != pos[j]]
+        if others:
+            u = project_out(u[:, None], orthonormal(np.hstack(others)))[:, 0]
+        uu = float(u @ u)
+        if uu <= 0:
+            continue
+        own = (fd["effect"], fd["location"].split(" (")[0])
+        hits = []
+        for g in aside:
+            if (g.effect.name, str(g.effect.location).split(" (")[0]) == own:
+                continue
+            Q = orthonormal(g.projected)
+            share = float(np.sum((Q.T @ u) ** 2) / uu)
+            if share >= 1 - LOOK_ALIKE_SHARE:
+                hits.append({"effect": g.effect.name, "location": str(g.effect.location), "explains": share,
+                             "why": f"set aside by the gate ({g.reason}), yet it reproduces this finding",
+                             "advice": g.effect.advice})
+        if hits:
+            fd["untested_look_alikes"] = sorted(hits, key=lambda h: -h["explains"])
 
 
 def _choose_forms(p: screen.Problem, nz: screen.Noise, sel: screen.Selection, folds: list) -> dict:

@@ -156,4 +156,7 @@ def run(run_dir: Path, params: dict) -> dict:
     return {"findings": [f"{f['effect']}@{f['location']}" for f in doc["findings"]],
             "unexplained": doc["unexplained"], "status": doc.get("status"),
             "holdout_rms_before_m": doc["holdout_rms_before_m"],
-            "holdout_rms_after_m": doc["holdout_rms_after_m"]}
+            "holdout_rms_after_m": doc["holdout_rms_after_m"],
+            # what the campaign could not have seen: per effect and place the size that could hide, and what shows it
+            "unseen": [{k: e[k] for k in ("effect", "location", "testable", "found", "could_have_gone_unseen", "unit",
+                                          "display", "reveal")} for e in doc.get("unseen", [])]}

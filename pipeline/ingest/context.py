@@ -20,13 +20,34 @@ def _outside(q: np.ndarray, v: np.ndarray, thr: float) -> np.ndarray:
     return (q < v - thr) | (q > v + thr)
 
 
-def last_motion_sign(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, threshold_rad: float = 3 * ENCODER_COUNT_RAD,
-                     lookback_s: float = 60.0) -> np.ndarray:
+NOISE_K = 6.0  # a motion: beyond this many σ of the stream's own noise (`stream_noise_rad`)
+
+
+def stream_noise_rad(q: np.ndarray) -> np.ndarray:
+    """(nj,) rad: each joint's reading noise in an encoder stream, robustly from its second differences (a smooth
+    motion's are ≈ 0; white noise of σ gives var 6σ²): 1.4826·MAD(Δ²q)/√6.  0 for a clean quantised stream (its
+    second differences are mostly 0 counts)."""
+    q = np.asarray(q, float)
+    if q.shape[0] < 3:
+        return np.zeros(q.shape[1])
+    d2 = np.diff(q, 2, axis=0)
+    return 1.4826 * np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) / np.sqrt(6.0)
+
+
+def motion_threshold(q: np.ndarray, floor_rad: float = 3 * ENCODER_COUNT_RAD) -> np.ndarray:
+    """(nj,) rad: the smallest displacement `last_motion_sign` counts as a motion — 3 counts, or `NOISE_K` σ of
+    the stream's noise where the readings are noisy (a resolver, an interpolated encoder): a noise spike is no
+    motion."""
+    return np.maximum(floor_rad, NOISE_K * stream_noise_rad(q))
+
+
+def last_motion_sign(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray,
+                     threshold_rad: float | np.ndarray = 3 * ENCODER_COUNT_RAD, lookback_s: float = 60.0) -> np.ndarray:
     """Sign of each joint's last motion before each time, (n, nj) in {−1, 0, +1}.
 
     Looking back from the measurement, the latest sample at which the joint was more than
-    `threshold_rad` away from its value v at the measurement (outside [v − thr, v + thr]); the sign is that of (now − then),
-    0 if there is none within `lookback_s`.  Unlike a per-sample step test this also sees slow
+    `threshold_rad` (one value, or one per joint) away from its value v at the measurement (outside
+    [v − thr, v + thr]); the sign is that of (now − then), 0 if there is none within `lookback_s`.  Unlike a per-sample step test this also sees slow
     motions (a joint creeping at less than one encoder count per sample during a search).
 
     Vectorised over measurements with a two-level search: the stream is cut into blocks of
@@ -39,6 +60,8 @@ def last_motion_sign(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, threshold_r
     q = np.asarray(q, float)
     t_ns = np.asarray(t_ns, np.int64)
     n, nj = t_ns.size, q.shape[1]
+    threshold_rad = np.broadcast_to(np.asarray(threshold_rad, float), (nj,))
+    thr_j = threshold_rad[:, None]  # (nj, 1): against (m, nj, B) samples
     if n == 0 or t.size == 0:
         return np.zeros((n, nj))
     at = np.clip(np.searchsorted(t, t_ns, side="right") - 1, 0, t.size - 1)
@@ -70,7 +93,7 @@ def last_motion_sign(t: np.ndarray, q: np.ndarray, t_ns: np.ndarray, threshold_r
             & (bidx >= bs[:, None])[:, :, None]  # (m, L, nj)
         blk = np.take_along_axis(bc, np.argmax(farb, axis=1), axis=1)  # (m, nj)
         idx2 = blk[:, :, None] * B + ar  # (m, nj, B)
-        far2 = _outside(qp[idx2, cols[None, :, None]], v[:, :, None], threshold_rad) & (idx2 >= s[:, None, None])
+        far2 = _outside(qp[idx2, cols[None, :, None]], v[:, :, None], thr_j) & (idx2 >= s[:, None, None])
         found2 = farb.any(axis=1) & far2.any(axis=2)
         k2 = blk * B + (B - 1 - np.argmax(far2[:, :, ::-1], axis=2))
         k = np.where(found1, k1, k2)

@@ -166,7 +166,8 @@ def finding_rows(doc: dict) -> list[dict[str, str]]:
                                            for k, v in ev.items()) if isinstance(ev, dict) else str(ev),
                      "absorbed_fraction": _fmt(f.get("absorbed_fraction"), ""),
                      "confidence": str(f.get("confidence", "")) + (f" ({f['note']})" if f.get("note") else "")
-                     + _alikes(f.get("look_alikes")) + _runner_up(f.get("runner_up"))})
+                     + _alikes((f.get("look_alikes") or []) + (f.get("untested_look_alikes") or []))
+                     + _runner_up(f.get("runner_up"))})
     return rows
 
 
@@ -176,7 +177,8 @@ def _alikes(v: Any) -> str:
     if not items:
         return ""
     return "; the campaign can hardly tell it from " + ", ".join(
-        f"{a.get('effect')}@{a.get('location')} (Δχ² {_fmt(a.get('delta_chi2'), '')})" for a in items)
+        f"{a.get('effect')}@{a.get('location')} (" + (f"Δχ² {_fmt(a.get('delta_chi2'), '')}" if "delta_chi2" in a
+                                                      else "not testable here") + ")" for a in items)
 
 
 def _runner_up(v: Any) -> str:

@@ -192,6 +192,22 @@ def validation_section(val: dict | None) -> str:
     return _section("validation", "Validation", _table(["check", "status", "message", "records"], rows))
 
 
+def unseen_table(doc: dict) -> str:
+    """Every effect looked for, the size it could have had unseen on this campaign and what would reveal it
+    (`diagnose.document.unseen`), whatever the status."""
+    es = [e for e in doc.get("unseen") or [] if isinstance(e, dict)]
+    if not es:
+        return ""
+    return ("<h3>What this campaign could not have seen</h3>"
+            f'<p class="note">Each effect looked for and the largest size it could have had here and gone unseen '
+            f"(found with {float(es[0].get('power', 0.8)):.0%} probability at that size); a status of clean means no "
+            "effect above these sizes.</p>"
+            + _table(["effect", "location", "could have gone unseen", "what would reveal it"],
+                     [[escape(str(e.get("effect"))), escape(str(e.get("location"))),
+                       escape("found" if e.get("found") else str(e.get("display"))), escape(str(e.get("reveal")))]
+                      for e in es]))
+
+
 def diagnosis_section(art) -> str:
     doc = art.diagnosis
     if not isinstance(doc, dict):
@@ -253,6 +269,7 @@ def diagnosis_section(art) -> str:
             [[escape(str(e.get("effect", "?"))), escape(dg._loc(e.get("location", ""))),
               escape(str(e.get("absorbed_by", e.get("absorbs", "")))),
               escape(str(e.get("advice", e.get("remedy", ""))))] for e in ni if isinstance(e, dict)])
+    html += unseen_table(doc)
     un = doc.get("unexplained")
     where = [w for w in doc.get("unexplained_where", []) or [] if isinstance(w, dict)]
     if un not in (None, False, {}) or where:

@@ -6,8 +6,11 @@ repeatability error) meets the *true* face (drawing + machining error), latch th
 retract.  A search that finds no face within its travel, or whose contact would fall off the
 face's edges, is a **miss**: logged on `/touch/miss` with the encoders at the end of the
 search, never replaced (the campaign is what was planned).  A wire already at or past the face
-plane at the approach configuration is a miss too (`contact_at_approach`).  Simplification:
-the search does not model touching a *different* face after leaving its own.
+plane at the approach configuration is a miss too (`contact_at_approach`).  The controller stops
+a search at the first joint limit it reaches (the nominal model's limits, as in the unplanned
+simulator): a face beyond it is a miss (`no_contact`), logged at the limit, so no joint reading
+ever leaves its travel.  Simplification: the search does not model touching a *different* face
+after leaving its own.
 """
 
 from __future__ import annotations
@@ -49,10 +52,23 @@ class Executed:
     sim_faces: list[str] | None = None
 
 
+def travel_to_limits(q_a: np.ndarray, dq: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                     margin_rad: float = 1e-4) -> np.ndarray:
+    """(n,) m of search travel from the approach joints `q_a` (n, J) at the joint rates `dq` (rad per m)
+    before the first joint comes within `margin_rad` of its limit (inf where no joint moves); the margin
+    keeps an encoder count's rounding inside the travel."""
+    lower, upper = np.asarray(lower) + margin_rad, np.asarray(upper) - margin_rad
+    with np.errstate(divide="ignore", invalid="ignore"):
+        to = np.where(dq > 0, (upper - q_a) / dq, np.where(dq < 0, (lower - q_a) / dq, np.inf))
+    return np.maximum(to.min(axis=1), 0.0)
+
+
 def landing(truth_x: np.ndarray, jig: Jig, face: np.ndarray, q_a: np.ndarray, dq: np.ndarray, travel_m: float,
-            eps: np.ndarray | None = None, face_err: np.ndarray | None = None):
+            eps: np.ndarray | None = None, face_err: np.ndarray | None = None, limit_m: np.ndarray | None = None):
     """Which searches touch their true face: (landed, reason code 0 hit / 1 no contact / 2 at
-    approach, travel s (m)); vectorised over searches.  `face` indexes jig.faces."""
+    approach, travel s (m)); vectorised over searches.  `face` indexes jig.faces; `limit_m` (n,) m, where
+    given, the travel at which the controller stops each search (a joint limit): a contact beyond it is
+    no contact."""
     axis = np.array([jig.faces[f].axis_index for f in face], int)
     sign = np.array([jig.faces[f].normal_sign for f in face], float)
     coord = np.array([jig.faces[f].coordinate for f in face]) + (0.0 if face_err is None else face_err)
@@ -62,6 +78,8 @@ def landing(truth_x: np.ndarray, jig: Jig, face: np.ndarray, q_a: np.ndarray, dq
     on = edge_distance(jig, face, p) >= 0
     at_approach = g0 <= 0
     hit = ~at_approach & (s > 0) & (s < travel_m) & on
+    if limit_m is not None:
+        hit &= s <= limit_m
     reason = np.where(hit, 0, np.where(at_approach, 2, 1))
     return hit, reason, s
 
@@ -79,9 +97,10 @@ def execute(nominal: SerialArm, truth: SerialArm, jig: Jig, plan: TouchCampaign,
     n = face.size
     eps = rng.normal(0, k * noise.repeatability_3sigma_m / 3, (n, 3))
     camp: Campaign = plan.campaign if start_ns is None else replace(plan.campaign, start_ns=start_ns)
+    limit = travel_to_limits(plan.q_approach, plan.dq, nominal.lower, nominal.upper)
     hit, reason, s = landing(truth.vector(), jig, face, plan.q_approach, plan.dq, camp.search_travel_m, eps,
-                             np.array([face_err[ids[f]] for f in face]))
-    s_run = np.where(hit, s, np.where(reason == 2, 0.0, camp.search_travel_m))
+                             np.array([face_err[ids[f]] for f in face]), limit)
+    s_run = np.where(hit, s, np.where(reason == 2, 0.0, np.minimum(camp.search_travel_m, limit)))
     quant = k > 0
     q_end = _quantise(plan.q_approach + s_run[:, None] * plan.dq, noise.encoder_counts_per_rev, quant)
     if stream:
@@ -124,7 +143,8 @@ def execute_with_effects(nominal: SerialArm, truth: SerialArm, jig: Jig, plan: T
     m = np.flatnonzero(~landed)
     _, reason, _ = landing(truth.vector(), jig, face[m], plan.q_approach[m], plan.dq[m], camp.search_travel_m)
     at_approach = reason == 2
-    q_end = plan.q_approach[m] + np.where(at_approach, 0.0, camp.search_travel_m)[:, None] * plan.dq[m]
+    end = np.minimum(camp.search_travel_m, travel_to_limits(plan.q_approach[m], plan.dq[m], nominal.lower, nominal.upper))
+    q_end = plan.q_approach[m] + np.where(at_approach, 0.0, end)[:, None] * plan.dq[m]
     t_c = es.sim.contact_t_ns
     ks = np.argsort(es.kept)
     before = np.searchsorted(es.kept[ks], m) - 1  # the contact of the plan's row just before each miss

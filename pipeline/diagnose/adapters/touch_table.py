@@ -1,7 +1,8 @@
 """The diagnosis table: each measurement with what effects depend on, from the recording alone.
 
 Columns added to the system's measurement table (one row per measurement):
-``last_motion_sign`` (n, n_joints) in {−1, 0, +1} (and ``last_motion_sign_beyond_Xmrad``: of the last motion
+``last_motion_sign`` (n, n_joints) in {−1, 0, +1} (a motion beyond 3 counts, or beyond the stream's own noise:
+`ingest.context.motion_threshold`; and ``last_motion_sign_beyond_Xmrad``: of the last motion
 longer than X mrad, `PLAY_RAD`), ``approach_joint_velocity`` (n, n_joints)
 rad/s just before the measurement, ``time_since_start_s`` (n,), ``payload_kg`` (n,) from the
 `/arm/payload` change events (else the campaign's payload schedule, else the robot model's payload), ``normal_sign`` (n,) of the
@@ -17,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.diagnose.library.joint import PLAY_RAD, play_column
-from pipeline.ingest.context import ENCODER_COUNT_RAD, last_motion_sign  # noqa: F401  (re-exported)
+from pipeline.ingest.context import ENCODER_COUNT_RAD, last_motion_sign, motion_threshold  # noqa: F401  (re-exported)
 from pipeline.ingest.temperature import TemperatureStream, rise_at
 
 
@@ -69,7 +70,7 @@ def add_context(table: dict, stream_t: np.ndarray, stream_q: np.ndarray, *, norm
     """A copy of a touch table with the diagnosis columns (module docstring)."""
     t_ns = np.asarray(table["timestamp_ns"], np.int64)
     out = dict(table)
-    out["last_motion_sign"] = last_motion_sign(stream_t, stream_q, t_ns)
+    out["last_motion_sign"] = last_motion_sign(stream_t, stream_q, t_ns, threshold_rad=motion_threshold(stream_q))
     for play in PLAY_RAD:  # the direction of the last motion that took up that much play (`library.joint.backlash_play`)
         out[play_column(play)] = last_motion_sign(stream_t, stream_q, t_ns, threshold_rad=play)
     out["approach_joint_velocity"] = approach_velocity(stream_t, stream_q, t_ns)

@@ -1,13 +1,14 @@
 """Step 7 of the diagnosis: the visual proof and the document of `DIR/diagnosis.json`
 (docs/guide/diagnose.md, "diagnosis.json"): findings with their added-variable plots, the located
 structure with its plots, the re-simulated campaign, `not_identifiable`, the candidates, the
-clustered-inference summary and the held-out RMS before / after."""
+clustered-inference summary, the held-out RMS before / after and what the campaign could not have seen
+(`unseen`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnose.document import plots
+from pipeline.diagnose.document import plots, unseen
 from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.inference.projection import orthonormal
 
@@ -26,6 +27,9 @@ def candidates(gates: list) -> list[dict]:
     return [{"effect": g.effect.name, "location": str(g.effect.location), "identifiable": g.identifiable,
              "absorbed_fraction": g.absorbed_fraction,
              "min_detectable": g.min_detectable if np.isfinite(g.min_detectable) else None,
+             # the size whose expected statistic is the critical value (50 % power: the convention of a t-test's
+             # 'minimum detectable' size, e.g. 3σ/‖P⊥S‖ at t = 3); min_detectable is at 80 % power
+             "detection_threshold": g.threshold if np.isfinite(g.threshold) else None,
              "unit": g.effect.units[0], "plausible_max": g.effect.plausible} for g in gates]
 
 
@@ -96,6 +100,7 @@ def assemble(*, system: str, n: int, k: int, sigma: float, sigma_after: float, s
                                 if alone else {})},
         **({"holdout_over_insample": design} if design and design["flagged"] else {}),
         "candidates": candidates(gates),
+        "unseen": unseen.unseen(gates, findings, system),
         "geometry": {"names": names, "x": [float(v) for v in z[:ng]], "free": [bool(b) for b in free]},
         "resimulation": resim,
     }

@@ -5,9 +5,9 @@ of the free geometric Jacobian columns, a candidate's *projected signature* S⊥
 is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at the optimum.
 
 - `gate`: absorbed fraction 1 − ‖S⊥‖²/‖S‖², minimum detectable size along the candidate's
-  weakest direction, (z₁₋α/(2m) + z₀.₈)·σ/s_min(S⊥) (+ its immaterial tolerance), and
+  weakest direction, (z₁₋α/(2m) + z₀.₈)·σ/s_min(S⊥) (+ its immaterial tolerance: what could hide), and
   confounding with other candidates; a candidate whose detectable size is beyond what is
-  physically plausible is `not_identifiable`.
+  physically plausible is `not_identifiable`; a twin that no plausible size tells from an earlier candidate too.
 - `sigma_given`: the residual σ after the effects accepted so far — the gate's σ once something
   is accepted (the geometry-only σ carries the unmodelled effects and inflates every MDS).
 """
@@ -27,7 +27,8 @@ from pipeline.diagnose.library.term import Effect
 
 POWER_Z = scipy.stats.norm.ppf(0.8)  # 80 % power
 RANK_REL = 1e-6  # a projected column this small relative to its original is gone
-CONFOUND = 0.95  # share of a projected signature another candidate explains → confounded
+CONFOUND = 0.95  # share of a projected signature its named confounders explain → confounded
+TWIN = 0.99  # share of a projected signature one earlier candidate explains → a twin no campaign size separates
 
 
 @dataclass
@@ -41,6 +42,8 @@ class Gate:
     absorbed_by: str
     reason: str
     projected: np.ndarray  # S⊥ against geometry (and confounders when they are what hides it)
+    best_detectable: float = np.inf  # along the candidate's best direction (= min_detectable for one parameter)
+    threshold: float = np.inf  # the size whose expected test statistic is the family's critical value (50 % power)
 
 
 def _unit(Sp: np.ndarray) -> tuple[np.ndarray, float] | None:
@@ -110,14 +113,16 @@ def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free
                 conf_label = " + ".join(sorted({effects[j].name for j in group}))
                 if share > CONFOUND:
                     hide = np.zeros_like(sp)
+        smax = 0.0
         if tot == 0 or not np.any(hide):  # absorbed, or confounded beyond CONFOUND
             smin = 0.0
         else:
             sv = np.linalg.svd(hide, compute_uv=False)
             smin = float(sv[-1]) if sv.size == e.k else 0.0
+            smax = float(sv[0]) if sv[0] >= RANK_REL * np.sqrt(tot) else 0.0
             if smin < RANK_REL * np.sqrt(tot):
                 smin = 0.0
-        per.append((tot, absorbed, absorbed_by, conf_label, smin))
+        per.append((tot, absorbed, absorbed_by, conf_label, smin, smax))
     return {"proj": proj, "basis": basis, "per": per, "unit": [_unit(p) for p in proj]}
 
 
@@ -140,17 +145,23 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
     kept: list[int] = []
     for i in order:
         e, sp = effects[i], proj[i]
-        tot, absorbed, absorbed_by, conf_label, smin = parts["per"][i]
-        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one
-        for j in kept:  # (the forms of one effect may be alike: the held-out error chooses, `forms`)
-            if effects[j].family != e.family and _share(parts["unit"][i], basis[j]) > CONFOUND:
-                smin = 0.0
+        tot, absorbed, absorbed_by, conf_label, smin, smax = parts["per"][i]
+        # pairwise: an earlier (simpler) identifiable candidate that reproduces this one (> 99 % of its projected
+        # signature: a twin); less alike, both are tested and the data decide — near-collinear, both are reported
+        # as look-alikes (`stepwise.look_alikes`), not one by the library's order.  (The forms of one effect may
+        # be alike: the held-out error chooses, `forms`.)
+        for j in kept:
+            if effects[j].family == e.family or smax == 0:
+                continue
+            if _share(parts["unit"][i], basis[j]) > TWIN:
+                smin = smax = 0.0
                 conf_label = effects[j].label
                 break
         if e.data.get("blocked"):  # the library knows this campaign cannot expose it
-            smin = 0.0
+            smin = smax = 0.0
             conf_label = e.data.get("absorbed_by", "")
         mds = np.inf if smin == 0 else z * sigma / smin + e.tolerance
+        best = np.inf if smax == 0 else z * sigma / smax + e.tolerance  # along its best direction
         ok = bool(np.isfinite(mds) and mds <= e.plausible)
         if conf_label:
             absorbed_by = f"{absorbed_by} with {conf_label}"
@@ -168,7 +179,8 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
         else:
             reason = (f"smallest detectable size {mds:.3g} {e.units[0]} exceeds the plausible {e.plausible:.3g} "
                       f"{e.units[0]} ({absorbed * 100:.1f} % absorbed by the geometry)")
-        gates[i] = Gate(e, absorbed, float(mds), ok, absorbed_by, reason, sp)
+        thr = np.inf if smin == 0 else (z - POWER_Z) * sigma / smin + e.tolerance
+        gates[i] = Gate(e, absorbed, float(mds), ok, absorbed_by, reason, sp, float(best), float(thr))
     return gates  # type: ignore[return-value]
 
 

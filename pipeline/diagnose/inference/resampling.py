@@ -32,6 +32,27 @@ def design_folds(n: int, k: int, s, time_s: np.ndarray, table: dict,
     return expand(folds, k), moved, [int(i) for i in alone]
 
 
+EXTRAPOLATED = 0.95  # own leverage above this in the selected model: a held-out prediction there is an extrapolation
+
+
+def without_extrapolated(folds: list[np.ndarray], A: np.ndarray, n: int, k: int,
+                         limit: float = EXTRAPOLATED) -> tuple[list[np.ndarray], list[int]]:
+    """(folds, measurements taken out of them): a measurement whose own leverage in design A (the geometry and the
+    selected effects, rows measurement-major) exceeds `limit` carries a direction of that model nearly alone — held
+    out, its error is its residual over 1 − h (×20 and more), a figure of the design's extrapolation, not a test of
+    the model — so it stays in every training set and out of the held-out figures (as `design_folds` does above
+    0.99 for the geometry alone)."""
+    from pipeline.diagnose.inference.projection import orthonormal
+
+    U = orthonormal(A).reshape(n, k, -1)
+    lev = np.linalg.norm(U, ord=2, axis=(1, 2)) ** 2 if k > 1 else np.sum(U[:, 0, :] ** 2, axis=1)
+    out = np.flatnonzero(lev > limit)
+    if not out.size:
+        return folds, []
+    rows = (out[:, None] * k + np.arange(k)).ravel()
+    return [np.setdiff1d(f, rows) for f in folds], [int(i) for i in out]
+
+
 def holdout_over_insample(before_cv: np.ndarray, after_cv: np.ndarray, sigma: float, sigma_after: float) -> dict:
     """The held-out RMS over the in-sample σ, geometry alone and final model; `flagged` above
     `HOLDOUT_OVER_SIGMA_MAX` (a good design predicts its left-out measurements within ≈ 1.1–1.5 σ)."""

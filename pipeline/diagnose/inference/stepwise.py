@@ -1,5 +1,4 @@
-"""Stepwise selection of candidate terms by grouped F tests under Holm, and look-alikes (the
-cluster sign-flip checks are `sign_flips`).
+"""Stepwise selection of candidate terms by grouped F tests under Holm, and look-alikes (sign flips: `sign_flips`).
 
 Linear algebra at the geometric solution (Frisch–Waugh–Lovell): with Q an orthonormal basis
 of the free geometric Jacobian columns, a candidate's *projected signature* S⊥ = (I − QQᵀ)S
@@ -365,32 +364,37 @@ def _holm_steps(A: list[int], cond: list, m: int) -> list[Step]:
 
 def conditional_steps(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, A: list[int],
                       tolerances: list[float] | None = None, n_family: int | None = None) -> list[Step]:
-    """The grouped F test of each block of A given the others (as `forward_select` reports its
-    final set), for a set chosen otherwise (`cluster_sign_flip_p` dropped some)."""
+    """Each block of A's grouped F test given the others, for a set chosen otherwise (as `forward_select`)."""
     if not A:
         return []
     D = _Design(r, candidates, None, tolerances or [0.0] * len(candidates))
     return _holm_steps(list(A), _conditional(D, list(A), dof_resid), n_family or len(candidates))
 
 
+LOOK_ALIKE_SHARE = 0.1  # a rival explaining all but this share of a finding's own gain is a look-alike
+
+
 def look_alikes(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, A: list[int],
-                tolerances: list[float] | None = None, level: float = 0.95) -> dict[int, list[tuple[int, float]]]:
-    """Candidates the data can hardly tell from each accepted block: for b in A and every c not in A
-    with no more directions, Δ = (RSS with c in b's place − RSS of A)/σ̂² (σ̂² = RSS of A / its residual
-    dof; r and the candidates as `forward_select` takes them).  The swap fits worse by Δ (a
-    likelihood-ratio distance, χ²-scaled); those with Δ < χ²_{k_b}(level) are returned per block,
-    closest first, as [(c, Δ)] — a name the campaign cannot reject beside b's."""
+                tolerances: list[float] | None = None, level: float = 0.95,
+                share: float = LOOK_ALIKE_SHARE) -> dict[int, list[tuple[int, float]]]:
+    """Candidates the data can hardly tell from each accepted block b (r and candidates as `forward_select`
+    takes them): Δ = (RSS with c in b's place − RSS of A)/σ̂², σ̂² = RSS of A / its residual dof (χ²-scaled;
+    negative when c, with more directions, fits better).  c is b's look-alike when Δ < max(χ²_{k_b}(level),
+    `share`·G_b), G_b b's own gain given the others: a name the campaign cannot reject, or one explaining all but
+    `share` of what b explains (near-collinear: a small error in a shape could swap them).  [(c, Δ)] per b."""
     if not A:
         return {}
     D = _Design(r, candidates, None, tolerances or [0.0] * len(candidates))
     rss_A, rk = D.given(A)[:2]
-    s2 = rss_A / max(dof_resid - rk, 1)
+    rss_A = max(rss_A, 1e-9 * D.rr)  # a near-singular accepted set can round its RSS to nothing
+    s2 = max(rss_A / max(dof_resid - rk, 1), 1e-300)
     out = {}
     for b in A:
         rss, _, _, _, kc, gain = D.tests_given([c for c in A if c != b], dof_resid)
-        ok = (kc > 0) & (kc <= D.k[b])
+        ok = kc > 0
         ok[A] = False
-        delta = np.where(ok, (rss - gain - rss_A) / max(s2, 1e-300), np.inf)
-        near = np.flatnonzero(delta < scipy.stats.chi2.ppf(level, D.k[b]))
+        delta = np.where(ok, (rss - gain - rss_A) / s2, np.inf)
+        bound = max(scipy.stats.chi2.ppf(level, D.k[b]), share * (rss - rss_A) / s2 if share else 0.0)
+        near = np.flatnonzero((delta < bound) & ((kc <= D.k[b]) | (share > 0)))
         out[b] = [(int(c), float(delta[c])) for c in near[np.argsort(delta[near], kind="stable")]]
     return out

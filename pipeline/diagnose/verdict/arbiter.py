@@ -65,12 +65,14 @@ def arbiter(fin: Final, folds, Jf: np.ndarray, r: np.ndarray,
 
 
 def carried(fin: Final, k: int, alpha: float) -> dict[str, list[int]]:
-    """{finding label: measurement rows} for findings that lose their significance without ≤ 2 records."""
+    """{finding label: measurement rows} for findings the rest of the records do not corroborate: not significant
+    at `checks.CORROBORATION_ALPHA` (or the family α, if larger) without their ≤ 2 most influential records."""
     out = {}
     nk = fin.r_final.size
     for fd, i, c in zip(fin.findings, fin.accepted, fin.contributions):
         rest = np.setdiff1d(np.arange(fin.A.shape[1]), fin.col_of[i])
-        rows = checks.carried_by(fin.r_final - c.reshape(nk), fin.A[:, rest], fin.A[:, fin.col_of[i]], alpha)
+        rows = checks.carried_by(fin.r_final - c.reshape(nk), fin.A[:, rest], fin.A[:, fin.col_of[i]],
+                                 max(alpha, checks.CORROBORATION_ALPHA))
         if rows is not None:
             out[f"{fd['effect']}@{fd['location']}"] = sorted({int(q) // k for q in rows})
     return out
@@ -108,14 +110,16 @@ def twins(findings: list, gates: list) -> None:
 
 
 def look_alike_cap(findings: list) -> None:
-    """A `high` finding with look-alikes (names the campaign can hardly tell from it) becomes `medium`; the
-    other forms of its own family at its own place (`inference.forms`: chosen by held-out error) do not count."""
+    """A `high` finding with look-alikes (names the campaign can hardly tell from it, or candidates the gate set
+    aside that would explain it as well: `untested_look_alikes`) becomes `medium`; the other forms of its own
+    family at its own place (`inference.forms`: chosen by held-out error) do not count."""
     for fd in findings:
         base = fd["location"].split(" (")[0]  # forms of one family at one place are alike by construction
-        al = [a for a in fd.get("look_alikes") or []
+        al = [a for a in (fd.get("look_alikes") or []) + (fd.get("untested_look_alikes") or [])
               if not (a["effect"] == fd["effect"] and a["location"].split(" (")[0] == base)]
         if fd["confidence"] == "high" and al:
-            names = ", ".join(f"{a['effect']}@{a['location']} (Δχ² {a['delta_chi2']:.2g})" for a in al)
+            names = ", ".join(f"{a['effect']}@{a['location']} (" + (f"Δχ² {a['delta_chi2']:.2g})" if "delta_chi2" in a
+                                                                    else "not testable here)") for a in al)
             fd["confidence"] = "medium"
             fd["note"] = (f"the campaign can hardly tell it from {names}: the swap fits almost as well; "
                           f"{al[0].get('advice') or 'vary what separates them'}")

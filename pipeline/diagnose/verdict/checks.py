@@ -149,6 +149,9 @@ def _p_without(y: np.ndarray, D: np.ndarray, S: np.ndarray, rows: np.ndarray) ->
     return grouped_p(y[keep], D[keep], S[keep], int(keep.sum()))
 
 
+CORROBORATION_ALPHA = 0.05  # a finding the rest of the records support at this level does not rest on one or two
+
+
 def carried_by(y: np.ndarray, D: np.ndarray, S: np.ndarray, alpha: float, max_k: int = 2) -> list[int] | None:
     """The rows (≤ max_k) that carry the significance of columns S beside design D for data y:
     None when S stays significant at α (raw grouped F) with any one, or the `max_k` most

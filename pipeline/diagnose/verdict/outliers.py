@@ -2,9 +2,11 @@
 
 Before the diagnosis: a record whose derived approach speed is beyond any touch search
 (`checks.implausible_speed`) or, when the recording has each contact's search command, off the
-commanded search speed (`checks.speed_mismatch`), or whose residual is far off the geometric fit (externally
-studentized, Bonferroni at the family α: `checks.studentized_outliers`), is set aside and
-named.  After it: a finding that is no longer significant with one or two records left out
+commanded search speed (`checks.speed_mismatch`) is set aside and named.  After a first diagnosis: a record
+whose residual is far off the fitted model — the geometry and the effects found, not the geometry alone
+(externally studentized, Bonferroni at the family α: `checks.studentized_outliers`; a record the geometry cannot
+fit but a library effect can is that effect's evidence) — is set aside and named, and the diagnosis run again
+without it.  After it: a finding that is no longer significant with one or two records left out
 (`checks.carried_by`, computed inside the diagnosis) is reported as an outlier of those records
 and the diagnosis is run again without them (once; a finding still carried by a few records
 after that is rejected); the status reason says so (the effect is not shown to be absent, only to rest on
@@ -53,22 +55,35 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
                     out.append(_entry(table, i, r, f"derived approach speed {sp[i]:.3g} m/s is not the commanded "
                                                    f"search speed {cmd[i]:.3g} m/s (beyond ×{checks.SPEED_FACTOR:g}): "
                                                    f"a fault of this record's encoder stream or latch"))
-    Jf = model.jacobian(f.x, table)[:, :, f.free].reshape(n, -1)
-    flagged = checks.studentized_outliers(Jf, r, alpha)
+    def sub(rows_out):
+        keep = np.setdiff1d(np.arange(n), rows_out)
+        return keep, (take(table, np.isin(np.arange(n), keep)) if len(rows_out) else table)
+
+    # gross errors are judged against the model the data ask for — the geometry and the effects found — not the
+    # geometry alone: a record the geometry cannot fit but a library effect can is that effect's evidence
+    keep, tab = sub(bad)
+    first = run(tab, None if bad else f, f.x)
+    A, r_fin = first.pop("_final")
+    flagged = [(int(keep[i]), t) for i, t in checks.studentized_outliers(A, r_fin, alpha)]
     if flagged and hasattr(model, "points") and "face" in table:  # a local structure is not an outlier
-        t_all = checks.studentized(Jf, r)
+        t_all = np.zeros(n)
+        t_all[keep] = checks.studentized(A, r_fin)
         tip = model.points(f.x, table)[0]
         flagged = [(i, t) for i, t in flagged
                    if not checks.has_like_neighbours(i, tip, np.asarray(table["face"]).astype(str), t_all)]
     for i, t in flagged:
         if i not in bad:
             bad.append(i)
-            out.append(_entry(table, i, r, f"{t:+.1f} studentized σ off the geometric fit (beyond the Bonferroni "
-                                           f"bound at α = {alpha:g}): a bad record, not physics"))
+            out.append(_entry(table, i, r, f"{t:+.1f} studentized σ off the fitted model (geometry and the effects "
+                                           f"found; beyond the Bonferroni bound at α = {alpha:g}): a bad record, "
+                                           "not physics"))
     for attempt in range(passes + 1):
-        keep = np.setdiff1d(np.arange(n), bad)
-        tab = take(table, np.isin(np.arange(n), keep)) if bad else table
-        doc = run(tab, None if bad else f, f.x)
+        if attempt or flagged:
+            keep, tab = sub(bad)
+            doc = run(tab, None if bad else f, f.x)
+            doc.pop("_final", None)
+        else:
+            doc = first
         carried = doc.pop("_carried", {})
         if not carried:
             break
@@ -86,6 +101,9 @@ def screened(run: Callable[[dict, Fit | None, np.ndarray | None], dict], model, 
                     out.append(_entry(table, i, r, f"the finding {label} rests on this record (not significant "
                                                    f"without it): set aside, the finding is not reported"))
     doc["outlier_records"] = out
+    named = {(fd["effect"], fd["location"].split(" (")[0]) for fd in doc["findings"]}
+    for e in doc.get("unseen", []):  # a finding dropped above is not found
+        e["found"] = (e["effect"], e["location"].split(" (")[0]) in named
     rest = sorted({label for label, _ in carried_labels(out)})
     if rest:  # said beside the status (a finding of one or two records is as often noise as physics)
         recs = sorted({rec for _, rec in carried_labels(out)})

@@ -38,6 +38,18 @@ PENDING: dict[str, str] = {}
 # the runner leaves the page to it: one run of a page's commands in the suite).
 ELSEWHERE: dict[str, str] = {"docs/guide/dynamics.md": "tests/test_dynamics_guide.py"}
 
+# Pages whose blocks are marked `extended` (`make test-extended` runs them; CI's `make test` leaves them out of
+# its 20-minute budget): the costliest pages, each with the capability's own tests in CI.
+EXTENDED: dict[str, str] = {
+    "docs/guide/import-csv.md": "tests/test_urdf_import.py, tests/test_accuracy_real_sessions.py (TIAGo's frozen protocol)",
+    "docs/guide/import-ros2.md": "tests/test_ros2_import.py, tests/test_ros2_robot_from_bag.py",
+    "docs/guide/plan.md": "tests/test_plan_select.py, tests/test_plan_staged.py, tests/test_plan_beats_random.py",
+    "docs/guide/physics.md": "tests/test_physics_whole.py, tests/test_physics_run.py",
+    "docs/guide/diagnose.md": "tests/test_diagnose_arc_welder.py, tests/test_diagnose_independent.py",
+    "docs/guide/acquire.md": "tests/test_acquire_pty.py, tests/test_acquire_crash.py",
+    "docs/guide/fleet.md": "tests/test_reprocess_archive.py",
+}  # page → the tests that cover its capability in CI
+
 PAGES = {p.relative_to(REPO).as_posix(): blocks(p) for p in pages()}
 RUNNABLE = [b for bs in PAGES.values() for b in bs if b.lang == "sh" and not is_setup(b)]
 
@@ -95,7 +107,10 @@ def block_test(test_file: str):
     mine = [b for b in RUNNABLE if group_of(b.page) == name
             and not (b.page in ELSEWHERE and (REPO / ELSEWHERE[b.page]).is_file())]
 
-    @pytest.mark.parametrize("block", [pytest.param(b, id=b.name) for b in mine])
+    def marks(b):
+        return (pytest.mark.extended,) if b.page in EXTENDED else ()
+
+    @pytest.mark.parametrize("block", [pytest.param(b, id=b.name, marks=marks(b)) for b in mine])
     def test_block_runs_as_printed(scratch, block):
         run_as_printed(scratch, block)
 

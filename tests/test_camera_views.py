@@ -29,6 +29,9 @@ from pipeline.plan import camera_check as cc
 from pipeline.report.camera import CameraFigures, camera_figures
 from pipeline.simulate import camera_images as ci
 
+# extended (`make test-extended`, outside CI's 20-minute budget): the camera's viewer screenshots; CI keeps test_rerun_robot (the viewer) and test_camera_import
+pytestmark = pytest.mark.extended
+
 TARGET = "chessboard:9x6:0.03"
 
 

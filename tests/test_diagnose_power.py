@@ -21,6 +21,9 @@ from pipeline.systems import arc_welder as aw
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import bench_diagnose_power as bp  # noqa: E402
 
+# extended (`make test-extended`, outside CI's 20-minute budget): power on robocal's own plans at full size; CI keeps test_diagnose_power_random and test_diagnose_unseen
+pytestmark = pytest.mark.extended
+
 SEEDS = (100, 101, 102)
 
 

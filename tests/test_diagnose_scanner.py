@@ -25,6 +25,9 @@ from pipeline.simulate import scorbot_scanner as ss
 from pipeline.simulate.effects import parse_effect
 from pipeline.systems import scorbot_scanner as sc
 
+# extended (`make test-extended`, outside CI's 20-minute budget): whole scanner campaigns diagnosed; CI keeps test_diagnose_scanner_bump and test_diagnose_arc_welder
+pytestmark = pytest.mark.extended
+
 ARM = sc.nominal_arm()
 ROBOCAL = [sys.executable, "-c", "from pipeline.cli import main; main()"]
 FAST = Settings(n_boot=8)

@@ -119,6 +119,7 @@ def fleet(tmp_path_factory):
     return root, page
 
 
+@pytest.mark.extended  # `make test-extended`: the 27-campaign fleet through Dask; CI keeps test_reprocess_archive
 def test_the_fleet_page_flags_exactly_the_step_and_the_drift(fleet):
     root, page = fleet
     doc = json.loads(page.with_suffix(".json").read_text())
@@ -144,6 +145,7 @@ def test_the_fleet_page_flags_exactly_the_step_and_the_drift(fleet):
         assert f'<figure id="fig-accuracy-arc-0{i}" class="plot"><svg' in html
 
 
+@pytest.mark.extended  # `make test-extended`: the 27-campaign fleet through Dask; CI keeps test_reprocess_archive
 def test_a_tight_tolerance_is_flagged(fleet):
     from pipeline.fleet.dataset import read_results
 
@@ -153,6 +155,7 @@ def test_a_tight_tolerance_is_flagged(fleet):
     assert [len(h.steps) for h in hs] == [0, 1, 0] and [len(h.trends) for h in hs] == [0, 0, 1]
 
 
+@pytest.mark.extended  # `make test-extended`: the 27-campaign fleet through Dask; CI keeps test_reprocess_archive
 def test_the_fleet_page_renders_in_chromium(fleet, tmp_path):
     root, page = fleet
     dom = chromium(["--dump-dom", page.as_uri()], tmp_path)

@@ -22,6 +22,9 @@ from conftest import run_cli
 import independent_humanoid as hu
 import independent_joint_bag as jb
 
+# extended (`make test-extended`, outside CI's 20-minute budget): backlash from a streamed encoder at full size; CI keeps test_physics_backlash
+pytestmark = pytest.mark.extended
+
 pytest.importorskip("pinocchio")
 pytest.importorskip("rosbags")
 

@@ -15,6 +15,9 @@ from humanoid_import import import_humanoid
 
 import independent_humanoid as hu
 
+# extended (`make test-extended`, outside CI's 20-minute budget): coupling calibrated end to end; CI keeps test_diagnose_library_more and test_diagnose_independent (couplings named)
+pytestmark = pytest.mark.extended
+
 pytest.importorskip("pinocchio")
 
 COUPLING = {"left_j3": ("left_j2", 8e-3), "right_j5": ("right_j4", -6e-3)}  # δq = κ·q(driver), rad/rad

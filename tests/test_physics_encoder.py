@@ -15,6 +15,9 @@ from humanoid_import import calibrated_tree, evaluate_at_noise_floor, import_hum
 
 import independent_humanoid as hu
 
+# extended (`make test-extended`, outside CI's 20-minute budget): the reading terms through `--physics auto` at full size; CI keeps test_diagnose_independent and test_diagnose_power_random (eccentricity named on independent campaigns)
+pytestmark = pytest.mark.extended
+
 pytest.importorskip("pinocchio")
 
 ECC = {"left_j3": (3e-3, -2e-3), "right_j3": (-2e-3, 2.5e-3)}  # rad: δq = a·sin q + b·cos q

@@ -89,6 +89,7 @@ def calibrations(humanoid, tmp_path_factory):
     return d, phys, geo
 
 
+@pytest.mark.extended  # `make test-extended`: two physics calibrations of 160 postures; CI keeps test_physics_whole, test_physics_run
 def test_stiffness_recovered_and_held_out_at_the_noise_floor(humanoid, calibrations):
     """With the gravity terms: every true stiffness within 2σ, held-out at the noise floor; geometry
     alone is clearly worse on the same rows and split."""
@@ -142,6 +143,7 @@ def test_gravity_terms_need_inertials_and_known_payload_links(humanoid, tmp_path
     assert r.returncode == 2 and "'nowhere' is not in the URDF" in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
+@pytest.mark.extended  # `make test-extended`: two physics calibrations of 160 postures; CI keeps test_physics_whole, test_physics_run
 def test_evaluate_carries_the_physics_to_a_new_session(humanoid, calibrations, tmp_path):
     """`robocal evaluate` applies the calibrated model, physics included, to another session of the same
     robot without refitting: the 3-D error stays at the noise floor; the geometry-only calibration's does not."""

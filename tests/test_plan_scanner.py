@@ -15,6 +15,10 @@ from pipeline.recording.reader import read_recording
 from pipeline.recording.schemas import validator
 from pipeline.simulate import scorbot_scanner as sim
 from pipeline.systems import scorbot_scanner as sc
+import pytest
+
+# extended (`make test-extended`, outside CI's 20-minute budget): the scanner's plans at full size; CI keeps test_plan_select and test_plan_staged
+pytestmark = pytest.mark.extended
 
 
 def test_plan_selects_distinct_poses_on_grid_lines():

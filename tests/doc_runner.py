@@ -43,11 +43,15 @@ ELSEWHERE: dict[str, str] = {"docs/guide/dynamics.md": "tests/test_dynamics_guid
 EXTENDED: dict[str, str] = {
     "docs/guide/import-csv.md": "tests/test_urdf_import.py, tests/test_accuracy_real_sessions.py (TIAGo's frozen protocol)",
     "docs/guide/import-ros2.md": "tests/test_ros2_import.py, tests/test_ros2_robot_from_bag.py",
-    "docs/guide/plan.md": "tests/test_plan_select.py, tests/test_plan_staged.py, tests/test_plan_beats_random.py",
+    "docs/guide/plan.md": "tests/test_plan_select.py, tests/test_plan_staged.py, tests/test_plan_approach.py",
     "docs/guide/physics.md": "tests/test_physics_whole.py, tests/test_physics_run.py",
     "docs/guide/diagnose.md": "tests/test_diagnose_arc_welder.py, tests/test_diagnose_independent.py",
     "docs/guide/acquire.md": "tests/test_acquire_pty.py, tests/test_acquire_crash.py",
     "docs/guide/fleet.md": "tests/test_reprocess_archive.py",
+    "docs/guide/calibrate.md": "tests/test_pipeline_run.py, tests/test_urdf_import.py",
+    "docs/guide/delta.md": "tests/test_delta_calibration.py",
+    "docs/guide/accuracy.md": "tests/test_accuracy_holdout.py, tests/test_accuracy_information.py",
+    "docs/guide/view.md": "tests/test_rerun_robot.py, tests/test_view_raw.py",
 }  # page → the tests that cover its capability in CI
 
 PAGES = {p.relative_to(REPO).as_posix(): blocks(p) for p in pages()}

@@ -20,6 +20,9 @@ from pipeline.plan.arc_welder import measured
 from pipeline.systems import arc_welder as aw
 from tests.pipeline_support import BUNDLED, base_campaign, write
 
+# extended (`make test-extended`, outside CI's 20-minute budget): stated accuracy against held-out on several campaigns; CI keeps test_accuracy_holdout, test_accuracy_real_sessions
+pytestmark = pytest.mark.extended
+
 FIXTURE = stepped_block().to_dict()
 
 

@@ -149,6 +149,7 @@ def test_charuco_and_aprilgrid_boards_are_found(tmp_path):
         assert np.array_equal(d.ids, np.arange(tgt.n_corners))
 
 
+@pytest.mark.extended  # `make test-extended`: a full run on the imported images; CI keeps the camera guide's KUKA import → run → evaluate
 def test_robocal_run_calibrates_the_imported_recording(imported, tmp_path):
     """ingest → validate → identify on a camera recording (6 views of an arm with origin errors the
     registration cannot absorb): residuals and held-out error in px, model selection explained,

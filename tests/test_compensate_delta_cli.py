@@ -19,6 +19,9 @@ from pipeline.simulate import delta_tracker as sim
 from pipeline.systems import delta_tracker as dt
 from pipeline.systems.delta_tracker import registration_matrix
 
+# extended (`make test-extended`, outside CI's 20-minute budget): the Delta's compensation through the CLI; CI keeps the compensate guide's commands (tests/test_doc_blocks.py)
+pytestmark = pytest.mark.extended
+
 
 def true_platform_in_tracker(truth: sim.Truth, theta: np.ndarray) -> np.ndarray:
     p, _, ok = dm.full_forward(Delta(), truth.beta, theta, extended=True)

@@ -108,6 +108,7 @@ def test_backlash_kept_recovered_and_at_the_noise_floor(recordings):
     assert err[1] < 0.5e-3 and err[1] < 0.5 * err[0], err
 
 
+@pytest.mark.extended  # `make test-extended`: a second full backlash run; CI keeps test_backlash_kept_recovered_and_at_the_noise_floor
 def test_no_play_not_kept(recordings):
     tmp, recs = recordings
     rec, truth, _ = recs["dirs"]

@@ -17,6 +17,9 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from bench_plan_campaign import one_pool  # noqa: E402
 
+# extended (`make test-extended`, outside CI's 20-minute budget): the planned campaign against a pool of random ones; CI keeps test_plan_select, test_plan_staged, test_plan_approach
+pytestmark = pytest.mark.extended
+
 
 @pytest.mark.parametrize("seed", [100])
 def test_planned_campaign_lands_and_beats_the_median_random_campaign(seed):

@@ -23,7 +23,7 @@ from pipeline.simulate.arc_welder import Campaign, Noise
 from pipeline.simulate.campaign_run import execute
 from pipeline.systems import arc_welder as aw
 
-# extended (`make test-extended`, outside CI's 20-minute budget): full campaigns planned, simulated and diagnosed; CI keeps test_plan_select, test_plan_staged, test_plan_beats_random
+# extended (`make test-extended`, outside CI's 20-minute budget): full campaigns planned, simulated and diagnosed; CI keeps test_plan_select, test_plan_staged, test_plan_approach
 pytestmark = pytest.mark.extended
 
 

@@ -104,6 +104,7 @@ def test_local_cluster_nested_archive_streams_rows_gates_and_resumes(archive, tm
     assert plans[1][:2] == (1, 21) and "robocal-cluster" in plans[1][2]
 
 
+@pytest.mark.extended  # `make test-extended`: a third Dask archive run; CI keeps the external scheduler and local cluster tests
 def test_resume_after_the_client_is_killed(archive, tmp_path):
     arch, recs = archive
     recs = [r for r in recs if r.relative_to(arch).parts[0] in ("robot-1", "robot-2")]

@@ -33,6 +33,9 @@ from pipeline.simulate import camera_images as ci  # noqa: E402
 from pipeline.simulate.ros2_camera_bag import CameraBagLayout, write_camera_bag  # noqa: E402
 from pipeline.systems import urdf_robot  # noqa: E402
 
+# extended (`make test-extended`, outside CI's 20-minute budget): a camera bag through import and run; CI keeps test_ros2_import, test_camera_import and the camera guide's KUKA commands
+pytestmark = pytest.mark.extended
+
 ROBOCAL = str(Path(sys.executable).parent / "robocal")
 TARGET = "chessboard:9x6:0.03"
 K_TRUE = np.array([520.0, 522.0, 318.0, 242.0, -0.25, 0.09, 0.001, -0.0005, -0.01])

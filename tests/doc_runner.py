@@ -49,7 +49,7 @@ EXTENDED: dict[str, str] = {
     "docs/guide/acquire.md": "tests/test_acquire_pty.py, tests/test_acquire_crash.py",
     "docs/guide/fleet.md": "tests/test_reprocess_archive.py",
     "docs/guide/calibrate.md": "tests/test_pipeline_run.py, tests/test_urdf_import.py",
-    "docs/guide/delta.md": "tests/test_delta_calibration.py",
+    "docs/reference/systems/delta.md": "tests/test_delta_calibration.py",
     "docs/guide/accuracy.md": "tests/test_accuracy_holdout.py, tests/test_accuracy_information.py",
     "docs/guide/view.md": "tests/test_rerun_robot.py, tests/test_view_raw.py",
 }  # page → the tests that cover its capability in CI

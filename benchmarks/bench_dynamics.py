@@ -3,7 +3,7 @@ drawn, per scored joint and pooled (N·m), on the frozen split and by contiguous
 and the speed of filter + regressor + fit on 8 000 samples × 8 joints.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics.py
-    PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics.py --figaroh /work/figaroh-venv/bin/python \
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics.py --figaroh ../figaroh-venv/bin/python \
         --figaroh-examples FIGAROH_EXAMPLES_CHECKOUT            # FIGAROH run by FIGAROH, side by side (minutes)
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics.py --figaroh-json FIGAROH.json   # a FIGAROH run's figures
     (--figaroh-modes train,split,cv chooses FIGAROH's runs; --figaroh-save FIGAROH.json keeps their figures)
@@ -75,7 +75,8 @@ def show(title: str, cols: dict[str, dict]) -> None:
         print(f"{name:18s}" + "".join(f"{d[k]:16.3f}" if d.get(k) is not None else f"{'—':>16s}" for k in keys))
 
 
-FIGAROH_PYTHON = Path("/work/figaroh-venv/bin/python")  # this box's FIGAROH venv (used when present)
+FIGAROH_PYTHON = Path(os.environ.get("FIGAROH_PYTHON", "../figaroh-venv/bin/python"))  # a FIGAROH venv beside the
+# repository, or the one $FIGAROH_PYTHON names (used when present)
 
 
 def figaroh_run(python: Path, examples: Path, *mode: str) -> dict:

@@ -11,7 +11,7 @@ TIAGo 5.59 → 5.24 mm, UR10e 4.86 → 6.70 mm; MUKCa on panda_1: 7.79 → 0.347
     python benchmarks/bench_real_data.py [--only tiago,ur10,mate,panda] [--folds 5]
     python benchmarks/bench_real_data.py --choice shrinkage --run-timing   # robocal run's default on imports
     python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca   # the peers' own protocols
-    python benchmarks/bench_real_data.py --protocols every5 --figaroh-python /work/figaroh-venv/bin/python
+    python benchmarks/bench_real_data.py --protocols every5 --figaroh-python ../figaroh-venv/bin/python
 
 `--protocols every5`: FIGAROH's every-5th splits (rows 0, 5, 10, … held out, the rest fitted; and the complement:
 those rows fitted, the rest held out) with robocal's default (`robocal run`: shrinkage, its gravity terms) and,

@@ -18,7 +18,7 @@ kinematics (`calc_updated_fkm`, full parameters, frames estimated, the base fram
 protocol is run here with FIGAROH's functions: the figure is the RMS of the plane-normal error (mm), as robocal
 reports a plane's residual.
 
-    /work/figaroh-venv/bin/python benchmarks/figaroh_every5.py [--data ../shared/real-data] [--only tiago,ur10,mate]
+    ../figaroh-venv/bin/python benchmarks/figaroh_every5.py [--data ../shared/real-data] [--only tiago,ur10,mate]
 
 Prints one JSON object per line: {dataset, split, method, n_train, n_test, rms_3d_mm, mean_3d_mm, parameters}.
 """

@@ -1,5 +1,5 @@
 """The camera views on real images (KUKA eye-in-hand, 16 images 1920×1200, 24×17 chessboard;
-/work/shared/real-data/handeye_rwhe_kuka2, see its SOURCE.md): the report's per-image figures and
+../shared/real-data/handeye_rwhe_kuka2, see its SOURCE.md): the report's per-image figures and
 run.rrd's frusta, board and images from robocal's joint fit of the real detections, checked with
 OpenCV's projection and against the image files."""
 

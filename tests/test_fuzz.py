@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from collections import Counter
 
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, example, given, settings, strategies as st
 
 from fuzz_corpus import CLASSES, cases, classify_inprocess, message_count
 from hostile_support import BUNDLED
@@ -87,6 +87,7 @@ def test_reader_on_any_bytes_after_the_magic(tmp_path, data):
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(cut=st.integers(8, len(GOOD)), flips=st.lists(st.tuples(st.integers(8, len(GOOD) - 1), st.integers(0, 7)),
                                                      max_size=8))
+@example(cut=45, flips=[(8, 0), (8, 1)])  # the header's opcode turned into a footer's: not a closed file
 def test_reader_keeps_only_true_messages_of_a_damaged_file(tmp_path, cut, flips):
     """Whatever the damage, every message read is one of the file's own, in order per channel,
     and anything missing is announced by a warning."""

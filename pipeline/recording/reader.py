@@ -259,6 +259,8 @@ class _Reader:
         elif op == F.OP_HEADER:
             self.rec.profile = F.read_content(Header, content).profile
         elif op == F.OP_FOOTER:
+            if bytes(self.buf[pos + 9 + len(content):]) != MAGIC:  # a footer closes the file: magic and nothing else follow
+                raise F.Damaged("footer record that does not close the file")
             self.rec.complete = True
 
     def channel(self, ch: Channel) -> None:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from pipeline.diagnose.inference.projection import orthonormal, project_out
+from pipeline.diagnose.inference.projection import orthonormal, project_out, residual_of
 from pipeline.diagnose.inference.screen import Problem
 from pipeline.diagnose.library import drive, friction
 from pipeline.diagnose.verdict.lack_of_fit import Variable, smooth_variable
@@ -119,12 +119,12 @@ class Whitener:
     def __call__(self, A: np.ndarray) -> np.ndarray:
         A = np.asarray(A, float)
         one = A.ndim == 1
-        B = A.reshape(self.T, self.F, -1) * self.w[None, :, None]
+        B = (A.reshape(self.T, self.F, -1) * self.w[None, :, None]).transpose(1, 0, 2).copy()  # (F, T, c)
         out = B.copy()
-        for f, ph in enumerate(self.phi):
+        for f, ph in enumerate(self.phi):  # the FIR filter 1 − Σ φ_k z⁻ᵏ along time, from rest
             for k, c in enumerate(ph, start=1):
-                out[k:, f] -= c * B[:-k, f]
-        out = out.reshape(self.T * self.F, -1)
+                out[f, k:] -= c * B[f, :-k]
+        out = out.transpose(1, 0, 2).reshape(self.T * self.F, -1)
         return out[:, 0] if one else out
 
 
@@ -170,7 +170,7 @@ def build(rb: RigidBody, data: I.Data, fit: I.Fit) -> Built:
     # candidate): the noise, not the base model's misfit, which holds whatever the candidates would take
     Smat = np.hstack([s.reshape(T * F, -1) for s in S]) if S else np.zeros((T * F, 0))
     Dmax = np.hstack([X, Smat])
-    emax = project_out(y[:, None], orthonormal(Dmax))[:, 0].reshape(T, F)
+    emax = residual_of(Dmax, y).reshape(T, F)
     sig = np.sqrt(np.mean(emax**2, axis=0) * T * F / max(T * F - Dmax.shape[1], 1))
     w = 1.0 / np.maximum(sig, 1e-12)
     W = Whitener(T, w, [ar_fit(emax[:, f] * w[f]) for f in range(F)])

@@ -257,7 +257,8 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
     statistic (`scan_basis`, `scan_cluster_p`; `statistic` is then the best element's F and
     `region` its centre ± width), else of the smooth basis's F (`sign_flips.wild_cluster_p`).  `draws` (N, B):
     residuals drawn from a parametric null model (whitened like r, e.g. `clustered.PhysicalModel.draw`)
-    replace the sign flips as the scan statistic's reference (a parametric bootstrap)."""
+    replace the sign flips as the scan statistic's reference (a parametric bootstrap).  `region` and `peak_m`
+    are those of the significant variables ("" and 0 for the others)."""
     QA = orthonormal(A)
     if original is not None:
         QA0 = orthonormal(original[1])
@@ -313,7 +314,7 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
     for i, (v, F, dof, p, Bp, _) in enumerate(raw):
         region: tuple[float, float] | str = ""
         peak = 0.0
-        if Bp is not None:
+        if Bp is not None and sig[i]:  # where and how large: for the structure found (nothing reads the rest's)
             B0, r0 = (Bp, res) if original is None else (project_out(cols0[v.name], QA0), res0)
             coef, *_ = np.linalg.lstsq(B0, r0, rcond=None)
             peak = float(np.max(np.abs(B0 @ coef)))

@@ -47,8 +47,9 @@ def _rows(samples: np.ndarray, F: int) -> np.ndarray:
 
 
 def held_out(D: np.ndarray, y: np.ndarray, wr: np.ndarray, T: int, F: int, folds: int, guard: int) -> np.ndarray:
-    """Held-out residuals (T, F), N·m, of the weighted least-squares model y ≈ D θ (rows sample-major),
-    contiguous blocks with a guard band (`dynamics.crossval`).  Each fold's normal equations are the whole
+    """Held-out residuals (T, F), N·m, of the weighted least-squares model y ≈ D θ (rows sample-major, weights
+    `wr`: 1/σ_j, 0 for a row the model does not fit), contiguous blocks with a guard band (`dynamics.crossval`):
+    every row of a held-out block predicted.  Each fold's normal equations are the whole
     recording's less those of the rows it leaves out (one pass over the rows, not one per fold)."""
     Dw, yw = D * wr[:, None], y * wr
     c = Dw.shape[1]
@@ -208,9 +209,10 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
     # 4. the held-out arbiter in N·m
     guard = int(round(GUARD_S * fs))
     wr = (1.0 / np.maximum(b.sigma_joint, 1e-12))[np.tile(np.arange(F), T)]
-    before = held_out(b.X, b.y, wr, T, F, settings.folds, guard)
-    after = held_out(_design(b, acc), b.y, wr, T, F, settings.folds, guard)
-    without = {i: held_out(_design(b, [j for j in acc if j != i]), b.y, wr, T, F, settings.folds, guard)
+    wfit = wr * np.asarray(tab["fitted"], float).reshape(T * F)  # fitted on the rows identification fits, all scored
+    before = held_out(b.X, b.y, wfit, T, F, settings.folds, guard)
+    after = held_out(_design(b, acc), b.y, wfit, T, F, settings.folds, guard)
+    without = {i: held_out(_design(b, [j for j in acc if j != i]), b.y, wfit, T, F, settings.folds, guard)
                for i in acc}
     findings, col = [], p.n_free
     col_of, contributions = {}, []
@@ -224,7 +226,7 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
         findings.append(fd)
         col_of[i] = list(range(col, col + k))
-        contributions.append((b.S[i].reshape(T * F, -1) @ th[col:col + k] * wr).reshape(T, F))
+        contributions.append((b.S[i].reshape(T * F, -1) @ th[col:col + k]).reshape(T, F))  # N·m
         col += k
     for fd, i in zip(findings, acc):
         fd["evidence"]["cv_gain_z"] = gain_z(without[i], after, fs)
@@ -232,7 +234,7 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
     kept = [j for j in range(len(findings)) if j not in rejected]
     final_cv = after
     if rejected:
-        final_cv = held_out(_design(b, [acc[j] for j in kept]), b.y, wr, T, F, settings.folds, guard)
+        final_cv = held_out(_design(b, [acc[j] for j in kept]), b.y, wfit, T, F, settings.folds, guard)
     worse = bool(kept) and crossval.rms(final_cv) > crossval.rms(before)
     if worse:
         rejected, kept, final_cv = list(range(len(findings))), [], before
@@ -245,9 +247,9 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
     say(f"held-out arbiter: {len(findings)} kept, {len(rejected_docs)} rejected ({time.perf_counter() - t0:.1f} s)")
     # 5. where the rest is, grading, status
     cols = list(range(p.n_free)) + [c for i in acc_k for c in col_of[i]]
-    D = _design(b, acc_k) * wr[:, None]
-    th_k, *_ = np.linalg.lstsq(b.W(_design(b, acc_k)), yw, rcond=None)
-    r_final = b.y * wr - D @ th_k
+    D = _design(b, acc_k)  # N·m per unit: the whitener weighs every row once (1/σ_j, its AR filter)
+    th_k, *_ = np.linalg.lstsq(b.W(D), yw, rcond=None)
+    r_final = b.y - D @ th_k
     col_list, pos2 = [], p.n_free
     for i in acc_k:
         col_list.append(list(range(pos2, pos2 + p.lib[i].k)))

@@ -33,6 +33,7 @@ from pipeline.diagnose.document.assemble import candidates, not_identifiable
 from pipeline.diagnose.inference import forms, resampling, screen
 from pipeline.diagnose.inference.augmented import t_interval
 from pipeline.diagnose.inference.stepwise import look_alikes
+from pipeline.diagnose.library import drive
 from pipeline.diagnose.method import Settings
 from pipeline.diagnose.verdict import arbiter, checks, grading, lack_of_fit
 from pipeline.dynamics import crossval
@@ -85,6 +86,41 @@ def gain_z(before: np.ndarray, after: np.ndarray, fs: float) -> float:
 def _design(b: A.Built, idx: list[int]) -> np.ndarray:
     T, F = b.table["tau"].shape
     return np.hstack([b.X] + [b.S[i].reshape(T * F, -1) for i in idx])
+
+
+OFFSET_ITERATIONS = 4  # fixed-point steps of the stream offset's refit (each a linear least squares)
+
+
+def offset_refit(b: A.Built, acc: list[int], th: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The joint refit with the stream offset δ refitted as what it is, a delay of the whole model: its column
+    (τ̃(t − δ_f) − τ̃(t))/δ_f is rebuilt from the refitted model τ̃ — base parameters and every other finding, not
+    the identified torque alone (a Stribeck bump the effort stream also delays belongs in it) — at δ_f = the
+    current δ (the exact shift rather than the nearest form's secant), and the least squares solved again, until δ
+    settles (`OFFSET_ITERATIONS`).  Updates the offset's signature in `b` (raw and whitened); (whitened design, θ)."""
+    T, F = b.table["tau"].shape
+    p = b.problem
+    i = next(j for j in acc if p.lib[j].name == "time_offset")
+    delay = float(p.lib[i].data.get("delay_s", 0.01))
+    Aw = np.hstack([p.Jf] + [p.S[j] for j in acc])
+    for _ in range(OFFSET_ITERATIONS):
+        full, col, at = b.X @ th[:p.n_free], p.n_free, None
+        for j in acc:
+            k = p.lib[j].k
+            if j == i:
+                at = col
+            else:
+                full = full + b.S[j].reshape(T * F, -1) @ th[col:col + k]
+            col += k
+        delta = float(th[at])
+        delay = delta if abs(delta) > 1e-4 else delay
+        model = {"time_s": b.table["time_s"], "tau_fit": full.reshape(T, F)}
+        b.S[i] = ((drive.shifted(model, delay) - model["tau_fit"]) / delay)[:, :, None]
+        p.S[i] = b.W(b.S[i].reshape(T * F, -1))
+        Aw = np.hstack([p.Jf] + [p.S[j] for j in acc])
+        th, *_ = np.linalg.lstsq(Aw, yw, rcond=None)
+        if abs(float(th[at]) - delta) < 1e-3 * max(abs(delta), 1e-6):
+            break
+    return Aw, th
 
 
 def _words(text: str) -> str:
@@ -201,8 +237,10 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
     Aw = np.hstack([p.Jf] + [p.S[i] for i in acc])
     yw = b.W(b.y)
     th, *_ = np.linalg.lstsq(Aw, yw, rcond=None)
+    if any(p.lib[i].name == "time_offset" for i in acc):
+        Aw, th = offset_refit(b, acc, th, yw)
     rw = yw - Aw @ th
-    dof = max(Aw.shape[0] - np.linalg.matrix_rank(Aw), 1)
+    dof = max(b.W.n_effective - np.linalg.matrix_rank(Aw), 1)
     s2 = float(rw @ rw) / dof
     cov = s2 * np.linalg.pinv(Aw.T @ Aw)
     std = np.sqrt(np.clip(np.diag(cov), 0, None))

@@ -268,7 +268,11 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
         col += k
     for fd, i in zip(findings, acc):
         fd["evidence"]["cv_gain_z"] = gain_z(without[i], after, fs)
-    rejected = [j for j, fd in enumerate(findings) if fd["evidence"]["cv_gain_z"] < MIN_GAIN_Z]
+    # a parameter only one sign of which is physics (a compliance, a friction growing with load), found with the
+    # other sign beyond 2σ: not that physics — a proxy for something outside the library
+    wrong_sign = {j for j, (fd, i) in enumerate(zip(findings, acc)) if p.lib[i].data.get("sign")
+                  and p.lib[i].data["sign"] * fd["parameters"][0]["value"] < -2 * fd["parameters"][0]["std"]}
+    rejected = [j for j, fd in enumerate(findings) if fd["evidence"]["cv_gain_z"] < MIN_GAIN_Z or j in wrong_sign]
     kept = [j for j in range(len(findings)) if j not in rejected]
     final_cv = after
     if rejected:
@@ -278,7 +282,10 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
         rejected, kept, final_cv = list(range(len(findings))), [], before
     why = ("the model with the selected terms is worse out of sample than the identified model alone" if worse
            else f"modelling it does not lower the held-out torque error by more than {MIN_GAIN_Z:g} standard errors")
-    rejected_docs = [{**findings[j], "confidence": "rejected", "note": why} for j in rejected]
+    sign_note = ("its sign is not that physics (a negative compliance, friction falling with load): a proxy for "
+                 "something the library does not name")
+    rejected_docs = [{**findings[j], "confidence": "rejected",
+                      "note": sign_note if j in wrong_sign and not worse else why} for j in rejected]
     acc_k = [acc[j] for j in kept]
     findings = [findings[j] for j in kept]
     contributions = [contributions[j] for j in kept]

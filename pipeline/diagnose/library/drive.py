@@ -113,7 +113,7 @@ def joint_elasticity(table, f: int) -> Effect:
 
     return Effect("joint_elasticity", name, ("c",), (f"{pu}/{tu}",), COMPLIANCE_PLAUSIBLE, "torque", basis, 32,
                   f"load_{name}", f"excite {name} with faster reversals and under varied loads, or log its link-side "
-                  "encoder", data={"joint": f})
+                  "encoder", data={"joint": f, "sign": 1})
 
 
 def library(table) -> list[Effect]:

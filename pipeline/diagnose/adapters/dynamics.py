@@ -186,7 +186,8 @@ def build(rb: RigidBody, data: I.Data, fit: I.Fit) -> Built:
     n = max(int(u.sum()), 1)
     sig = np.sqrt(np.sum(emax**2, axis=0) / np.maximum(use.sum(axis=0), 1) * n / max(n - Dmax.shape[1], 1))
     w = 1.0 / np.maximum(sig, 1e-12)
-    W = Whitener(T, w, [ar_fit(emax[use[:, f], f] * w[f]) for f in range(F)], use)
+    W = Whitener(T, w, [ar_fit(emax[use[:, f], f] * w[f]) if use[:, f].sum() > 10 * AR_MAX else np.zeros(0)
+                        for f in range(F)], use)  # a joint that hardly moves: its few rows unfiltered
     Jf = W(X)
     Q = orthonormal(Jf)
     r = project_out(W(y)[:, None], Q)[:, 0]

@@ -27,6 +27,7 @@ SECOND_ORDER = (".compliance_load",)  # not chosen here (held at 0 unless forced
 # anchored at a registration-stage estimate is the nominal geometry's error again; the group selection offers it
 NEGATIVE_SIGMA = 2.0
 WITH_REGISTRATION, WITH_GEOMETRY = "with the registration", "with the geometry"
+CHECK_FOLDS = 5  # folds over rows that verify a candidate estimated with the geometry (`fold_rms`)
 ONE_SE = 1.0  # a larger physics model is kept only when it scores better by more than this many standard errors
 GEOMETRY_FAMILIES = ("joint-compliance",)  # the families also offered estimated with the geometry (`stagings`)
 REFUSALS = 3  # at most this many rounds of holding negative compliances at 0 (`shrink_physical`)
@@ -102,14 +103,16 @@ def simplest_within_noise(scored: list[tuple[float, int, np.ndarray]], z: float 
     it scores least.  Which physics names it is decided by the one-standard-error rule of cross-validation
     (Breiman et al. 1984; Hastie, Tibshirani & Friedman §7.10): among the physics candidates whose score is
     within `z` standard errors of the least physics score (the standard error of that score's mean over rows),
-    the one with fewest physics parameters (the first tried among equals).  Two families that bend the robot
+    the one with fewest physics parameters (the first tried among equals) that scores below the rigid model.
+    Two families that bend the robot
     about parallel axes (a joint's compliance, its parent's lateral compliance about the same direction)
     predict alike and the larger one fits a little more of the noise: the data do not name one over the
     other, and the smaller model is the one kept."""
     best = min(range(len(scored)), key=lambda i: scored[i][0])
     if scored[best][1] == 0:
         return best
-    physics = [i for i in range(len(scored)) if scored[i][1] > 0]
+    rigid = min((scored[i][0] for i in range(len(scored)) if scored[i][1] == 0), default=np.inf)
+    physics = [i for i in range(len(scored)) if scored[i][1] > 0 and scored[i][0] < rigid]
     rows = np.asarray(scored[best][2], float)
     se = float(np.std(rows, ddof=1) / np.sqrt(rows.size)) if rows.size > 1 else 0.0
     bar = scored[best][0] + z * se
@@ -140,3 +143,22 @@ def inadmissible(fit, names: tuple[str, ...], model=None) -> list[str]:
     idx = {n: i for i, n in enumerate(fit.names)}
     std = np.asarray(fit.std, float) if fit.std is not None else np.zeros(len(fit.names))
     return [n for n in names if fit.x[idx[n]] < 0 and fit.x[idx[n]] < -NEGATIVE_SIGMA * std[idx[n]]]
+
+
+def fold_rms(model, data, prior, x0, fixed: tuple[str, ...], on: tuple[str, ...], extra: tuple[str, ...],
+             folds: list[np.ndarray]) -> float:
+    """RMS (m) over every row of a candidate's error on rows it was not fitted on: for each of `folds` (row
+    indices) the candidate estimated again on the other rows as `shrink_physical` estimates it (its scales by
+    the evidence of those rows), its residuals on the fold.  What verifies a candidate estimated with the
+    geometry before it is kept (`shrinkage_fit`): its GCV is that of the linearised model at the scales its own
+    rows chose, and a few dozen rows can make the compliance look free of cost."""
+    from pipeline.identify.model import take
+
+    n = len(next(iter(data.values())))
+    sq, count = 0.0, 0
+    for test in folds:
+        train = np.setdiff1d(np.arange(n), test)
+        s, _, neg = shrink_physical(model, take(data, train), prior, x0, fixed, on, extra)
+        r = np.asarray(model.residuals(s.x, take(data, test)), float)
+        sq, count = sq + float(np.sum(r**2)), count + r.size
+    return float(np.sqrt(sq / max(count, 1)))

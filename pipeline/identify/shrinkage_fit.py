@@ -96,11 +96,27 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
             rows = r2 * score / max(float(np.mean(r2)), 1e-300)
         else:
             rows = np.full(n, score)
-        scored.append((score, len(pc.names_of(model, chosen)[0]), rows, (score, s, f0, fixed, held, on, chosen, extra, stage, label)))
+        scored.append((score, len(pc.names_of(model, chosen)[0]), rows, (score, s, f0, fixed, held, on, chosen, extra,
+                                                                         stage, label, () if staged else on)))
     pick = pc.simplest_within_noise([c[:3] for c in scored]) if groups_of_rows is None else \
         min(range(len(scored)), key=lambda i: scored[i][0])
-    _, s, f0, fixed, held, on, chosen, extra, stage, label = scored[pick][3]
-    least = min(scored, key=lambda c: c[0])[3][-1]
+    if scored[pick][3][8] == pc.WITH_GEOMETRY:  # verified by refitting on folds of rows against the best staged one
+        staged_ones = [i for i in range(len(scored)) if scored[i][3][8] == pc.WITH_REGISTRATION]
+        ref = min(staged_ones, key=lambda i: scored[i][0])
+        from pipeline.identify.natural_groups import holdout_groups
+
+        folds = design_folds(n, pc.CHECK_FOLDS, seed, holdout_groups(model, data), data)
+        cv = {}
+        for i in (pick, ref):
+            c = scored[i][3]
+            cv[i] = pc.fold_rms(model, data, prior, c[2].x, c[3] + c[4], c[10], c[7], folds)
+            tried[c[9]]["fold_rms_m"] = cv[i]
+        if cv[pick] >= cv[ref]:
+            tried[scored[pick][3][9]]["not_kept"] = (f"refitted on {len(folds)} folds of rows, it predicts them worse "
+                                                     f"than {scored[ref][3][9]}")
+            pick = ref
+    _, s, f0, fixed, held, on, chosen, extra, stage, label, _ = scored[pick][3]
+    least = min(scored, key=lambda c: c[0])[3][9]
     if least != label:  # a smaller model kept within the noise of the least score: said, with the one it beat
         tried[label]["kept_over"] = least
     if len(tried) > 1 or on:  # the chosen families, and how their terms were estimated (`physics_choice.stagings`)

@@ -5,15 +5,21 @@ The physics terms of a `TreePointModel` (``J.compliance``, ``J.lateral1/2``, rad
 instrument frame, the tool point and the compliances that explain how the error follows the gravity
 load before any link is moved.  The geometry is then shrunk toward nominal with those terms anchored at
 their registration-stage values (`pipeline.identify.shrinkage`, ``extra``), not pulled toward zero.
+Where the evidence chooses the scales (no row groups), the joint compliance is also offered estimated with
+the geometry (`stagings`): on a robot whose nominal geometry is far off (FIGAROH's TALOS arm: 3 mm before
+calibration) a compliance estimated against it takes up the geometry's error and is then held there.
 
 Each subset of the offered families (none, each alone, all) is a candidate; a candidate is
 *admissible* only when every compliance it estimates is physical, i.e. not negative beyond
 `NEGATIVE_SIGMA` of its standard error (a stiffness is positive: a negative compliance absorbs
-something else).  Among admissible candidates the one of least model-choice score wins (GCV counting
-the physics terms as estimated parameters, or the held-out error of left-out groups — there each fold
-re-estimates the compliances from its training groups, anchored at the all-groups registration-stage
-values, so the left-out group's rows weigh a little on its own prediction).  A model whose terms were
-asked for explicitly (``--physics joint-compliance``: ``forced``) keeps all of them.
+something else).  The model-choice score is GCV counting the physics terms as estimated parameters, or
+the held-out error of left-out groups — there each fold re-estimates the compliances from its training
+groups, anchored at the all-groups registration-stage values, so the left-out group's rows weigh a little
+on its own prediction.  The rigid model is kept when it scores least; otherwise the physics is named by the
+one-standard-error rule (`simplest_within_noise`: the fewest physics parameters within the noise of the
+least score), and a candidate estimated with the geometry is kept only if, refitted on folds of the fitted
+rows, it predicts them better than the best candidate estimated with the registration (`fold_rms`).  A
+model whose terms were asked for explicitly (``--physics joint-compliance``: ``forced``) keeps all of them.
 """
 
 from __future__ import annotations

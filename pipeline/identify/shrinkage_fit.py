@@ -86,7 +86,7 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
             rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
             score = m * rss / max(m - s.dof - len(extra), 1e-9) ** 2
         tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m),
-                        **({} if s.log_evidence is None else {"log_evidence": float(s.log_evidence)})}
+                        **({"log_evidence": float(s.log_evidence)} if np.isfinite(s.log_evidence) else {})}
         if not staged and len(on) < len(pc.names_of(model, chosen)[0]):
             tried[label]["held_at_zero"] = [nm for nm in pc.names_of(model, chosen)[0] if nm not in on]
         if progress is not None and len(tried) > 1:

@@ -91,32 +91,35 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
             tried[label]["held_at_zero"] = [nm for nm in pc.names_of(model, chosen)[0] if nm not in on]
         if progress is not None and len(tried) > 1:
             progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")
-        if groups_of_rows is None:  # each row's share of the score: the paired comparison of `simplest_within_noise`
+        if groups_of_rows is None:  # each row's share of the score: the standard error of `simplest_within_noise`
             r2 = np.sum(np.asarray(model.residuals(s.x, data), float).reshape(n, kd) ** 2, axis=1)
             rows = r2 * score / max(float(np.mean(r2)), 1e-300)
         else:
             rows = np.full(n, score)
-        scored.append((score, len(pc.names_of(model, chosen)[0]), rows, (score, s, f0, fixed, held, on, chosen, extra,
-                                                                         stage, label, () if staged else on)))
+        scored.append((score, len(pc.names_of(model, chosen)[0]), rows,
+                       dict(s=s, f0=f0, fixed=fixed, held=held, on=on, chosen=chosen, extra=extra, stage=stage,
+                            label=label, shrunk=() if staged else on)))
     pick = pc.simplest_within_noise([c[:3] for c in scored]) if groups_of_rows is None else \
         min(range(len(scored)), key=lambda i: scored[i][0])
-    if scored[pick][3][8] == pc.WITH_GEOMETRY:  # verified by refitting on folds of rows against the best staged one
-        staged_ones = [i for i in range(len(scored)) if scored[i][3][8] == pc.WITH_REGISTRATION]
-        ref = min(staged_ones, key=lambda i: scored[i][0])
+    if scored[pick][3]["stage"] == pc.WITH_GEOMETRY:  # verified by refitting on folds of rows against the best staged
+        ref = min((i for i in range(len(scored)) if scored[i][3]["stage"] == pc.WITH_REGISTRATION),
+                  key=lambda i: scored[i][0])
         from pipeline.identify.natural_groups import holdout_groups
 
         folds = design_folds(n, pc.CHECK_FOLDS, seed, holdout_groups(model, data), data)
         cv = {}
         for i in (pick, ref):
             c = scored[i][3]
-            cv[i] = pc.fold_rms(model, data, prior, c[2].x, c[3] + c[4], c[10], c[7], folds)
-            tried[c[9]]["fold_rms_m"] = cv[i]
+            cv[i] = pc.fold_rms(model, data, prior, c["f0"].x, c["fixed"] + c["held"], c["shrunk"], c["extra"], folds)
+            tried[c["label"]]["fold_rms_m"] = cv[i]
         if cv[pick] >= cv[ref]:
-            tried[scored[pick][3][9]]["not_kept"] = (f"refitted on {len(folds)} folds of rows, it predicts them worse "
-                                                     f"than {scored[ref][3][9]}")
+            tried[scored[pick][3]["label"]]["not_kept"] = (f"refitted on {len(folds)} folds of rows, it predicts them "
+                                                           f"worse than {scored[ref][3]['label']}")
             pick = ref
-    _, s, f0, fixed, held, on, chosen, extra, stage, label, _ = scored[pick][3]
-    least = min(scored, key=lambda c: c[0])[3][9]
+    c = scored[pick][3]
+    s, f0, fixed, held, on, chosen, extra, stage, label = (c[k] for k in ("s", "f0", "fixed", "held", "on", "chosen",
+                                                                         "extra", "stage", "label"))
+    least = min(scored, key=lambda c: c[0])[3]["label"]
     if least != label:  # a smaller model kept within the noise of the least score: said, with the one it beat
         tried[label]["kept_over"] = least
     if len(tried) > 1 or on:  # the chosen families, and how their terms were estimated (`physics_choice.stagings`)

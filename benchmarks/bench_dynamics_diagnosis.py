@@ -51,7 +51,7 @@ def mds(doc: dict, name: str, joint: str | None, option) -> float | None:
         return rows[int(np.argmin(np.abs(np.log(np.array(vs) / option))))]["min_detectable"]
     if name == "position_torque":
         return next((c["min_detectable"] for c in rows if c["location"].endswith(f"(n {int(option)})")), None)
-    if name == "time_offset":
+    if name in ("time_offset", "joint_elasticity"):  # a family of forms: the smallest size any form detects
         return min(c["min_detectable"] for c in rows)
     return rows[0]["min_detectable"]
 

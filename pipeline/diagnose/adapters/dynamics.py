@@ -50,12 +50,10 @@ def table(rb: RigidBody, data: I.Data, fit: I.Fit) -> dict:
     tau_rigid = P.Xp[:, :, :n_rb] @ fit.theta[:n_rb]
     t = np.asarray(data.t, float)
     dtau = np.gradient(tau_fit, t, axis=0, edge_order=2)
-    drigid = np.gradient(tau_rigid, t, axis=0, edge_order=2)
-    ddrigid = np.gradient(drigid, t, axis=0, edge_order=2)
     dq, dv, M = _rnea_derivatives(rb, qf, v, a, mask, _physical_rigid(rb, fit))
     prismatic = np.array([rb.model.joints[int(b)].shortname().startswith("JointModelP") for b in rb.body_of])[mask]
     return {"time_s": t - t[0], "q": qf[:, mask], "v": v[:, mask], "a": a[:, mask], "tau": P.raw,
-            "tau_fit": tau_fit, "tau_rigid": tau_rigid, "dtau": dtau, "drigid": drigid, "ddrigid": ddrigid,
+            "tau_fit": tau_fit, "tau_rigid": tau_rigid, "dtau": dtau,
             "dtau_dq": dq, "dtau_dv": dv,
             "mass_matrix": M,
             "coulomb_width": fit.choice.terms.coulomb_width if "coulomb" in fit.choice.terms.friction else 0.01,

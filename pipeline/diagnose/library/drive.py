@@ -2,8 +2,7 @@
 prismatic joint).  Same conventions as `friction`: a basis (T, F, k) of torque per unit parameter,
 linear, the measured torque being the model's plus B·θ.  Beyond `friction`'s keys the table holds
 the fitted joints' filtered positions ``q`` (T, F), the fitted model's torque ``tau_fit`` (T, F) with
-its first time derivative ``dtau`` (N·m/s), the rigid-body part's first and second ``drigid``, ``ddrigid``
-(N·m/s, N·m/s²), and the URDF's torque
+its first time derivative ``dtau`` (N·m/s), its rigid-body part ``tau_rigid``, and the URDF's torque
 derivatives ``dtau_dq``, ``dtau_dv``, ``mass_matrix`` (T, F, F): ∂τ_f/∂(q, q̇, q̈)_g of the fitted joints.
 
 - ``position_torque@J``: a torque periodic in the joint's angle, a·sin(nq) + b·cos(nq) (cogging of
@@ -20,7 +19,11 @@ derivatives ``dtau_dq``, ``dtau_dv``, ``mass_matrix`` (T, F, F): ∂τ_f/∂(q, 
 - ``joint_elasticity@J``: a joint of finite stiffness K read on the motor side: the link lags the reading
   by c·τ_J (c = 1/K, rad/(N·m); τ_J the link side's rigid-body torque the spring carries, friction is on the
   motor side), so every fitted joint's torque is the model's at the lagged link motion, to first order
-  −c·(∂τ/∂q_J·τ_J + ∂τ/∂q̇_J·τ̇_J + M_·J·τ̈_J) (the URDF's RNEA derivatives).
+  −c·(∂τ/∂q_J·τ_J + ∂τ/∂q̇_J·τ̇_J + M_·J·τ̈_J) (the URDF's RNEA derivatives).  This quasi-static lag holds
+  for the torque's content below the joint's resonance f_r = 1/(2π·√(c·M_JJ)) only (linearised, the
+  spring's torque is the rigid one through 1/(1 + c·M_JJ·s²)): above it the link does not follow, so τ̇_J
+  and τ̈_J are taken from τ_J low-passed at f_r.  f_r depends on the unknown c; forms f_r = 2, 4, 8 and
+  16 Hz (the held-out error picks one).
 """
 
 from __future__ import annotations
@@ -29,12 +32,14 @@ import numpy as np
 
 from pipeline.diagnose.library.friction import on_joint, torque_scale, units_of
 from pipeline.diagnose.library.term import Effect
+from pipeline.dynamics import signals
 
 HARMONICS = (1, 2, 3)
 SCALE_PLAUSIBLE = 0.3  # a drive constant off by up to 30 %
 OFFSET_PLAUSIBLE_S = 0.05  # effort / position streams up to 50 ms apart
 OFFSET_FORMS_S = (-0.02, -0.01, -0.005, 0.005, 0.01, 0.02)  # the stream offset's forms (the held-out error picks one)
 COMPLIANCE_PLAUSIBLE = 1e-2  # rad/(N·m): a joint stiffness down to 100 N·m/rad
+RESONANCE_FORMS_HZ = (2.0, 4.0, 8.0, 16.0)  # the joint's resonance f_r, the elastic lag's forms (octaves)
 
 
 def position_torque(table, f: int, n: int) -> Effect:
@@ -99,21 +104,31 @@ def time_offset(table, delay_s: float) -> Effect:
                   data={"form": f"δ {ms:+.0f} ms", "delay_s": delay_s})
 
 
-def joint_elasticity(table, f: int) -> Effect:
+def link_torque_rates(table, f: int, resonance_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """(τ̇_J, τ̈_J) (T,) of joint f's rigid-body torque (N·m/s, N·m/s²), from its content below the joint's
+    resonance `resonance_hz` (zero-phase Butterworth low-pass, `signals.lowpass`)."""
+    t = np.asarray(table["time_s"], float)
+    tau = signals.lowpass(np.asarray(table["tau_rigid"], float)[:, f], signals.sample_rate(t), resonance_hz)
+    d1 = np.gradient(tau, t, edge_order=2)
+    return d1, np.gradient(d1, t, edge_order=2)
+
+
+def joint_elasticity(table, f: int, resonance_hz: float) -> Effect:
     tu, vu = units_of(table, f)
     name = table["joints"][f]
     pu = vu.split("/")[0]
 
     def basis(_arm, _x, t):
         tau = np.asarray(t["tau_rigid"], float)[:, f]  # the spring carries the link side's torque, not the friction
-        dtau, ddtau = np.asarray(t["drigid"], float)[:, f], np.asarray(t["ddrigid"], float)[:, f]
+        dtau, ddtau = link_torque_rates(t, f, resonance_hz)
         g = (np.asarray(t["dtau_dq"], float)[:, :, f] * tau[:, None] + np.asarray(t["dtau_dv"], float)[:, :, f]
              * dtau[:, None] + np.asarray(t["mass_matrix"], float)[:, :, f] * ddtau[:, None])
         return -g[:, :, None]
 
-    return Effect("joint_elasticity", name, ("c",), (f"{pu}/{tu}",), COMPLIANCE_PLAUSIBLE, "torque", basis, 32,
-                  f"load_{name}", f"excite {name} with faster reversals and under varied loads, or log its link-side "
-                  "encoder", data={"joint": f, "sign": 1})
+    form = f"f_r {resonance_hz:g} Hz"
+    return Effect("joint_elasticity", f"{name} ({form})", ("c",), (f"{pu}/{tu}",), COMPLIANCE_PLAUSIBLE, "torque",
+                  basis, 32, f"load_{name}", f"excite {name} with faster reversals and under varied loads, or log its "
+                  "link-side encoder", data={"joint": f, "sign": 1, "form": form, "resonance_hz": resonance_hz})
 
 
 def library(table) -> list[Effect]:
@@ -123,5 +138,6 @@ def library(table) -> list[Effect]:
     for f in range(len(table["joints"])):
         if not prismatic[f]:
             out += [position_torque(table, f, n) for n in HARMONICS]
-        out += [cable_spring(table, f), drive_scale(table, f), joint_elasticity(table, f)]
+        out += [cable_spring(table, f), drive_scale(table, f)]
+        out += [joint_elasticity(table, f, fr) for fr in RESONANCE_FORMS_HZ]
     return out + [time_offset(table, d) for d in OFFSET_FORMS_S]

@@ -55,6 +55,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import independent_campaign_file as icf  # noqa: E402
 import independent_touch as it  # noqa: E402
+from touch_ingest import diagnosis_table  # noqa: E402
 
 from pipeline.diagnose import Settings, diagnose  # noqa: E402
 from pipeline.systems import arc_welder as aw  # noqa: E402
@@ -132,7 +133,7 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
     rows, gm = [], None
     for s in seeds:
         c = it.run(nom, tru, targets, (eff,), seed=s, **campaign)
-        d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
+        d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c),
                      settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
         rows.append({"seed": s, **score(d, key)})
         gm = gm if gm is not None else gate_mds(d, key)

@@ -30,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import independent_search as isr  # noqa: E402
 import independent_touch as it  # noqa: E402
+from touch_ingest import diagnosis_table  # noqa: E402
 
 from pipeline.diagnose import Settings, diagnose  # noqa: E402
 from pipeline.systems import arc_welder as aw  # noqa: E402
@@ -79,7 +80,7 @@ class World:
         """(noise-free campaign, geometric Jacobian along each measured axis) of the plan."""
         if payload_kg not in self._c0:
             c0 = isr.run(self.nom, self.tru, self.plan(payload_kg), (), noise=0.0)
-            ax = c0.table["axis"]
+            ax = c0.contacts["axis"]
             self._c0[payload_kg] = (c0, it.geometric_jacobian(self.tru, c0.truth_joint_q, ax))
         return self._c0[payload_kg]
 
@@ -107,7 +108,7 @@ def true_signature(w: World, kind: str, where: dict, size: float, payload_kg, se
     secant at it), noise-free."""
     c0, _ = w.clean(payload_kg)
     c1 = isr.run(w.nom, w.tru, w.plan(payload_kg), (it.Effect(kind, size, where),), noise=0.0)
-    ax = c0.table["axis"]
+    ax = c0.contacts["axis"]
     rows = np.arange(ax.size)
     return (it.tip(w.tru, c1.truth_joint_q)[rows, ax] - it.tip(w.tru, c0.truth_joint_q)[rows, ax]) / size
 
@@ -182,7 +183,7 @@ def run_one(w: World, name: str, mult: float, n_boot: int) -> dict:
         effs.append(it.Effect(kind, mult * m, where))
         mdes.append(m)
     c = isr.run(w.nom, w.tru, w.plan(payload), tuple(effs), seed=w.seed, stream_noise_counts=w.stream_noise)
-    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c),
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     ool = (effects[0][0], effs[0].where) if key is None else None
     return {"seed": w.seed, "mds_ideal": mdes, "size": [e.size for e in effs],
@@ -191,7 +192,7 @@ def run_one(w: World, name: str, mult: float, n_boot: int) -> dict:
 
 def clean_run(w: World, n_boot: int) -> dict:
     c = isr.run(w.nom, w.tru, w.sc, (), seed=w.seed, stream_noise_counts=w.stream_noise)
-    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c),
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     return {"seed": w.seed, **score(d, None), "_doc": d}
 
@@ -213,9 +214,10 @@ def budget(w: World, name: str, clean_doc: dict | None = None) -> dict | None:
     m_ideal, S_true = ideal_mds(w, kind, where, payload, unit if kind != "backlash" else None, 4.0)
     c = isr.run(w.nom, w.tru, w.plan(payload), (), seed=w.seed, stream_noise_counts=w.stream_noise)
     model = aw.TouchModel(aw.nominal_arm())
-    ad = touch_adapter(model, c.table, 2e-5, None, REPEATABILITY)
-    f = _geometry(model, c.table, ad, None, None)
-    p = screen.problem(model, c.table, f, ad)
+    tab = diagnosis_table(c)
+    ad = touch_adapter(model, tab, 2e-5, None, REPEATABILITY)
+    f = _geometry(model, tab, ad, None, None)
+    p = screen.problem(model, tab, f, ad)
     gs = gate(p.lib, p.S, p.Jf, p.free_names, p.sigma, 0.01)
     m = sum(g.identifiable for g in gs)
     fam = [i for i, e in enumerate(p.lib) if right({"effect": e.name, "location": str(e.location)}, key)]

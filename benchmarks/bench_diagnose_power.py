@@ -211,8 +211,9 @@ def main() -> None:
                             a.cases.split(",") if a.cases else None, a.n_boot, budgets=not a.no_budget, out=rows,
                             stream_noise_counts=a.stream_noise, clean_only=a.clean_only)
         print(f"elapsed {time.time() - t0:.0f} s")
-        if a.out:
-            Path(a.out).write_text(json.dumps(summary, indent=1))
+        if a.out:  # the summary and every seed's row
+            per = {f"{k[0]} {k[1]}": v for k, v in rows[0].items()}
+            Path(a.out).write_text(json.dumps({"summary": summary, "rows": per}, indent=1, default=float))
         return
     w = world(a.plan)
     names = a.cases.split(",") if a.cases else list(cases(w[2]))

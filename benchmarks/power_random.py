@@ -149,6 +149,60 @@ def located_right(d: dict, kind: str, where: dict) -> bool:
     return bool(hit or near)
 
 
+# robocal's names → the generator's own forms spanning them (kind, where, tangent unit): the look-alike's signature
+# on the campaign, computed by the generator, to tell whether it is near-collinear with the true effect there
+def _forms_of(effect: str, location: str) -> list | None:
+    base, quad = location.split(" (")[0], "(quadratic)" in location
+    j = int(base[1]) - 1 if base[:1] == "J" and base[1:2].isdigit() else None
+    if effect in ("encoder_eccentricity", "transmission_error"):
+        kind = "eccentricity" if effect == "encoder_eccentricity" else "transmission"
+        return [(kind, {"joint": j, "phase": ph}, 1e-4) for ph in (0.0, np.pi / 2)]
+    if effect == "joint_scale":
+        return [("scale", {"joint": j}, 1e-4)]
+    if effect == "joint_compliance":
+        return [("compliance", {"joint": j}, 1e-6)]
+    if effect == "trigger_latency":
+        return [("latency", {}, 1e-3)]
+    if effect in ("joint_coupling", "wrist_coupling") and "->" in base:
+        src, dst = (int(x[1]) - 1 for x in base.split("->"))
+        if quad:
+            return [("quad_coupling", {}, 1e-4)] if (src, dst) == (1, 2) else None
+        return [("coupling", {"pair": (src, dst)}, 1e-4)]
+    return None
+
+
+ALIKE_SHARE = 0.9  # robocal's near-collinear bound (`stepwise.LOOK_ALIKE_SHARE`): a rival explaining 90 % of the effect
+
+
+def collinear_share(w: World, S_true: np.ndarray, payload_kg, effect: str, location: str) -> float | None:
+    """The share of the true effect's signature ⊥ the geometry that the generator's own forms of `effect@location`
+    span (⊥ the geometry) on this campaign; None where the generator has no form of that name."""
+    fs = _forms_of(effect, location)
+    if fs is None:
+        return None
+    _, J = w.clean(payload_kg)
+    B = np.stack([_perp(true_signature(w, k, wh, u, payload_kg, False), J) for k, wh, u in fs], axis=1)
+    St = _perp(S_true, J)
+    U, sv, _ = np.linalg.svd(B, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-9]
+    return float(np.sum((U.T @ St) ** 2) / (St @ St))
+
+
+def collinear_alike(d: dict, key, w: World, S_true: np.ndarray, payload_kg) -> dict:
+    """Where the right name is not a finding but reported beside a lower-than-high-confidence finding
+    (`named_beside`): the generator's share of the true signature ⊥ geometry that the finding's name spans
+    (`share`), and whether it is near-collinear (≥ `ALIKE_SHARE`: the data cannot separate the two at this size,
+    so both names with lowered confidence is the right answer)."""
+    for f in d["findings"]:
+        if f["confidence"] == "high" or right(f, key):
+            continue
+        if any(right(a, key) for a in f.get("look_alikes", []) + f.get("untested_look_alikes", [])):
+            sh = collinear_share(w, S_true, payload_kg, f["effect"], f["location"])
+            return {"finding": f"{f['effect']}@{f['location']}", "share": sh,
+                    "collinear": sh is not None and sh >= ALIKE_SHARE}
+    return {"finding": None, "share": None, "collinear": False}
+
+
 def named_beside(d: dict, key) -> bool:
     """The right effect is a finding, or a look-alike reported beside a finding of lower than high confidence (the
     campaign cannot tell the two apart: both are named, with their evidence; or the gate could not test it here and
@@ -186,8 +240,14 @@ def run_one(w: World, name: str, mult: float, n_boot: int) -> dict:
     d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c),
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     ool = (effects[0][0], effs[0].where) if key is None else None
-    return {"seed": w.seed, "mds_ideal": mdes, "size": [e.size for e in effs],
-            **score(d, key, SECOND.get(name), ool), "_doc": d}
+    r = {"seed": w.seed, "mds_ideal": mdes, "size": [e.size for e in effs], **score(d, key, SECOND.get(name), ool)}
+    r["named_or_collinear_alike"] = None if key is None else r["named"]
+    if key is not None and len(effects) == 1 and not r["named"] and r["named_or_alike"]:
+        kind, where = effects[0]
+        _, S = ideal_mds(w, kind, placed(w, kind, where), payload, unit if kind != "backlash" else None, mult)
+        r["alike"] = collinear_alike(d, key, w, S, payload)
+        r["named_or_collinear_alike"] = r["alike"]["collinear"]
+    return {**r, "_doc": d}
 
 
 def clean_run(w: World, n_boot: int) -> dict:
@@ -290,12 +350,15 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
             summary[f"{name} budget"] = med
         else:
             summary[f"{name} {mult:g}x"] = {
-                "runs": len(rr), **{k: _rate(rr, k) for k in ("named", "named_or_alike", "named_second", "named_or_alike_second",
+                "runs": len(rr), **{k: _rate(rr, k) for k in ("named", "named_or_collinear_alike", "named_or_alike", "named_second",
+                                                             "named_or_alike_second",
                                                              "named_high", "misnamed_high", "located", "worse")},
                 "false_findings": int(sum(r["false"] for r in rr)) if name == "clean" else None,
                 "statuses": {k: sum(r["status"] == k for r in rr) for k in sorted({r["status"] for r in rr})},
+                "alike_shares": [round(r["alike"]["share"], 4) if r["alike"]["share"] is not None else None
+                                 for r in rr if r.get("alike")],
                 "misses": [(r["seed"], r["findings"], r["where"]) for r in rr
-                           if not (r["named_or_alike"] if r.get("located") is None else r["located"])
+                           if not (r["located"] if r.get("located") is not None else r["named_or_collinear_alike"])
                            and name != "clean"][:6]}
         key = f"{name} budget" if mult == "budget" else f"{name} {mult:g}x"
         print(json.dumps({key: summary[key]}), flush=True)

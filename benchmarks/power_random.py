@@ -365,3 +365,33 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
     if out is not None:
         out.append(rows)
     return summary
+
+
+def markdown(summary: dict) -> str:
+    """The summary as the tables the guide shows: per in-library case and multiple the share of seeds naming it
+    (strictly; or as a look-alike beside a lower-confidence finding of a near-collinear name, `named_or_collinear_alike`),
+    named `high`, misnamed `high`, worse than geometry; per out-of-library case located; clean campaigns' false
+    findings."""
+    def pct(v):
+        return "–" if v is None else f"{v * 100:.0f} %"
+
+    rows = ["| case | × ideal MDE | seeds | named | named or near-collinear look-alike | named `high` | misnamed `high` "
+            "| second effect named | worse than geometry | statuses |", "|---|---|---|---|---|---|---|---|---|---|"]
+    out_rows = ["| case | × ideal MDE | seeds | located | misnamed `high` | worse than geometry | statuses |",
+                "|---|---|---|---|---|---|---|"]
+    clean = []
+    for k, v in summary.items():
+        if k.endswith("budget"):
+            continue
+        name, mult = k.rsplit(" ", 1)
+        st = ", ".join(f"{a} {b}" for a, b in v["statuses"].items())
+        if name == "clean":
+            clean.append(f"clean campaigns: {v['runs']} seeds, {v['false_findings']} false findings ({st})")
+        elif v.get("located") is not None:
+            out_rows.append(f"| {name} | {mult} | {v['runs']} | {pct(v['located'])} | {pct(v['misnamed_high'])} "
+                            f"| {pct(v['worse'])} | {st} |")
+        else:
+            rows.append(f"| {name} | {mult} | {v['runs']} | {pct(v['named'])} | {pct(v.get('named_or_collinear_alike'))} "
+                        f"| {pct(v['named_high'])} | {pct(v['misnamed_high'])} | {pct(v.get('named_second'))} "
+                        f"| {pct(v['worse'])} | {st} |")
+    return "\n".join(rows + [""] + out_rows + [""] + clean)

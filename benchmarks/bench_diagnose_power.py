@@ -201,6 +201,8 @@ def main() -> None:
     ap.add_argument("--stream-noise", type=float, default=1.0,
                     help="--plan random: the logged encoder stream's reading noise, counts (the latches have none)")
     ap.add_argument("--clean-only", action="store_true", help="--plan random: only the clean campaigns (false findings)")
+    ap.add_argument("--budget-only", action="store_true",
+                    help="--plan random: only the power budget per term (robocal's detectable size beside the ideal's)")
     ap.add_argument("--table", default="", help="print the tables of a saved `--plan random --out` file and stop")
     a = ap.parse_args()
     t0 = time.time()
@@ -215,7 +217,8 @@ def main() -> None:
         rows: list = []
         summary = pr.report(range(a.first_seed, a.first_seed + a.seeds), tuple(float(v) for v in a.mults.split(",")),
                             a.cases.split(",") if a.cases else None, a.n_boot, budgets=not a.no_budget, out=rows,
-                            stream_noise_counts=a.stream_noise, clean_only=a.clean_only)
+                            stream_noise_counts=a.stream_noise, clean_only=a.clean_only,
+                            budget_only=a.budget_only)
         print(pr.markdown(summary))
         print(f"elapsed {time.time() - t0:.0f} s")
         if a.out:  # the summary and every seed's row

@@ -313,7 +313,8 @@ def _rate(rows, k):
 
 
 def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = True, budgets: bool = True,
-           out: list | None = None, stream_noise_counts: float = 1.0, clean_only: bool = False):
+           out: list | None = None, stream_noise_counts: float = 1.0, clean_only: bool = False,
+           budget_only: bool = False):
     """Run every case on every seed's campaign; print one JSON line per case and multiple (and the budget per
     in-library case) as it goes; return the summary."""
     import json
@@ -324,7 +325,7 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
     t0 = time.time()
     for s in seeds:
         w = World(s, stream_noise_counts=stream_noise_counts)
-        if clean:
+        if clean and not budget_only:
             r = clean_run(w, n_boot)
             r.pop("_doc")
             rows.setdefault(("clean", 0.0), []).append(r)
@@ -333,7 +334,7 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
                 b = budget(w, name)
                 if b:
                     rows.setdefault((name, "budget"), []).append(b)
-            for mult in mults:
+            for mult in () if budget_only else mults:
                 r = run_one(w, name, mult, n_boot)
                 r.pop("_doc")
                 rows.setdefault((name, mult), []).append(r)
@@ -345,6 +346,8 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
                                                                        "mds_robocal_effective", "ratio_gate",
                                                                        "ratio_effective", "threshold_robocal_gate",
                                                                        "ratio_threshold_gate")}
+            med.update({f"{k}_max": float(np.max([r[k] for r in rr])) for k in ("ratio_gate", "ratio_threshold_gate")})
+            med["seeds"] = len(rr)
             med["factors"] = {k: float(np.median([r["factors"][k] for r in rr])) for k in rr[0]["factors"]}
             med["forms"] = sorted({r["best_form"] for r in rr if r["best_form"]})
             summary[f"{name} budget"] = med
@@ -372,18 +375,26 @@ def markdown(summary: dict) -> str:
     (strictly; or as a look-alike beside a lower-confidence finding of a near-collinear name, `named_or_collinear_alike`),
     named `high`, misnamed `high`, worse than geometry; per out-of-library case located; clean campaigns' false
     findings."""
+    n = 0
+
     def pct(v):
-        return "–" if v is None else f"{v * 100:.0f} %"
+        return "–" if v is None else f"{round(v * n)}/{n}"
 
     rows = ["| case | × ideal MDE | seeds | named | named or near-collinear look-alike | named `high` | misnamed `high` "
             "| second effect named | worse than geometry | statuses |", "|---|---|---|---|---|---|---|---|---|---|"]
     out_rows = ["| case | × ideal MDE | seeds | located | misnamed `high` | worse than geometry | statuses |",
                 "|---|---|---|---|---|---|---|"]
     clean = []
+    budget = ["| term (SI units) | seeds | ideal, t = 3 | ideal, 80 % | robocal gate, 80 % | robocal / ideal (80 %): median, max "
+              "| threshold / ideal t = 3: median, max |", "|---|---|---|---|---|---|---|"]
     for k, v in summary.items():
         if k.endswith("budget"):
+            budget.append(f"| {k[:-7]} | {v.get('seeds', '')} | {v['mds_ideal_t3']:.3g} | {v['mds_ideal_80']:.3g} "
+                          f"| {v['mds_robocal_gate']:.3g} | {v['ratio_gate']:.2f}, {v.get('ratio_gate_max', np.nan):.2f} "
+                          f"| {v['ratio_threshold_gate']:.2f}, {v.get('ratio_threshold_gate_max', np.nan):.2f} |")
             continue
         name, mult = k.rsplit(" ", 1)
+        n = v["runs"]
         st = ", ".join(f"{a} {b}" for a, b in v["statuses"].items())
         if name == "clean":
             clean.append(f"clean campaigns: {v['runs']} seeds, {v['false_findings']} false findings ({st})")
@@ -394,4 +405,6 @@ def markdown(summary: dict) -> str:
             rows.append(f"| {name} | {mult} | {v['runs']} | {pct(v['named'])} | {pct(v.get('named_or_collinear_alike'))} "
                         f"| {pct(v['named_high'])} | {pct(v['misnamed_high'])} | {pct(v.get('named_second'))} "
                         f"| {pct(v['worse'])} | {st} |")
-    return "\n".join(rows + [""] + out_rows + [""] + clean)
+    parts = [rows if len(rows) > 2 else [], out_rows if len(out_rows) > 2 else [], budget if len(budget) > 2 else [],
+             clean]
+    return "\n\n".join("\n".join(p) for p in parts if p)

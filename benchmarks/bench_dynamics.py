@@ -33,6 +33,7 @@ import numpy as np
 from pipeline.dynamics import effort as E
 from pipeline.dynamics import identify as I
 from pipeline.dynamics import rigid_body as RB
+from pipeline.dynamics.crossval import blocks, train_rows
 from pipeline.dynamics.signals import lowpass, sample_rate
 from pipeline.importers.csv_effort import read_logs
 from pipeline.models import urdf as U
@@ -173,6 +174,15 @@ def main() -> None:
          {"robocal": cv, **({"FIGAROH (run)": figaroh_figures(theirs["cv"])} if "cv" in theirs else {"FIGAROH": {}})})
     if "cv" not in theirs:
         print("  FIGAROH's cross-validated figures: not run here (give --figaroh and --figaroh-examples)")
+    # nested: each block predicted by a model whose choice and fit never saw it (its own inner blocks)
+    nested = np.empty_like(g.cv_residuals)
+    for held in blocks(len(data.t), 5):
+        use = train_rows(len(data.t), held, int(round(0.5 * sample_rate(data.t))))
+        h = I.identify(rb, data, rows=use)
+        nested[held] = (I.predict(rb, h, data.t, data.q, fit) - data.tau[:, fit])[held]
+    show("the same blocks, the choice nested (each block's model chosen and fitted on the other blocks only)",
+         {"robocal (nested)": figures(nested),
+          **({"FIGAROH (run)": figaroh_figures(theirs["cv"])} if "cv" in theirs else {})})
 
     if (DATA / "calibration_slow" / "tiago_effort.csv").is_file():
         ts, qs, taus, _ = load("calibration_slow", desc, rb)

@@ -93,6 +93,30 @@ def test_identify_recovers_a_known_model_to_the_noise_floor_and_is_physically_co
     assert is_consistent(fit.consistent.theta[:30] - arm.carried).all()
 
 
+def test_rows_left_out_of_identify_never_touch_the_choice_or_the_fit(arm):
+    """Nested cross-validation rests on this: samples outside `rows` are filtered with the trajectory but
+    their torques reach neither the model choice nor the fit — a burst of 50 N·m there changes nothing."""
+    rng = np.random.default_rng(5)
+    t = np.arange(0, 20, 0.01)
+    q = _trajectory(t)
+    from pipeline.dynamics.crossval import blocks, train_rows
+    from pipeline.dynamics.signals import derivatives
+
+    _, v, a = derivatives(t, q, 1e9)
+    tau = RB.torques(arm, q, v, a, RB.standard_parameters(arm)) + 0.3 * v + rng.normal(0, 0.05, (t.size, 3))
+    held = blocks(t.size, 5)[2]
+    use = train_rows(t.size, held, 50)
+    cands = (I.Choice(cutoff_hz=4.0), I.Choice(cutoff_hz=16.0))
+    fits = []
+    for burst in (0.0, 50.0):
+        bad = tau.copy()
+        bad[held] += burst
+        fits.append(I.identify(arm, I.Data(t, q, bad, np.ones(3, bool)), candidates=cands, solvers=("ols",),
+                               rows=use))
+    assert fits[0].choice == fits[1].choice and np.array_equal(fits[0].theta, fits[1].theta)
+    assert fits[0].cv_residuals.shape == (use.size, 3) and np.all(fits[0].rms_cv < 0.1)
+
+
 def _csv(path: Path, t, cols: dict) -> Path:
     head = "t," + ",".join(cols)
     rows = np.column_stack([t, *cols.values()])

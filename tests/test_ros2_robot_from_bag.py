@@ -82,13 +82,10 @@ def test_a_xacro_gives_the_urdf_it_expands_to(bags, tmp_path):
     assert p.returncode == 2 and "Traceback" not in p.stderr and "xacro cannot expand it" in p.stderr
 
 
-def test_the_bag_is_opened_once_and_each_message_decoded_once(bags, tmp_path, monkeypatch):
-    """One import of a bag carrying its robot: rosbags opens it once; the JointStates, the points and the one
-    /robot_description message are each decoded once."""
+def count_bag_reads(monkeypatch) -> tuple[list[int], Counter]:
+    """From now on, count rosbags' bag opens ([n]) and CDR decodes per message type (Counter)."""
     from rosbags.rosbag2 import Reader
     from rosbags.typesys.store import Typestore
-
-    from pipeline.ros2.importer import Robot, import_bag
 
     opens, decodes = [0], Counter()
     open0, deser0 = Reader.open, Typestore.deserialize_cdr
@@ -103,6 +100,17 @@ def test_the_bag_is_opened_once_and_each_message_decoded_once(bags, tmp_path, mo
 
     monkeypatch.setattr(Reader, "open", counting_open)
     monkeypatch.setattr(Typestore, "deserialize_cdr", counting_deserialize)
+    return opens, decodes
+
+
+def test_the_bag_is_opened_once_and_each_message_decoded_once(bags, tmp_path, monkeypatch):
+    """One import of a bag carrying its robot: rosbags opens it once; the JointStates, the points and the one
+    /robot_description message are each decoded once."""
+    from rosbags.rosbag2 import Reader
+
+    from pipeline.ros2.importer import Robot, import_bag
+
+    opens, decodes = count_bag_reads(monkeypatch)
     done = import_bag(bags / "with", Robot(None, "b", "tcp"), tmp_path / "c.mcap")
     with Reader(bags / "with") as r:
         held = {c.msgtype: c.msgcount for c in r.connections}
@@ -115,9 +123,6 @@ def test_an_effort_bag_goes_through_the_one_import_entry(tmp_path, monkeypatch):
     /robot_description, the bag opened once, each JointState and the description decoded once (the point
     topic not at all), the recording's encoder stream the bag's positions and efforts in the chain's order
     (the bag names them in another order, with an extra joint)."""
-    from rosbags.rosbag2 import Reader
-    from rosbags.typesys.store import Typestore
-
     from pipeline.importers.effort_recording import EffortSpec
     from pipeline.ingest.streams import joint_stream
     from pipeline.recording.reader import read_recording
@@ -132,19 +137,7 @@ def test_an_effort_bag_goes_through_the_one_import_entry(tmp_path, monkeypatch):
     q, e = rng.uniform(-1, 1, (40, J)), rng.normal(0, 5, (40, J))
     layout = BagLayout(description=R6T, name_order=tuple(reversed(range(J))), extra_joints={"gripper": 0.01})
     write_bag(tmp_path / "eff", desc.joint_names, t, q, np.array([0.1]), np.zeros((1, 3)), None, layout, effort=e)
-    opens, decodes = [0], Counter()
-    open0, deser0 = Reader.open, Typestore.deserialize_cdr
-
-    def counting_open(self, *a, **k):
-        opens[0] += 1
-        return open0(self, *a, **k)
-
-    def counting_deserialize(self, raw, typename, *a, **k):
-        decodes[typename] += 1
-        return deser0(self, raw, typename, *a, **k)
-
-    monkeypatch.setattr(Reader, "open", counting_open)
-    monkeypatch.setattr(Typestore, "deserialize_cdr", counting_deserialize)
+    opens, decodes = count_bag_reads(monkeypatch)
     lines = []
     done = import_bag(tmp_path / "eff", Robot(None, "b", "tcp"), tmp_path / "e.mcap", BagSpec(measure="effort"),
                       effort=EffortSpec(units="Nm"), say=lines.append)

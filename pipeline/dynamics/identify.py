@@ -134,14 +134,16 @@ def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: 
 
 
 def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet, folds: int, guard: int,
-                   decimate: int) -> np.ndarray:
-    """Held-out residuals (T, F) on the raw torques, contiguous blocks."""
+                   decimate: int, rows: np.ndarray | None = None) -> np.ndarray:
+    """Held-out residuals (len(rows), F) on the raw torques, contiguous blocks of `rows` (default: every
+    sample)."""
+    rows = np.arange(P.X.shape[0]) if rows is None else rows
 
     def fit_predict(train, test):
-        s = _solve(rb, P, train, choice, base, decimate)
-        return P.Xp[test] @ s.theta - P.raw[test]
+        s = _solve(rb, P, rows[train], choice, base, decimate)
+        return P.Xp[rows[test]] @ s.theta - P.raw[rows[test]]
 
-    return held_out(fit_predict, P.X.shape[0], folds, guard)
+    return held_out(fit_predict, rows.size, folds, guard)
 
 
 SLOW_WIDTHS = 3.0  # below this many Coulomb widths of speed a joint's sample is not fitted (its friction is stiction's)
@@ -155,16 +157,20 @@ DEFAULT_CANDIDATES = tuple(
 
 def identify(rb: RigidBody, data: Data, candidates: tuple[Choice, ...] = DEFAULT_CANDIDATES,
              solvers: tuple[str, ...] = ("ols", "wls", "consistent"), folds: int = 5, guard_s: float = 0.5,
-             decimate: int = 1, progress=None) -> Fit:
+             decimate: int = 1, progress=None, rows: np.ndarray | None = None) -> Fit:
     """Choose the model by held-out torque RMS (pooled over the fitted joints), then refit it on every sample.
-    Structure candidates are compared with OLS; the solvers then on the chosen structure."""
+    Structure candidates are compared with OLS; the solvers then on the chosen structure.  `rows` (sample
+    indices, default all) are the only samples the choice and the fit may use: the others are filtered
+    with the trajectory but never seen, so that an outer test can score them (nested cross-validation);
+    `cv_residuals` are then those of `rows`."""
     from pipeline.blas import one_thread
 
     with one_thread():
-        return _identify(rb, data, candidates, solvers, folds, guard_s, decimate, progress or (lambda s: None))
+        return _identify(rb, data, candidates, solvers, folds, guard_s, decimate, progress or (lambda s: None),
+                         rows)
 
 
-def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say) -> Fit:
+def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say, use=None) -> Fit:
     t0 = time.perf_counter()
     fs = signals.sample_rate(data.t)
     guard = int(round(guard_s * fs))
@@ -177,7 +183,7 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say) -> F
         bkey = (c.terms.friction, c.terms.armature)
         if bkey not in bases:
             bases[bkey] = structural_base(rb, data.fit, c.terms)
-        r = cross_validate(rb, P, replace(c, solver="ols"), bases[bkey], folds, guard, decimate)
+        r = cross_validate(rb, P, replace(c, solver="ols"), bases[bkey], folds, guard, decimate, use)
         score = float(rms(r))
         rows.append({"choice": replace(c, solver="ols").label(), "holdout_rms": score,
                      "holdout_rms_joint": rms(r, axis=0).tolist()})
@@ -193,7 +199,7 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say) -> F
             continue
         c = replace(choice, solver=s)
         try:
-            r = cross_validate(rb, P, c, base, folds, guard, decimate)
+            r = cross_validate(rb, P, c, base, folds, guard, decimate, use)
         except ArithmeticError as e:
             rows.append({"choice": c.label(), "error": str(e)})
             continue
@@ -203,7 +209,7 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say) -> F
         if score < best[0]:
             best = (score, c, r)
     score, choice, r = best
-    all_rows = np.arange(P.X.shape[0])
+    all_rows = np.arange(P.X.shape[0]) if use is None else np.asarray(use)
     sol = _solve(rb, P, all_rows, choice, base, decimate)
     cons = sol if choice.solver == "consistent" else _solve(rb, P, all_rows, replace(choice, solver="consistent"),
                                                             base, decimate)
@@ -214,7 +220,7 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say) -> F
     Xb = P.Xp[:, :, base.independent]
     fit = Fit(choice=choice, names=names, units=units, theta=sol.theta, base=base, solution=sol,
               condition=float(np.linalg.cond(Xb.reshape(-1, Xb.shape[2]))),
-              rms_train=rms(P.Xp @ sol.theta - P.raw, axis=0), rms_cv=rms(r, axis=0), candidates=rows,
+              rms_train=rms(P.Xp[all_rows] @ sol.theta - P.raw[all_rows], axis=0), rms_cv=rms(r, axis=0), candidates=rows,
               timings={"choice_s": t_struct, "total_s": time.perf_counter() - t0}, consistent=cons,
               rms_cv_consistent=cv_cons, cv_residuals=r)
     return fit

@@ -218,7 +218,7 @@ def main() -> None:
         summary = pr.report(range(a.first_seed, a.first_seed + a.seeds), tuple(float(v) for v in a.mults.split(",")),
                             a.cases.split(",") if a.cases else None, a.n_boot, budgets=not a.no_budget, out=rows,
                             stream_noise_counts=a.stream_noise, clean_only=a.clean_only,
-                            budget_only=a.budget_only)
+                            budget_only=a.budget_only, save=a.out and a.out + ".partial")
         print(pr.markdown(summary))
         print(f"elapsed {time.time() - t0:.0f} s")
         if a.out:  # the summary and every seed's row

@@ -314,7 +314,7 @@ def _rate(rows, k):
 
 def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = True, budgets: bool = True,
            out: list | None = None, stream_noise_counts: float = 1.0, clean_only: bool = False,
-           budget_only: bool = False):
+           budget_only: bool = False, save: str = ""):
     """Run every case on every seed's campaign; print one JSON line per case and multiple (and the budget per
     in-library case) as it goes; return the summary."""
     import json
@@ -339,6 +339,9 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
                 r.pop("_doc")
                 rows.setdefault((name, mult), []).append(r)
         print(json.dumps({"seed": s, "elapsed_s": round(time.time() - t0)}), flush=True)
+        if save:  # every seed's rows so far (a long run that stops keeps what it measured)
+            with open(save, "w") as fh:
+                json.dump({f"{k[0]} {k[1]}": v for k, v in rows.items()}, fh, default=float)
     summary = {}
     for (name, mult), rr in rows.items():
         if mult == "budget":
@@ -361,8 +364,8 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
                 "alike_shares": [round(r["alike"]["share"], 4) if r["alike"]["share"] is not None else None
                                  for r in rr if r.get("alike")],
                 "misses": [(r["seed"], r["findings"], r["where"]) for r in rr
-                           if not (r["located"] if r.get("located") is not None else r["named_or_collinear_alike"])
-                           and name != "clean"][:6]}
+                           if name != "clean"
+                           and not (r["located"] if r.get("located") is not None else r.get("named_or_collinear_alike"))][:6]}
         key = f"{name} budget" if mult == "budget" else f"{name} {mult:g}x"
         print(json.dumps({key: summary[key]}), flush=True)
     if out is not None:

@@ -258,17 +258,33 @@ def _untested_alikes(findings: list, sel: screen.Selection, p: screen.Problem, f
                 continue
             Q = orthonormal(g.projected)
             share = float(np.sum((Q.T @ u) ** 2) / uu)
+            swap = sel.accepted[:j] + [i] + sel.accepted[j + 1:]
             if share >= 1 - LOOK_ALIKE_SHARE:
                 hits.append({"effect": g.effect.name, "location": str(g.effect.location), "explains": share,
                              "why": f"set aside by the gate ({g.reason}), yet it reproduces this finding",
-                             "advice": g.effect.advice,
-                             **_swap_evidence(sel, p, folds, pos, j, g.projected, sel.accepted[:j] + [i]
-                                              + sel.accepted[j + 1:])})
+                             "advice": g.effect.advice, **_swap_evidence(sel, p, folds, pos, j, g.projected, swap)})
+            elif g.reason.startswith("smallest detectable size") and _swap_fits_better(sel, p, pos, j, g.projected):
+                # too weak to be tested at a plausible size, yet in the finding's place it fits the data better:
+                # the effect may be that one, larger than the library deems plausible — not a confident name
+                hits.append({"effect": g.effect.name, "location": str(g.effect.location), "explains": share,
+                             "why": f"set aside by the gate ({g.reason}), yet in this finding's place it fits better",
+                             "advice": g.effect.advice, **_swap_evidence(sel, p, folds, pos, j, g.projected, swap)})
         if hits:
             if "cv_rms_linearised_m" not in fd["evidence"]:
                 fd["evidence"]["cv_rms_linearised_m"] = float(np.sqrt(np.mean(
                     forms._cv(p.Jf, p.S, sel.accepted, p.r, folds) ** 2)))
             fd["untested_look_alikes"] = sorted(hits, key=lambda h: -h["explains"])
+
+
+def _swap_fits_better(sel: screen.Selection, p: screen.Problem, pos: list, j: int, Sp_c: np.ndarray) -> bool:
+    """The candidate (projected signature `Sp_c`) in the j-th finding's place leaves a smaller residual than the
+    findings do (Δχ² < 0, `_swap_evidence`)."""
+    def rss(blocks):
+        X = orthonormal(np.hstack(blocks))
+        e = sel.r_w - X @ (X.T @ sel.r_w)
+        return float(e @ e)
+
+    return rss([sel.Sp[c] for c in pos[:j] + pos[j + 1:]] + [Sp_c]) < rss([sel.Sp[c] for c in pos])
 
 
 def _swap_evidence(sel: screen.Selection, p: screen.Problem, folds: list, pos: list, j: int, Sp_c: np.ndarray,

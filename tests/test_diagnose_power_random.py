@@ -67,3 +67,14 @@ def test_robocals_detectable_size_is_within_1_5x_of_the_ideal_tests(world, name)
     b = pr.budget(world, name)
     assert b["ratio_gate"] < 1.5 and b["ratio_threshold_gate"] < 1.5, b
     assert b["factors"]["capture"] > 0.98, b
+
+
+def test_an_effect_beyond_the_plausible_size_is_never_a_confident_wrong_name():
+    """A J1 backlash of 9 mrad (4× the ideal MDE on seed 103's campaign, whose searches hardly turn J1; beyond the
+    library's plausible 2 mrad, so the gate does not test it) shows up as another J1 term: that finding is not
+    `high`, and the backlash is listed beside it with the evidence that it fits better (Δχ² < 0)."""
+    r = pr.run_one(pr.World(103), "backlash_J1", 4.0, 10)
+    assert not r["misnamed_high"], r["findings"]
+    beside = [a for f in r["_doc"]["findings"] for a in f.get("untested_look_alikes", [])
+              if a["effect"] == "backlash" and a["location"].startswith("J1")]
+    assert r["named"] or (beside and min(a["delta_chi2"] for a in beside) < 0), (r["findings"], beside)

@@ -9,6 +9,10 @@ since a dead band's shape changes with its play).  Per case and seed:
 
 - `named` / `named_high` / `misnamed_high` (in library), `located` (out of library: a finding or an
   `unexplained_where` entry at the right joint or face);
+- `named_or_collinear_alike`: named, or listed beside a finding of lower than high confidence whose name the
+  generator's own forms show spans ≥ 90 % of the true signature off the geometry on that campaign (`collinear_alike`:
+  near-collinear, the data cannot separate them, both names with lowered confidence is the right answer);
+  `named_or_alike` counts any such listing, unchecked;
 - the power budget on the clean campaign of the same plan (`budget`): the ideal MDE at 80 % power
   ((3 + z₀.₈)σ/‖P⊥S‖, like for like with robocal's figure), robocal's own `min_detectable` (its gate: its signature,
   its σ, Holm's family), and robocal's *effective* MDE for the true effect — (z_{1−α/2m} + z₀.₈)·σ̂ over the part of

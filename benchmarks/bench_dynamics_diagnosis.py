@@ -56,8 +56,21 @@ def mds(doc: dict, name: str, joint: str | None, option) -> float | None:
     return rows[0]["min_detectable"]
 
 
-def named(doc: dict, name: str, joint: str | None) -> bool:
-    return any(f["effect"] == name and (joint is None or f["location"].split(" (")[0] == joint) for f in doc["findings"])
+def _at(f: dict) -> str:
+    return f["location"].split(" (")[0]
+
+
+def outcome(doc: dict, name: str, joint: str | None) -> tuple[str, int]:
+    """(named: the injected form among the findings at its joint; located: not named, but a finding at its joint;
+    wrong: findings, none at its joint; missed: no finding), and the count of findings other than the injected."""
+    fds = doc["findings"]
+    hit = [f for f in fds if f["effect"] == name and (joint is None or _at(f) == joint)]
+    extra = len(fds) - len(hit)
+    if hit:
+        return "named", extra
+    if joint is not None and any(_at(f) == joint for f in fds):
+        return "located", extra
+    return ("wrong" if fds else "missed"), extra
 
 
 def main() -> None:
@@ -73,9 +86,11 @@ def main() -> None:
         raise SystemExit(f"--forms: choose among {', '.join(f[0] for f in FORMS)}")
     settings = Settings(n_boot=args.boot)
     rb = RB.build(G.ARM, G.JOINTS)
-    clean_false, hits, tried, z_all = 0, {f[0]: 0 for f in FORMS}, {f[0]: 0 for f in FORMS}, []
+    clean_false, z_all = 0, []
+    tally = {f[0]: {"named": 0, "located": 0, "wrong": 0, "missed": 0, "extra": 0} for f in FORMS}
     c0 = time.process_time()
     for seed in range(args.first, args.first + args.seeds):
+        c_seed = time.process_time()
         t, q, v, a = G.trajectory(seed)
         e, truth = G.efforts(seed, t, q, v, a)
         fit, doc = run(rb, t, q, e, settings)
@@ -99,15 +114,20 @@ def main() -> None:
             val = (k, size, 0.0 if name == "cable_spring" else opt)  # the generator's ranges are centred on 0
             ei, _ = G.efforts(seed, t, q, v, a, effects={name: val})
             _, d = run(rb, t, q, ei, settings)
-            ok = named(d, name, joint)
-            tried[name] += 1
-            hits[name] += ok
-            line.append(f"{name} {size:.3g}: {'named' if ok else 'MISSED ' + str([f['effect'] + '@' + f['location'] for f in d['findings']])}")
-        print("; ".join(line), flush=True)
+            how, extra = outcome(d, name, joint)
+            tally[name][how] += 1
+            tally[name]["extra"] += extra
+            line.append(f"{name} {size:.3g}: {how}" + ("" if how == "named" and not extra else " " + str(
+                [f['effect'] + '@' + f['location'] for f in d['findings']])))
+        print("; ".join(line) + f" ({time.process_time() - c_seed:.0f} s CPU)", flush=True)
     z = np.concatenate(z_all)
-    print(f"\n{args.seeds} seeds, {SIZE:g}× the minimum detectable size, each form alone:")
+    print(f"\n{args.seeds} seeds, {SIZE:g}× the minimum detectable size, each form alone "
+          "(named / located at its joint as another effect / wrong place / missed; other findings beside it):")
     for name, _, _ in forms:
-        print(f"  {name:20s} named in {hits[name]}/{tried[name]} ({100 * hits[name] / max(tried[name], 1):.0f} %)")
+        c = tally[name]
+        n = sum(c[k] for k in ("named", "located", "wrong", "missed"))
+        print(f"  {name:20s} named in {c['named']}/{n} ({100 * c['named'] / max(n, 1):.0f} %); located {c['located']}, "
+              f"wrong {c['wrong']}, missed {c['missed']}; other findings {c['extra']}")
     print(f"  clean campaigns: {clean_false} finding(s) in {args.seeds}")
     print(f"  base parameters: {z.size} z-scores, RMS {np.sqrt(np.mean(z**2)):.2f}, share |z| < 2: {np.mean(np.abs(z) < 2):.3f}, "
           f"< 3: {np.mean(np.abs(z) < 3):.3f}")

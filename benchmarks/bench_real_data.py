@@ -12,6 +12,7 @@ TIAGo 5.59 → 5.24 mm, UR10e 4.86 → 6.70 mm; MUKCa on panda_1: 7.79 → 0.347
     python benchmarks/bench_real_data.py --choice shrinkage --run-timing   # robocal run's default on imports
     python benchmarks/bench_real_data.py --protocols tiago-sessions,mukca   # the peers' own protocols
     python benchmarks/bench_real_data.py --protocols every5 --figaroh-python ../figaroh-venv/bin/python
+    python benchmarks/bench_real_data.py --protocols every5 --only talos --talos DIR [--figaroh-python …]
 
 `--protocols every5`: FIGAROH's every-5th splits (rows 0, 5, 10, … held out, the rest fitted; and the complement:
 those rows fitted, the rest held out) with robocal's default (`robocal run`: shrinkage, its gravity terms) and,
@@ -40,6 +41,7 @@ from pipeline.systems.registry import detect, load_with_physics
 REAL = Path(__file__).resolve().parents[2] / "shared" / "real-data"
 if not REAL.is_dir():
     REAL = Path("/work/shared/real-data")
+TALOS: Path | None = None  # FIGAROH's TALOS example folder (--talos DIR: its CSV and URDF; not in the shared data)
 PEERS = {"tiago": "5.59 → 5.24 (FIGAROH)", "ur10": "4.86 → 6.70 (FIGAROH)", "mate": "—",
          "panda": "7.79 → 0.347 mean abs. (MUKCa)"}
 
@@ -51,6 +53,10 @@ def import_args(name: str, out: Path) -> list[str]:
         d = R / "figaroh_tiago_mocap"
         return [str(d / "qualysis_base_hand_calibration.csv"), "--urdf", str(d / "tiago_48_schunk.urdf"),
                 "--root", "base_footprint", "--tip", "wrist_ft_tool_link", "--measure", "point",
+                "--position-cols", "x1,y1,z1", "--out", str(out)]
+    if name == "talos":  # FIGAROH's TALOS example: left arm and torso, a point on the gripper (mm-level contact data)
+        return [str(TALOS / "talos_left_arm_02_10_contact.csv"), "--urdf", str(TALOS / "talos_full_v2.urdf"),
+                "--root", "base_link", "--tip", "gripper_left_base_link", "--measure", "point",
                 "--position-cols", "x1,y1,z1", "--out", str(out)]
     if name == "ur10":
         d = R / "figaroh_ur10_pose"
@@ -124,8 +130,9 @@ def figaroh_splits(names: list[str], tmp: Path, figaroh_python: str | None) -> N
     if figaroh_python:
         import json
 
+        talos = ["--talos", str(TALOS)] if "talos" in names else []
         out = subprocess.run([figaroh_python, str(Path(__file__).with_name("figaroh_every5.py")), "--data", str(REAL),
-                              "--only", ",".join(names)], capture_output=True, text=True, check=True).stdout
+                              "--only", ",".join(names), *talos], capture_output=True, text=True, check=True).stdout
         for line in out.splitlines():
             r = json.loads(line)
             peer.setdefault((r["dataset"], r["split"]), []).append(r)
@@ -182,7 +189,14 @@ def main() -> None:
     ap.add_argument("--choice", default="groups", help="groups (the selection, rigid model: the figures of "
                     "docs/guide/import-csv.md) or shrinkage (as `robocal run`'s default for imported URDF robots: its "
                     "gravity terms, scale and physics family chosen on each training set)")
+    ap.add_argument("--talos", type=Path, default=None, help="--protocols every5: the folder of FIGAROH's TALOS example "
+                    "(talos_left_arm_02_10_contact.csv, talos_full_v2.urdf; figaroh-examples `examples/talos`); "
+                    "add talos to --only")
     a = ap.parse_args()
+    global TALOS
+    TALOS = a.talos
+    if "talos" in a.only.split(",") and TALOS is None:
+        sys.exit("--only talos needs --talos DIR (FIGAROH's TALOS example files)")
     if not REAL.is_dir():
         sys.exit(f"real data not found at {REAL}")
     if a.protocols:

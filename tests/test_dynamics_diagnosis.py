@@ -4,7 +4,8 @@ user's path: the generator's CSV tables → `robocal import csv --measure effort
 
 A clean campaign: nothing found, the base parameters within their stated σ of the truth.  The same design with
 three forms injected at 4× the minimum detectable size the clean campaign's gate states: each named at its
-joint, and the held-out torque error falls.  (Every form over 20 seeds: benchmarks/bench_dynamics_diagnosis.py.)
+joint, and the held-out torque error falls; beside them friction falling with load (a sign no drive's friction
+has): selected, but not named.  (Every form over 20 seeds: benchmarks/bench_dynamics_diagnosis.py.)
 """
 
 from __future__ import annotations
@@ -75,12 +76,18 @@ def test_forms_injected_at_four_times_their_detectable_size_are_named_and_the_he
         float(c["location"].split("v_s ")[1].split()[0]) / 0.05))))
     spring = _mds(diag, "cable_spring", "a3")
     offset = min(c["min_detectable"] for c in diag["candidates"] if c["effect"] == "time_offset")
+    load = _mds(diag, "load_friction", "a4")
+    # and friction *falling* with load on a4: a physics no drive has, which the selection sees and the
+    # diagnosis must not name as load-dependent friction (its sign is not that physics)
     effects = {"stribeck": (1, 4 * stribeck, 0.05), "cable_spring": (2, 4 * spring, 0.0),
-               "time_offset": (None, 4 * offset, None)}
+               "time_offset": (None, 4 * offset, None), "load_friction": (3, -6 * load, None)}
     _, found, _ = _campaign(d, "injected", effects)
     names = {(f["effect"], f["location"].split(" (")[0]) for f in found["findings"]}
     for want in (("stribeck", "a2"), ("cable_spring", "a3"), ("time_offset", "effort stream")):
         assert want in names, (want, names)
+    assert ("load_friction", "a4") not in names
+    assert any(f["effect"] == "load_friction" and f["location"] == "a4" and "sign" in f["note"]
+               for f in found["rejected_findings"]), [(f["effect"], f["location"]) for f in found["rejected_findings"]]
     assert found["holdout_rms_after_m"] < found["holdout_rms_before_m"]
     spring_fd = next(f for f in found["findings"] if f["effect"] == "cable_spring")
     k = spring_fd["parameters"][0]

@@ -104,6 +104,7 @@ def test_the_planned_excitation_beats_a_random_one_and_the_simulated_effects_are
     delta = found[("time_offset", None)]["parameters"][0]["value"]
     f_s = found[("stribeck", "arm_2_joint")]["parameters"][0]["value"]
     assert 0.003 < delta < 0.0055 and 0.3 < f_s < 0.5, (delta, f_s)  # truth: 4 ms, 0.4 N·m
+    assert set(found) == {("time_offset", None), ("stribeck", "arm_2_joint")}, sorted(found)  # nothing else
 
 
 def test_the_bounded_benchmarks_print_their_tables(guide):

@@ -1,7 +1,7 @@
 """Excitation planning and the simulated dynamics campaign, through the CLI: `robocal plan excitation` (limits
 on a dense grid, a lower condition number than a random Fourier trajectory, the CSV and the JointTrajectory bag
 the same), `robocal simulate dynamics` executing the planned trajectory with its truth in a separate file, and
-the recording identified back to that truth; bad input one line, exit 2."""
+the recording identified back to that truth and diagnosed clean; bad input one line, exit 2."""
 
 from __future__ import annotations
 
@@ -72,7 +72,8 @@ def test_simulated_campaign_on_the_planned_trajectory_identifies_back_to_its_tru
     with open(rec, "rb") as fh:  # the truth is in its own file only: no metadata record of the recording holds it
         meta = json.dumps([dict(m.metadata) for m in make_reader(fh).iter_metadata()])
     assert "theta" not in meta and "effects" not in meta and "simulated" in meta
-    run_cli("run", str(rec), "--out", str(d / "run"), "--stages", "ingest,validate,identify", check=True)
+    run_cli("run", str(rec), "--out", str(d / "run"), "--stages", "ingest,validate,identify,observe,diagnose",
+            check=True)
     fit = json.loads((d / "run" / "identify" / "fit.json").read_text())
     tr = json.loads(truth.read_text())
     assert fit["names"] == tr["names"]
@@ -83,6 +84,13 @@ def test_simulated_campaign_on_the_planned_trajectory_identifies_back_to_its_tru
     z = (np.asarray(fit["beta"]) - base.beta(np.asarray(tr["theta"]))) / np.asarray(fit["beta_std"])
     assert np.sqrt(np.mean(z**2)) < 2.0 and np.abs(z).max() < 5.0, np.round(z, 2)
     assert fit["holdout_rms_Nm"] < 1.5 * tr["effort_noise_Nm"]
+    # nothing injected, nothing selected — not even a term the held-out arbiter then rejects: the simulator's
+    # Coulomb friction is a sign step, the model's a tanh, and where a joint crawls (starts, stops, reverses) that
+    # difference looks like a Stribeck bump or a direction-dependent level; the diagnosis tests on the rows the
+    # model fits, as identification does
+    diag = json.loads((d / "run" / "diagnose" / "diagnosis.json").read_text())
+    assert diag["status"] == "clean" and diag["findings"] == [] and diag["rejected_findings"] == [], \
+        [(f["effect"], f["location"]) for f in diag["findings"] + diag["rejected_findings"]]
 
 
 def test_bad_trajectory_and_bad_urdf_are_one_line_and_exit_2(planned, tmp_path):

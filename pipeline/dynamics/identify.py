@@ -108,12 +108,19 @@ def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = No
             Y_cache[key] = (Y, v, a)
     X = design.matrix(Y, v, a, data.fit, choice.terms)
     raw = np.asarray(data.tau, float)[:, data.fit]
-    use = np.ones(raw.shape)
-    if "coulomb" in choice.terms.friction and choice.terms.coulomb_width > 0:
-        # the Coulomb step is undefined where a joint starts, stops or reverses: its torque there is whatever
-        # stiction and presliding make it; those samples of that joint are left out of the fit (still scored)
-        use[np.abs(v[:, data.fit]) < SLOW_WIDTHS * choice.terms.coulomb_width] = 0.0
+    use = fitted_rows(v[:, data.fit], choice.terms).astype(float)
     return _Prepared(X * use[:, :, None], raw * use, raw, X)
+
+
+def fitted_rows(v: np.ndarray, terms: design.Terms) -> np.ndarray:
+    """Which samples (T, F) of the fitted joints' velocities v (T, F) the model fits: all but a crawling joint's.
+    The Coulomb step is undefined where a joint starts, stops or reverses (below `SLOW_WIDTHS` Coulomb widths of
+    speed): its torque there is whatever stiction and presliding make it, so those samples of that joint are left
+    out of the fit (and still scored)."""
+    use = np.ones(np.shape(v), bool)
+    if "coulomb" in terms.friction and terms.coulomb_width > 0:
+        use[np.abs(v) < SLOW_WIDTHS * terms.coulomb_width] = False
+    return use
 
 
 def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: B.BaseSet,

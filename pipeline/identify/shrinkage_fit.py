@@ -11,7 +11,6 @@ from dataclasses import replace
 import numpy as np
 
 from pipeline.blas import single_threaded
-from pipeline.identify.evidence import shrink_evidence
 from pipeline.identify.shrinkage import _anchor, _penalty, fold_holdout
 from pipeline.identify.shrinkage_groups import shrink_by_groups
 
@@ -51,13 +50,16 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
     n, kd = n_rows(data), model.residual_dim
     groups_of_rows = row_groups(model, data)
     tool = tool_candidates(model, data) if groups_of_rows is not None else ()
-    best, tried = None, {}
-    for chosen in pc.candidates(model):  # gravity-compliance families: none, each, all (physics_choice)
+    scored, tried, regfits = [], {}, {}
+    for chosen, stage in pc.stagings(model, grouped=groups_of_rows is not None):
         on, off = pc.names_of(model, chosen)
-        label = "+".join(chosen) or "rigid"
-        reg_fixed = tuple((set(options.fixed) | set(fixed_for(model, ["registration", *on]))) | set(off))
-        f0 = fit(model, data, replace(options, fixed=reg_fixed))
-        bad = pc.inadmissible(f0, on, model) if not getattr(model, "forced", False) else []
+        label = pc.label(chosen, stage)
+        staged = stage == pc.WITH_REGISTRATION
+        reg_fixed = tuple((set(options.fixed) | set(fixed_for(model, ["registration", *(on if staged else ())])))
+                          | set(off))
+        key = frozenset(reg_fixed)  # the rigid candidate's registration-only fit serves every joint one
+        f0 = regfits[key] = regfits.get(key) or fit(model, data, replace(options, fixed=reg_fixed))
+        bad = pc.inadmissible(f0, on, model) if staged and not getattr(model, "forced", False) else []
         if bad:
             tried[label] = {"admissible": False, "negative": bad}
             if progress is not None:
@@ -65,29 +67,69 @@ def shrunk_fit(model, data, options, k: int = 5, seed: int = 0, progress=None):
             continue
         fixed = tuple(set(options.fixed) | set(fixed_for(model, groups)) | set(off))
         # registration parameters the data cannot tell apart stay at their registration-only values
-        held = tuple(nm for i, nm in enumerate(names) if not f0.free[i] and nm in registration | set(on))
+        held = tuple(nm for i, nm in enumerate(names)
+                     if not f0.free[i] and nm in registration | (set(on) if staged else set()))
+        extra = on if staged else ()  # staged: anchored at the registration stage; else shrunk toward rigid
         if groups_of_rows is not None:  # whole groups left out: what carries over to a new session / placement
             s = shrink_by_groups(model, data, prior, f0.x, groups_of_rows, fixed=fixed + held, progress=progress,
                                  extra=on, tool=tool)
             score = s.gcv[s.mu_m]
         else:
-            s = shrink_evidence(model, data, prior, f0.x, fixed=fixed + held, progress=progress, extra=on)
-            m = n * kd  # GCV with the physics terms counted as estimated (they were, at the registration stage)
+            s, refused, neg = pc.shrink_physical(model, data, prior, f0.x, fixed + held, () if staged else on, extra,
+                                                 progress)
+            if neg:
+                tried[label] = {"admissible": False, "negative": list(neg)}
+                continue
+            held += refused
+            on = tuple(nm for nm in on if nm not in refused)
+            m = n * kd  # GCV with staged physics terms counted as estimated (they were, at the registration stage)
             rss = s.gcv[s.mu_m] * (m - s.dof) ** 2 / m
-            score = m * rss / max(m - s.dof - len(on), 1e-9) ** 2
-        tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m)}
-        if progress is not None and len(pc.candidates(model)) > 1:
+            score = m * rss / max(m - s.dof - len(extra), 1e-9) ** 2
+        tried[label] = {"admissible": True, "score_m2": float(score), "mu_m": float(s.mu_m),
+                        **({"log_evidence": float(s.log_evidence)} if np.isfinite(s.log_evidence) else {})}
+        if not staged and len(on) < len(pc.names_of(model, chosen)[0]):
+            tried[label]["held_at_zero"] = [nm for nm in pc.names_of(model, chosen)[0] if nm not in on]
+        if progress is not None and len(tried) > 1:
             progress(f"physics {label}: score {np.sqrt(score) * 1e3:.4g} mm")
-        if best is None or score < best[0]:
-            best = (score, s, f0, fixed, held, on, label)
-    _, s, f0, fixed, held, on, label = best
-    if len(tried) > 1 or on:
-        s = replace(s, physics={"chosen": label, "terms": list(on), "candidates": tried})
+        if groups_of_rows is None:  # each row's share of the score: the standard error of `simplest_within_noise`
+            r2 = np.sum(np.asarray(model.residuals(s.x, data), float).reshape(n, kd) ** 2, axis=1)
+            rows = r2 * score / max(float(np.mean(r2)), 1e-300)
+        else:
+            rows = np.full(n, score)
+        scored.append((score, len(pc.names_of(model, chosen)[0]), rows,
+                       dict(s=s, f0=f0, fixed=fixed, held=held, on=on, chosen=chosen, extra=extra, stage=stage,
+                            label=label, shrunk=() if staged else on)))
+    pick = pc.simplest_within_noise([c[:3] for c in scored]) if groups_of_rows is None else \
+        min(range(len(scored)), key=lambda i: scored[i][0])
+    if scored[pick][3]["stage"] == pc.WITH_GEOMETRY:  # verified by refitting on folds of rows against the best staged
+        ref = min((i for i in range(len(scored)) if scored[i][3]["stage"] == pc.WITH_REGISTRATION),
+                  key=lambda i: scored[i][0])
+        from pipeline.identify.natural_groups import holdout_groups
+
+        folds = design_folds(n, pc.CHECK_FOLDS, seed, holdout_groups(model, data), data)
+        cv = {}
+        for i in (pick, ref):
+            c = scored[i][3]
+            cv[i] = pc.fold_rms(model, data, prior, c["f0"].x, c["fixed"] + c["held"], c["shrunk"], c["extra"], folds)
+            tried[c["label"]]["fold_rms_m"] = cv[i]
+        if cv[pick] >= cv[ref]:
+            tried[scored[pick][3]["label"]]["not_kept"] = (f"refitted on {len(folds)} folds of rows, it predicts them "
+                                                           f"worse than {scored[ref][3]['label']}")
+            pick = ref
+    c = scored[pick][3]
+    s, f0, fixed, held, on, chosen, extra, stage, label = (c[k] for k in ("s", "f0", "fixed", "held", "on", "chosen",
+                                                                         "extra", "stage", "label"))
+    least = min(scored, key=lambda c: c[0])[3]["label"]
+    if least != label:  # a smaller model kept within the noise of the least score: said, with the one it beat
+        tried[label]["kept_over"] = least
+    if len(tried) > 1 or on:  # the chosen families, and how their terms were estimated (`physics_choice.stagings`)
+        s = replace(s, physics={"chosen": "+".join(chosen) or "rigid", "terms": list(on), "candidates": tried,
+                                **({"estimated": stage} if chosen else {})})
     if s.tool == "free":  # the left-out groups freed the tool point: it is estimated like the registration
         model = replace(model, fit_tool=True)
         fixed = tuple(nm for nm in fixed if nm not in tool)
-    free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held, on)
-    wa = w + _anchor(model, np.asarray(prior, float), fixed + held, on)
+    free_mask, w = _penalty(model, np.asarray(prior, float), fixed + held, extra)
+    wa = w + _anchor(model, np.asarray(prior, float), fixed + held, extra)
     J = np.asarray(model.jacobian(s.x, data), float).reshape(n * kd, -1)
     mu_eff = 0.0 if np.isinf(s.mu_m) else s.mu_m
     lam_all = s.lam if s.lam is not None else np.where(free_mask, mu_eff * wa, 0.0)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from pipeline.diagnose.inference.projection import orthonormal, project_out
+from pipeline.diagnose.inference.projection import orthonormal, project_out, residual_of
 from pipeline.diagnose.inference.screen import Problem
 from pipeline.diagnose.library import drive, friction
 from pipeline.diagnose.verdict.lack_of_fit import Variable, smooth_variable
@@ -60,6 +60,7 @@ def table(rb: RigidBody, data: I.Data, fit: I.Fit) -> dict:
             "mass_matrix": M,
             "coulomb_width": fit.choice.terms.coulomb_width if "coulomb" in fit.choice.terms.friction else 0.01,
             "joints": [j for j, m in zip(rb.joints, mask) if m], "prismatic": prismatic,
+            "fitted": I.fitted_rows(v[:, mask], fit.choice.terms),
             "X": P.Xp[:, :, fit.base.independent], "base_names": [fit.names[i] for i in fit.base.independent]}
 
 
@@ -109,22 +110,28 @@ def signatures(tab: dict, effects: list) -> list[np.ndarray]:
 
 class Whitener:
     """Rows (T·F, c) sample-major → the same rows weighted by 1/σ_j and filtered along time per joint
-    by e_t − Σ φ_jk e_{t−k} (the first samples by the lags they have).  `n_effective` its row count."""
+    by e_t − Σ φ_jk e_{t−k} (the first samples by the lags they have).  With `use` (T, F) bool, the rows the
+    model fits: the others are set to zero before and after the filter (each run of used rows is filtered as a
+    series of its own, from rest).  `n_effective` the count of rows kept."""
 
-    def __init__(self, T: int, weights: np.ndarray, phi: list[np.ndarray]):
+    def __init__(self, T: int, weights: np.ndarray, phi: list[np.ndarray], use: np.ndarray | None = None):
         self.T, self.F = T, weights.size
         self.w, self.phi = np.asarray(weights, float), phi
-        self.n_effective = T * self.F
+        self.use = None if use is None or np.all(use) else np.asarray(use, bool)
+        self.n_effective = T * self.F if self.use is None else int(self.use.sum())
 
     def __call__(self, A: np.ndarray) -> np.ndarray:
         A = np.asarray(A, float)
         one = A.ndim == 1
-        B = A.reshape(self.T, self.F, -1) * self.w[None, :, None]
+        w = self.w[None, :, None] if self.use is None else self.w[None, :, None] * self.use[:, :, None]
+        B = (A.reshape(self.T, self.F, -1) * w).transpose(1, 0, 2).copy()  # (F, T, c)
         out = B.copy()
-        for f, ph in enumerate(self.phi):
+        for f, ph in enumerate(self.phi):  # the FIR filter 1 − Σ φ_k z⁻ᵏ along time, from rest
             for k, c in enumerate(ph, start=1):
-                out[k:, f] -= c * B[:-k, f]
-        out = out.reshape(self.T * self.F, -1)
+                out[f, k:] -= c * B[f, :-k]
+        if self.use is not None:
+            out *= self.use.T[:, :, None]
+        out = out.transpose(1, 0, 2).reshape(self.T * self.F, -1)
         return out[:, 0] if one else out
 
 
@@ -169,15 +176,22 @@ def build(rb: RigidBody, data: I.Data, fit: I.Fit) -> Built:
     # per-joint weights and AR whitening from the maximal model's residual (the base regressor and every
     # candidate): the noise, not the base model's misfit, which holds whatever the candidates would take
     Smat = np.hstack([s.reshape(T * F, -1) for s in S]) if S else np.zeros((T * F, 0))
-    Dmax = np.hstack([X, Smat])
-    emax = project_out(y[:, None], orthonormal(Dmax))[:, 0].reshape(T, F)
-    sig = np.sqrt(np.mean(emax**2, axis=0) * T * F / max(T * F - Dmax.shape[1], 1))
+    # the rows the identification fits (a crawling joint's are not: its friction there is stiction's, which the
+    # model does not describe and no candidate is tested against)
+    use = np.asarray(tab["fitted"], bool)
+    u = use.reshape(T * F)
+    Dmax = np.hstack([X, Smat])[u]
+    emax = np.zeros((T, F))
+    emax[use] = residual_of(Dmax, y[u])
+    n = max(int(u.sum()), 1)
+    sig = np.sqrt(np.sum(emax**2, axis=0) / np.maximum(use.sum(axis=0), 1) * n / max(n - Dmax.shape[1], 1))
     w = 1.0 / np.maximum(sig, 1e-12)
-    W = Whitener(T, w, [ar_fit(emax[:, f] * w[f]) for f in range(F)])
+    W = Whitener(T, w, [ar_fit(emax[use[:, f], f] * w[f]) if use[:, f].sum() > 10 * AR_MAX else np.zeros(0)
+                        for f in range(F)], use)  # a joint that hardly moves: its few rows unfiltered
     Jf = W(X)
     Q = orthonormal(Jf)
     r = project_out(W(y)[:, None], Q)[:, 0]
-    dof = T * F - Q.shape[1]
+    dof = W.n_effective - Q.shape[1]
     Sw = [W(s.reshape(T * F, -1)) for s in S]
     p = Problem(T, F, list(tab["base_names"]), Jf, r, dof, float(np.sqrt(r @ r / max(dof, 1))), lib, Sw)
     return Built(tab, lib, S, W, p, X, y, sig)

@@ -33,6 +33,7 @@ from pipeline.diagnose.document.assemble import candidates, not_identifiable
 from pipeline.diagnose.inference import forms, resampling, screen
 from pipeline.diagnose.inference.augmented import t_interval
 from pipeline.diagnose.inference.stepwise import look_alikes
+from pipeline.diagnose.library import drive
 from pipeline.diagnose.method import Settings
 from pipeline.diagnose.verdict import arbiter, checks, grading, lack_of_fit
 from pipeline.dynamics import crossval
@@ -47,8 +48,9 @@ def _rows(samples: np.ndarray, F: int) -> np.ndarray:
 
 
 def held_out(D: np.ndarray, y: np.ndarray, wr: np.ndarray, T: int, F: int, folds: int, guard: int) -> np.ndarray:
-    """Held-out residuals (T, F), N·m, of the weighted least-squares model y ≈ D θ (rows sample-major),
-    contiguous blocks with a guard band (`dynamics.crossval`).  Each fold's normal equations are the whole
+    """Held-out residuals (T, F), N·m, of the weighted least-squares model y ≈ D θ (rows sample-major, weights
+    `wr`: 1/σ_j, 0 for a row the model does not fit), contiguous blocks with a guard band (`dynamics.crossval`):
+    every row of a held-out block predicted.  Each fold's normal equations are the whole
     recording's less those of the rows it leaves out (one pass over the rows, not one per fold)."""
     Dw, yw = D * wr[:, None], y * wr
     c = Dw.shape[1]
@@ -84,6 +86,41 @@ def gain_z(before: np.ndarray, after: np.ndarray, fs: float) -> float:
 def _design(b: A.Built, idx: list[int]) -> np.ndarray:
     T, F = b.table["tau"].shape
     return np.hstack([b.X] + [b.S[i].reshape(T * F, -1) for i in idx])
+
+
+OFFSET_ITERATIONS = 4  # fixed-point steps of the stream offset's refit (each a linear least squares)
+
+
+def offset_refit(b: A.Built, acc: list[int], th: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The joint refit with the stream offset δ refitted as what it is, a delay of the whole model: its column
+    (τ̃(t − δ_f) − τ̃(t))/δ_f is rebuilt from the refitted model τ̃ — base parameters and every other finding, not
+    the identified torque alone (a Stribeck bump the effort stream also delays belongs in it) — at δ_f = the
+    current δ (the exact shift rather than the nearest form's secant), and the least squares solved again, until δ
+    settles (`OFFSET_ITERATIONS`).  Updates the offset's signature in `b` (raw and whitened); (whitened design, θ)."""
+    T, F = b.table["tau"].shape
+    p = b.problem
+    i = next(j for j in acc if p.lib[j].name == "time_offset")
+    delay = float(p.lib[i].data.get("delay_s", 0.01))
+    Aw = np.hstack([p.Jf] + [p.S[j] for j in acc])
+    for _ in range(OFFSET_ITERATIONS):
+        full, col, at = b.X @ th[:p.n_free], p.n_free, None
+        for j in acc:
+            k = p.lib[j].k
+            if j == i:
+                at = col
+            else:
+                full = full + b.S[j].reshape(T * F, -1) @ th[col:col + k]
+            col += k
+        delta = float(th[at])
+        delay = delta if abs(delta) > 1e-4 else delay
+        model = {"time_s": b.table["time_s"], "tau_fit": full.reshape(T, F)}
+        b.S[i] = ((drive.shifted(model, delay) - model["tau_fit"]) / delay)[:, :, None]
+        p.S[i] = b.W(b.S[i].reshape(T * F, -1))
+        Aw = np.hstack([p.Jf] + [p.S[j] for j in acc])
+        th, *_ = np.linalg.lstsq(Aw, yw, rcond=None)
+        if abs(float(th[at]) - delta) < 1e-3 * max(abs(delta), 1e-6):
+            break
+    return Aw, th
 
 
 def _words(text: str) -> str:
@@ -200,17 +237,20 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
     Aw = np.hstack([p.Jf] + [p.S[i] for i in acc])
     yw = b.W(b.y)
     th, *_ = np.linalg.lstsq(Aw, yw, rcond=None)
+    if any(p.lib[i].name == "time_offset" for i in acc):
+        Aw, th = offset_refit(b, acc, th, yw)
     rw = yw - Aw @ th
-    dof = max(Aw.shape[0] - np.linalg.matrix_rank(Aw), 1)
+    dof = max(b.W.n_effective - np.linalg.matrix_rank(Aw), 1)
     s2 = float(rw @ rw) / dof
     cov = s2 * np.linalg.pinv(Aw.T @ Aw)
     std = np.sqrt(np.clip(np.diag(cov), 0, None))
     # 4. the held-out arbiter in N·m
     guard = int(round(GUARD_S * fs))
     wr = (1.0 / np.maximum(b.sigma_joint, 1e-12))[np.tile(np.arange(F), T)]
-    before = held_out(b.X, b.y, wr, T, F, settings.folds, guard)
-    after = held_out(_design(b, acc), b.y, wr, T, F, settings.folds, guard)
-    without = {i: held_out(_design(b, [j for j in acc if j != i]), b.y, wr, T, F, settings.folds, guard)
+    wfit = wr * np.asarray(tab["fitted"], float).reshape(T * F)  # fitted on the rows identification fits, all scored
+    before = held_out(b.X, b.y, wfit, T, F, settings.folds, guard)
+    after = held_out(_design(b, acc), b.y, wfit, T, F, settings.folds, guard)
+    without = {i: held_out(_design(b, [j for j in acc if j != i]), b.y, wfit, T, F, settings.folds, guard)
                for i in acc}
     findings, col = [], p.n_free
     col_of, contributions = {}, []
@@ -224,30 +264,37 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
         findings.append(fd)
         col_of[i] = list(range(col, col + k))
-        contributions.append((b.S[i].reshape(T * F, -1) @ th[col:col + k] * wr).reshape(T, F))
+        contributions.append((b.S[i].reshape(T * F, -1) @ th[col:col + k]).reshape(T, F))  # N·m
         col += k
     for fd, i in zip(findings, acc):
         fd["evidence"]["cv_gain_z"] = gain_z(without[i], after, fs)
-    rejected = [j for j, fd in enumerate(findings) if fd["evidence"]["cv_gain_z"] < MIN_GAIN_Z]
+    # a parameter only one sign of which is physics (a compliance, a friction growing with load), found with the
+    # other sign beyond 2σ: not that physics — a proxy for something outside the library
+    wrong_sign = {j for j, (fd, i) in enumerate(zip(findings, acc)) if p.lib[i].data.get("sign")
+                  and p.lib[i].data["sign"] * fd["parameters"][0]["value"] < -2 * fd["parameters"][0]["std"]}
+    rejected = [j for j, fd in enumerate(findings) if fd["evidence"]["cv_gain_z"] < MIN_GAIN_Z or j in wrong_sign]
     kept = [j for j in range(len(findings)) if j not in rejected]
     final_cv = after
     if rejected:
-        final_cv = held_out(_design(b, [acc[j] for j in kept]), b.y, wr, T, F, settings.folds, guard)
+        final_cv = held_out(_design(b, [acc[j] for j in kept]), b.y, wfit, T, F, settings.folds, guard)
     worse = bool(kept) and crossval.rms(final_cv) > crossval.rms(before)
     if worse:
         rejected, kept, final_cv = list(range(len(findings))), [], before
     why = ("the model with the selected terms is worse out of sample than the identified model alone" if worse
            else f"modelling it does not lower the held-out torque error by more than {MIN_GAIN_Z:g} standard errors")
-    rejected_docs = [{**findings[j], "confidence": "rejected", "note": why} for j in rejected]
+    sign_note = ("its sign is not that physics (a negative compliance, friction falling with load): a proxy for "
+                 "something the library does not name")
+    rejected_docs = [{**findings[j], "confidence": "rejected",
+                      "note": sign_note if j in wrong_sign and not worse else why} for j in rejected]
     acc_k = [acc[j] for j in kept]
     findings = [findings[j] for j in kept]
     contributions = [contributions[j] for j in kept]
     say(f"held-out arbiter: {len(findings)} kept, {len(rejected_docs)} rejected ({time.perf_counter() - t0:.1f} s)")
     # 5. where the rest is, grading, status
     cols = list(range(p.n_free)) + [c for i in acc_k for c in col_of[i]]
-    D = _design(b, acc_k) * wr[:, None]
-    th_k, *_ = np.linalg.lstsq(b.W(_design(b, acc_k)), yw, rcond=None)
-    r_final = b.y * wr - D @ th_k
+    D = _design(b, acc_k)  # N·m per unit: the whitener weighs every row once (1/σ_j, its AR filter)
+    th_k, *_ = np.linalg.lstsq(b.W(D), yw, rcond=None)
+    r_final = b.y - D @ th_k
     col_list, pos2 = [], p.n_free
     for i in acc_k:
         col_list.append(list(range(pos2, pos2 + p.lib[i].k)))

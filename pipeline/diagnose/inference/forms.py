@@ -16,6 +16,7 @@ import numpy as np
 
 from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.library.term import Effect
+from pipeline.identify.linear_folds import scaled_basis
 
 
 def alternatives(lib: list[Effect], i: int, pool: list[int]) -> list[int]:
@@ -35,9 +36,13 @@ def _within_one_se(e2_a: np.ndarray, e2_b: np.ndarray) -> bool:
     return bool(np.mean(d) <= np.std(d, ddof=1) / np.sqrt(d.size))
 
 
-def _cv(Jf: np.ndarray, S: list[np.ndarray], idx: list[int], r: np.ndarray, folds: list) -> np.ndarray:
+def _cv(Jf: np.ndarray, S: list[np.ndarray], idx: list[int], r: np.ndarray, folds: list,
+        U0: np.ndarray | None = None) -> np.ndarray:
+    """Held-out residuals of the geometry Jf and the effects idx; `U0` an orthonormal basis of Jf's columns
+    (`linear_folds.scaled_basis`), extended by the effects' columns alone."""
     rows = np.sort(np.concatenate(folds))  # measurements in no fold are not predicted (`resampling.design_folds`)
-    return resampling.holdout(np.hstack([Jf] + [S[i] for i in idx]), r, folds)[rows]
+    U = None if U0 is None else scaled_basis(np.hstack([S[i] for i in idx]), base=U0)
+    return resampling.holdout(np.hstack([Jf] + [S[i] for i in idx]), r, folds, U)[rows]
 
 
 def choose(lib: list[Effect], accepted: list[int], testable: list[int], S: list[np.ndarray], Jf: np.ndarray,
@@ -50,12 +55,14 @@ def choose(lib: list[Effect], accepted: list[int], testable: list[int], S: list[
     another form."""
     out = list(accepted)
     tried: dict[int, list[dict]] = {}
+    U0 = None
     for pos, i in enumerate(accepted):
         alts = [j for j in alternatives(lib, i, testable) if j not in out]
         if not alts:
             continue
         forms = sorted([i] + alts, key=lambda j: (lib[j].k, lib[j].priority, j))
-        e2 = {j: _cv(Jf, S, out[:pos] + [j] + out[pos + 1:], r, folds) ** 2 for j in forms}
+        U0 = scaled_basis(Jf) if U0 is None else U0  # the geometry's basis, shared by every form
+        e2 = {j: _cv(Jf, S, out[:pos] + [j] + out[pos + 1:], r, folds, U0) ** 2 for j in forms}
         best = min(forms, key=lambda j: (float(np.mean(e2[j])), lib[j].k, lib[j].priority))
         while True:  # a simpler form within one standard error of the chosen one replaces it
             near = [j for j in forms if _simpler(lib[j], lib[best]) and _within_one_se(e2[j], e2[best])]

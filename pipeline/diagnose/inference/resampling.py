@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.diagnose.inference.projection import orthonormal, project_out
-from pipeline.diagnose.inference.stepwise import forward_select
+from pipeline.diagnose.inference.candidate_gram import Design
+from pipeline.diagnose.inference.stepwise import forward_select, select_design
 from pipeline.identify.least_squares import kfold_indices
 from pipeline.progress import step
 
@@ -78,14 +79,31 @@ def time_blocks(t: np.ndarray, size: int = 5) -> np.ndarray:
     return g
 
 
-def holdout(A: np.ndarray, r: np.ndarray, folds: list[np.ndarray]) -> np.ndarray:
+PUSH_THROUGH_MIN = 1e-8  # a fold whose rows carry a direction of A this nearly alone is refitted as such
+
+
+def holdout(A: np.ndarray, r: np.ndarray, folds: list[np.ndarray], basis: np.ndarray | None = None) -> np.ndarray:
     """Held-out residuals (n,) of the linearised model r + A·δ: each fold predicted from the others
-    (rows in no fold: NaN)."""
+    (rows in no fold: NaN).  One orthonormal basis U of A's (unit-scaled) columns serves every fold: the fit
+    without the rows T predicts them with e_T + U_T(I − U_TᵀU_T)⁻¹U_Tᵀe_T, e = (I − UUᵀ)r (the push-through
+    identity, `identify.linear_folds`) — a rank × rank solve per fold; a fold whose rows alone carry a direction
+    (I − U_TᵀU_T nearly singular) is refitted on its training rows (least squares, minimum norm).  `basis`: U
+    when known (`linear_folds.scaled_basis` of A's columns, e.g. extended from a basis of some of them)."""
+    from pipeline.identify.linear_folds import scaled_basis
+
     out = np.full(r.size, np.nan)
     norms = np.linalg.norm(A, axis=0)
     norms[norms == 0] = 1
     As = A / norms
+    U = scaled_basis(As) if basis is None else basis
+    e = r + U @ (U.T @ -r)
+    eye = np.eye(U.shape[1])
     for test in folds:
+        Ut = U[test]
+        M = eye - Ut.T @ Ut
+        if U.shape[1] and np.linalg.eigvalsh(M)[0] > PUSH_THROUGH_MIN:
+            out[test] = e[test] + Ut @ np.linalg.solve(M, Ut.T @ e[test])
+            continue
         train = np.setdiff1d(np.arange(r.size), test)
         d, *_ = np.linalg.lstsq(As[train], -r[train], rcond=1e-10)
         out[test] = r[test] + As[test] @ d
@@ -96,23 +114,62 @@ def rms(v: np.ndarray) -> float:
     return float(np.sqrt(np.nanmean(np.asarray(v) ** 2)))
 
 
+GRAM_BYTES = 2**27  # the bootstrap's per-group Gram matrices are kept when they fit in this (bytes)
+GRAM_REL = 1e-10  # a geometry direction whose resampled weight is below this share of the largest is dropped
+
+
 def bootstrap_frequency(J: np.ndarray, r: np.ndarray, S: list[np.ndarray], tolerances: list[float],
                         groups: np.ndarray, alpha: float, n_boot: int = 40, seed: int = 0) -> np.ndarray:
     """How often each candidate is selected when the campaign's groups are resampled (n_cand,):
     per resample the same stepwise selection as the diagnosis (`stepwise.forward_select`: greedy
-    pass, backward elimination, pair additions) on the resampled, re-projected problem."""
+    pass, backward elimination, pair additions) on the resampled, re-projected problem.
+
+    A resample repeats whole groups, so its normal equations are the groups' own summed with their
+    multiplicities: with Z = [Q, S, r] (Q an orthonormal basis of the geometry J's columns on every row),
+    the Gram matrix ZᵀZ of each group is formed once, and a resample's is their weighted sum; the geometry is
+    partialled out by its Schur complement and the selection runs on the candidates' Gram algebra
+    (`candidate_gram.Design.of_gram`) — the same tests as on the resampled rows re-projected, at K×K cost per
+    resample instead of a QR and a projection of every row.  Where the groups' matrices would not fit in
+    `GRAM_BYTES`, each resample's rows are re-projected as such."""
     rng = np.random.default_rng(seed)
     uniq = np.unique(groups)
     members = [np.flatnonzero(groups == u) for u in uniq]
     count = np.zeros(len(S))
-    p_geo = orthonormal(J).shape[1]
+    Q = orthonormal(J)
+    p_geo = Q.shape[1]
+    widths = [s.shape[1] for s in S]
+    width = p_geo + sum(widths) + 1
+    grams = None
+    if S and uniq.size * width**2 * 8 <= GRAM_BYTES:
+        grams = np.empty((uniq.size, width, width))
+        for u, rows in enumerate(members):
+            Z = np.hstack([Q[rows]] + [s[rows] for s in S] + [r[rows, None]])
+            grams[u] = Z.T @ Z
+        sizes = np.array([m.size for m in members])
     for b in range(n_boot):
         step(f"bootstrap: resample {b + 1} of {n_boot}")
         pick = rng.integers(0, uniq.size, uniq.size)
-        idx = np.concatenate([members[i] for i in pick])
-        Q = orthonormal(J[idx])
-        rb = project_out(r[idx][:, None], Q)[:, 0]
-        Sb = [project_out(s[idx], Q) for s in S]
-        for st in forward_select(rb, Sb, idx.size - p_geo, alpha, tolerances):
+        if grams is not None:
+            w = np.bincount(pick, minlength=uniq.size).astype(float)
+            G, g, rr = _partial_geometry(np.tensordot(w, grams, axes=1), p_geo)
+            D = Design.of_gram(G, g, rr, widths, tolerances)
+            steps = select_design(D, int(w @ sizes) - p_geo, alpha)
+        else:
+            idx = np.concatenate([members[i] for i in pick])
+            Qb = orthonormal(J[idx])
+            rb = project_out(r[idx][:, None], Qb)[:, 0]
+            steps = forward_select(rb, [project_out(s[idx], Qb) for s in S], idx.size - p_geo, alpha, tolerances)
+        for st in steps:
             count[st.index] += 1
     return count / max(n_boot, 1)
+
+
+def _partial_geometry(M: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """(G, g, rr) of the candidates and residual with the first p columns (the geometry) partialled out of the
+    Gram matrix M of [geometry, candidates, r]: the Schur complement, the geometry's directions that the rows
+    hardly carry (weight below `GRAM_REL` of the largest) left out as a rank-revealing QR of them would."""
+    w, V = np.linalg.eigh(M[:p, :p])
+    keep = w > GRAM_REL * max(w[-1], 1e-300) if p else np.zeros(0, bool)
+    L = (V[:, keep] / np.sqrt(w[keep])).T @ M[:p, p:]
+    R = M[p:, p:] - L.T @ L
+    return R[:-1, :-1], R[:-1, -1], float(R[-1, -1])

@@ -96,7 +96,7 @@ def time_offset(table, delay_s: float) -> Effect:
     return Effect("time_offset", f"effort stream (δ {ms:+.0f} ms)", ("delta",), ("s",), OFFSET_PLAUSIBLE_S, "torque",
                   basis, 31 + int(abs(ms) > 10), "time_since_start_s",
                   "stamp efforts and positions with one clock (the same message header)",
-                  data={"form": f"δ {ms:+.0f} ms"})
+                  data={"form": f"δ {ms:+.0f} ms", "delay_s": delay_s})
 
 
 def joint_elasticity(table, f: int) -> Effect:
@@ -113,7 +113,7 @@ def joint_elasticity(table, f: int) -> Effect:
 
     return Effect("joint_elasticity", name, ("c",), (f"{pu}/{tu}",), COMPLIANCE_PLAUSIBLE, "torque", basis, 32,
                   f"load_{name}", f"excite {name} with faster reversals and under varied loads, or log its link-side "
-                  "encoder", data={"joint": f})
+                  "encoder", data={"joint": f, "sign": 1})
 
 
 def library(table) -> list[Effect]:

@@ -102,7 +102,7 @@ def load_friction(table, f: int) -> Effect:
 
     return Effect("load_friction", name, ("mu",), ("1",), MU_PLAUSIBLE, "torque", basis, 12, f"load_{name}",
                   f"move {name} at the same speeds under light and heavy loads (arm folded and stretched, a payload)",
-                  data={"joint": f})
+                  data={"joint": f, "sign": 1})
 
 
 def friction_drift(table, f: int, form: str) -> Effect:

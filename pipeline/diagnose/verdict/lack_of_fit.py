@@ -23,6 +23,7 @@ import scipy.stats
 
 from pipeline.diagnose.inference.projection import orthonormal, project_out
 from pipeline.diagnose.inference.sign_flips import wild_cluster_p
+from pipeline.diagnose.verdict.bump_locate import locate
 from pipeline.models import serial_arm
 from pipeline.progress import step
 
@@ -257,7 +258,8 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
     statistic (`scan_basis`, `scan_cluster_p`; `statistic` is then the best element's F and
     `region` its centre ± width), else of the smooth basis's F (`sign_flips.wild_cluster_p`).  `draws` (N, B):
     residuals drawn from a parametric null model (whitened like r, e.g. `clustered.PhysicalModel.draw`)
-    replace the sign flips as the scan statistic's reference (a parametric bootstrap)."""
+    replace the sign flips as the scan statistic's reference (a parametric bootstrap).  `region` and `peak_m`
+    are those of the significant variables ("" and 0 for the others)."""
     QA = orthonormal(A)
     if original is not None:
         QA0 = orthonormal(original[1])
@@ -313,7 +315,7 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
     for i, (v, F, dof, p, Bp, _) in enumerate(raw):
         region: tuple[float, float] | str = ""
         peak = 0.0
-        if Bp is not None:
+        if Bp is not None and sig[i]:  # where and how large: for the structure found (nothing reads the rest's)
             B0, r0 = (Bp, res) if original is None else (project_out(cols0[v.name], QA0), res0)
             coef, *_ = np.linalg.lstsq(B0, r0, rcond=None)
             peak = float(np.max(np.abs(B0 @ coef)))
@@ -321,16 +323,6 @@ def test(r: np.ndarray, A: np.ndarray, variables: list[Variable], dof_resid: int
         out.append(LackOfFit(v.name, float(F) if np.isfinite(F) else 0.0, dof, p, float(p_holm[i]), bool(sig[i]),
                              region, peak))
     return out
-
-
-def locate(v: Variable, QA: np.ndarray, res: np.ndarray, n_scan: int = N_SCAN, whiten=None) -> tuple[float, float]:
-    """Where along v the structure is: of single narrow bumps (width range/12) at `n_scan`
-    centres, each projected against the design (`scan_basis`), the one that explains most of
-    the residual; the interval ±1 width around its centre, clipped to v's range."""
-    lo, hi = float(v.centres[0]), float(v.centres[-1])
-    sc = scan_basis(v, QA, whiten, (12,), n_scan)
-    c, w = (lo, (hi - lo) / 12) if sc is None else (float(sc.centres[best_element(sc, res)]), float(sc.widths[0]))
-    return float(max(lo, c - w)), float(min(hi, c + w))
 
 
 def located_columns(v: Variable, region: tuple[float, float] | list[float]) -> np.ndarray:

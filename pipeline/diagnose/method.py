@@ -263,9 +263,11 @@ def _untested_alikes(findings: list, sel: screen.Selection, p: screen.Problem, f
                 hits.append({"effect": g.effect.name, "location": str(g.effect.location), "explains": share,
                              "why": f"set aside by the gate ({g.reason}), yet it reproduces this finding",
                              "advice": g.effect.advice, **_swap_evidence(sel, p, folds, pos, j, g.projected, swap)})
-            elif g.reason.startswith("smallest detectable size") and _swap_fits_better(sel, p, pos, j, g.projected):
-                # too weak to be tested at a plausible size, yet in the finding's place it fits the data better:
-                # the effect may be that one, larger than the library deems plausible — not a confident name
+            elif (g.reason.startswith("smallest detectable size") and g.min_detectable <= WEAK_FACTOR * g.effect.plausible
+                  and _swap_fits_better(sel, p, pos, j, g.projected)):
+                # too weak to be tested at a plausible size (but detectable within WEAK_FACTOR of it), yet in the
+                # finding's place it fits the data better: the effect may be that one, larger than the library deems
+                # plausible — not a confident name
                 hits.append({"effect": g.effect.name, "location": str(g.effect.location), "explains": share,
                              "why": f"set aside by the gate ({g.reason}), yet in this finding's place it fits better",
                              "advice": g.effect.advice, **_swap_evidence(sel, p, folds, pos, j, g.projected, swap)})
@@ -274,6 +276,10 @@ def _untested_alikes(findings: list, sel: screen.Selection, p: screen.Problem, f
                 fd["evidence"]["cv_rms_linearised_m"] = float(np.sqrt(np.mean(
                     forms._cv(p.Jf, p.S, sel.accepted, p.r, folds) ** 2)))
             fd["untested_look_alikes"] = sorted(hits, key=lambda h: -h["explains"])
+
+
+WEAK_FACTOR = 10.0  # a set-aside candidate detectable within this factor of its plausible size may still be the effect
+# (beyond it the campaign all but absorbs it: a Delta's tracker scale, detectable at 1 000× its plausible 100 ppm)
 
 
 def _swap_fits_better(sel: screen.Selection, p: screen.Problem, pos: list, j: int, Sp_c: np.ndarray) -> bool:

@@ -38,6 +38,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import independent_touch as it  # noqa: E402
+from touch_ingest import diagnosis_table  # noqa: E402
 
 from pipeline.diagnose import Settings, diagnose  # noqa: E402
 from pipeline.diagnose.library.term import pick  # noqa: E402
@@ -93,7 +94,7 @@ def coupling_share(table) -> dict:
 
 def one(nom, tru, targets, effect, seed, n_boot, jig=None):
     c = it.run(nom, tru, targets, () if effect is None else (effect,), seed=seed, jig=jig)
-    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c),
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     return c, d
 
@@ -121,7 +122,7 @@ def main() -> None:
     report: dict = {"seeds": a.seeds, "mult": a.mult, "campaign": a.campaign}
     if "coupling_J2_J3" in a.cases:  # the gate's test on this campaign's first clean recording
         report["coupling_J2_J3_vs_eccentricity_J2"] = coupling_share(
-            it.run(nom, tru, targets, (), seed=a.first_seed, jig=jig).table)
+            diagnosis_table(it.run(nom, tru, targets, (), seed=a.first_seed, jig=jig)))
         print(json.dumps({"coupling_J2_J3_vs_eccentricity_J2": report["coupling_J2_J3_vs_eccentricity_J2"]}),
               flush=True)
     if "clean" in a.cases:

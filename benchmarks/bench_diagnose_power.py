@@ -55,6 +55,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import independent_campaign_file as icf  # noqa: E402
 import independent_touch as it  # noqa: E402
+from touch_ingest import diagnosis_table  # noqa: E402
 
 from pipeline.diagnose import Settings, diagnose  # noqa: E402
 from pipeline.systems import arc_welder as aw  # noqa: E402
@@ -132,7 +133,7 @@ def run_case(world, name: str, mult: float, seeds, n_boot: int) -> dict:
     rows, gm = [], None
     for s in seeds:
         c = it.run(nom, tru, targets, (eff,), seed=s, **campaign)
-        d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
+        d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c),
                      settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
         rows.append({"seed": s, **score(d, key)})
         gm = gm if gm is not None else gate_mds(d, key)
@@ -200,18 +201,29 @@ def main() -> None:
     ap.add_argument("--stream-noise", type=float, default=1.0,
                     help="--plan random: the logged encoder stream's reading noise, counts (the latches have none)")
     ap.add_argument("--clean-only", action="store_true", help="--plan random: only the clean campaigns (false findings)")
+    ap.add_argument("--budget-only", action="store_true",
+                    help="--plan random: only the power budget per term (robocal's detectable size beside the ideal's)")
+    ap.add_argument("--table", default="", help="print the tables of a saved `--plan random --out` file and stop")
     a = ap.parse_args()
     t0 = time.time()
+    if a.table:
+        import power_random as pr
+
+        print(pr.markdown(json.loads(Path(a.table).read_text())["summary"]))
+        return
     if a.plan == "random":
         import power_random as pr
 
         rows: list = []
         summary = pr.report(range(a.first_seed, a.first_seed + a.seeds), tuple(float(v) for v in a.mults.split(",")),
                             a.cases.split(",") if a.cases else None, a.n_boot, budgets=not a.no_budget, out=rows,
-                            stream_noise_counts=a.stream_noise, clean_only=a.clean_only)
+                            stream_noise_counts=a.stream_noise, clean_only=a.clean_only,
+                            budget_only=a.budget_only, save=a.out and a.out + ".partial")
+        print(pr.markdown(summary))
         print(f"elapsed {time.time() - t0:.0f} s")
-        if a.out:
-            Path(a.out).write_text(json.dumps(summary, indent=1))
+        if a.out:  # the summary and every seed's row
+            per = {f"{k[0]} {k[1]}": v for k, v in rows[0].items()}
+            Path(a.out).write_text(json.dumps({"summary": summary, "rows": per}, indent=1, default=float))
         return
     w = world(a.plan)
     names = a.cases.split(",") if a.cases else list(cases(w[2]))

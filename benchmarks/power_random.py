@@ -9,6 +9,10 @@ since a dead band's shape changes with its play).  Per case and seed:
 
 - `named` / `named_high` / `misnamed_high` (in library), `located` (out of library: a finding or an
   `unexplained_where` entry at the right joint or face);
+- `named_or_collinear_alike`: named, or listed beside a finding of lower than high confidence whose name the
+  generator's own forms show spans ≥ 90 % of the true signature off the geometry on that campaign (`collinear_alike`:
+  near-collinear, the data cannot separate them, both names with lowered confidence is the right answer);
+  `named_or_alike` counts any such listing, unchecked;
 - the power budget on the clean campaign of the same plan (`budget`): the ideal MDE at 80 % power
   ((3 + z₀.₈)σ/‖P⊥S‖, like for like with robocal's figure), robocal's own `min_detectable` (its gate: its signature,
   its σ, Holm's family), and robocal's *effective* MDE for the true effect — (z_{1−α/2m} + z₀.₈)·σ̂ over the part of
@@ -30,6 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import independent_search as isr  # noqa: E402
 import independent_touch as it  # noqa: E402
+from touch_ingest import diagnosis_table  # noqa: E402
 
 from pipeline.diagnose import Settings, diagnose  # noqa: E402
 from pipeline.systems import arc_welder as aw  # noqa: E402
@@ -79,7 +84,7 @@ class World:
         """(noise-free campaign, geometric Jacobian along each measured axis) of the plan."""
         if payload_kg not in self._c0:
             c0 = isr.run(self.nom, self.tru, self.plan(payload_kg), (), noise=0.0)
-            ax = c0.table["axis"]
+            ax = c0.contacts["axis"]
             self._c0[payload_kg] = (c0, it.geometric_jacobian(self.tru, c0.truth_joint_q, ax))
         return self._c0[payload_kg]
 
@@ -107,7 +112,7 @@ def true_signature(w: World, kind: str, where: dict, size: float, payload_kg, se
     secant at it), noise-free."""
     c0, _ = w.clean(payload_kg)
     c1 = isr.run(w.nom, w.tru, w.plan(payload_kg), (it.Effect(kind, size, where),), noise=0.0)
-    ax = c0.table["axis"]
+    ax = c0.contacts["axis"]
     rows = np.arange(ax.size)
     return (it.tip(w.tru, c1.truth_joint_q)[rows, ax] - it.tip(w.tru, c0.truth_joint_q)[rows, ax]) / size
 
@@ -148,6 +153,60 @@ def located_right(d: dict, kind: str, where: dict) -> bool:
     return bool(hit or near)
 
 
+# robocal's names → the generator's own forms spanning them (kind, where, tangent unit): the look-alike's signature
+# on the campaign, computed by the generator, to tell whether it is near-collinear with the true effect there
+def _forms_of(effect: str, location: str) -> list | None:
+    base, quad = location.split(" (")[0], "(quadratic)" in location
+    j = int(base[1]) - 1 if base[:1] == "J" and base[1:2].isdigit() else None
+    if effect in ("encoder_eccentricity", "transmission_error"):
+        kind = "eccentricity" if effect == "encoder_eccentricity" else "transmission"
+        return [(kind, {"joint": j, "phase": ph}, 1e-4) for ph in (0.0, np.pi / 2)]
+    if effect == "joint_scale":
+        return [("scale", {"joint": j}, 1e-4)]
+    if effect == "joint_compliance":
+        return [("compliance", {"joint": j}, 1e-6)]
+    if effect == "trigger_latency":
+        return [("latency", {}, 1e-3)]
+    if effect in ("joint_coupling", "wrist_coupling") and "->" in base:
+        src, dst = (int(x[1]) - 1 for x in base.split("->"))
+        if quad:
+            return [("quad_coupling", {}, 1e-4)] if (src, dst) == (1, 2) else None
+        return [("coupling", {"pair": (src, dst)}, 1e-4)]
+    return None
+
+
+ALIKE_SHARE = 0.9  # robocal's near-collinear bound (`stepwise.LOOK_ALIKE_SHARE`): a rival explaining 90 % of the effect
+
+
+def collinear_share(w: World, S_true: np.ndarray, payload_kg, effect: str, location: str) -> float | None:
+    """The share of the true effect's signature ⊥ the geometry that the generator's own forms of `effect@location`
+    span (⊥ the geometry) on this campaign; None where the generator has no form of that name."""
+    fs = _forms_of(effect, location)
+    if fs is None:
+        return None
+    _, J = w.clean(payload_kg)
+    B = np.stack([_perp(true_signature(w, k, wh, u, payload_kg, False), J) for k, wh, u in fs], axis=1)
+    St = _perp(S_true, J)
+    U, sv, _ = np.linalg.svd(B, full_matrices=False)
+    U = U[:, sv > sv[0] * 1e-9]
+    return float(np.sum((U.T @ St) ** 2) / (St @ St))
+
+
+def collinear_alike(d: dict, key, w: World, S_true: np.ndarray, payload_kg) -> dict:
+    """Where the right name is not a finding but reported beside a lower-than-high-confidence finding
+    (`named_beside`): the generator's share of the true signature ⊥ geometry that the finding's name spans
+    (`share`), and whether it is near-collinear (≥ `ALIKE_SHARE`: the data cannot separate the two at this size,
+    so both names with lowered confidence is the right answer)."""
+    for f in d["findings"]:
+        if f["confidence"] == "high" or right(f, key):
+            continue
+        if any(right(a, key) for a in f.get("look_alikes", []) + f.get("untested_look_alikes", [])):
+            sh = collinear_share(w, S_true, payload_kg, f["effect"], f["location"])
+            return {"finding": f"{f['effect']}@{f['location']}", "share": sh,
+                    "collinear": sh is not None and sh >= ALIKE_SHARE}
+    return {"finding": None, "share": None, "collinear": False}
+
+
 def named_beside(d: dict, key) -> bool:
     """The right effect is a finding, or a look-alike reported beside a finding of lower than high confidence (the
     campaign cannot tell the two apart: both are named, with their evidence; or the gate could not test it here and
@@ -182,16 +241,22 @@ def run_one(w: World, name: str, mult: float, n_boot: int) -> dict:
         effs.append(it.Effect(kind, mult * m, where))
         mdes.append(m)
     c = isr.run(w.nom, w.tru, w.plan(payload), tuple(effs), seed=w.seed, stream_noise_counts=w.stream_noise)
-    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c),
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     ool = (effects[0][0], effs[0].where) if key is None else None
-    return {"seed": w.seed, "mds_ideal": mdes, "size": [e.size for e in effs],
-            **score(d, key, SECOND.get(name), ool), "_doc": d}
+    r = {"seed": w.seed, "mds_ideal": mdes, "size": [e.size for e in effs], **score(d, key, SECOND.get(name), ool)}
+    r["named_or_collinear_alike"] = None if key is None else r["named"]
+    if key is not None and len(effects) == 1 and not r["named"] and r["named_or_alike"]:
+        kind, where = effects[0]
+        _, S = ideal_mds(w, kind, placed(w, kind, where), payload, unit if kind != "backlash" else None, mult)
+        r["alike"] = collinear_alike(d, key, w, S, payload)
+        r["named_or_collinear_alike"] = r["alike"]["collinear"]
+    return {**r, "_doc": d}
 
 
 def clean_run(w: World, n_boot: int) -> dict:
     c = isr.run(w.nom, w.tru, w.sc, (), seed=w.seed, stream_noise_counts=w.stream_noise)
-    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c),
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     return {"seed": w.seed, **score(d, None), "_doc": d}
 
@@ -213,9 +278,10 @@ def budget(w: World, name: str, clean_doc: dict | None = None) -> dict | None:
     m_ideal, S_true = ideal_mds(w, kind, where, payload, unit if kind != "backlash" else None, 4.0)
     c = isr.run(w.nom, w.tru, w.plan(payload), (), seed=w.seed, stream_noise_counts=w.stream_noise)
     model = aw.TouchModel(aw.nominal_arm())
-    ad = touch_adapter(model, c.table, 2e-5, None, REPEATABILITY)
-    f = _geometry(model, c.table, ad, None, None)
-    p = screen.problem(model, c.table, f, ad)
+    tab = diagnosis_table(c)
+    ad = touch_adapter(model, tab, 2e-5, None, REPEATABILITY)
+    f = _geometry(model, tab, ad, None, None)
+    p = screen.problem(model, tab, f, ad)
     gs = gate(p.lib, p.S, p.Jf, p.free_names, p.sigma, 0.01)
     m = sum(g.identifiable for g in gs)
     fam = [i for i, e in enumerate(p.lib) if right({"effect": e.name, "location": str(e.location)}, key)]
@@ -251,7 +317,8 @@ def _rate(rows, k):
 
 
 def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = True, budgets: bool = True,
-           out: list | None = None, stream_noise_counts: float = 1.0, clean_only: bool = False):
+           out: list | None = None, stream_noise_counts: float = 1.0, clean_only: bool = False,
+           budget_only: bool = False, save: str = ""):
     """Run every case on every seed's campaign; print one JSON line per case and multiple (and the budget per
     in-library case) as it goes; return the summary."""
     import json
@@ -262,7 +329,7 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
     t0 = time.time()
     for s in seeds:
         w = World(s, stream_noise_counts=stream_noise_counts)
-        if clean:
+        if clean and not budget_only:
             r = clean_run(w, n_boot)
             r.pop("_doc")
             rows.setdefault(("clean", 0.0), []).append(r)
@@ -271,11 +338,14 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
                 b = budget(w, name)
                 if b:
                     rows.setdefault((name, "budget"), []).append(b)
-            for mult in mults:
+            for mult in () if budget_only else mults:
                 r = run_one(w, name, mult, n_boot)
                 r.pop("_doc")
                 rows.setdefault((name, mult), []).append(r)
         print(json.dumps({"seed": s, "elapsed_s": round(time.time() - t0)}), flush=True)
+        if save:  # every seed's rows so far (a long run that stops keeps what it measured)
+            with open(save, "w") as fh:
+                json.dump({f"{k[0]} {k[1]}": v for k, v in rows.items()}, fh, default=float)
     summary = {}
     for (name, mult), rr in rows.items():
         if mult == "budget":
@@ -283,20 +353,65 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
                                                                        "mds_robocal_effective", "ratio_gate",
                                                                        "ratio_effective", "threshold_robocal_gate",
                                                                        "ratio_threshold_gate")}
+            med.update({f"{k}_max": float(np.max([r[k] for r in rr])) for k in ("ratio_gate", "ratio_threshold_gate")})
+            med["seeds"] = len(rr)
             med["factors"] = {k: float(np.median([r["factors"][k] for r in rr])) for k in rr[0]["factors"]}
             med["forms"] = sorted({r["best_form"] for r in rr if r["best_form"]})
             summary[f"{name} budget"] = med
         else:
             summary[f"{name} {mult:g}x"] = {
-                "runs": len(rr), **{k: _rate(rr, k) for k in ("named", "named_or_alike", "named_second", "named_or_alike_second",
+                "runs": len(rr), **{k: _rate(rr, k) for k in ("named", "named_or_collinear_alike", "named_or_alike", "named_second",
+                                                             "named_or_alike_second",
                                                              "named_high", "misnamed_high", "located", "worse")},
                 "false_findings": int(sum(r["false"] for r in rr)) if name == "clean" else None,
                 "statuses": {k: sum(r["status"] == k for r in rr) for k in sorted({r["status"] for r in rr})},
+                "alike_shares": [round(r["alike"]["share"], 4) if r["alike"]["share"] is not None else None
+                                 for r in rr if r.get("alike")],
                 "misses": [(r["seed"], r["findings"], r["where"]) for r in rr
-                           if not (r["named_or_alike"] if r.get("located") is None else r["located"])
-                           and name != "clean"][:6]}
+                           if name != "clean"
+                           and not (r["located"] if r.get("located") is not None else r.get("named_or_collinear_alike"))][:6]}
         key = f"{name} budget" if mult == "budget" else f"{name} {mult:g}x"
         print(json.dumps({key: summary[key]}), flush=True)
     if out is not None:
         out.append(rows)
     return summary
+
+
+def markdown(summary: dict) -> str:
+    """The summary as the tables the guide shows: per in-library case and multiple the share of seeds naming it
+    (strictly; or as a look-alike beside a lower-confidence finding of a near-collinear name, `named_or_collinear_alike`),
+    named `high`, misnamed `high`, worse than geometry; per out-of-library case located; clean campaigns' false
+    findings."""
+    n = 0
+
+    def pct(v):
+        return "–" if v is None else f"{round(v * n)}/{n}"
+
+    rows = ["| case | × ideal MDE | seeds | named | named or near-collinear look-alike | named `high` | misnamed `high` "
+            "| second effect named | worse than geometry | statuses |", "|---|---|---|---|---|---|---|---|---|---|"]
+    out_rows = ["| case | × ideal MDE | seeds | located | misnamed `high` | worse than geometry | statuses |",
+                "|---|---|---|---|---|---|---|"]
+    clean = []
+    budget = ["| term (SI units) | seeds | ideal, t = 3 | ideal, 80 % | robocal gate, 80 % | robocal / ideal (80 %): median, max "
+              "| threshold / ideal t = 3: median, max |", "|---|---|---|---|---|---|---|"]
+    for k, v in summary.items():
+        if k.endswith("budget"):
+            budget.append(f"| {k[:-7]} | {v.get('seeds', '')} | {v['mds_ideal_t3']:.3g} | {v['mds_ideal_80']:.3g} "
+                          f"| {v['mds_robocal_gate']:.3g} | {v['ratio_gate']:.2f}, {v.get('ratio_gate_max', np.nan):.2f} "
+                          f"| {v['ratio_threshold_gate']:.2f}, {v.get('ratio_threshold_gate_max', np.nan):.2f} |")
+            continue
+        name, mult = k.rsplit(" ", 1)
+        n = v["runs"]
+        st = ", ".join(f"{a} {b}" for a, b in v["statuses"].items())
+        if name == "clean":
+            clean.append(f"clean campaigns: {v['runs']} seeds, {v['false_findings']} false findings ({st})")
+        elif v.get("located") is not None:
+            out_rows.append(f"| {name} | {mult} | {v['runs']} | {pct(v['located'])} | {pct(v['misnamed_high'])} "
+                            f"| {pct(v['worse'])} | {st} |")
+        else:
+            rows.append(f"| {name} | {mult} | {v['runs']} | {pct(v['named'])} | {pct(v.get('named_or_collinear_alike'))} "
+                        f"| {pct(v['named_high'])} | {pct(v['misnamed_high'])} | {pct(v.get('named_second'))} "
+                        f"| {pct(v['worse'])} | {st} |")
+    parts = [rows if len(rows) > 2 else [], out_rows if len(out_rows) > 2 else [], budget if len(budget) > 2 else [],
+             clean]
+    return "\n\n".join("\n".join(p) for p in parts if p)

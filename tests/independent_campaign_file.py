@@ -5,9 +5,9 @@ and which of its contacts the true arm touches.  Angles rad, lengths m."""
 from __future__ import annotations
 
 import numpy as np
+from independent_jig import Block as Jig
+from independent_jig import stepped_block
 from independent_touch import Arm, Targets, run
-
-from pipeline.models.jig import Jig, stepped_block
 
 
 def touching(nominal: Arm, truth: Arm, targets: Targets, jig: Jig | None = None, travel_m: float = 0.085) -> np.ndarray:

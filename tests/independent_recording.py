@@ -33,7 +33,7 @@ def write_recording(path: Path, campaign, robot_model: dict, fixture: dict, *, e
     `search`: each contact's search command; `faulted`: contacts whose search the controller aborted
     (logged on `/touch/miss` with reason `fault` instead of a contact); `temperatures`: {sensor: K as a
     function of the time since the stream's start (s)}, read once a second on `/arm/temperature`."""
-    tab = campaign.table
+    tab = campaign.contacts
     msgs: list[tuple[str, dict]] = []
     t, q = campaign.stream_t_ns, campaign.stream_q
     for s in range(0, t.size, 250):

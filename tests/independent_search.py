@@ -52,8 +52,8 @@ from independent_touch import (
     _link_scale,
 )
 
-from pipeline.diagnose.adapters.touch_table import add_context
-from pipeline.models.jig import Jig, stepped_block
+from independent_jig import Block as Jig
+from independent_jig import stepped_block
 
 T_PTP, T_IN, T_SETTLE, T_STOP, T_DWELL, T_BACK = 1.5, 0.6, 0.3, 0.01, 0.3, 0.8  # s
 OVERSHOOT_HZ, OVERSHOOT_TAU = 10.0, 0.04  # the servo's settling oscillation
@@ -323,13 +323,12 @@ def run(nominal, truth, sc: Searches, effects=(), seed: int = 0, n: int = 100, j
     schedule = [{"t_ns": int(t_ns[0]) if k == 0 else int(tc_ns[i] - (lead + s[i] / speed[i]) * 1e9),
                  "payload_kg": float(payload[i])} for k, i in enumerate(change)]
     ids = np.array([jig.faces[f].id for f in face], object)
-    table = {"timestamp_ns": tc_ns, "joint_positions": q_latch, "face": ids, "axis": ax, "coordinate": coord,
+    contacts = {"timestamp_ns": tc_ns, "joint_positions": q_latch, "face": ids, "axis": ax, "coordinate": coord,
              "record": rows}
-    table = add_context(table, t_ns, q_stream, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
-                        payload_schedule=schedule, default_payload_kg=0.0)
     sigma = float(np.hypot(repeatability_3sigma_m / 3, jig_error_m / np.sqrt(3))) * noise
-    return Campaign(table, q_latch, sigma, speed, None, t_ns, q_stream,
-                    [(d["t_ns"], d["payload_kg"]) for d in schedule], schedule, sc.direction[:n].copy(), payload)
+    return Campaign(contacts, q_latch, sigma, speed, None, t_ns, q_stream,
+                    [(d["t_ns"], d["payload_kg"]) for d in schedule], schedule, sc.direction[:n].copy(), payload,
+                    {f.id: f.normal_sign for f in jig.faces})
 
 
 def _stream(sc: Searches, n: int, s: np.ndarray, t_latch: np.ndarray, rng,

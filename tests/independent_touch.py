@@ -28,10 +28,12 @@ wider range), the campaign change the diagnosis advises for a coupling it cannot
 (default offset: of the eight tried, the one whose J2→J3 coupling and J2 eccentricity signatures ⊥ the
 geometry are furthest apart — principal angle 33° — a property of the campaign, not of any outcome).
 
-Only the numbers of the nominal/true arm are read from `pipeline.systems.arc_welder` (base,
-D-H + Hayati joint terms, tool) and the jig's faces from `pipeline.models.jig`.  The diagnosis
-table is then built by the product's recording-side code (`pipeline.diagnose.table.add_context`)
-from this generator's own 250 Hz encoder stream, as it would be from a recording.
+The jig is this generator's own drawing of the stepped block (`independent_jig`).  A campaign is what a
+controller logs: the contacts (time, latched joints, face, its axis and coordinate), the 250 Hz encoder stream,
+the payload changes as they happened and each face's outward normal; the diagnosis table is built from them by
+the product's recording-side code, as from a recording (`touch_ingest.diagnosis_table`) — nothing of robocal is
+imported here.  Only `default_arms` reads the numbers of the nominal/true arm (base, D-H + Hayati joint terms,
+tool, masses) from `pipeline.systems.arc_welder`, when called.
 """
 
 from __future__ import annotations
@@ -50,9 +52,8 @@ from independent_arm import (  # noqa: F401
     tip,
 )
 
-from pipeline.diagnose.adapters.touch_table import add_context
-from pipeline.models.jig import Face, Jig, stepped_block
-from pipeline.systems import arc_welder as aw
+from independent_jig import Block as Jig
+from independent_jig import shifted_copy, stepped_block  # noqa: F401
 
 RATE_HZ = 250.0
 COUNT = 2 * np.pi / 2**17
@@ -209,7 +210,8 @@ def _bisect_unsettled(gap, s: np.ndarray, travel_m: float = 0.12, step_m: float 
 # ----- campaign ---------------------------------------------------------------------------
 @dataclass
 class Campaign:
-    table: dict  # the diagnosis table (as built from the recording)
+    contacts: dict  # what the controller logged per contact: timestamp_ns, joint_positions, face, axis, coordinate,
+    # record (the diagnosis table is built from it, the stream and the payload changes: `touch_ingest`)
     truth_joint_q: np.ndarray  # (n, 6) encoder-latched q
     along_normal_noise_sigma_m: float
     search_speed: np.ndarray
@@ -221,6 +223,7 @@ class Campaign:
     planned_schedule: list = field(default_factory=list)  # the campaign's programmed schedule
     search_direction: np.ndarray | None = None  # (n, 3) unit, into the face
     payload_kg: np.ndarray | None = None  # (n,) the payload each contact was really made with (this generator's own)
+    normal_sign_of: dict = field(default_factory=dict)  # face id → its outward normal's sign along its axis
 
 
 def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n: int = 100,
@@ -322,15 +325,13 @@ def run(nominal: Arm, truth: Arm, targets: Targets, effects=(), seed: int = 0, n
     planned_schedule = [{"t_ns": int(t_ns[0]) if k == 0 else int(tc_ns[i] - 3e9), "payload_kg": float(planned[i])}
                         for k, i in enumerate(p_change)]
     ids = np.array([jig.faces[f].id for f in face], object)
-    table = {"timestamp_ns": tc_ns, "joint_positions": q_latch, "face": ids, "axis": ax, "coordinate": coord,
+    contacts = {"timestamp_ns": tc_ns, "joint_positions": q_latch, "face": ids, "axis": ax, "coordinate": coord,
              "record": rows}
-    table = add_context(table, t_ns, q_stream, normal_sign_of={f.id: f.normal_sign for f in jig.faces},
-                        payload_schedule=schedule, default_payload_kg=0.0)
     direction = np.zeros((n, 3))
     direction[rows, ax] = -sg
-    return Campaign(table, q_latch, float(np.hypot(repeatability_3sigma_m / 3, jig_error_m / np.sqrt(3))) * noise,
+    return Campaign(contacts, q_latch, float(np.hypot(repeatability_3sigma_m / 3, jig_error_m / np.sqrt(3))) * noise,
                     speed, wild, t_ns, q_stream, [(d["t_ns"], d["payload_kg"]) for d in schedule], planned_schedule,
-                    direction, payload)
+                    direction, payload, {f.id: f.normal_sign for f in jig.faces})
 
 
 # ----- minimum detectable size, computed here (3σ over the projected signature) --------------
@@ -379,7 +380,7 @@ def signature(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, n: int
     c0 = _clean(runner, nominal, truth, targets, n, jig, campaign)
     unit = effect if at_size else Effect(effect.kind, 1e-3 * (effect.size or 1.0), effect.where)
     c1 = runner(nominal, truth, targets, (unit,), seed=0, n=n, jig=jig, noise=0.0, **campaign)
-    ax = c0.table["axis"]
+    ax = c0.contacts["axis"]
     rows = np.arange(ax.size)
     # residual change: the same coordinates, the model tip at the latched q moves
     r0 = tip(truth, c0.truth_joint_q)[rows, ax]
@@ -418,15 +419,12 @@ def mds_dropping(nominal: Arm, truth: Arm, targets: Targets, effect: Effect, sig
 def two_stations(dx: float = 0.45, dz: float = -0.35) -> Jig:
     """The stepped block and a copy of it shifted by `dx` along the jig's x and `dz` along its z (m; faces `s_…`):
     a second station that takes J2 (and J3) over other combinations than the block alone."""
-    base = stepped_block()
-    off = (dx, 0.0, dz)
-    faces = []
-    for f in base.faces:
-        a, b = f.other_axes()
-        faces.append(Face("s_" + f.id, f.axis, f.coordinate + off[f.axis_index], f.normal_sign,
-                          (tuple(np.add(f.extent[0], off[a])), tuple(np.add(f.extent[1], off[b])))))
-    return Jig(name=f"{base.name}+station({dx:g},{dz:g})", faces=base.faces + tuple(faces))
+    return shifted_copy(stepped_block(), dx, dz)
 
 
 def default_arms() -> tuple[Arm, Arm]:
+    """(nominal, true) arm: the numbers of robocal's arc-welder system (its nominal arm and the reference truth),
+    read when called — numbers only; every computation on them is this generator's own."""
+    from pipeline.systems import arc_welder as aw
+
     return Arm.of(aw.nominal_arm()), Arm.of(aw.reference_truth())

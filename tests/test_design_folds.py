@@ -9,6 +9,7 @@ import numpy as np
 from hypothesis import given, settings, strategies as st
 
 import independent_touch as it
+from touch_ingest import diagnosis_table
 from pipeline.diagnose import Settings, diagnose
 from pipeline.diagnose.inference import resampling
 from pipeline.diagnose.verdict import checks
@@ -96,7 +97,7 @@ def test_the_arbiter_keeps_a_correct_thermal_growth_when_naive_folds_lose_a_face
     c = it.run(nom, tru, targets, (it.Effect("linear_growth", size),), seed=100)
     face = targets.face[:100]
     keep = np.setdiff1d(np.arange(100), np.setdiff1d(np.flatnonzero(face == 6), [28, 36]))
-    tab = {key: (v[keep] if np.ndim(v) and len(v) == 100 else v) for key, v in c.table.items()}
+    tab = {key: (v[keep] if np.ndim(v) and len(v) == 100 else v) for key, v in diagnosis_table(c).items()}
     two = np.searchsorted(keep, [28, 36])
     naive = kfold_indices(keep.size, 5, 0, resampling.time_blocks(tab["time_since_start_s"], 5))
     assert any(set(two) <= set(f) for f in naive)  # the naive split loses the face in one fold
@@ -125,7 +126,7 @@ def test_identify_cross_validation_keeps_a_face_the_seeded_split_loses(monkeypat
     targets = it.plan(nom, it.stepped_block(), m=120, seed=1)
     c = it.run(nom, tru, targets, (), seed=100)
     keep = np.setdiff1d(np.arange(100), np.setdiff1d(np.flatnonzero(targets.face[:100] == 6), [28, 36]))
-    tab = take(c.table, np.isin(np.arange(100), keep))
+    tab = take(diagnosis_table(c), np.isin(np.arange(100), keep))
     two = np.searchsorted(keep, [28, 36])
     seed = next(s for s in range(30) if any(set(two) <= set(f) for f in kfold_indices(keep.size, 5, s)))
     assert not any(set(two) <= set(f) for f in F.design_folds(keep.size, 5, seed, None, tab))

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import independent_touch as it
+from touch_ingest import diagnosis_table
 from pipeline.diagnose import Settings, diagnose
 from pipeline.models import serial_arm
 from pipeline.systems import arc_welder as aw
@@ -28,7 +29,7 @@ def _diagnose(world, effect=None, seed=100, mult=4.0):
     eff = () if effect is None else (it.Effect(effect.kind, mult * it.mds(nom, tru, targets, effect, sigma),
                                                effect.where),)
     c = it.run(nom, tru, targets, eff, seed=seed)
-    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table, settings=SETTINGS)
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c), settings=SETTINGS)
     assert d["holdout_rms_after_m"] <= d["holdout_rms_before_m"] + 1e-15  # never worse than geometry alone
     return c, d
 
@@ -80,7 +81,7 @@ def test_an_impossible_derived_approach_speed_marks_the_record(world):
     second (a touch search runs at mm/s): that record is set aside and named, nothing is named from it."""
     nom, tru, targets, _ = world
     c = it.run(nom, tru, targets, (it.Effect("glitch", 0.05, {"record": 52}),), seed=103)
-    d = diagnose(aw.TouchModel(aw.nominal_arm()), c.table, settings=SETTINGS)
+    d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c), settings=SETTINGS)
     assert [o["record"] for o in d["outlier_records"]] == [52]
     assert "approach speed" in d["outlier_records"][0]["reason"]
     assert not d["findings"] and d["status"] == "clean"
@@ -140,11 +141,11 @@ def test_a_linear_J2_J3_coupling_is_named_once_a_second_station_takes_J2_wider(w
     sigma = it.run(nom, tru, targets, (), seed=0, jig=jig).along_normal_noise_sigma_m
     form = it.Effect("coupling", 1.0, {"pair": (1, 2)})
     k = 4.0 * it.mds(nom, tru, targets, form, sigma, jig=jig)
-    clean = diagnose(aw.TouchModel(aw.nominal_arm()), it.run(nom, tru, targets, (), seed=107, jig=jig).table,
+    clean = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(it.run(nom, tru, targets, (), seed=107, jig=jig)),
                      settings=SETTINGS)
     assert clean["status"] == "clean"
     d = diagnose(aw.TouchModel(aw.nominal_arm()),
-                 it.run(nom, tru, targets, (it.Effect("coupling", k, form.where),), seed=107, jig=jig).table,
+                 diagnosis_table(it.run(nom, tru, targets, (it.Effect("coupling", k, form.where),), seed=107, jig=jig)),
                  settings=SETTINGS)
     assert [(f["effect"], f["location"]) for f in d["findings"]] == [("joint_coupling", "J2->J3")]
     (p,) = d["findings"][0]["parameters"]

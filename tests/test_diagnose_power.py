@@ -14,6 +14,7 @@ import pytest
 import scipy.stats
 
 import independent_touch as it
+from touch_ingest import diagnosis_table
 from pipeline.diagnose import Settings, diagnose
 from pipeline.diagnose.verdict import arbiter
 from pipeline.systems import arc_welder as aw
@@ -58,7 +59,7 @@ def runs(world):
         docs = []
         for s in SEEDS:
             c = it.run(nom, tru, targets, (eff,), seed=s, **campaign)
-            docs.append(diagnose(aw.TouchModel(aw.nominal_arm()), c.table,
+            docs.append(diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(c),
                                  settings=Settings(n_boot=10, repeatability_3sigma_m=bp.REPEATABILITY)))
         out[name] = ([bp.score(d, key) for d in docs], docs, eff)
     return out
@@ -161,7 +162,7 @@ def test_on_robocals_plan_a_j2_backlash_is_named_at_its_size(planned_world, plan
     nom, tru, targets, sigma = planned_world
     eff, key = planned_j2
     for s in SEEDS:
-        d = diagnose(aw.TouchModel(aw.nominal_arm()), it.run(nom, tru, targets, (eff,), seed=s).table,
+        d = diagnose(aw.TouchModel(aw.nominal_arm()), diagnosis_table(it.run(nom, tru, targets, (eff,), seed=s)),
                      settings=Settings(n_boot=10, repeatability_3sigma_m=bp.REPEATABILITY))
         r = bp.score(d, key)
         assert r["named_high"] and not r["misnamed_high"] and not r["worse"], r

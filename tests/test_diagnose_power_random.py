@@ -8,6 +8,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -38,8 +39,14 @@ def test_a_clean_campaign_is_clean_and_says_what_could_hide(world):
 
 @pytest.mark.parametrize("name", IN_LIBRARY)
 def test_an_in_library_effect_at_4x_the_ideal_mde_is_named_never_a_confident_wrong_name(runs, name):
+    """Named, or reported beside a lower-confidence finding whose name the generator's own forms show near-collinear
+    with the true effect on this campaign (≥ 90 % of its signature off the geometry); every look-alike, tested or set
+    aside by the gate, with its evidence (Δχ² of the swap, held-out RMS)."""
     r = runs[name]
-    assert r["named_or_alike"], (name, r["findings"], r["where"], r["status"])
+    assert r["named_or_collinear_alike"], (name, r["findings"], r.get("alike"), r["status"])
+    for f in r["_doc"]["findings"]:
+        for a in f.get("look_alikes", []) + f.get("untested_look_alikes", []):
+            assert np.isfinite(a["delta_chi2"]) and a["cv_rms_m"] > 0, (name, a)
     assert r["named_second"] in (None, True), (name, r["findings"])
     assert not r["misnamed_high"] and not r["worse"], (name, r["findings"])
 
@@ -60,3 +67,14 @@ def test_robocals_detectable_size_is_within_1_5x_of_the_ideal_tests(world, name)
     b = pr.budget(world, name)
     assert b["ratio_gate"] < 1.5 and b["ratio_threshold_gate"] < 1.5, b
     assert b["factors"]["capture"] > 0.98, b
+
+
+def test_an_effect_beyond_the_plausible_size_is_never_a_confident_wrong_name():
+    """A J1 backlash of 9 mrad (4× the ideal MDE on seed 103's campaign, whose searches hardly turn J1; beyond the
+    library's plausible 2 mrad, so the gate does not test it) shows up as another J1 term: that finding is not
+    `high`, and the backlash is listed beside it with the evidence that it fits better (Δχ² < 0)."""
+    r = pr.run_one(pr.World(103), "backlash_J1", 4.0, 10)
+    assert not r["misnamed_high"], r["findings"]
+    beside = [a for f in r["_doc"]["findings"] for a in f.get("untested_look_alikes", [])
+              if a["effect"] == "backlash" and a["location"].startswith("J1")]
+    assert r["named"] or (beside and min(a["delta_chi2"] for a in beside) < 0), (r["findings"], beside)

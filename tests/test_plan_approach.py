@@ -13,6 +13,7 @@ import pytest
 
 import independent_campaign_file as icf
 import independent_touch as it
+from touch_ingest import diagnosis_table
 from conftest import run_cli
 from pipeline.plan.approach import ONE_SIDED, PLAY_RAD, document_balance, last_motion_signs
 from pipeline.recording.schemas import validator
@@ -68,7 +69,7 @@ def test_the_stated_signs_are_what_the_executed_campaign_shows(plan_file):
     nom, _ = it.default_arms()
     n = targets.face.size
     c = it.run(nom, nom, targets, (), seed=0, n=n, noise=0.0)
-    seen = c.table[f"last_motion_sign_beyond_{PLAY_RAD * 1e3:g}mrad"]
+    seen = diagnosis_table(c)[f"last_motion_sign_beyond_{PLAY_RAD * 1e3:g}mrad"]
     rows = doc["measurements"]
     stated, by_search = last_motion_signs(targets.q_a, targets.dq, np.array([r["predicted_travel_m"] for r in rows]))
     travel = np.abs(targets.dq * np.array([r["predicted_travel_m"] for r in rows])[:, None])

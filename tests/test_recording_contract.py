@@ -93,7 +93,7 @@ def test_several_temperature_sensors_the_growth_is_named_on_the_sensor_that_trac
     c = it.run(nom, tru, targets, (it.Effect(form.kind, 4 * it.mds(nom, tru, targets, form, sigma), form.where),),
                seed=9)
     clean = diagnose_recording(_write(tmp_path, it.run(nom, tru, targets, (), seed=9), "clean.mcap"), SETTINGS)
-    t0 = (c.table["timestamp_ns"][0] - c.stream_t_ns[0]) * 1e-9
+    t0 = (c.contacts["timestamp_ns"][0] - c.stream_t_ns[0]) * 1e-9
     temps = {"base": lambda t: 293.15 + 0.2 * t / 1000, "link2": lambda t: 296.0 + 12.0 * (1 - np.exp(-t / 300.0))}
     rec = _write(tmp_path, c, "warm.mcap", temperatures=temps)
     _, tab, _ = from_recording(rec)

@@ -124,7 +124,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
     _runner_ups(findings, sel, p)
     _alike_evidence(findings, sel, p, folds)
-    _untested_alikes(findings, sel)
+    _untested_alikes(findings, sel, p, folds)
     # 6. the held-out arbiter and the records that carry a finding (`verdict.arbiter`); pose-clustered
     # campaigns: the unweighted CV ignores the shared pose errors, so there the findings rest on the
     # pose sign-flip check instead and a finding without CV improvement is graded `low`
@@ -226,20 +226,23 @@ def _alike_evidence(findings: list, sel: screen.Selection, p: screen.Problem, fo
         fd["look_alikes"] = kept
 
 
-def _untested_alikes(findings: list, sel: screen.Selection) -> None:
+def _untested_alikes(findings: list, sel: screen.Selection, p: screen.Problem, folds: list) -> None:
     """A candidate the gate set aside — too weak along one direction of its parameters to be tested at a plausible
     size, not a twin — that reproduces a finding's fitted contribution (all but `LOOK_ALIKE_SHARE` of it, ⊥ the
     geometry and the other findings) is listed as `untested_look_alikes`: the campaign could not test it, and it
     would explain this finding as well (a J2 transmission error standing for a J2 eccentricity the geometry all but
-    absorbs), so the name is not a confident one."""
+    absorbs), so the name is not a confident one.  Each carries its evidence beside the finding's, as a tested
+    look-alike does: `delta_chi2` (its swap for the finding, χ²-scaled; negative: it fits better) and `cv_rms_m`
+    (the held-out RMS of the linearised model with it in the finding's place; the finding's own:
+    `evidence.cv_rms_linearised_m`) — the reader sees which of the two the data lean to."""
     if not sel.accepted:
         return
     pos = [sel.testable.index(i) for i in sel.accepted]
     B = np.hstack([sel.Sp[c] for c in pos])
     coef, *_ = np.linalg.lstsq(B, sel.r_w, rcond=None)
     at = np.cumsum([0] + [sel.Sp[c].shape[1] for c in pos])
-    aside = [g for g in sel.gates if not g.identifiable and np.any(g.projected) and not g.effect.data.get("blocked")
-             and not g.reason.startswith("indistinguishable")]
+    aside = [(i, g) for i, g in enumerate(sel.gates) if not g.identifiable and np.any(g.projected)
+             and not g.effect.data.get("blocked") and not g.reason.startswith("indistinguishable")]
     for j, fd in enumerate(findings[:len(pos)]):
         u = sel.Sp[pos[j]] @ coef[at[j]:at[j + 1]]
         others = [sel.Sp[c] for c in pos if c != pos[j]]
@@ -250,17 +253,61 @@ def _untested_alikes(findings: list, sel: screen.Selection) -> None:
             continue
         own = (fd["effect"], fd["location"].split(" (")[0])
         hits = []
-        for g in aside:
+        for i, g in aside:
             if (g.effect.name, str(g.effect.location).split(" (")[0]) == own:
                 continue
             Q = orthonormal(g.projected)
             share = float(np.sum((Q.T @ u) ** 2) / uu)
+            swap = sel.accepted[:j] + [i] + sel.accepted[j + 1:]
             if share >= 1 - LOOK_ALIKE_SHARE:
                 hits.append({"effect": g.effect.name, "location": str(g.effect.location), "explains": share,
                              "why": f"set aside by the gate ({g.reason}), yet it reproduces this finding",
-                             "advice": g.effect.advice})
+                             "advice": g.effect.advice, **_swap_evidence(sel, p, folds, pos, j, g.projected, swap)})
+            elif (g.reason.startswith("smallest detectable size") and g.min_detectable <= WEAK_FACTOR * g.effect.plausible
+                  and _swap_fits_better(sel, p, pos, j, g.projected)):
+                # too weak to be tested at a plausible size (but detectable within WEAK_FACTOR of it), yet in the
+                # finding's place it fits the data better: the effect may be that one, larger than the library deems
+                # plausible — not a confident name
+                hits.append({"effect": g.effect.name, "location": str(g.effect.location), "explains": share,
+                             "why": f"set aside by the gate ({g.reason}), yet in this finding's place it fits better",
+                             "advice": g.effect.advice, **_swap_evidence(sel, p, folds, pos, j, g.projected, swap)})
         if hits:
+            if "cv_rms_linearised_m" not in fd["evidence"]:
+                fd["evidence"]["cv_rms_linearised_m"] = float(np.sqrt(np.mean(
+                    forms._cv(p.Jf, p.S, sel.accepted, p.r, folds) ** 2)))
             fd["untested_look_alikes"] = sorted(hits, key=lambda h: -h["explains"])
+
+
+WEAK_FACTOR = 10.0  # a set-aside candidate detectable within this factor of its plausible size may still be the effect
+# (beyond it the campaign all but absorbs it: a Delta's tracker scale, detectable at 1 000× its plausible 100 ppm)
+
+
+def _swap_fits_better(sel: screen.Selection, p: screen.Problem, pos: list, j: int, Sp_c: np.ndarray) -> bool:
+    """The candidate (projected signature `Sp_c`) in the j-th finding's place leaves a smaller residual than the
+    findings do (Δχ² < 0, `_swap_evidence`)."""
+    def rss(blocks):
+        X = orthonormal(np.hstack(blocks))
+        e = sel.r_w - X @ (X.T @ sel.r_w)
+        return float(e @ e)
+
+    return rss([sel.Sp[c] for c in pos[:j] + pos[j + 1:]] + [Sp_c]) < rss([sel.Sp[c] for c in pos])
+
+
+def _swap_evidence(sel: screen.Selection, p: screen.Problem, folds: list, pos: list, j: int, Sp_c: np.ndarray,
+                   swap: list) -> dict:
+    """{delta_chi2, cv_rms_m} of a candidate (projected signature `Sp_c`, on the problem the selection tested)
+    in the place of the j-th finding (`pos`: the findings' places among the testable): Δχ² = (RSS with it − RSS
+    of the findings)/σ̂², σ̂² the findings' residual variance; the held-out RMS of the linearised model `swap`."""
+    def rss(blocks):
+        X = orthonormal(np.hstack(blocks))
+        e = sel.r_w - X @ (X.T @ sel.r_w)
+        return float(e @ e), X.shape[1]
+
+    rss_a, rk = rss([sel.Sp[c] for c in pos])
+    rss_s, _ = rss([sel.Sp[c] for c in pos[:j] + pos[j + 1:]] + [Sp_c])
+    s2 = max(rss_a / max(p.dof - rk, 1), 1e-300)
+    return {"delta_chi2": (rss_s - rss_a) / s2,
+            "cv_rms_m": float(np.sqrt(np.mean(forms._cv(p.Jf, p.S, swap, p.r, folds) ** 2)))}
 
 
 def _choose_forms(p: screen.Problem, nz: screen.Noise, sel: screen.Selection, folds: list) -> dict:

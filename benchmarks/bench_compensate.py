@@ -113,8 +113,6 @@ def delta_seed(s: int) -> tuple[float, dict]:
 
 
 _REAL = Path(__file__).resolve().parents[2] / "shared" / "real-data"  # ../shared/real-data of the checkout
-if not _REAL.is_dir():  # a checkout elsewhere (a worktree): the workplace's copy, as the tests look for it
-    _REAL = Path("/work/shared/real-data")
 UR10 = _REAL / "figaroh_ur10_pose" / "ur10_robot.urdf"
 
 

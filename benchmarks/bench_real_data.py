@@ -39,8 +39,6 @@ from pipeline.recording.reader import read_recording
 from pipeline.systems.registry import detect, load_with_physics
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "real-data"
-if not REAL.is_dir():
-    REAL = Path("/work/shared/real-data")
 TALOS: Path | None = None  # FIGAROH's TALOS example folder (--talos DIR: its CSV and URDF; not in the shared data)
 PEERS = {"tiago": "5.59 → 5.24 (FIGAROH)", "ur10": "4.86 → 6.70 (FIGAROH)", "mate": "—",
          "panda": "7.79 → 0.347 mean abs. (MUKCa)"}

@@ -20,8 +20,6 @@ from pipeline.models import urdf, urdf_arm
 from pipeline.simulate.urdf_robot import campaign, random_truth
 
 _REAL = Path(__file__).resolve().parents[2] / "shared" / "real-data"  # ../shared/real-data of the checkout
-if not _REAL.is_dir():  # a checkout elsewhere (a worktree): the workplace's copy
-    _REAL = Path("/work/shared/real-data")
 PANDA = _REAL / "mukca_panda" / "urdf" / "panda.urdf"
 
 

@@ -47,9 +47,7 @@ def tiago_frozen_protocol(tmp_path_factory):
     of that calibration on the other three without refitting.  Returns (recordings, calibrate's finished
     process, its run folder, evaluate's finished process, its output folder); each test asserts its own
     figures on these files.  The tests that use it skip before asking for it where the data are absent."""
-    real = Path(__file__).resolve().parents[1].parent / "shared" / "real-data"
-    if not real.is_dir():
-        real = Path("/work/shared/real-data")
+    from real_data import REAL as real
     d, urdf = real / "figaroh_tiago_sessions", real / "figaroh_tiago_mocap" / "tiago_48_schunk.urdf"
     tmp = tmp_path_factory.mktemp("tiago_protocol")
     recs = []

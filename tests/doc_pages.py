@@ -31,11 +31,10 @@ import subprocess
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from real_data import real_data
 
 REPO = Path(__file__).resolve().parents[1]
-REAL = REPO.parent / "shared" / "real-data"
-if not REAL.is_dir():  # a clone outside the shared folder (CI's clean clone) still finds the datasets
-    REAL = Path("/work/shared/real-data")
+REAL = real_data()  # ../shared/real-data (tests/real_data.py)
 
 LINKED = (".venv", "recordings", "schemas", "benchmarks", "tests", "docs", "Makefile", "pyproject.toml")
 SHELL_LANGS = {"bash", "console", "shell", "zsh", "shell-session", "shellsession", "sh-session", "fish", "ksh"}

@@ -50,6 +50,7 @@ from independent_touch import (
     _face_shift,
     _joint_error,
     _link_scale,
+    points_on_faces,
 )
 
 from independent_jig import Block as Jig
@@ -148,14 +149,7 @@ def plan(arm, jig: Jig | None = None, m: int = 120, seed: int = 0, cone_deg: flo
     while sum(p[0].size for p in parts) < m:
         k = 2 * m
         fi = rng.choice(len(jig.faces), k, p=None if face_weights is None else np.asarray(face_weights) / np.sum(face_weights))
-        P, N = np.zeros((k, 3)), np.zeros((k, 3))
-        for i, f in enumerate(fi):
-            fc = jig.faces[f]
-            a, b = fc.other_axes()
-            P[i, fc.axis_index] = fc.coordinate
-            P[i, a] = rng.uniform(fc.extent[0][0] + 0.01, fc.extent[0][1] - 0.01)
-            P[i, b] = rng.uniform(fc.extent[1][0] + 0.01, fc.extent[1][1] - 0.01)
-            N[i, fc.axis_index] = fc.normal_sign
+        P, N = points_on_faces(jig, fi, rng)
 
         def tilted(max_rad):
             ang = max_rad * np.sqrt(rng.uniform(0, 1, k))

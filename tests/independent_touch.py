@@ -88,6 +88,21 @@ class Targets:
     dq: np.ndarray  # (m, 6) rad per m of search travel
 
 
+def points_on_faces(jig, fi, rng) -> tuple[np.ndarray, np.ndarray]:
+    """A point drawn uniformly on each face `fi[i]` of the jig, 1 cm inside its edges (k, 3) m, and that face's
+    outward normal (k, 3), in the jig's frame."""
+    k = len(fi)
+    P, N = np.zeros((k, 3)), np.zeros((k, 3))
+    for i, f in enumerate(fi):  # one face at a time, in the generator's draw order (its seeds' campaigns)
+        fc = jig.faces[f]
+        a, b = fc.other_axes()
+        P[i, fc.axis_index] = fc.coordinate
+        P[i, a] = rng.uniform(fc.extent[0][0] + 0.01, fc.extent[0][1] - 0.01)
+        P[i, b] = rng.uniform(fc.extent[1][0] + 0.01, fc.extent[1][1] - 0.01)
+        N[i, fc.axis_index] = fc.normal_sign
+    return P, N
+
+
 def plan(nominal: Arm, jig: Jig, m: int = 160, seed: int = 0, offset: float = 0.04) -> Targets:
     """m approach poses, `offset` off random points of the faces, wire tilted ≤ 30° off the normal."""
     rng = np.random.default_rng(seed)
@@ -97,15 +112,7 @@ def plan(nominal: Arm, jig: Jig, m: int = 160, seed: int = 0, offset: float = 0.
     while sum(len(f) for f in faces) < m:
         k = 4 * m
         fi = rng.integers(0, len(jig.faces), k)
-        P = np.zeros((k, 3))
-        N = np.zeros((k, 3))
-        for i, f in enumerate(fi):
-            fc = jig.faces[f]
-            a, b = fc.other_axes()
-            P[i, fc.axis_index] = fc.coordinate
-            P[i, a] = rng.uniform(fc.extent[0][0] + 0.01, fc.extent[0][1] - 0.01)
-            P[i, b] = rng.uniform(fc.extent[1][0] + 0.01, fc.extent[1][1] - 0.01)
-            N[i, fc.axis_index] = fc.normal_sign
+        P, N = points_on_faces(jig, fi, rng)
         tilt = np.radians(30) * np.sqrt(rng.uniform(0, 1, k))
         perp = np.cross(N, rng.normal(size=(k, 3)))
         perp /= np.linalg.norm(perp, axis=1, keepdims=True)

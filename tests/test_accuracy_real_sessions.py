@@ -14,11 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from real_data import real_data
 
 REPO = Path(__file__).resolve().parents[1]
-REAL = REPO.parent / "shared" / "real-data"
-if not REAL.is_dir():
-    REAL = Path("/work/shared/real-data")
+REAL = real_data()  # ../shared/real-data (tests/real_data.py)
 DATA = REAL / "figaroh_tiago_sessions"
 URDF = REAL / "figaroh_tiago_mocap" / "tiago_48_schunk.urdf"
 needs_tiago = pytest.mark.skipif(not (DATA.is_dir() and URDF.is_file()),

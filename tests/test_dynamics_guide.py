@@ -16,11 +16,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from real_data import real_data
 
 REPO = Path(__file__).resolve().parents[1]
-REAL = REPO.parent / "shared" / "real-data"
-if not REAL.is_dir():  # a clone outside the shared folder still finds the datasets
-    REAL = Path("/work/shared/real-data")
+REAL = real_data()  # ../shared/real-data (tests/real_data.py)
 GUIDE = REPO / "docs" / "guide" / "dynamics.md"
 LINKED = (".venv", "benchmarks", "recordings", "schemas", "docs", "tests")
 # FIGAROH 1.0.2's TIAGo identification fitted on rows [921, 4900), predicting [4900, 6791) without refitting,

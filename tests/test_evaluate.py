@@ -22,11 +22,10 @@ from r6_robot import BARE_URDF
 
 from conftest import run_cli
 from test_bad_input import assert_one_line_error
+from real_data import real_data
 
 REPO = Path(__file__).resolve().parents[1]
-REAL = REPO.parent / "shared" / "real-data"
-if not REAL.is_dir():
-    REAL = Path("/work/shared/real-data")
+REAL = real_data()  # ../shared/real-data (tests/real_data.py)
 needs_real = pytest.mark.skipif(not REAL.is_dir(), reason="../shared/real-data is absent (real datasets not shipped)")
 JOINTS = [f"j{i}" for i in range(1, 7)]
 NOISE = 20e-6  # m per axis

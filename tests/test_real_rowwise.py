@@ -11,7 +11,7 @@ out): the default at or below FIGAROH itself, run by `benchmarks/figaroh_every5.
 the better of its `structural` and `map_cv` estimation; MATE: its upstream plane protocol), `FIGAROH` below:
 RMS of the norm of the 3-D error (MATE: of the plane-normal error), mm —
 
-    python benchmarks/bench_real_data.py --protocols every5 --figaroh-python /work/figaroh-venv/bin/python
+    python benchmarks/bench_real_data.py --protocols every5 --figaroh-python ../figaroh-venv/bin/python
 """
 
 from __future__ import annotations

@@ -20,10 +20,10 @@ from scipy.spatial.transform import Rotation
 from conftest import run_cli
 from test_rerun_rrd import _read
 
+from real_data import real_data  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[1]
-REAL = REPO.parent.parent / "shared" / "real-data"
-if not REAL.is_dir():
-    REAL = Path("/work/shared/real-data")
+REAL = real_data()  # ../shared/real-data (tests/real_data.py)
 TIAGO = REAL / "figaroh_tiago_mocap"
 needs_tiago = pytest.mark.skipif(not TIAGO.is_dir(), reason=f"real data not here: {TIAGO}")
 

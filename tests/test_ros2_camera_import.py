@@ -32,6 +32,7 @@ from pipeline.recording.reader import read_recording  # noqa: E402
 from pipeline.simulate import camera_images as ci  # noqa: E402
 from pipeline.simulate.ros2_camera_bag import CameraBagLayout, write_camera_bag  # noqa: E402
 from pipeline.systems import urdf_robot  # noqa: E402
+from real_data import real_data
 
 # extended (`make test-extended`, outside CI's 20-minute budget): a camera bag through import and run; CI keeps test_ros2_import, test_camera_import and the camera guide's KUKA commands
 pytestmark = pytest.mark.extended
@@ -201,7 +202,7 @@ def test_header_stamp_read_from_cdr_bytes_is_the_decoded_stamp(sec, nsec, frame)
     assert header_stamp(data[:8]) is None
 
 
-KUKA = Path("/work/shared/real-data/handeye_rwhe_kuka2")
+KUKA = real_data() / "handeye_rwhe_kuka2"
 
 
 @pytest.mark.skipif(not KUKA.is_dir(), reason=f"real KUKA eye-in-hand images not found at {KUKA} (shared/real-data)")

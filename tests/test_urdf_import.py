@@ -16,11 +16,10 @@ import pytest
 
 from conftest import run_cli
 from test_bad_input import assert_one_line_error
+from real_data import real_data
 
 REPO = Path(__file__).resolve().parents[1]
-REAL = REPO.parent / "shared" / "real-data"
-if not REAL.is_dir():
-    REAL = Path("/work/shared/real-data")
+REAL = real_data()  # ../shared/real-data (tests/real_data.py)
 needs_real = pytest.mark.skipif(not REAL.is_dir(), reason="../shared/real-data is absent (real datasets not shipped)")
 
 ARM = """<robot name="two">

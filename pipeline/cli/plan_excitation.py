@@ -15,6 +15,11 @@ from pipeline.cli import err
 
 @dataclass(frozen=True)
 class ExcitationOptions:
+    """`robocal plan excitation`'s options: Fourier harmonics per joint, the fundamental period (s), periods
+    written, sample rate (Hz), acceleration limit (rad/s², m/s² for a prismatic joint), the fraction of the URDF's
+    velocity limits used, the joints fitted (comma-separated names, empty: all), optimiser starts and iterations,
+    the ROS 2 bag to write (or None) and the rest before and after the motion (s)."""
+
     harmonics: int = 5
     period_s: float = 10.0
     periods: int = 3

@@ -123,6 +123,7 @@ def test_the_physics_is_named_by_the_smallest_family_within_the_noise():
     assert pc.simplest_within_noise([cand(2.0, 0), cand(1.0 + 0.5 * se, 2), cand(1.0, 8)]) == 1  # within: smaller
     assert pc.simplest_within_noise([cand(2.0, 0), cand(1.0 + 3 * se, 2), cand(1.0, 8)]) == 2  # beyond: larger
     assert pc.simplest_within_noise([cand(1.0 + 0.1 * se, 0), cand(1.0 + 0.5 * se, 2), cand(1.0, 8)]) == 2
+    assert pc.simplest_within_noise([cand(1.0, 2), cand(1.0, 0)]) == 1  # a tie with the rigid model: rigid
 
 
 def test_a_negative_compliance_is_not_admissible():

@@ -285,12 +285,14 @@ WEAK_FACTOR = 10.0  # a set-aside candidate detectable within this factor of its
 def _swap_fits_better(sel: screen.Selection, p: screen.Problem, pos: list, j: int, Sp_c: np.ndarray) -> bool:
     """The candidate (projected signature `Sp_c`) in the j-th finding's place leaves a smaller residual than the
     findings do (Δχ² < 0, `_swap_evidence`)."""
-    def rss(blocks):
-        X = orthonormal(np.hstack(blocks))
-        e = sel.r_w - X @ (X.T @ sel.r_w)
-        return float(e @ e)
+    return _rss(sel, [sel.Sp[c] for c in pos[:j] + pos[j + 1:]] + [Sp_c])[0] < _rss(sel, [sel.Sp[c] for c in pos])[0]
 
-    return rss([sel.Sp[c] for c in pos[:j] + pos[j + 1:]] + [Sp_c]) < rss([sel.Sp[c] for c in pos])
+
+def _rss(sel: screen.Selection, blocks: list) -> tuple[float, int]:
+    """(residual sum of squares of the selection's whitened residual off the span of `blocks`, that span's rank)."""
+    X = orthonormal(np.hstack(blocks))
+    e = sel.r_w - X @ (X.T @ sel.r_w)
+    return float(e @ e), X.shape[1]
 
 
 def _swap_evidence(sel: screen.Selection, p: screen.Problem, folds: list, pos: list, j: int, Sp_c: np.ndarray,
@@ -298,13 +300,8 @@ def _swap_evidence(sel: screen.Selection, p: screen.Problem, folds: list, pos: l
     """{delta_chi2, cv_rms_m} of a candidate (projected signature `Sp_c`, on the problem the selection tested)
     in the place of the j-th finding (`pos`: the findings' places among the testable): Δχ² = (RSS with it − RSS
     of the findings)/σ̂², σ̂² the findings' residual variance; the held-out RMS of the linearised model `swap`."""
-    def rss(blocks):
-        X = orthonormal(np.hstack(blocks))
-        e = sel.r_w - X @ (X.T @ sel.r_w)
-        return float(e @ e), X.shape[1]
-
-    rss_a, rk = rss([sel.Sp[c] for c in pos])
-    rss_s, _ = rss([sel.Sp[c] for c in pos[:j] + pos[j + 1:]] + [Sp_c])
+    rss_a, rk = _rss(sel, [sel.Sp[c] for c in pos])
+    rss_s, _ = _rss(sel, [sel.Sp[c] for c in pos[:j] + pos[j + 1:]] + [Sp_c])
     s2 = max(rss_a / max(p.dof - rk, 1), 1e-300)
     return {"delta_chi2": (rss_s - rss_a) / s2,
             "cv_rms_m": float(np.sqrt(np.mean(forms._cv(p.Jf, p.S, swap, p.r, folds) ** 2)))}

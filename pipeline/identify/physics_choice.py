@@ -119,6 +119,8 @@ def simplest_within_noise(scored: list[tuple[float, int, np.ndarray]], z: float 
         return best
     rigid = min((scored[i][0] for i in range(len(scored)) if scored[i][1] == 0), default=np.inf)
     physics = [i for i in range(len(scored)) if scored[i][1] > 0 and scored[i][0] < rigid]
+    if not physics:  # a physics candidate tied with the rigid model: the rigid one is kept
+        return min((i for i in range(len(scored)) if scored[i][1] == 0), key=lambda i: scored[i][0])
     rows = np.asarray(scored[best][2], float)
     se = float(np.std(rows, ddof=1) / np.sqrt(rows.size)) if rows.size > 1 else 0.0
     bar = scored[best][0] + z * se

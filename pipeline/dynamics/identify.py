@@ -22,12 +22,14 @@ from pipeline.dynamics.rigid_body import RigidBody, regressor, standard_paramete
 @dataclass(frozen=True)
 class Data:
     """One recording: times t (T,) s, positions q (T, J), measured torques tau (T, J) N·m / N, which
-    joints' torques are fitted `fit` (J,) bool."""
+    joints' torques are fitted `fit` (J,) bool; `decimation` recorded samples per sample here
+    (`signals.decimate`: 1, the recording as read)."""
 
     t: np.ndarray
     q: np.ndarray
     tau: np.ndarray
     fit: np.ndarray
+    decimation: int = 1
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ wls=False)) in a temporary copy of that folder (the URDF without <visual>/<colli
 
 - ``train``: every row, upstream's own run: its training RMSE (N·m, on its decimated torques) and base
   parameters;
-- ``split A B C``: fit rows [A, B), then FIGAROH's own validation path on rows [B, C) (the TX40 loader given
+- ``split A B C D``: fit rows [A, B), then FIGAROH's own validation path on rows [C, D) (the TX40 loader given
   those rows: its motor → joint conversion, 100 Hz filtering, torque conversion, border trimming).
 
 Prints one JSON line: per joint and pooled held-out RMS (N·m), base parameters, training RMSE, and the rows its
@@ -104,7 +104,7 @@ def write_rows(tx: Path, folder: Path, a: int, b: int) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--examples", type=Path, required=True, help="figaroh-examples tree with examples/staubli_TX40")
-    ap.add_argument("mode", nargs="+", help="train | split A B C")
+    ap.add_argument("mode", nargs="+", help="train | split A B C D")
     args = ap.parse_args()
     mode = args.mode[0]
     out: dict = {"mode": mode}
@@ -122,9 +122,9 @@ def main() -> None:
                        reduction_ratio=[float(r) for r in ident.identif_config["reduction_ratio"]],
                        cutoff_hz=float(ident.filter_config["filter_params"]["f_butter"]))
         elif mode == "split":
-            a, b, c = (int(x) for x in args.mode[1:4])
+            a, b, c, d = (int(x) for x in args.mode[1:5])
             held = Path(tmp) / "held"
-            write_rows(tx, held, b, c)
+            write_rows(tx, held, c, d)
             with quiet:
                 ident = run(Rows, tx, (a, b), validation=str(held))
                 m = ident._compute_validation_metrics()
@@ -133,9 +133,9 @@ def main() -> None:
             out.update(train_rmse=float(ident.rms_error), n_base=int(len(ident.phi_base)), per_joint=per,
                        pooled=float(m["rmse_identified"]), nominal_pooled=float(m["rmse_nominal"]),
                        nominal_per_joint={j: m["per_joint"][j]["rmse_nominal"] for j in JOINTS},
-                       fit_rows=[a, b], scored_torque_rows=[b + nb, c - nb], n_scored=int(ident._val_num_samples))
+                       fit_rows=[a, b], scored_torque_rows=[c + nb, d - nb], n_scored=int(ident._val_num_samples))
         else:
-            raise SystemExit(f"unknown mode {mode!r}: train | split A B C")
+            raise SystemExit(f"unknown mode {mode!r}: train | split A B C D")
     print(json.dumps(out))
 
 

@@ -17,7 +17,8 @@ from pipeline.dynamics.solve import is_consistent
 
 def _terms(fit: Fit) -> dict:
     t = fit.choice.terms
-    return {"friction": list(t.friction), "armature": t.armature, "coulomb_width": t.coulomb_width}
+    return {"friction": list(t.friction), "armature": t.armature, "coulomb_width": t.coulomb_width,
+            **({"motors": [[n, list(g)] for n, g in t.motors]} if t.motors else {})}
 
 
 def _scored(data) -> str:

@@ -42,7 +42,10 @@ def model_of_metadata(meta: dict, path: str):
     u = meta.get(META_URDF) or {}
     desc = urdf.parse(u["urdf"], u["root"], u["tip"], source=f"{path}: metadata robocal.urdf")
     doc = E.check((meta.get(META_CAMPAIGN) or {}).get("effort"), desc.joint_names, f"{path}: metadata robocal.campaign")
-    return DynamicsModel(u["urdf"], u["root"], u["tip"], tuple(desc.joint_names), doc, path)
+    from pipeline.systems.urdf_dynamics import positions_doc
+
+    pos = positions_doc((meta.get(META_CAMPAIGN) or {}).get("positions"), desc.joint_names, path)
+    return DynamicsModel(u["urdf"], u["root"], u["tip"], tuple(desc.joint_names), doc, path, positions=pos)
 
 
 def _data(model, table: dict, where_: str, model_rate: bool = False):
@@ -81,7 +84,8 @@ def identify(run_dir: Path, params: dict) -> dict:
     table = read_measurements(run_dir)
     data = _data(model, table, path, model_rate=True)
     rb = model.rigid_body()
-    fit = I.identify(rb, data, folds=int(params.get("folds", 5)), progress=_progress)
+    fit = I.identify(rb, data, I.candidates_for(data, model.motors), folds=int(params.get("folds", 5)),
+                     progress=_progress)
     out.mkdir(parents=True, exist_ok=True)
     doc = R.fit_document(rb, model, fit, data)
     write_json(out / "fit.json", doc)
@@ -152,7 +156,7 @@ def diagnose_recording(rec, settings, progress=None) -> dict:
     model, table = load(rec)
     data = _data(model, table, str(rec.path), model_rate=True)
     rb = model.rigid_body()
-    fit = I.identify(rb, data, progress=progress)
+    fit = I.identify(rb, data, I.candidates_for(data, model.motors), progress=progress)
     return run_diagnosis(rb, data, fit, settings, progress=progress)
 
 

@@ -71,3 +71,21 @@ def convert(doc: dict | None, joints: list[str], p: np.ndarray, v: np.ndarray | 
         return p, v
     M, c = matrix(doc, joints)
     return p @ M.T + c, (None if v is None else v @ M.T)
+
+
+def coupled_motors(doc: dict | None, joints: list[str]) -> tuple[tuple[str, tuple[float, ...]], ...]:
+    """The readings that move several joints (a coupled wrist's motor): for each, (the joint whose column it
+    is, G (J,)) with the motor's speed u = G·q̇ in that joint's units (G_K = 1 for its own joint K) — its
+    friction and rotor inertia act on u and reach joint j's torque as G_j times theirs (the transmission's
+    transpose: τ = Mᵀ⁻¹ τ_motor).  Empty when every reading is one joint's."""
+    if not doc or not doc.get("mix"):
+        return ()
+    M, _ = matrix(doc, joints)
+    inv = np.linalg.inv(M)
+    out = []
+    for k, row in enumerate(inv):
+        nz = np.abs(row) > 1e-9 * np.abs(row).max()
+        if nz.sum() > 1:
+            g = row / (row[k] if nz[k] else row[np.argmax(np.abs(row))])
+            out.append((joints[k], tuple(float(x) if abs(x) > 1e-12 else 0.0 for x in g)))
+    return tuple(out)

@@ -32,7 +32,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 JOINTS = [f"joint_{i}" for i in range(1, 7)]

@@ -154,7 +154,8 @@ def require_units(doc: dict, where_: str) -> None:
     """One line when the recording does not say what its efforts are (no torque can be fitted)."""
     if doc.get("unit") == "unknown":
         raise RobocalError(f"{where_}: effort units unknown: the recording declares no effort → torque conversion "
-                           "(import with --effort-scale JOINT=K,… for raw drive values, or --effort-units Nm)")
+                           "(import with --effort-scale JOINT=K,… for raw drive values, or --effort-units Nm; motor "
+                           "constants unknown: the reductions alone, every parameter then in that common unknown unit)")
 
 
 def matrix(doc: dict, joints: list[str]) -> tuple[np.ndarray, np.ndarray]:

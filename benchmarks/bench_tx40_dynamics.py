@@ -17,7 +17,8 @@ the held-out model choice).  FIGAROH (`benchmarks/figaroh_tx40_dynamics.py`, run
 TX40Identification with its config, fitted on the same rows, scored by its own validation path.
 
 Scored: the raw converted torque at the recorded 5 kHz, on the torque rows FIGAROH's validation path scores
-(it trims 20 rows at each end of the held-out segment), robocal's prediction without refitting.
+(it trims 20 rows at each end of the held-out segment), robocal's prediction without refitting; beside them the
+torque's content above 100 Hz alone (FIGAROH's cut-off: what no smooth model of the motion predicts).
 """
 
 from __future__ import annotations
@@ -140,6 +141,7 @@ def main() -> None:
             cols["FIGAROH 1.0.2 (run)"] = {**theirs[name]["per_joint"], "pooled": theirs[name]["pooled"]}
             cols["FIGAROH nominal"] = {**theirs[name]["nominal_per_joint"], "pooled": theirs[name]["nominal_pooled"]}
         cols["URDF as drawn (robocal)"] = figures((nominal - tau[c:d])[s])
+        cols["torque > 100 Hz alone"] = figures((tau[c:d] - signals.lowpass(tau[c:d], RATE_HZ, 100.0))[s])
         show(f"{name} split: fitted on rows [{a}, {b}), predicting torque rows [{c + BORDER}, {d - BORDER}) at 5 kHz "
              "without refitting, raw converted torque (N·m)", cols)
         print(f"  robocal: {f.choice.label()}, {f.base.rank} base parameters; identify (decimated ×{data.decimation} "

@@ -3,8 +3,11 @@
 The logs come as one table (columns ``t`` and per joint ``J`` or ``J_position``, ``J_velocity``,
 ``J_effort``) or as separate position, velocity and effort tables sharing the time column (as
 ``ros2 topic echo --csv`` / FIGAROH export them, whose headers start with ``- ``: ``- J_position``).
-A header matches joint J when, stripped of a leading ``- ``, it is ``J`` (position tables) or
-``J_<kind>``.  Times are seconds (any origin); `rows` keeps data rows [a, b) (zero-based).
+A header matches joint J when, stripped of a leading ``- ``, it is ``J`` (position tables, or a velocity /
+effort table of its own) or ``J_<kind>`` — or the one header equal to it but for case.  Times are seconds (any
+origin), or, for tables without a time column, row i at i / `rate`; `rows` keeps data rows [a, b) (zero-based).
+Position readings that are not joint angles (motor-side encoders, a coupled wrist) are converted by the
+declaration `positions` (`joint_readings`) before the limits are checked.
 
 Refused with one line naming file, row and column: a missing joint or effort column, a time column
 that is not strictly increasing (or differs between the tables), empty / NaN / inf values (a burst is
@@ -118,7 +121,7 @@ def read_logs(position: Path, desc: RobotDescription, velocity: Path | None = No
     pos = files["position"]
     header, cols, n_pos = read[pos]
     for p, (_, _, n) in read.items():
-        if n != n_pos:
+        if n != n_pos and (rate is not None or b is None):  # rows paired by index: the lengths must agree
             raise RobocalError(f"{p}: {n} data rows, {pos} has {n_pos} (the tables must share one clock, row by row)")
     out["t_s"] = _times(pos, header, cols, time_col, sl, a, rate, n_pos)
     for kind in KINDS:

@@ -87,14 +87,15 @@ def test_the_readings_conversion_inverts_the_transmission():
 
 
 @pytest.mark.parametrize("case", ["joint_angles_assumed", "rate_with_times", "no_times_no_rate", "bad_rate",
-                                  "rows_differ"])
+                                  "rows_differ", "rate_ten_times_too_high"])
 def test_a_wrong_rate_or_scale_is_one_line(drive_log, case):
     d, _, _ = drive_log
     desc = U.read(d / "arm.urdf", "base", "s4")
     pos = JR.declaration(JR.PositionSpec((WORDS[3],), (WORDS[7],), (WORDS[5],)), G.JOINTS)
     kw = {"joint_angles_assumed": dict(rate=1000.0), "rate_with_times": dict(rate=1000.0, positions=pos),
           "no_times_no_rate": dict(positions=pos), "bad_rate": dict(rate=-5.0, positions=pos),
-          "rows_differ": dict(rate=1000.0, positions=pos)}[case]
+          "rows_differ": dict(rate=1000.0, positions=pos), "rate_ten_times_too_high": dict(rate=10000.0,
+                                                                                           positions=pos)}[case]
     first = d / ("timed.csv" if case == "rate_with_times" else "pos.csv")
     effort = d / ("short.csv" if case == "rows_differ" else "cur.csv")
     with pytest.raises(RobocalError) as e:
@@ -102,7 +103,7 @@ def test_a_wrong_rate_or_scale_is_one_line(drive_log, case):
     msg = str(e.value)
     expect = {"joint_angles_assumed": "motor-side angles? --position-scale", "rate_with_times": "--rate is for a "
               "table without one", "no_times_no_rate": "--rate HZ", "bad_rate": "expected the sample rate",
-              "rows_differ": "1999 data rows"}[case]
+              "rows_differ": "1999 data rows", "rate_ten_times_too_high": "its URDF velocity limit"}[case]
     assert expect in msg and "\n" not in msg, msg
 
 

@@ -145,7 +145,40 @@ def read_logs(position: Path, desc: RobotDescription, velocity: Path | None = No
     if v is not None:
         out["v"] = v
     check_limits(pos, out["q"], desc, a, converted=bool(positions))
+    check_speeds(pos, out["t_s"], out["q"], desc, a)
     return out
+
+
+SPEED_SLACK = 3.0  # a joint moving faster than this many times its URDF velocity limit: a clock or scale mistake
+
+
+def check_speeds(path: Path, t: np.ndarray, q: np.ndarray, desc: RobotDescription, offset: int = 0) -> None:
+    """One line when a joint moves far faster than its URDF's ``<limit velocity>`` (beyond `SPEED_SLACK` ×):
+    a wrong --rate or time column, or a position scale too large.  Speeds over 10 ms steps (encoder noise
+    averaged); joints without a velocity limit are not checked."""
+    import xml.etree.ElementTree as ET
+
+    if len(t) < 3:
+        return
+    limit = {}
+    for j in ET.fromstring(desc.urdf).iter("joint"):
+        lim = j.find("limit")
+        try:
+            limit[j.get("name")] = float(lim.get("velocity")) if lim is not None else 0.0
+        except (TypeError, ValueError):
+            limit[j.get("name")] = 0.0
+    vmax = np.array([limit.get(j.name, 0.0) for j in desc.movable])
+    dt = float(np.median(np.diff(t)))
+    k = max(1, int(round(0.01 / dt))) if dt > 0 else 1
+    k = min(k, len(t) - 1)
+    speed = np.abs(q[k:] - q[:-k]) / (t[k:] - t[:-k])[:, None]
+    over = (vmax > 0) & (speed.max(0) > SPEED_SLACK * vmax)
+    if over.any():
+        c = int(np.argmax(over))
+        i = int(np.argmax(speed[:, c]))
+        raise RobocalError(f"{path}: row {i + offset + 2}: joint {desc.movable[c].name!r} moves at "
+                           f"{speed[i, c]:.4g} /s, {speed[i, c] / vmax[c]:.0f}× its URDF velocity limit "
+                           f"{vmax[c]:.4g} (a wrong --rate or time column, or --position-scale?)")
 
 
 def check_limits(path: Path, q: np.ndarray, desc: RobotDescription, offset: int = 0,

@@ -12,6 +12,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import independent_dynamics as G
 from conftest import run_cli
@@ -34,6 +36,14 @@ WORDS = ["--rate", "1000", "--position-scale", "a1=1/32,a2=-1/48,a3=1/45,a4=1/32
 def test_numbers_as_an_engineer_writes_them(text, value):
     got = number(text)
     assert (got is None and value is None) or abs(got - value) < 1e-15
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(-10**6, 10**6), st.integers(1, 10**6), st.sampled_from(["", "-", "+"]))
+def test_a_ratio_reads_as_its_quotient(a, b, sign):
+    got = number(f"{sign}{a}/{b}") if a >= 0 else number(f"{a}/{b}")
+    want = (-1 if sign == "-" and a >= 0 else 1) * a / b
+    assert got is not None and abs(got - want) <= 1e-12 * max(1.0, abs(want))
 
 
 def _motor_side(q: np.ndarray) -> np.ndarray:

@@ -176,6 +176,8 @@ def sidecar_yaml(model, fit: Fit) -> str:
         j, _, key = name.rpartition(".")
         if key in ("fv", "fc", "f0", "Ia"):
             joints.setdefault(j, {})[key] = {"value": float(v), "unit": unit}
-    doc = {"model": "τ = Y(q, q̇, q̈)·π + fv·q̇ + fc·tanh(q̇/w) + f0 + Ia·q̈",
+    doc = {"model": "τ = Y(q, q̇, q̈)·π + fv·q̇ + fc·tanh(q̇/w) + f0 + Ia·q̈"
+                    + (" + Σ_motors G·(fv·u + fc·tanh(u/w) + Ia·u̇), u = G·q̇" if fit.choice.terms.motors else ""),
+           **({"motors": {n: list(g) for n, g in fit.choice.terms.motors}} if fit.choice.terms.motors else {}),
            "coulomb_width": fit.choice.terms.coulomb_width, "joints": joints, "effort": model.effort}
     return yaml.safe_dump(doc, sort_keys=False, allow_unicode=True)

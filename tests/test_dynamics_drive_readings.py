@@ -117,6 +117,20 @@ def test_a_wrong_rate_or_scale_is_one_line(drive_log, case):
     assert expect in msg and "\n" not in msg, msg
 
 
+def test_one_encoder_glitch_is_not_a_wrong_rate(drive_log):
+    """A single spike (a reading error at one row) moves a joint far faster than its limit for one step; the speed
+    check judges the clock and the scale, which are systematic, so the log still reads."""
+    d, t, q = drive_log
+    p = _motor_side(q)
+    p[700, 0] += 32 * 0.5  # half a radian at the joint for one row, 1 ms
+    np.savetxt(d / "glitch.csv", p, delimiter=",", header=",".join(j.upper() for j in G.JOINTS), comments="",
+               fmt="%.12g")
+    desc = U.read(d / "arm.urdf", "base", "s4")
+    pos = JR.declaration(JR.PositionSpec((WORDS[3],), (WORDS[7],), (WORDS[5],)), G.JOINTS)
+    out = read_logs(d / "glitch.csv", desc, None, d / "cur.csv", rate=1000.0, positions=pos)
+    assert out["q"].shape == q.shape
+
+
 def test_positions_far_outside_the_limits_exit_2_naming_the_fix(drive_log):
     d, _, _ = drive_log
     r = run_cli("import", "csv", d / "pos.csv", "--effort-csv", d / "cur.csv", "--urdf", d / "arm.urdf", "--root",

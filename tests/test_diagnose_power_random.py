@@ -86,3 +86,17 @@ def test_a_dent_is_not_a_confident_face_flatness():
     flat = [f for f in r["_doc"]["findings"] if f["effect"] == "face_flatness"]
     assert flat and all(f["confidence"] != "high" and f["evidence"]["p_value_given_local_alternative"] > 0.01
                         for f in flat), flat
+
+
+def test_face_offsets_that_fit_the_residual_exactly_are_not_evidence():
+    """Seed 107's campaign (a dent on top2 at 4× its ideal MDE, three records set aside): the touch model's lengths
+    scale with the jig's face coordinates, so the geometric residual is exactly that common scale's derivative, and
+    the trigger pretravel (a signed sum of face indicators) with two faces' offsets fits it to round-off — offsets of
+    minus the drawing's coordinates.  That fit is an identity, not noise explained: no test rests on it (every
+    statistic finite and modest, no finding with a held-out error of nothing); the dent is still located."""
+    r = pr.run_one(pr.World(107), "dent", 4.0, 0)
+    d = r["_doc"]
+    for f in d["findings"] + d["rejected_findings"]:
+        assert np.isfinite(f["evidence"]["statistic"]) and f["evidence"]["statistic"] < 1e4, f
+        assert f["evidence"].get("cv_rms_linearised_m", 1.0) > 1e-7, f
+    assert r["located"] and not r["misnamed_high"], r["findings"]

@@ -18,6 +18,9 @@ import scipy.special
 from pipeline.diagnose.inference.gate import RANK_REL
 from pipeline.diagnose.inference.projection import orthonormal, project_out
 
+EXACT_FIT = 1e-9  # a fit leaving less than this share of rᵀr explains the residual exactly: no noise is left to test against
+
+
 
 def _batches(edges: np.ndarray, groups) -> list[tuple[np.ndarray, np.ndarray]]:
     """Groups of blocks by total width L: (positions in `groups`, column indices (P, L))."""
@@ -125,7 +128,9 @@ class Design:
         if self.tol[c] > 0 and kc == 1 and self.k[c] == 1:
             theta = abs(float(g[0])) / float(G[0, 0]) / self.cn[self.edges[c]]  # parameter units
             gain *= (max(theta - self.tol[c], 0.0) / theta if theta > 0 else 0.0) ** 2
-        F = (gain / kc) / (max(rss - gain, 1e-300) / (dof - kc))
+        if rss - gain <= EXACT_FIT * self.rr:  # an exact fit: a structural identity, not evidence (`tests`)
+            return 1.0, 0.0, kc, gain
+        F = (gain / kc) / ((rss - gain) / (dof - kc))
         return float(scipy.special.fdtrc(kc, dof - kc, F)), float(F), kc, gain
 
     @staticmethod
@@ -160,7 +165,11 @@ class Design:
         """Grouped F of every block (or every pair: groups="pairs") against the fit with Gram
         (G, g), RSS `rss` and `dof` residual dof: (p, F, rank, gain) arrays; p = 1 where a group
         adds no direction.  Single-parameter blocks with a tolerance (interval null ±tol): the gain
-        is shrunk as if the estimate were moved to the edge of the interval."""
+        is shrunk as if the estimate were moved to the edge of the interval.  A group whose fit leaves less than
+        `EXACT_FIT` of rᵀr is not evidence either (p = 1, F = 0): noise cannot lie in the span of a few columns, so
+        the residual does by an identity of the model — the touch model's, say, whose every length scales with the
+        jig's face coordinates (the residual is that common scale's derivative): given every face's offset and the
+        geometry the fit is exact, with offsets of minus the drawing's coordinates."""
         if groups == "pairs":
             pl, batches = self.pairs
             gain, kc = self.gains(G, g, batches, len(pl))
@@ -171,7 +180,7 @@ class Design:
                 theta = abs(float(g[j])) / float(G[j, j]) / self.cn[j]  # parameter units
                 gain[c] *= (max(theta - self.tol[c], 0.0) / theta if theta > 0 else 0.0) ** 2
         d2 = dof - kc
-        ok = (kc > 0) & (d2 >= 1)
+        ok = (kc > 0) & (d2 >= 1) & (rss - gain > EXACT_FIT * self.rr)
         F = np.where(ok, (gain / np.maximum(kc, 1)) / (np.maximum(rss - gain, 1e-300) / np.maximum(d2, 1)), 0.0)
         p = np.where(ok, scipy.special.fdtrc(np.maximum(kc, 1), np.maximum(d2, 1), F), 1.0)
         return p, F, kc, gain

@@ -37,6 +37,7 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
+from pipeline.diagnose.inference.candidate_gram import EXACT_FIT
 from pipeline.diagnose.inference.candidate_gram import Design as _Design
 from pipeline.diagnose.inference.gate import RANK_REL
 
@@ -66,7 +67,8 @@ def _conditional(D: _Design, A: list[int], dof0: int) -> list[tuple[float, float
         M = (V / w) @ V.T
         beta = M @ D.g[ix]
         dof = dof0 - ix.size
-        rss = max(D.rr - float(D.g[ix] @ beta), 1e-300)
+        rss = D.rr - float(D.g[ix] @ beta)
+        exact = rss <= EXACT_FIT * D.rr  # A fits the residual exactly: no test rests on it (`Design.tests`)
         out, at = [], 0
         for b in A:
             sl = slice(at, at + D.k[b])
@@ -76,8 +78,9 @@ def _conditional(D: _Design, A: list[int], dof0: int) -> list[tuple[float, float
                 theta = abs(float(beta[sl][0])) / D.cn[D.edges[b]]  # parameter units
                 gain *= (max(theta - D.tol[b], 0.0) / theta if theta > 0 else 0.0) ** 2
             kc = int(D.k[b])
-            F = (gain / kc) / (max(rss + raw - gain, 1e-300) / dof) if dof >= 1 else 0.0
-            p = float(scipy.special.fdtrc(kc, dof, F)) if dof >= 1 else 1.0
+            ok = dof >= 1 and not exact
+            F = (gain / kc) / ((rss + raw - gain) / dof) if ok else 0.0
+            p = float(scipy.special.fdtrc(kc, dof, F)) if ok else 1.0
             out.append((p, float(F), kc, gain, dof))
         return out
     out = []
@@ -177,7 +180,7 @@ def select_design(D: _Design, dof_resid: int, alpha: float = 0.01, max_terms: in
         for b in A:
             rest = [c for c in A if c != b]
             rss, rk, _, _, kc, gain = D.tests_given(rest, dof0)
-            ok = (kc > 0) & (kc <= kc[b])
+            ok = (kc > 0) & (kc <= kc[b]) & (rss - gain > EXACT_FIT * D.rr)  # never to an exact fit (`Design.tests`)
             ok[A] = False
             new = np.where(ok, rss - gain, np.inf)
             c = int(np.argmin(new))
@@ -246,7 +249,7 @@ def look_alikes(r: np.ndarray, candidates: list[np.ndarray], dof_resid: int, A: 
         return {}
     D = _Design(r, candidates, None, tolerances or [0.0] * len(candidates))
     rss_A, rk = D.given(A)[:2]
-    rss_A = max(rss_A, 1e-9 * D.rr)  # a near-singular accepted set can round its RSS to nothing
+    rss_A = max(rss_A, EXACT_FIT * D.rr)  # a near-singular accepted set can round its RSS to nothing
     s2 = max(rss_A / max(dof_resid - rk, 1), 1e-300)
     out = {}
     for b in A:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.diagnose.inference import resampling
+from pipeline.diagnose.inference.candidate_gram import EXACT_FIT
 from pipeline.diagnose.library.term import Effect
 from pipeline.identify.linear_folds import scaled_basis
 
@@ -51,8 +52,9 @@ def choose(lib: list[Effect], accepted: list[int], testable: list[int], S: list[
     [{form, cv_rms_m}] of every form tried}).  The form with the lowest held-out mean square is kept
     unless a simpler one (fewer parameters, or as many and a lower `priority`: the linear form before a
     warm-up) is within one standard error of the paired difference — then the best of those, and so on
-    (the one-standard-error rule): forms that fit equally well out of sample are not told apart by noise.  Unchanged when no accepted entry has
-    another form."""
+    (the one-standard-error rule): forms that fit equally well out of sample are not told apart by noise.  A form
+    that predicts the held-out rows to round-off is not tried (an identity of the model, `candidate_gram.EXACT_FIT`).
+    Unchanged when no accepted entry has another form."""
     out = list(accepted)
     tried: dict[int, list[dict]] = {}
     U0 = None
@@ -63,6 +65,10 @@ def choose(lib: list[Effect], accepted: list[int], testable: list[int], S: list[
         forms = sorted([i] + alts, key=lambda j: (lib[j].k, lib[j].priority, j))
         U0 = scaled_basis(Jf) if U0 is None else U0  # the geometry's basis, shared by every form
         e2 = {j: _cv(Jf, S, out[:pos] + [j] + out[pos + 1:], r, folds, U0) ** 2 for j in forms}
+        # a form with which the model predicts the held-out rows to round-off fits by an identity, not physics
+        # (`candidate_gram.EXACT_FIT`): not a form to choose
+        floor = EXACT_FIT * float(np.mean(r**2))
+        forms = [j for j in forms if j == i or float(np.mean(e2[j])) > floor]
         best = min(forms, key=lambda j: (float(np.mean(e2[j])), lib[j].k, lib[j].priority))
         while True:  # a simpler form within one standard error of the chosen one replaces it
             near = [j for j in forms if _simpler(lib[j], lib[best]) and _within_one_se(e2[j], e2[best])]

@@ -11,8 +11,8 @@
 4. the held-out arbiter, in N·m on the raw torques: contiguous-block cross-validation with a guard band
    (`dynamics.crossval`, the arbiter of identification's own choices) of the base model, of the base
    model with the findings and of it without each finding — a finding that does not lower the held-out
-   error by more than two standard errors (of the drop's mean over 2 s blocks) is rejected; if the findings
-   together make it worse, every one is;
+   error by more than two standard errors of the drop's noise (over 2 s blocks, `gain_z`) is rejected; if the
+   findings together make it worse, every one is;
 5. where the rest is: lack of fit against each joint's velocity, position, load and time
    (`verdict.lack_of_fit`, on the whitened rows), the held-out error per joint, velocity regime, load
    and time quarter (`locate`); grading of each name (`verdict.grading`, `verdict.arbiter`); the status

@@ -30,10 +30,12 @@ def parse_rows(text: str) -> tuple[int, int | None]:
 
 def import_effort(files: list[Path], urdf: Path, root: str, tip: list[str], out: Path, velocity_csv, effort_csv,
                   scale: list[str], offset: list[str], mix: list[str], fit_joints: str, units, rows: str,
-                  time_col: str, robot_id: str, force: bool = False) -> None:
+                  time_col: str, robot_id: str, force: bool = False, rate: float | None = None,
+                  positions: tuple = ((), (), ())) -> None:
     from pipeline.cli.bag_options import say
     from pipeline.importers.csv_effort import read_logs
     from pipeline.importers.effort_recording import EffortSpec, write_effort_recording
+    from pipeline.importers.joint_readings import PositionSpec, declaration
     from pipeline.recording.output import claim_output
     from pipeline.models import urdf as urdf_mod
 
@@ -47,10 +49,12 @@ def import_effort(files: list[Path], urdf: Path, root: str, tip: list[str], out:
         raise RobocalError(f"{out}: --out is one of the input files")
     desc = urdf_mod.read(urdf, root, tip[0])
     a, b = parse_rows(rows)
-    logs = read_logs(files[0], desc, velocity_csv, effort_csv, time_col, (a, b))
+    pos_doc = declaration(PositionSpec(*(tuple(x) for x in positions)), desc.joint_names)
+    logs = read_logs(files[0], desc, velocity_csv, effort_csv, time_col, (a, b), rate, pos_doc)
     t_ns = T0_NS + np.round(logs.pop("t_s") * 1e9).astype(np.int64)
     claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
     write_effort_recording(out, desc, {"t_ns": t_ns, **logs}, str(urdf),
                            EffortSpec(tuple(scale), tuple(offset), tuple(mix), fit_joints, units),
                            {"source_files": [str(f) for f in (files[0], velocity_csv, effort_csv) if f],
-                            "rows": [a, a + len(t_ns)]}, robot_id, say)
+                            "rows": [a, a + len(t_ns)], **({"rate_hz": rate} if rate else {}),
+                            **({"positions": pos_doc} if pos_doc else {})}, robot_id, say)

@@ -92,6 +92,15 @@ def import_csv(
                                                "else unknown."),
     rows: str = typer.Option("", "--rows", help="Effort: keep data rows A:B (zero-based, B excluded)."),
     time_col: str = typer.Option("t", "--time-col", help="Effort: the time column (s)."),
+    rate: Optional[float] = typer.Option(None, "--rate", help="Effort: the sample rate (Hz) of tables without a "
+                                         "time column (row i at i / rate s)."),
+    position_scale: list[str] = typer.Option([], "--position-scale", help="Effort: rad (m) per raw position unit, "
+                                             "JOINT=K,… (motor-side angles through a reduction N: 1/N); repeatable."),
+    position_offset: list[str] = typer.Option([], "--position-offset", help="Effort: rad (m) added after scaling, "
+                                              "JOINT=C,… (e.g. -pi/2: the joint's zero)."),
+    position_mix: list[str] = typer.Option([], "--position-mix", help="Effort: the raw positions a joint's angle "
+                                           "combines before scaling, JOINT=EXPR (a coupled wrist: "
+                                           "j6=j6-32/45*j5); repeatable."),
 ) -> None:
     """Map CSV columns to the URDF's joints (by header name) and write a recording `robocal run` calibrates."""
     from pipeline.errors import RobocalError
@@ -102,7 +111,8 @@ def import_csv(
 
         check_output(out, force=force)  # before any work: an existing recording only with --force
         return import_effort(files, urdf, root, tip, out, velocity_csv, effort_csv, effort_scale, effort_offset,
-                             effort_mix, effort_joints, effort_units, rows, time_col, robot_id, force=force)
+                             effort_mix, effort_joints, effort_units, rows, time_col, robot_id, force=force,
+                             rate=rate, positions=(position_scale, position_offset, position_mix))
     if measure not in ("point", "pose", "plane", "coincidence"):
         raise RobocalError(f"--measure {measure!r}: expected point, pose, plane, coincidence or effort")
     if joint_units not in ("rad", "deg") or length_units not in ("m", "mm"):

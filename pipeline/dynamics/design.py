@@ -4,7 +4,10 @@ columns of the fitted joints.
 Parameters θ = [π (J·10, the bodies' standard parameters), then per fitted joint its friction and
 armature terms]; torque of fitted joint j at a sample: τ_j = Y_j π + f_v q̇_j + f_c s(q̇_j) + f_0 + I_a q̈_j with
 s the Coulomb sign, smoothed as tanh(q̇ / w) over `coulomb_width` w (rad/s; 0: the sign itself).  Friction
-of a joint only moves that joint's torque.  Units: N·m·s/rad (N·s/m), N·m (N), kg·m² (kg).
+of a joint only moves that joint's torque — but a motor that turns several joints (a coupled wrist: the
+recording's position mix, `joint_readings.coupled_motors`) has its own viscous, Coulomb and rotor-inertia
+terms on its speed u = G·q̇, reaching each joint j's torque as G_j times them.  Units: N·m·s/rad (N·s/m),
+N·m (N), kg·m² (kg).
 """
 
 from __future__ import annotations
@@ -24,10 +27,20 @@ class Terms:
     friction: tuple[str, ...] = ("viscous", "coulomb", "offset")
     armature: bool = True
     coulomb_width: float = 0.01  # rad/s (m/s): tanh smoothing of the Coulomb sign; 0 = sign
+    motors: tuple[tuple[str, tuple[float, ...]], ...] = ()  # coupled motors: (name, G over the chain's joints)
 
     def per_joint(self) -> list[tuple[str, str]]:
         out = [FRICTION[f] for f in self.friction]
         return out + ([ARMATURE] if self.armature else [])
+
+    def per_motor(self) -> list[tuple[str, str]]:
+        """A coupled motor's terms: the joint terms but the offset (a joint's own)."""
+        return [k for k in self.per_joint() if k[0] != "f0"]
+
+
+def motors_of(terms: Terms, fit: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """The coupled motors that move a fitted joint: (name, G (J,))."""
+    return [(n, np.asarray(g, float)) for n, g in terms.motors if np.any(np.asarray(g)[np.asarray(fit, bool)])]
 
 
 def extra_names(joints: list[str], fit: np.ndarray, terms: Terms) -> tuple[list[str], list[str]]:
@@ -36,6 +49,10 @@ def extra_names(joints: list[str], fit: np.ndarray, terms: Terms) -> tuple[list[
     for j in np.flatnonzero(fit):
         for key, unit in terms.per_joint():
             names.append(f"{joints[j]}.{key}")
+            units.append(unit)
+    for name, _ in motors_of(terms, fit):
+        for key, unit in terms.per_motor():
+            names.append(f"{name}.motor.{key}")
             units.append(unit)
     return names, units
 
@@ -57,4 +74,9 @@ def matrix(Y: np.ndarray, v: np.ndarray, a: np.ndarray, fit: np.ndarray, terms: 
             cols.append({"fv": v[:, j], "fc": coulomb(v[:, j], terms.coulomb_width), "f0": np.ones(T),
                          "Ia": a[:, j]}[key])
         E[:, f, f * len(per):(f + 1) * len(per)] = np.stack(cols, axis=1)
-    return np.concatenate([Y[:, idx, :], E], axis=2)
+    blocks = [Y[:, idx, :], E]
+    for _, g in motors_of(terms, fit):
+        u, du = v @ g, a @ g
+        col = {"fv": u, "fc": coulomb(u, terms.coulomb_width), "Ia": du}
+        blocks.append(g[idx][None, :, None] * np.stack([col[k] for k, _ in terms.per_motor()], axis=1)[:, None, :])
+    return np.concatenate(blocks, axis=2)

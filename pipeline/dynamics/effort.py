@@ -26,8 +26,24 @@ from pipeline.errors import RobocalError
 
 UNITS = ("N·m", "raw", "unknown")
 _NUM = r"(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
-_TERM = re.compile(rf"([+-]?)(?:({_NUM})\*?)?([A-Za-z_][\w./:]*)?")
+_FACTOR = rf"(?:{_NUM}|pi)(?:\*(?:{_NUM}|pi))?(?:/(?:{_NUM}|pi))?"  # 45, 1/32, pi/2, 2*pi, 32/45
+_VALUE = re.compile(rf"\s*([+-]?)({_FACTOR})\s*")
+_TERM = re.compile(rf"([+-]?)(?:({_FACTOR})\*)?([A-Za-z_][\w./:]*)?")
 GRAVITY = 9.81  # m/s², the value FIGAROH and robot controllers use for a lift's weight offset
+
+
+def number(text: str) -> float | None:
+    """A number as a calibration engineer writes it: ``0.5``, ``-1e-3``, ``1/32`` (a gear ratio's
+    inverse), ``pi/2``, ``-2*pi``, ``32/45``; None when `text` is not one."""
+    m = _VALUE.fullmatch(text)
+    if m is None:
+        return None
+    num, _, den = m.group(2).partition("/")
+    a, _, b = num.partition("*")
+    val = [np.pi if w == "pi" else float(w) for w in (a, b or "1", den or "1")]
+    if val[2] == 0:
+        return None
+    return (-1.0 if m.group(1) == "-" else 1.0) * val[0] * val[1] / val[2]
 
 
 def parse_pairs(option: str, items: list[str], joints: list[str], words: tuple[str, ...] = ()) -> dict[str, float | str]:
@@ -45,19 +61,20 @@ def parse_pairs(option: str, items: list[str], joints: list[str], words: tuple[s
             if val in words:
                 out[name] = val
                 continue
-            try:
-                v = float(val)
-            except ValueError:
-                raise RobocalError(f"{option} {part!r}: {val!r} is not a number"
-                                   + (f" (or {', '.join(words)})" if words else "")) from None
+            v = number(val)
+            if v is None:
+                raise RobocalError(f"{option} {part!r}: {val!r} is not a number (e.g. 0.5, 1/32, pi/2)"
+                                   + (f" (or {', '.join(words)})" if words else ""))
             if not np.isfinite(v):
                 raise RobocalError(f"{option} {part!r}: {val!r} is not a finite number")
             out[name] = v
     return out
 
 
-def parse_mix(items: list[str], joints: list[str]) -> dict[str, dict[str, float]]:
-    """``J=-A+B`` (repeatable) → {J: {A: -1, B: 1}}: the raw readings joint J's torque combines."""
+def parse_mix(items: list[str], joints: list[str], option: str = "--effort-mix",
+              example: str = "arm_6_joint=-arm_6_joint+arm_7_joint") -> dict[str, dict[str, float]]:
+    """``J=-A+B`` (repeatable; a factor ``2*A``, ``32/45*A``) → {J: {A: -1, B: 1}}: the raw readings
+    joint J's value combines."""
     out: dict[str, dict[str, float]] = {}
     for text in items:
         name, sep, rhs = text.partition("=")
@@ -69,14 +86,14 @@ def parse_mix(items: list[str], joints: list[str]) -> dict[str, dict[str, float]
             if m is None or m.end() == pos or not m.group(3):
                 break
             terms[m.group(3)] = terms.get(m.group(3), 0.0) + (-1.0 if m.group(1) == "-" else 1.0) * (
-                float(m.group(2)) if m.group(2) else 1.0)
+                number(m.group(2)) if m.group(2) else 1.0)
             pos = m.end()
         if not sep or not name or not terms or pos != len(rhs):
-            raise RobocalError(f"--effort-mix {text!r}: expected JOINT=EXPR, a linear combination of joints' raw "
-                               "efforts (e.g. arm_6_joint=-arm_6_joint+arm_7_joint)")
+            raise RobocalError(f"{option} {text!r}: expected JOINT=EXPR, a linear combination of joints' raw "
+                               f"readings (e.g. {example})")
         for k in (name, *terms):
             if k not in joints:
-                raise RobocalError(f"--effort-mix {text!r}: {k!r} is not a joint of the chain ({', '.join(joints)})")
+                raise RobocalError(f"{option} {text!r}: {k!r} is not a joint of the chain ({', '.join(joints)})")
         out[name] = terms
     return out
 
@@ -137,7 +154,8 @@ def require_units(doc: dict, where_: str) -> None:
     """One line when the recording does not say what its efforts are (no torque can be fitted)."""
     if doc.get("unit") == "unknown":
         raise RobocalError(f"{where_}: effort units unknown: the recording declares no effort → torque conversion "
-                           "(import with --effort-scale JOINT=K,… for raw drive values, or --effort-units Nm)")
+                           "(import with --effort-scale JOINT=K,… for raw drive values, or --effort-units Nm; motor "
+                           "constants unknown: the reductions alone, every parameter then in that common unknown unit)")
 
 
 def matrix(doc: dict, joints: list[str]) -> tuple[np.ndarray, np.ndarray]:

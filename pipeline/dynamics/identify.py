@@ -22,12 +22,14 @@ from pipeline.dynamics.rigid_body import RigidBody, regressor, standard_paramete
 @dataclass(frozen=True)
 class Data:
     """One recording: times t (T,) s, positions q (T, J), measured torques tau (T, J) N·m / N, which
-    joints' torques are fitted `fit` (J,) bool."""
+    joints' torques are fitted `fit` (J,) bool; `decimation` recorded samples per sample here
+    (`signals.decimate`: 1, the recording as read)."""
 
     t: np.ndarray
     q: np.ndarray
     tau: np.ndarray
     fit: np.ndarray
+    decimation: int = 1
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,7 @@ class _Prepared:
     y: np.ndarray  # (T, F) the training target: the raw torques, the same rows zeroed
     raw: np.ndarray  # (T, F) raw torques (the score)
     Xp: np.ndarray  # (T, F, P) the model's regressor at every sample (predicts the raw torques)
+    fit: np.ndarray  # (J,) bool: the fitted joints
 
 
 def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = None) -> _Prepared:
@@ -109,7 +112,7 @@ def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = No
     X = design.matrix(Y, v, a, data.fit, choice.terms)
     raw = np.asarray(data.tau, float)[:, data.fit]
     use = fitted_rows(v[:, data.fit], choice.terms).astype(float)
-    return _Prepared(X * use[:, :, None], raw * use, raw, X)
+    return _Prepared(X * use[:, :, None], raw * use, raw, X, np.asarray(data.fit, bool))
 
 
 def fitted_rows(v: np.ndarray, terms: design.Terms) -> np.ndarray:
@@ -132,10 +135,8 @@ def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: 
     if choice.solver == "wls":
         return solve.wls(X, y, base)
     n = 10 * rb.n_joints
-    nonneg = np.zeros(X.shape[2], bool)
-    keys = [k for k, _ in choice.terms.per_joint()]
-    for p in range(n, X.shape[2]):
-        nonneg[p] = keys[(p - n) % len(keys)] in ("fv", "fc", "Ia")
+    keys = [k.rpartition(".")[2] for k in design.extra_names(list(rb.joints), P.fit, choice.terms)[0]]
+    nonneg = np.r_[np.zeros(n, bool), np.isin(keys, ("fv", "fc", "Ia"))]
     prior = np.r_[standard_parameters(rb), np.zeros(X.shape[2] - n)]
     return solve.consistent(X, y, base, rb.n_joints, prior, rb.carried, nonneg, ridge=choice.ridge)
 
@@ -156,10 +157,23 @@ def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet,
 SLOW_WIDTHS = 3.0  # below this many Coulomb widths of speed a joint's sample is not fitted (its friction is stiction's)
 COULOMB_WIDTHS = (0.0003, 0.003, 0.01, 0.03)  # rad/s (m/s): from a near-sign step to a smooth transition through zero speed
 CUTOFFS_HZ = (2.0, 4.0, 8.0, 16.0)  # the positions' low-pass cut-off: noisy encoders want a low one, clean ones a high one
+FAST_CUTOFFS_HZ = (32.0, 64.0)  # tried too where the log's rate is at least ten times the cut-off (a fast drive log)
 DEFAULT_CANDIDATES = tuple(
     [Choice(cutoff_hz=c, terms=design.Terms(friction=("viscous", "coulomb", "offset"), armature=True, coulomb_width=w))
      for c in CUTOFFS_HZ for w in COULOMB_WIDTHS]
     + [Choice(cutoff_hz=c, terms=design.Terms(friction=("viscous", "offset"), armature=True)) for c in (4.0, 16.0)])
+
+
+def candidates_for(data: Data, motors: tuple = (),
+                   candidates: tuple[Choice, ...] = DEFAULT_CANDIDATES) -> tuple[Choice, ...]:
+    """The model candidates for `data`: `candidates`, with the fast cut-offs its rate allows (at least ten
+    samples per period: `FAST_CUTOFFS_HZ` × the Coulomb widths), each carrying the coupled `motors`
+    (`design.Terms.motors`)."""
+    fs = signals.sample_rate(data.t) if np.size(data.t) > 1 else 0.0
+    fast = tuple(Choice(cutoff_hz=c, terms=design.Terms(friction=("viscous", "coulomb", "offset"), armature=True,
+                                                         coulomb_width=w))
+                 for c in FAST_CUTOFFS_HZ if c * 10 <= fs for w in COULOMB_WIDTHS)
+    return tuple(replace(c, terms=replace(c.terms, motors=tuple(motors))) for c in (*candidates, *fast))
 
 
 def identify(rb: RigidBody, data: Data, candidates: tuple[Choice, ...] = DEFAULT_CANDIDATES,
@@ -248,7 +262,9 @@ def from_document(doc: dict) -> Fit:
     t = doc["terms"]
     choice = Choice(cutoff_hz=float(doc["cutoff_hz"]), solver=str(doc["solver"]),
                     terms=design.Terms(friction=tuple(t["friction"]), armature=bool(t["armature"]),
-                                       coulomb_width=float(t["coulomb_width"])))
+                                       coulomb_width=float(t["coulomb_width"]),
+                                       motors=tuple((str(n), tuple(float(x) for x in g))
+                                                    for n, g in t.get("motors", []))))
     theta = np.asarray(doc["theta"], float)
     empty = B.BaseSet(np.arange(0), np.arange(0), np.zeros((0, 0)))
     sol = solve.Solution(theta, np.zeros(0), np.zeros(0), np.zeros(0), choice.solver)

@@ -17,7 +17,20 @@ from pipeline.dynamics.solve import is_consistent
 
 def _terms(fit: Fit) -> dict:
     t = fit.choice.terms
-    return {"friction": list(t.friction), "armature": t.armature, "coulomb_width": t.coulomb_width}
+    return {"friction": list(t.friction), "armature": t.armature, "coulomb_width": t.coulomb_width,
+            **({"motors": [[n, list(g)] for n, g in t.motors]} if t.motors else {})}
+
+
+def _scored(data) -> str:
+    """What the held-out figures are scored on: the raw torques, or those of a fast log decimated
+    (`signals.decimate`) to the rate the model works at."""
+    from pipeline.dynamics.signals import sample_rate
+
+    if getattr(data, "decimation", 1) <= 1:
+        return "raw torques at the recorded rate"
+    fs = sample_rate(data.t)
+    return (f"torques decimated ×{data.decimation} to {fs:.0f} Hz (positions and torques through the same "
+            f"anti-alias low-pass at {0.4 * fs:.0f} Hz; robocal evaluate scores every recorded sample)")
 
 
 def fit_document(rb: RigidBody, model, fit: Fit, data: Data) -> dict:
@@ -47,13 +60,14 @@ def fit_document(rb: RigidBody, model, fit: Fit, data: Data) -> dict:
     n = 10 * rb.n_joints
     doc = {
         "system": "urdf", "family": "dynamics", "n_measurements": int(data.t.size), "fit_joints": joints,
+        "decimation": int(getattr(data, "decimation", 1)),
         "n_parameters": len(fit.names), "n_identifiable": base.rank,
         "condition_number": float(sv[0] / sv[-1]), "condition_number_unscaled": fit.condition,
         "singular_values": sv.tolist(),
         "model_choice": {"cutoff_hz": fit.choice.cutoff_hz, "solver": fit.choice.solver, **_terms(fit),
                          "label": fit.choice.label(), "candidates": fit.candidates,
                          "arbiter": "contiguous-block cross-validation (5 blocks, 0.5 s guard), held-out torque RMS "
-                                    "pooled over the fitted joints, raw torques at the recorded rate"},
+                                    "pooled over the fitted joints, " + _scored(data)},
         "model_choice_label": fit.choice.label(),
         "rms_after_Nm": float(rms(fit.rms_train)), "holdout_rms_Nm": float(rms(fit.rms_cv)),
         "rms_after_joint_Nm": dict(zip(joints, fit.rms_train.tolist())),
@@ -164,6 +178,8 @@ def sidecar_yaml(model, fit: Fit) -> str:
         j, _, key = name.rpartition(".")
         if key in ("fv", "fc", "f0", "Ia"):
             joints.setdefault(j, {})[key] = {"value": float(v), "unit": unit}
-    doc = {"model": "τ = Y(q, q̇, q̈)·π + fv·q̇ + fc·tanh(q̇/w) + f0 + Ia·q̈",
+    doc = {"model": "τ = Y(q, q̇, q̈)·π + fv·q̇ + fc·tanh(q̇/w) + f0 + Ia·q̈"
+                    + (" + Σ_motors G·(fv·u + fc·tanh(u/w) + Ia·u̇), u = G·q̇" if fit.choice.terms.motors else ""),
+           **({"motors": {n: list(g) for n, g in fit.choice.terms.motors}} if fit.choice.terms.motors else {}),
            "coulomb_width": fit.choice.terms.coulomb_width, "joints": joints, "effort": model.effort}
     return yaml.safe_dump(doc, sort_keys=False, allow_unicode=True)

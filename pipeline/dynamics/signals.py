@@ -42,3 +42,24 @@ def decimation_rows(n: int, factor: int, offset: int = 0) -> np.ndarray:
     """Row indices keeping one sample in `factor` (after a low-pass below the new Nyquist rate, this is
     decimation: regressor rows and torques are taken at the same rows)."""
     return np.arange(offset % max(factor, 1), n, max(factor, 1))
+
+
+MODEL_RATE_HZ = 500.0  # the highest rate identification works at: 30× its highest cut-off (16 Hz)
+
+
+def decimation_factor(t: np.ndarray, max_rate: float = MODEL_RATE_HZ) -> int:
+    """How many recorded samples make one modelled sample: 1 up to `max_rate` Hz, else ⌊rate / max_rate⌋."""
+    return max(1, int(sample_rate(t) // max_rate)) if np.size(t) > 1 else 1
+
+
+def decimate(t: np.ndarray, q: np.ndarray, tau: np.ndarray, factor: int) -> tuple[np.ndarray, ...]:
+    """(t, q, τ) at one sample in `factor`: positions and torques through the same zero-phase anti-alias
+    low-pass (Butterworth at 0.4 × the new rate, below its Nyquist rate), then taken at the same rows — a
+    fast drive log (kHz) kept whole in what a rigid-body model can predict, its noise averaged rather than
+    discarded."""
+    if factor <= 1:
+        return t, q, tau
+    fs = sample_rate(t)
+    rows = decimation_rows(np.shape(t)[0], factor)
+    cut = 0.4 * fs / factor
+    return np.asarray(t, float)[rows], lowpass(q, fs, cut)[rows], lowpass(tau, fs, cut)[rows]

@@ -42,17 +42,25 @@ def model_of_metadata(meta: dict, path: str):
     u = meta.get(META_URDF) or {}
     desc = urdf.parse(u["urdf"], u["root"], u["tip"], source=f"{path}: metadata robocal.urdf")
     doc = E.check((meta.get(META_CAMPAIGN) or {}).get("effort"), desc.joint_names, f"{path}: metadata robocal.campaign")
-    return DynamicsModel(u["urdf"], u["root"], u["tip"], tuple(desc.joint_names), doc, path)
+    from pipeline.systems.urdf_dynamics import positions_doc
+
+    pos = positions_doc((meta.get(META_CAMPAIGN) or {}).get("positions"), desc.joint_names, path)
+    return DynamicsModel(u["urdf"], u["root"], u["tip"], tuple(desc.joint_names), doc, path, positions=pos)
 
 
-def _data(model, table: dict, where_: str):
+def _data(model, table: dict, where_: str, model_rate: bool = False):
+    """The recording's `Data`; `model_rate`: decimated to at most `signals.MODEL_RATE_HZ` (what identify and
+    diagnose work on; evaluate scores every recorded sample)."""
     from pipeline.dynamics import effort as E
+    from pipeline.dynamics import signals
     from pipeline.dynamics.identify import Data
 
     E.require_units(model.effort, where_)
     t = (np.asarray(table["timestamp_ns"], np.int64) - int(table["timestamp_ns"][0])) * 1e-9
-    return Data(t=t, q=np.asarray(table["joint_positions"], float), tau=np.asarray(table["joint_torques"], float),
-                fit=model.fit_mask)
+    q, tau = np.asarray(table["joint_positions"], float), np.asarray(table["joint_torques"], float)
+    k = signals.decimation_factor(t) if model_rate else 1
+    t, q, tau = signals.decimate(t, q, tau, k)
+    return Data(t=t, q=q, tau=tau, fit=model.fit_mask, decimation=k)
 
 
 def _progress(line: str) -> None:
@@ -74,9 +82,10 @@ def identify(run_dir: Path, params: dict) -> dict:
     path = info["source"]["path"]
     model = model_of_metadata(info["metadata"], path)
     table = read_measurements(run_dir)
-    data = _data(model, table, path)
+    data = _data(model, table, path, model_rate=True)
     rb = model.rigid_body()
-    fit = I.identify(rb, data, folds=int(params.get("folds", 5)), progress=_progress)
+    fit = I.identify(rb, data, I.candidates_for(data, model.motors), folds=int(params.get("folds", 5)),
+                     progress=_progress)
     out.mkdir(parents=True, exist_ok=True)
     doc = R.fit_document(rb, model, fit, data)
     write_json(out / "fit.json", doc)
@@ -119,7 +128,7 @@ def diagnose(run_dir: Path, settings) -> dict:
     run_dir = Path(run_dir)
     info = recording_info(run_dir)
     model = model_of_metadata(info["metadata"], info["source"]["path"])
-    data = _data(model, read_measurements(run_dir), info["source"]["path"])
+    data = _data(model, read_measurements(run_dir), info["source"]["path"], model_rate=True)
     rb = model.rigid_body()
     fit = I.from_document(read_json(run_dir / "identify" / DYNAMICS_JSON))
     fit.base = I.structural_base(rb, model.fit_mask, fit.choice.terms)
@@ -145,9 +154,9 @@ def diagnose_recording(rec, settings, progress=None) -> dict:
     from pipeline.systems.urdf_dynamics import load
 
     model, table = load(rec)
-    data = _data(model, table, str(rec.path))
+    data = _data(model, table, str(rec.path), model_rate=True)
     rb = model.rigid_body()
-    fit = I.identify(rb, data, progress=progress)
+    fit = I.identify(rb, data, I.candidates_for(data, model.motors), progress=progress)
     return run_diagnosis(rb, data, fit, settings, progress=progress)
 
 

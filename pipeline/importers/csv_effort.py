@@ -3,8 +3,11 @@
 The logs come as one table (columns ``t`` and per joint ``J`` or ``J_position``, ``J_velocity``,
 ``J_effort``) or as separate position, velocity and effort tables sharing the time column (as
 ``ros2 topic echo --csv`` / FIGAROH export them, whose headers start with ``- ``: ``- J_position``).
-A header matches joint J when, stripped of a leading ``- ``, it is ``J`` (position tables) or
-``J_<kind>``.  Times are seconds (any origin); `rows` keeps data rows [a, b) (zero-based).
+A header matches joint J when, stripped of a leading ``- ``, it is ``J`` (position tables, or a velocity /
+effort table of its own) or ``J_<kind>`` — or the one header equal to it but for case.  Times are seconds (any
+origin), or, for tables without a time column, row i at i / `rate`; `rows` keeps data rows [a, b) (zero-based).
+Position readings that are not joint angles (motor-side encoders, a coupled wrist) are converted by the
+declaration `positions` (`joint_readings`) before the limits are checked.
 
 Refused with one line naming file, row and column: a missing joint or effort column, a time column
 that is not strictly increasing (or differs between the tables), empty / NaN / inf values (a burst is
@@ -32,12 +35,17 @@ def _norm(h: str) -> str:
     return h[1:].strip() if h.startswith("-") and not h[1:2].isdigit() else h
 
 
-def _match(header: list[str], joint: str, kind: str) -> str | None:
-    want = {f"{joint}_{kind}"} | ({joint} if kind == "position" else set())
+def _match(header: list[str], joint: str, kind: str, bare: bool = False) -> str | None:
+    """The column of `joint`'s `kind` in `header`: ``J_<kind>`` (or ``J`` in a position table, or in a
+    table of that kind alone: `bare`), a leading ``- `` ignored; exact names first, then the one column
+    equal to it but for case (``Joint_1`` for ``joint_1``)."""
+    want = {f"{joint}_{kind}"} | ({joint} if kind == "position" or bare else set())
     for h in header:
         if _norm(h) in want:
             return h
-    return None
+    low = {w.lower() for w in want}
+    near = [h for h in header if _norm(h).lower() in low]
+    return near[0] if len(near) == 1 else None
 
 
 def _burst(path: Path, col: str, bad: np.ndarray, offset: int) -> RobocalError:
@@ -50,8 +58,8 @@ def _burst(path: Path, col: str, bad: np.ndarray, offset: int) -> RobocalError:
 
 
 def _block(path: Path, header: list[str], cols: dict, joints: list[str], kind: str, rows: slice,
-           offset: int) -> np.ndarray:
-    names = [_match(header, j, kind) for j in joints]
+           offset: int, bare: bool = False) -> np.ndarray:
+    names = [_match(header, j, kind, bare) for j in joints]
     missing = [j for j, c in zip(joints, names) if c is None]
     if missing:
         raise RobocalError(f"{path}: missing {kind} column(s) for {', '.join(missing)} (named JOINT_{kind} or "
@@ -65,9 +73,15 @@ def _block(path: Path, header: list[str], cols: dict, joints: list[str], kind: s
     return out
 
 
-def _times(path: Path, header: list[str], cols: dict, time_col: str, rows: slice, offset: int) -> np.ndarray:
+def _times(path: Path, header: list[str], cols: dict, time_col: str, rows: slice, offset: int,
+           rate: float | None = None, n: int = 0) -> np.ndarray:
+    if rate is not None:
+        if time_col in header:
+            raise RobocalError(f"{path}: has a time column {time_col!r}: --rate is for a table without one")
+        return np.arange(n)[rows] / rate
     if time_col not in header:
-        raise RobocalError(f"{path}: no time column {time_col!r} (seconds; --time-col names another)")
+        raise RobocalError(f"{path}: no time column {time_col!r} (seconds; --time-col names another, --rate HZ "
+                           "gives the sample rate of a table without one)")
     t = numbers(path, time_col, cols[time_col][rows], first_line=offset + 2)
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
@@ -81,9 +95,15 @@ def _times(path: Path, header: list[str], cols: dict, time_col: str, rows: slice
 
 
 def read_logs(position: Path, desc: RobotDescription, velocity: Path | None = None, effort: Path | None = None,
-              time_col: str = "t", rows: tuple[int, int | None] = (0, None)) -> dict[str, np.ndarray]:
+              time_col: str = "t", rows: tuple[int, int | None] = (0, None), rate: float | None = None,
+              positions: dict | None = None) -> dict[str, np.ndarray]:
     """{t_s (T,), q (T, J) rad / m, v (T, J) rad/s / m/s or absent, effort (T, J) raw} in the chain's
-    joint order, rows [a, b) of the tables."""
+    joint order, rows [a, b) of the tables.  `rate` (Hz): tables without a time column, row i at i / rate
+    s; `positions`: the raw position readings' conversion (`joint_readings.declaration`)."""
+    from pipeline.importers import joint_readings
+
+    if rate is not None and not (np.isfinite(rate) and rate > 0):
+        raise RobocalError(f"--rate {rate!r}: expected the sample rate in Hz, > 0")
     joints = desc.movable
     names = [j.name for j in joints]
     a, b = rows
@@ -99,8 +119,11 @@ def read_logs(position: Path, desc: RobotDescription, velocity: Path | None = No
         read[p] = ([h.strip() for h in header], cols, n)
     out: dict[str, np.ndarray] = {}
     pos = files["position"]
-    header, cols, _ = read[pos]
-    out["t_s"] = _times(pos, header, cols, time_col, sl, a)
+    header, cols, n_pos = read[pos]
+    for p, (_, _, n) in read.items():
+        if n != n_pos and (rate is not None or b is None):  # rows paired by index: the lengths must agree
+            raise RobocalError(f"{p}: {n} data rows, {pos} has {n_pos} (the tables must share one clock, row by row)")
+    out["t_s"] = _times(pos, header, cols, time_col, sl, a, rate, n_pos)
     for kind in KINDS:
         p = files[kind] or (pos if kind == "position" or any(_match(header, j, kind) for j in names) else None)
         if p is None:
@@ -110,20 +133,62 @@ def read_logs(position: Path, desc: RobotDescription, velocity: Path | None = No
             continue
         h, c, _ = read[p]
         if p != pos:
-            t = _times(p, h, c, time_col, sl, a)
+            t = _times(p, h, c, time_col, sl, a, rate, n_pos)
             off = np.flatnonzero(np.abs(t - out["t_s"]) > 1e-6)
             if off.size:
                 i = int(off[0])
                 raise RobocalError(f"{p}: row {i + a + 2}: time {t[i]!r} s differs from {pos}'s {out['t_s'][i]!r} s "
                                    "(the tables must share one clock, row by row)")
-        out[{"position": "q", "velocity": "v", "effort": "effort"}[kind]] = _block(p, h, c, names, kind, sl, a)
-    check_limits(pos, out["q"], desc, a)
+        out[{"position": "q", "velocity": "v", "effort": "effort"}[kind]] = _block(p, h, c, names, kind, sl, a,
+                                                                                 bare=p != pos)
+    out["q"], v = joint_readings.convert(positions, names, out["q"], out.get("v"))
+    if v is not None:
+        out["v"] = v
+    check_limits(pos, out["q"], desc, a, converted=bool(positions))
+    check_speeds(pos, out["t_s"], out["q"], desc, a)
     return out
 
 
-def check_limits(path: Path, q: np.ndarray, desc: RobotDescription, offset: int = 0) -> list[str]:
+SPEED_SLACK = 3.0  # a joint moving faster than this many times its URDF velocity limit: a clock or scale mistake
+
+
+def check_speeds(path: Path, t: np.ndarray, q: np.ndarray, desc: RobotDescription, offset: int = 0) -> None:
+    """One line when a joint moves far faster than its URDF's ``<limit velocity>`` (beyond `SPEED_SLACK` ×):
+    a wrong --rate or time column, or a position scale too large.  Speeds over 10 ms steps (encoder noise
+    averaged). A clock or scale mistake is systematic, so it is the 99th percentile of a joint's speed that is
+    judged: one encoder glitch does not refuse a log.  Joints without a velocity limit, and continuous joints
+    (whose logged angle may wrap at ±π), are not checked."""
+    import xml.etree.ElementTree as ET
+
+    if len(t) < 3:
+        return
+    limit = {}
+    for j in ET.fromstring(desc.urdf).iter("joint"):
+        lim = j.find("limit")
+        try:
+            limit[j.get("name")] = (float(lim.get("velocity")) if lim is not None and j.get("type") != "continuous"
+                                    else 0.0)
+        except (TypeError, ValueError):
+            limit[j.get("name")] = 0.0
+    vmax = np.array([limit.get(j.name, 0.0) for j in desc.movable])
+    dt = float(np.median(np.diff(t)))
+    k = max(1, int(round(0.01 / dt))) if dt > 0 else 1
+    k = min(k, len(t) - 1)
+    speed = np.abs(q[k:] - q[:-k]) / (t[k:] - t[:-k])[:, None]
+    over = (vmax > 0) & (np.percentile(speed, 99, axis=0) > SPEED_SLACK * vmax)
+    if over.any():
+        c = int(np.argmax(over))
+        i = int(np.argmax(speed[:, c]))
+        raise RobocalError(f"{path}: row {i + offset + 2}: joint {desc.movable[c].name!r} moves at "
+                           f"{speed[i, c]:.4g} /s, {speed[i, c] / vmax[c]:.0f}× its URDF velocity limit "
+                           f"{vmax[c]:.4g} (a wrong --rate or time column, or --position-scale?)")
+
+
+def check_limits(path: Path, q: np.ndarray, desc: RobotDescription, offset: int = 0,
+                 converted: bool = False) -> list[str]:
     """One line for a position far outside its joint's URDF limits (beyond `LIMIT_SLACK` of the range:
-    a unit mistake or a trajectory the robot cannot have run); the warnings for slight excursions."""
+    a unit mistake, motor-side angles, or a trajectory the robot cannot have run; `converted`: the
+    readings went through a --position-* conversion); the warnings for slight excursions."""
     joints = desc.movable
     lo, hi = np.array([j.lower for j in joints]), np.array([j.upper for j in joints])
     finite = np.isfinite(hi - lo)
@@ -131,8 +196,10 @@ def check_limits(path: Path, q: np.ndarray, desc: RobotDescription, offset: int 
     out_of = (q < lo - slack) | (q > hi + slack)
     if out_of.any():
         i, k = np.argwhere(out_of)[0]
+        hint = ("after the --position-scale / --position-mix / --position-offset conversion" if converted else
+                "(motor-side angles? --position-scale JOINT=1/RATIO; degrees? --position-scale JOINT=pi/180)")
         raise RobocalError(f"{path}: row {i + offset + 2}: joint {joints[k].name!r}: position {q[i, k]:.6g} is far "
-                           f"outside the URDF's limits [{lo[k]:.6g}, {hi[k]:.6g}]")
+                           f"outside the URDF's limits [{lo[k]:.6g}, {hi[k]:.6g}] {hint}")
     beyond = (q < lo) | (q > hi)
     return [f"{path}: joint {joints[k].name!r}: {int(beyond[:, k].sum())} row(s) slightly beyond the URDF limits"
             for k in np.flatnonzero(beyond.any(0))]

@@ -23,7 +23,8 @@ FAMILY = "dynamics"
 @dataclass(frozen=True)
 class DynamicsModel:
     """What a dynamics recording declares: URDF text, root, tip, the recorded joints (chain order), the
-    effort declaration (checked), and the recording's path for messages."""
+    effort declaration (checked), the recording's path for messages, and how its position readings became
+    joint angles (campaign ``positions``, `pipeline.importers.joint_readings`; None: they were)."""
 
     urdf: str
     root: str
@@ -33,15 +34,37 @@ class DynamicsModel:
     source: str
     system: str = "urdf"
     family: str = FAMILY
+    positions: dict | None = None
 
     @property
     def fit_mask(self) -> np.ndarray:
         return np.isin(self.joints, self.effort["fit_joints"])
 
+    @property
+    def motors(self) -> tuple:
+        """The motors that turn several joints (`joint_readings.coupled_motors`): their own friction terms."""
+        from pipeline.importers.joint_readings import coupled_motors
+
+        return coupled_motors(self.positions, list(self.joints))
+
     def rigid_body(self):
         from pipeline.dynamics.rigid_body import build
 
         return build(self.urdf, list(self.joints), f"{self.source}: metadata robocal.urdf")
+
+
+def positions_doc(doc, joints: list[str], where_: str) -> dict | None:
+    """The campaign's ``positions`` declaration checked (joint names → finite numbers), or None."""
+    if doc is None:
+        return None
+    ok = isinstance(doc, dict) and all(isinstance(doc.get(k, {}), dict) for k in ("scale", "offset", "mix"))
+    vals = [(j, x) for k in ("scale", "offset") for j, x in (doc.get(k) or {}).items()] + \
+        [(k, f) for t in (doc.get("mix") or {}).values() if isinstance(t, dict) for k, f in t.items()] if ok else []
+    if not ok or any(j not in joints or isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x)
+                     for j, x in vals) or any(j not in joints for j in (doc.get("mix") or {})):
+        raise RobocalError(f"{where_}: metadata robocal.campaign: positions must map joints of the chain to finite "
+                           "numbers (scale, offset) and joints to {joint: factor} (mix)")
+    return doc
 
 
 def is_dynamics(model) -> bool:
@@ -74,7 +97,8 @@ def load(rec) -> tuple[DynamicsModel, dict[str, np.ndarray]]:
         raise RobocalError(f"{where(rec.path, JOINT_STATE, int(s.message_index[i]))}: sample {i}: time does not "
                            "increase: dynamics needs strictly increasing sample times")
     cols = np.array([s.names.index(j) for j in joints])
-    model = DynamicsModel(meta["urdf"], meta["root"], meta["tip"], tuple(joints), doc, str(rec.path))
+    model = DynamicsModel(meta["urdf"], meta["root"], meta["tip"], tuple(joints), doc, str(rec.path),
+                          positions=positions_doc(campaign.get("positions"), joints, str(rec.path)))
     table = {"timestamp_ns": s.t_ns[order], "joint_positions": s.q[order][:, cols],
              "joint_efforts": s.effort[order][:, cols], "record": np.arange(len(s), dtype=np.int64)}
     if doc["unit"] != "unknown":

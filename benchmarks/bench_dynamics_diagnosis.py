@@ -11,7 +11,7 @@ injected at its plausible size, and counted as *stated* when the diagnosis lists
 and locates the held-out misfit at its joint near rest (the only place it differs from the offset); the absorbing
 parameter's shift and the findings beside it are printed.
 
-    PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics_diagnosis.py --seeds 20  # 40 resamples, ≈ 690 s CPU
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics_diagnosis.py --seeds 20  # 40 resamples, ≈ 660 s CPU
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics_diagnosis.py --seeds 1 --boot 0 --forms stribeck  # bounded
 """
 

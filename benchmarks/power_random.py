@@ -170,8 +170,11 @@ def _forms_of(effect: str, location: str) -> list | None:
     if effect in ("joint_coupling", "wrist_coupling") and "->" in base:
         src, dst = (int(x[1]) - 1 for x in base.split("->"))
         if quad:
-            return [("quad_coupling", {}, 1e-4)] if (src, dst) == (1, 2) else None
+            return [("quad_coupling", {"pair": (src, dst)}, 1e-4)]
         return [("coupling", {"pair": (src, dst)}, 1e-4)]
+    if effect == "coupling_difference" and " on " in base:  # "Ji-Jj on Jj"
+        other, dst = (int(x[1]) - 1 for x in base.split(" on ")[0].split("-"))
+        return [("difference", {"pair": (other, dst)}, 1e-4)]
     return None
 
 

@@ -25,7 +25,7 @@ Nothing of robocal's diagnosis is read here: the arm's own 4×4 kinematics, grav
 
 Besides `independent_touch`'s effects, this campaign's own forms of more library physics (each written here):
 ``eccentricity`` δq_j = A·sin(q_j + φ), ``scale`` δq_j = ε·q_j, ``transmission`` δq_j = A·sin(2q_j + φ) (where:
-joint, phase φ rad), ``latency`` the latch reads the encoder `size` s after the touch (the arm has gone on at its
+joint, phase φ rad), ``difference`` δq_j = k·(q_i − q_j) (where["pair"] = (i, j)), ``latency`` the latch reads the encoder `size` s after the touch (the arm has gone on at its
 search speed), ``pretravel`` the probe triggers `size` m of search after the touch, ``drift`` the jig moves by
 `size` m/s along where["axis"] (0/1/2) and ``face_offset`` one face (where["face"]) lies `size` m off its drawing
 along its axis.
@@ -216,6 +216,9 @@ def _more_joint_error(effects, q: np.ndarray) -> np.ndarray:
             dq[:, j] += e.size * np.sin(2 * q[:, j] + ph)
         elif e.kind == "scale":
             dq[:, j] += e.size * q[:, j]
+        elif e.kind == "difference":  # δq_dst = k·(q_other − q_dst): an error in the relative angle
+            other, dst = e.where["pair"]
+            dq[:, dst] += e.size * (q[:, other] - q[:, dst])
     return dq
 
 

@@ -10,7 +10,8 @@ outside the diagnosis's library:
 - ``bump``:        δq_j = A·exp(−½((q_j − c)/w)²) in joint j's transmission;
 - ``dent``:        a local bowl of depth D (m) and radius ρ on one face (the true face lies D·g(u, v)
                    inside the material, g a 2-D Gaussian of the position on the face);
-- ``quad_coupling``: δq_3 = k·(q_2 − q̄_2)² (a nonlinear coupling of J3 on J2's angle);
+- ``quad_coupling``: δq_3 = k·(q_2 − q̄_2)² (a nonlinear coupling of J3 on J2's angle; where["pair"] another
+  (source, driven) pair of joint indices);
 - ``thermal_growth``: a2 and d4 grow by α·L·(1 − e^(−t/τ)) (a warm-up acting through the kinematics);
   ``warm_up_all``: every D-H a, d grows so (the links that warm are all the links);
 - ``wild``:        one contact latched `size` metres further along its search (a bad latch);
@@ -158,8 +159,9 @@ def _joint_error(effects, q: np.ndarray, qbar: np.ndarray, torque=None, backlash
         if e.kind == "bump":
             j = e.where.get("joint", 1)
             dq[:, j] += e.size * np.exp(-0.5 * ((q[:, j] - e.where["centre"]) / e.where.get("width", 0.1)) ** 2)
-        elif e.kind == "quad_coupling":
-            dq[:, 2] += e.size * (q[:, 1] - qbar[1]) ** 2
+        elif e.kind == "quad_coupling":  # δq_dst = k·(q_src − q̄_src)² (default J2 -> J3)
+            src, dst = e.where.get("pair", (1, 2))
+            dq[:, dst] += e.size * (q[:, src] - qbar[src]) ** 2
         elif e.kind == "coupling":  # δq_dst = k·q_src (default J2 -> J3)
             src, dst = e.where.get("pair", (1, 2))
             dq[:, dst] += e.size * q[:, src]

@@ -123,7 +123,7 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         if i in form_cv:
             fd["evidence"]["forms_cv_rms_m"] = form_cv[i]
     _runner_ups(findings, sel, p)
-    _alike_evidence(findings, sel, p, folds)
+    _alike_evidence(findings, sel, p, folds, s.alpha)
     _untested_alikes(findings, sel, p, folds)
     # 6. the held-out arbiter and the records that carry a finding (`verdict.arbiter`); pose-clustered
     # campaigns: the unweighted CV ignores the shared pose errors, so there the findings rest on the
@@ -190,13 +190,14 @@ def _runner_ups(findings: list, sel: screen.Selection, p: screen.Problem) -> Non
             findings[j]["runner_up"] = {"effect": e.name, "location": str(e.location), "delta_chi2": dl}
 
 
-def _alike_evidence(findings: list, sel: screen.Selection, p: screen.Problem, folds: list) -> None:
+def _alike_evidence(findings: list, sel: screen.Selection, p: screen.Problem, folds: list, alpha: float) -> None:
     """Each look-alike with its evidence beside the finding's: the grouped cross-validated RMS of the linearised
     model with it in the finding's place (`cv_rms_m`; the finding's own: `evidence.cv_rms_linearised_m`) and the
-    share of the finding's own gain it explains.  A rival the fit cannot reject (Δχ² below χ²_k(95 %)) stays a
-    look-alike; a near-collinear one (explaining ≥ 90 % of the finding's gain, `stepwise.LOOK_ALIKE_SHARE`) stays
-    one unless the held-out error separates them — the finding's lower by more than two standard errors of the
-    paired difference: the held-out arbiter decides where the data separate them, never the order of the library."""
+    share of the finding's own gain it explains.  A rival the fit cannot reject at the diagnosis's level (Δχ² below
+    χ²_k(1 − α)) stays a look-alike; a near-collinear one (explaining ≥ 90 % of the finding's gain,
+    `stepwise.LOOK_ALIKE_SHARE`) stays one unless the data separate them — the fit rejects the swap at that level
+    and the finding's held-out error is lower by more than two standard errors of the paired difference: the
+    held-out arbiter decides where the data separate them, never the order of the library."""
     if not any(fd.get("look_alikes") for fd in findings):
         return
     label = {(p.lib[i].name, str(p.lib[i].location)): i for i in sel.testable}
@@ -216,7 +217,7 @@ def _alike_evidence(findings: list, sel: screen.Selection, p: screen.Problem, fo
             d = e2 - own
             a["cv_rms_m"] = float(np.sqrt(np.mean(e2)))
             separated = np.mean(d) > 2 * np.std(d, ddof=1) / np.sqrt(d.size)
-            if a["delta_chi2"] < scipy.stats.chi2.ppf(0.95, kb):
+            if a["delta_chi2"] < scipy.stats.chi2.ppf(1 - alpha, kb):
                 a["why"] = "the fit cannot reject the swap"
             elif separated:
                 continue  # near-collinear, but the held-out error prefers the finding: not a look-alike

@@ -50,8 +50,21 @@ def face_position(tip: np.ndarray, table) -> list[Variable]:
         values = np.full(faces.size, cu)
         values[on] = u
         out.append(Variable(f"face {f} position", f"m along {'xyz'[a]}", values, cols,
-                            np.linspace(u.min(), u.max(), 8), float(np.ptp(u) / 7), on.astype(float)[:, None]))
+                            np.linspace(u.min(), u.max(), 8), float(np.ptp(u) / 7), on.astype(float)[:, None],
+                            local=_local_bumps(u, v, on, max(su, sv)), place=f))
     return out
+
+
+def _local_bumps(u: np.ndarray, v: np.ndarray, on: np.ndarray, half: float) -> np.ndarray:
+    """(n, S) narrow 2-D Gaussian bumps on a face, one centred at each of its contacts (u, v m in-plane), radii 1/8 to
+    1/3 of the face's touched extent (`half` its half-range), each less its mean over the face (its offset
+    is face_offset's): a dent or a local bump there, the local alternative to a whole-face flatness."""
+    d2 = (u[:, None] - u[None]) ** 2 + (v[:, None] - v[None]) ** 2
+    phi = np.hstack([np.exp(-0.5 * d2 / (f * half) ** 2) for f in (0.25, 1 / 3, 0.5, 2 / 3)])
+    phi -= phi.mean(axis=0)
+    cols = np.zeros((on.size, phi.shape[1]))
+    cols[on] = phi
+    return cols
 
 
 def cross_joints(q: np.ndarray, Jq_axis: np.ndarray, names: list[str]) -> list[Variable]:

@@ -30,10 +30,10 @@ from pipeline.diagnose.library.term import Effect, one_joint
 
 PLAUSIBLE = {
     "joint_compliance": 1e-4,  # rad/(N·m): 1e4 N·m/rad, a very soft joint
-    "backlash": 2e-3,  # rad (0.11°)
+    "backlash": 1e-2,  # rad (0.57°: a worn spur or belt drive, a low-cost servo's gearbox)
     "joint_scale": 5e-3,  # 1
-    "encoder_eccentricity": 2e-3,  # rad
-    "transmission_error": 2e-3,  # rad
+    "encoder_eccentricity": 1e-2,  # rad (a misaligned magnetic encoder's once-per-turn error reaches 0.5–1°)
+    "transmission_error": 1e-2,  # rad (the same encoder's twice-per-turn error)
     "wrist_coupling": 1e-2,  # rad/rad
     "joint_coupling": 1e-2,  # rad/rad
     "joint_coupling_quadratic": 1e-2,  # rad/rad²

@@ -19,6 +19,7 @@ import dataclasses
 import numpy as np
 
 from pipeline.diagnose.inference import resampling
+from pipeline.diagnose.inference.projection import orthonormal, project_out
 from pipeline.diagnose.verdict import arbiter, checks, lack_of_fit
 from pipeline.diagnose.verdict.physical_lack_of_fit import (
     _extremeness,
@@ -80,6 +81,9 @@ def grade(findings: list[dict], effects: list, contributions: list, col_of_list:
         keep_cols = np.setdiff1d(np.arange(A.shape[1]), cols)
         r_wo = r_final - c.reshape(nk)
         B, why, mult = list(B_where), [w["variable"] for w in where], 1
+        _local_alternative(fd, e, variables, r_wo, A[:, keep_cols], A[:, cols], W, alpha)
+        if fd["confidence"] != "high":
+            continue
         own = by_name.get(e.variable)
         reg = None if own is None else lack_of_fit.best_bump(own, r_wo, A[:, keep_cols], W)
         if reg is not None:
@@ -95,6 +99,41 @@ def grade(findings: list[dict], effects: list, contributions: list, col_of_list:
             fd["note"] = (f"not significant (p = {p_f:.2g}) once {' and '.join(why)} is modelled, which stays "
                           f"significant beside it: likely a proxy for something outside the library")
     return misfit
+
+
+def _local_alternative(fd: dict, e, variables: list, r_wo: np.ndarray, A_rest: np.ndarray, S: np.ndarray, W,
+                       alpha: float) -> None:
+    """A `high` finding acting over a whole place (a face's flatness) is kept `high` only if the data favour it
+    over the best local error there (the narrow bump at one of the place's contacts, `Variable.local`, that
+    explains most of the residual without the finding): the finding significant beside it.  Otherwise `medium`
+    (a local error fits as well), or `low` when the local one also stays significant beside the finding
+    (Bonferroni over the bumps tried): likely a dent, outside the library."""
+    lv = next((v for v in variables if v.local is not None and v.place and v.place == str(e.location)), None)
+    if lv is None:
+        return
+    L = lv.local if W is None else W(lv.local)
+    y, Ar = (r_wo, A_rest) if W is None else (W(r_wo[:, None])[:, 0], W(A_rest))
+    QA = orthonormal(Ar)
+    P = project_out(L, QA)
+    nrm = np.linalg.norm(P, axis=0)
+    ok = nrm > 1e-6 * np.maximum(np.linalg.norm(L, axis=0), 1e-300)
+    if not ok.any():
+        return
+    yp = project_out(y[:, None], QA)[:, 0]
+    gain = np.where(ok, (P.T @ yp) ** 2 / np.maximum(nrm, 1e-300) ** 2, -np.inf)
+    best = int(np.argmax(gain))
+    p_f, p_b = lack_of_fit.partial_p(r_wo, A_rest, S, lv.local[:, [best]], W)
+    fd["evidence"]["p_value_given_local_alternative"] = p_f
+    if p_f <= alpha:
+        return
+    if min(1.0, p_b * int(ok.sum())) <= alpha:
+        fd["confidence"] = "low"
+        fd["note"] = (f"not significant (p = {p_f:.2g}) beside a local error on {e.location}, which stays significant "
+                      "beside it: likely a local defect (a dent), outside the library")
+    else:
+        fd["confidence"] = "medium"
+        fd["note"] = (f"a local error on {e.location} fits as well (this term p = {p_f:.2g} beside it): the data do "
+                      "not favour the whole-face form over a local one")
 
 
 def floor_and_status(ad, xg: np.ndarray, r_final: np.ndarray, A: np.ndarray, after_cv: np.ndarray, folds: list,

@@ -41,6 +41,10 @@ class Variable:
     width: float
     gain: np.ndarray  # (n, c) how a unit error in v-space reaches each residual (c channels)
     categorical: bool = False
+    # local alternatives to a whole-place term at `place` (a library term's location, e.g. a face): residual
+    # columns (n, S) of narrow bumps, each at one point of the place (`grading.grade`: a dent, not a bowl)
+    local: np.ndarray | None = None
+    place: str = ""
 
 
 def rbf(v: np.ndarray, centres: np.ndarray, width: float) -> np.ndarray:

@@ -264,3 +264,22 @@ def test_ros2_bag_with_efforts_imports_positions_velocities_and_efforts_by_name(
     r = run_cli("import", "ros2", str(bad), "--urdf", str(d / "arm.urdf"), "--root", "base", "--tip", "l3",
                 "--measure", "effort", "--effort-units", "Nm", "--out", str(d / "bad.mcap"))
     assert r.returncode == 2 and "record 37" in r.stderr and "effort is NaN" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_base_parameter_sigma_counts_only_the_rows_the_fit_uses():
+    """Rows left out of the fit (a crawling joint's) come zeroed: they must not count as residuals of zero, which
+    would make every σ too small by √(share of rows fitted)."""
+    from pipeline.dynamics.base import base_set
+    from pipeline.dynamics.solve import ols, wls
+
+    rng = np.random.default_rng(5)
+    T, F, P = 4000, 2, 5
+    X = rng.standard_normal((T, F, P))
+    y = X @ np.arange(1.0, P + 1) + rng.normal(0, [0.05, 0.2], (T, F))
+    base = base_set(X.reshape(-1, P))
+    keep = rng.random((T, F)) > 0.3  # 30 % of the rows left out, zeroed as identify.prepare does
+    Xz, yz = X * keep[:, :, None], y * keep
+    full, alone = ols(Xz, yz, base), ols(X[keep][:, None], y[keep][:, None], base)  # the fitted rows alone
+    assert np.allclose(full.beta, alone.beta) and np.allclose(full.beta_std, alone.beta_std, rtol=1e-9)
+    s = wls(Xz, yz, base).sigma  # each joint's residual σ, which weighs its rows
+    assert np.allclose(s, [0.05, 0.2], rtol=0.05), s

@@ -124,3 +124,17 @@ def test_the_elastic_lag_form_matches_the_generators_elastic_joint_beyond_what_t
         left[fr] = float(np.linalg.norm(d - c_hat[fr] * b) / np.linalg.norm(d))
     best = min(drive.RESONANCE_FORMS_HZ, key=left.get)
     assert left[best] < 0.6 * left[50.0] and abs(c_hat[best] / c - 1) < 0.1, (left, c_hat)
+
+
+def test_the_held_out_gain_is_judged_against_the_noise_not_against_where_the_effect_is_largest():
+    """An effect larger in one 2 s block than elsewhere is no less sure a gain; a term fitted to noise is a loss."""
+    from pipeline.diagnose.adapters.dynamics_diagnosis import gain_z
+
+    rng = np.random.default_rng(2)
+    fs, T, F = 100.0, 4000, 2
+    e = rng.normal(0, 0.05, (T, F))
+    s = np.full((T, F), 0.01)
+    s[800:1000] = 0.15  # the effect under the largest accelerations: one block of twenty
+    assert gain_z(e + s, e, fs) > 5  # the scatter of the blocks' gains alone put it at 1.3
+    overfit = rng.normal(0, 0.01, (T, F))  # a term's held-out prediction where it is only noise
+    assert gain_z(e, e - overfit, fs) < 0

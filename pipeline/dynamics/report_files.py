@@ -10,7 +10,7 @@ import numpy as np
 
 from pipeline.dynamics import signals
 from pipeline.dynamics.crossval import rms
-from pipeline.dynamics.identify import Data, Fit, nominal_torques
+from pipeline.dynamics.identify import Data, Fit, fitted_rows, nominal_torques
 from pipeline.dynamics.rigid_body import RigidBody, link_parameters, regressor
 from pipeline.dynamics.solve import is_consistent
 
@@ -44,14 +44,16 @@ def fit_document(rb: RigidBody, model, fit: Fit, data: Data) -> dict:
     from pipeline.dynamics import design
 
     X = design.matrix(regressor(rb, qf, v, a), v, a, model.fit_mask, fit.choice.terms)[:, :, base.independent]
+    use = fitted_rows(v[:, model.fit_mask], fit.choice.terms).reshape(-1)  # the rows the fit used (not a crawl's)
     A = X.reshape(-1, base.rank)
     s = np.sqrt(np.einsum("ij,ij->j", A, A))
     s = np.where(s > 0, s, 1.0)
     sv = np.linalg.svd(A / s, compute_uv=False)
     r = (A @ sol.beta if sol.beta.size == base.rank else A @ base.beta(sol.theta)) - \
         np.asarray(data.tau, float)[:, model.fit_mask].reshape(-1)
-    s2 = float(r @ r) / max(A.shape[0] - base.rank, 1)
-    cov = np.linalg.pinv((A / s).T @ (A / s)) / np.outer(s, s) * s2
+    Au, ru = A[use] / s, r[use]
+    s2 = float(ru @ ru) / max(int(use.sum()) - base.rank, 1)
+    cov = np.linalg.pinv(Au.T @ Au) / np.outer(s, s) * s2
     nominal = nominal_torques(rb, data, model.fit_mask, fit.choice.cutoff_hz)
     rn = nominal - data.tau[:, model.fit_mask]
     cons = fit.consistent

@@ -32,7 +32,8 @@ class Solution:
 def _lstsq(Xb: np.ndarray, y: np.ndarray, w: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(β, cov β) of rows Xb (T, F, r), y (T, F), row weights w (F,) (1/σ per joint).  Solved through the
     r × r normal equations (the regressor is column-scaled first: its condition stays ~10³–10⁴, squared
-    well within double precision), so a fold costs one matrix product, not a LAPACK least squares."""
+    well within double precision), so a fold costs one matrix product, not a LAPACK least squares.  Rows left out
+    of the fit come zeroed (`identify.prepare`): the residual variance is over the rows fitted, not all T·F."""
     T, F, r = Xb.shape
     A = Xb.reshape(T * F, r)
     b = y.reshape(T * F)
@@ -46,14 +47,16 @@ def _lstsq(Xb: np.ndarray, y: np.ndarray, w: np.ndarray | None = None) -> tuple[
     Gi = np.linalg.pinv(G, hermitian=True)
     beta = (Gi @ h) / s
     res = b - A @ beta
-    s2 = float(res @ res) / max(A.shape[0] - r, 1)
+    s2 = float(res @ res) / max(int(np.count_nonzero(np.any(A != 0, axis=1))) - r, 1)
     cov = Gi / np.outer(s, s) * (1.0 if w is not None else s2)
     return beta, cov
 
 
 def _sigma(X: np.ndarray, y: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Per-joint residual RMS (F,) over the rows fitted (a row left out of the fit is zeroed: not counted)."""
     r = y - X @ theta
-    return np.sqrt(np.mean(r**2, axis=0))
+    used = np.any(X != 0, axis=2)
+    return np.sqrt(np.sum(r**2, axis=0) / np.maximum(used.sum(axis=0), 1))
 
 
 def ols(X: np.ndarray, y: np.ndarray, base: BaseSet) -> Solution:

@@ -11,8 +11,8 @@
 4. the held-out arbiter, in N·m on the raw torques: contiguous-block cross-validation with a guard band
    (`dynamics.crossval`, the arbiter of identification's own choices) of the base model, of the base
    model with the findings and of it without each finding — a finding that does not lower the held-out
-   error by more than two standard errors (of the drop's mean over 2 s blocks) is rejected; if the findings
-   together make it worse, every one is;
+   error by more than two standard errors of the drop's noise (over 2 s blocks, `gain_z`) is rejected; if the
+   findings together make it worse, every one is;
 5. where the rest is: lack of fit against each joint's velocity, position, load and time
    (`verdict.lack_of_fit`, on the whitened rows), the held-out error per joint, velocity regime, load
    and time quarter (`locate`); grading of each name (`verdict.grading`, `verdict.arbiter`); the status
@@ -70,17 +70,23 @@ def held_out(D: np.ndarray, y: np.ndarray, wr: np.ndarray, T: int, F: int, folds
 
 
 def gain_z(before: np.ndarray, after: np.ndarray, fs: float) -> float:
-    """How surely a model lowers the held-out error: the mean over time blocks (`BOOT_BLOCK_S`) of the drop in
-    held-out mean square, over its standard error (block means: neighbouring samples' errors are not
-    independent).  Above `MIN_GAIN_Z` the drop is more than the blocks' own scatter."""
+    """How surely a model lowers the held-out error beyond the measurement noise: the drop in held-out mean square
+    over its noise's standard error, both over time blocks (`BOOT_BLOCK_S`: neighbouring samples' errors are not
+    independent).  With the held-out residuals r₀ (before) and r₁ (after), Δ = r₀ − r₁ the model's held-out
+    prediction, the drop r₀² − r₁² = 2·r₁·Δ + Δ²: its noise is the first part (what another recording of the same
+    motion would change), the second is the model's effect itself, which is larger at some instants of the motion
+    than at others (an elastic lag under the largest accelerations) without making the drop less sure — so the
+    standard error is the scatter of the block means of 2·r₁·Δ.  Above `MIN_GAIN_Z` the drop is more than the
+    noise's scatter.  A model that only fits noise has Δ² ≥ 0 against 2·r₁·Δ ≈ −2·Δ² held out: a negative drop."""
     n = max(int(round(BOOT_BLOCK_S * fs)), 1)
     d = np.mean(before**2 - after**2, axis=1)
+    noise = np.mean(2.0 * after * (before - after), axis=1)
     m = d.size // n
     if m < 3:
         return float(np.sign(d.mean()) * np.inf) if d.mean() else 0.0
-    blocks = d[:m * n].reshape(m, n).mean(axis=1)
-    se = blocks.std(ddof=1) / np.sqrt(m)
-    return float(blocks.mean() / se) if se > 0 else float(np.sign(blocks.mean()) * np.inf)
+    gain = d[:m * n].reshape(m, n).mean(axis=1).mean()
+    se = noise[:m * n].reshape(m, n).mean(axis=1).std(ddof=1) / np.sqrt(m)
+    return float(gain / se) if se > 0 else float(np.sign(gain) * np.inf)
 
 
 def _design(b: A.Built, idx: list[int]) -> np.ndarray:

@@ -13,7 +13,9 @@ joint names ``joints`` (F,).  s(v) = tanh(v / width) is the model's own Coulomb 
   v_s = 3 %, 10 % and 30 % of the joint's largest speed (the held-out error picks one);
 - ``asymmetric_coulomb@J``: a Coulomb level that differs with the direction of motion, beyond what
   the offset takes: f_a·|s(v)| acts only while the joint moves (the offset acts at rest too), so
-  it is seen where the joint rests;
+  only rests could tell them apart — and where the model has Coulomb friction the rows of a joint at rest
+  are not fitted (its torque there is stiction's): then the gate finds it absorbed by the joint's offset,
+  which carries it, and says so;
 - ``load_friction@J``: Coulomb friction proportional to the transmitted torque, μ·|τ_rigid|·s(v)
   (gear meshing and bearing friction grow with the load);
 - ``friction_drift@J``: Coulomb and viscous friction changing over the session (a warming gearbox),
@@ -90,7 +92,9 @@ def asymmetric_coulomb(table, f: int) -> Effect:
         return on_joint(t, f, np.abs(sign(t, f))[:, None])
 
     return Effect("asymmetric_coulomb", name, ("f_a",), (tu,), torque_scale(table, f), "torque", basis, 11,
-                  f"v_{name}", f"hold {name} still for a few seconds between moves (rest separates the offset)",
+                  f"v_{name}", f"{name}'s offset carries it (while {name} moves, a Coulomb level higher one way by 2·f_a is an "
+                  f"offset f_a): read {name}'s identified offset as that asymmetry plus any effort offset; only "
+                  "rests separate them, where a held joint's torque is stiction's, which the model does not describe",
                   data={"joint": f})
 
 

@@ -148,7 +148,11 @@ def _real_import(name: str, out: Path) -> list[str]:
 
 
 @needs_real
-@pytest.mark.parametrize("name", ["tiago", "ur10", "mate"])
+# tiago and mate are extended (`make test-extended`, CI's time budget): CI keeps ur10 here, and runs TIAGo's and MATE's
+# imports and calibrations as the guides print them (test_doc_blocks_real README.md, test_doc_blocks_import) and their
+# held-out figures against the peers (test_real_rowwise)
+@pytest.mark.parametrize("name", [pytest.param("tiago", marks=pytest.mark.extended), "ur10",
+                                  pytest.param("mate", marks=pytest.mark.extended)])
 def test_real_dataset_calibrates_below_registration_only(tmp_path, name):
     rec = tmp_path / f"{name}.mcap"
     proc = run_cli("import", "csv", *_real_import(name, rec))

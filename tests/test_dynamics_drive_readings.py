@@ -161,3 +161,23 @@ def test_a_coupled_motors_friction_and_rotor_inertia_are_recovered_and_lower_the
     assert abs(got["a4.motor.Ia"] - iam) < 0.003, got
     assert I.rms(coupled.rms_cv) < 0.6 * I.rms(plain.rms_cv), (coupled.rms_cv, plain.rms_cv)
     assert replace(base.terms, motors=()) == base.terms  # the default model has no motor terms
+
+
+def test_a_singular_position_conversion_is_one_line_on_import_and_in_a_recording(drive_log, tmp_path):
+    """A mix that gives two joints the same combination of readings (a typo: a3=a4 beside a4=a4) has no inverse:
+    refused at import with one line, exit 2, nothing written; a recording whose metadata declares one (hostile or
+    damaged) is refused by `robocal run` with one line naming it, not a LinAlgError."""
+    d, _, _ = drive_log
+    out = tmp_path / "sing.mcap"
+    r = run_cli("import", "csv", d / "pos.csv", "--effort-csv", d / "cur.csv", "--urdf", d / "arm.urdf", "--root",
+                "base", "--tip", "s4", "--measure", "effort", "--rate", "1000", "--position-scale", WORDS[3],
+                "--position-mix", "a3=a4", "--out", out)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "singular" in r.stderr.strip().splitlines()[-1] and not out.exists(), r.stderr
+    from pipeline.systems.urdf_dynamics import positions_doc
+
+    bad = {"scale": {}, "offset": {}, "mix": {"a3": {"a4": 1.0}}}
+    with pytest.raises(RobocalError, match="singular"):
+        positions_doc(bad, list(G.JOINTS), "rec.mcap")
+    with pytest.raises(RobocalError, match="positions must map"):
+        positions_doc({"mix": {"a3": 2.0}}, list(G.JOINTS), "rec.mcap")

@@ -163,14 +163,22 @@ def matrix(doc: dict, joints: list[str]) -> tuple[np.ndarray, np.ndarray]:
     n = len(joints)
     if doc.get("unit") == "N·m":
         return np.eye(n), np.array([float(doc.get("offset", {}).get(j, 0.0)) for j in joints])
+    return scaled_mix(doc, joints, default_scale=0.0)
+
+
+def scaled_mix(doc: dict, joints: list[str], default_scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """(M (J, J), c (J,)) of a per-joint declaration {scale, offset, mix} (joint names → numbers; mix: joint →
+    {joint: factor}) in `joints` order: out_J = scale_J · Σ_K mix_JK · raw_K + offset_J, a joint without a mix
+    taking its own reading, without a scale `default_scale`, without an offset 0 (efforts and positions alike)."""
+    n = len(joints)
     idx = {j: i for i, j in enumerate(joints)}
     mix = np.eye(n)
-    for j, terms in doc.get("mix", {}).items():
+    for j, terms in (doc.get("mix") or {}).items():
         mix[idx[j]] = 0.0
         for k, f in terms.items():
             mix[idx[j], idx[k]] = float(f)
-    scale = np.array([float(doc.get("scale", {}).get(j, 0.0)) for j in joints])
-    offset = np.array([float(doc.get("offset", {}).get(j, 0.0)) for j in joints])
+    scale = np.array([float((doc.get("scale") or {}).get(j, default_scale)) for j in joints])
+    offset = np.array([float((doc.get("offset") or {}).get(j, 0.0)) for j in joints])
     return scale[:, None] * mix, offset
 
 

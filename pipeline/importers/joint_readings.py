@@ -46,23 +46,29 @@ def declaration(spec: PositionSpec, joints: list[str]) -> dict | None:
         raise RobocalError("--position-scale: a scale of 0 leaves the joint without a position")
     if not (scale or offset or mix):
         return None
-    return {"scale": scale, "offset": offset, "mix": mix}
+    doc = {"scale": scale, "offset": offset, "mix": mix}
+    check_invertible(doc, joints, "--position-mix")
+    return doc
 
 
 def matrix(doc: dict | None, joints: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """(M (J, J), c (J,)) with q = M p + c for raw readings p in `joints` order (identity when `doc` is None)."""
-    n = len(joints)
     if not doc:
-        return np.eye(n), np.zeros(n)
-    idx = {j: i for i, j in enumerate(joints)}
-    mix = np.eye(n)
-    for j, terms in doc.get("mix", {}).items():
-        mix[idx[j]] = 0.0
-        for k, f in terms.items():
-            mix[idx[j], idx[k]] = float(f)
-    scale = np.array([float(doc.get("scale", {}).get(j, 1.0)) for j in joints])
-    offset = np.array([float(doc.get("offset", {}).get(j, 0.0)) for j in joints])
-    return scale[:, None] * mix, offset
+        return np.eye(len(joints)), np.zeros(len(joints))
+    return E.scaled_mix(doc, joints, default_scale=1.0)
+
+
+def check_invertible(doc: dict | None, joints: list[str], where_: str) -> None:
+    """One line when the conversion maps two different sets of readings to the same joint angles (its matrix
+    is singular: a mix that repeats another joint's row, or drops a reading every joint needs) — the joints'
+    angles could not have come from the motors."""
+    if not doc:
+        return
+    M, _ = matrix(doc, joints)
+    sv = np.linalg.svd(M, compute_uv=False)
+    if sv[-1] <= 1e-9 * sv[0]:
+        raise RobocalError(f"{where_}: the position conversion (--position-scale / --position-mix) is singular: two "
+                           "joints' angles would be the same combination of the readings")
 
 
 def convert(doc: dict | None, joints: list[str], p: np.ndarray, v: np.ndarray | None = None):

@@ -57,13 +57,17 @@ def positions_doc(doc, joints: list[str], where_: str) -> dict | None:
     """The campaign's ``positions`` declaration checked (joint names → finite numbers), or None."""
     if doc is None:
         return None
-    ok = isinstance(doc, dict) and all(isinstance(doc.get(k, {}), dict) for k in ("scale", "offset", "mix"))
+    ok = isinstance(doc, dict) and all(isinstance(doc.get(k, {}), dict) for k in ("scale", "offset", "mix")) \
+        and all(isinstance(t, dict) for t in (doc.get("mix") or {}).values())
     vals = [(j, x) for k in ("scale", "offset") for j, x in (doc.get(k) or {}).items()] + \
         [(k, f) for t in (doc.get("mix") or {}).values() if isinstance(t, dict) for k, f in t.items()] if ok else []
     if not ok or any(j not in joints or isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x)
                      for j, x in vals) or any(j not in joints for j in (doc.get("mix") or {})):
         raise RobocalError(f"{where_}: metadata robocal.campaign: positions must map joints of the chain to finite "
                            "numbers (scale, offset) and joints to {joint: factor} (mix)")
+    from pipeline.importers.joint_readings import check_invertible
+
+    check_invertible(doc, joints, f"{where_}: metadata robocal.campaign: positions")
     return doc
 
 

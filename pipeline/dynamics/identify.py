@@ -15,7 +15,7 @@ import numpy as np
 
 from pipeline.dynamics import base as B
 from pipeline.dynamics import design, signals, solve
-from pipeline.dynamics.crossval import held_out, rms
+from pipeline.dynamics.crossval import blocks, held_out, rms
 from pipeline.dynamics.rigid_body import RigidBody, regressor, standard_parameters
 
 
@@ -91,6 +91,7 @@ class _Prepared:
     raw: np.ndarray  # (T, F) raw torques (the score)
     Xp: np.ndarray  # (T, F, P) the model's regressor at every sample (predicts the raw torques)
     fit: np.ndarray  # (J,) bool: the fitted joints
+    use: np.ndarray  # (T, F) bool: the samples the model fits (`fitted_rows`)
 
 
 def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = None) -> _Prepared:
@@ -111,8 +112,9 @@ def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = No
             Y_cache[key] = (Y, v, a)
     X = design.matrix(Y, v, a, data.fit, choice.terms)
     raw = np.asarray(data.tau, float)[:, data.fit]
-    use = fitted_rows(v[:, data.fit], choice.terms).astype(float)
-    return _Prepared(X * use[:, :, None], raw * use, raw, X, np.asarray(data.fit, bool))
+    use = fitted_rows(v[:, data.fit], choice.terms)
+    w = use.astype(float)
+    return _Prepared(X * w[:, :, None], raw * w, raw, X, np.asarray(data.fit, bool), use)
 
 
 def fitted_rows(v: np.ndarray, terms: design.Terms) -> np.ndarray:
@@ -124,6 +126,34 @@ def fitted_rows(v: np.ndarray, terms: design.Terms) -> np.ndarray:
     if "coulomb" in terms.friction and terms.coulomb_width > 0:
         use[np.abs(v) < SLOW_WIDTHS * terms.coulomb_width] = False
     return use
+
+
+REST_S = 1.0  # a joint below its crawl speed for this long is held at rest (a reversal passes in a few samples)
+REST_EDGE_S = 0.25  # the held run's ends left out: the joint starting or stopping, stiction's presliding
+
+
+def held_rows(use: np.ndarray, fs: float, trim: bool = True) -> np.ndarray:
+    """Which samples (T, F) of the fitted joints a joint is *held at rest*: within runs of samples the model does
+    not fit (`fitted_rows` False: below the crawl speed) lasting at least `REST_S`, less `REST_EDGE_S` at either
+    end (`trim`; the rows a rest level is measured on — untrimmed, the rows it predicts).  What a held joint's
+    torque carries beyond the rigid body is its *rest level*: stiction's hold, anywhere within ± its Coulomb level,
+    not the moving offset — a level no candidate models."""
+    slow = ~np.asarray(use, bool)
+    out = np.zeros_like(slow)
+    n, edge = int(round(REST_S * fs)), int(round(REST_EDGE_S * fs)) if trim else 0
+    for f in range(slow.shape[1]):
+        ends = np.flatnonzero(np.diff(np.r_[0, slow[:, f].astype(np.int8), 0]))
+        for lo, hi in zip(ends[::2], ends[1::2]):
+            if hi - lo >= n:
+                out[lo + edge:hi - edge, f] = True
+    return out
+
+
+def rest_levels(res: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """Each joint's rest level (F,), N·m: the mean of residuals `res` (n, F) (measured − model) over its held rows
+    `held` (n, F) (0 where it has none)."""
+    n = held.sum(axis=0)
+    return np.where(n > 0, np.sum(np.where(held, res, 0.0), axis=0) / np.maximum(n, 1), 0.0)
 
 
 def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: B.BaseSet,
@@ -142,16 +172,32 @@ def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: 
 
 
 def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet, folds: int, guard: int,
-                   decimate: int, rows: np.ndarray | None = None) -> np.ndarray:
+                   decimate: int, rows: np.ndarray | None = None, held: np.ndarray | None = None,
+                   rests: np.ndarray | None = None):
     """Held-out residuals (len(rows), F) on the raw torques, contiguous blocks of `rows` (default: every
-    sample)."""
+    sample).  With `held` (T, F), the samples a joint is held at rest (`held_rows`, trimmed) and `rests` (T, F)
+    (untrimmed): (residuals, the same with each block's rests taken about the rest level of the training blocks'
+    held samples, `rest_levels`)."""
     rows = np.arange(P.X.shape[0]) if rows is None else rows
+    levels = {}
 
     def fit_predict(train, test):
         s = _solve(rb, P, rows[train], choice, base, decimate)
+        if held is not None:
+            tr = rows[train]
+            h = held[tr]
+            at = np.flatnonzero(h.any(axis=1))
+            levels[int(test[0])] = rest_levels(P.Xp[tr[at]] @ s.theta - P.raw[tr[at]], h[at])
         return P.Xp[rows[test]] @ s.theta - P.raw[rows[test]]
 
-    return held_out(fit_predict, rows.size, folds, guard)
+    r = held_out(fit_predict, rows.size, folds, guard)
+    if held is None:
+        return r
+    adj = r.copy()
+    h = (held if rests is None else rests)[rows]
+    for b in blocks(rows.size, folds):
+        adj[b] -= np.where(h[b], levels[int(b[0])][None, :], 0.0)
+    return r, adj
 
 
 SLOW_WIDTHS = 3.0  # below this many Coulomb widths of speed a joint's sample is not fitted (its friction is stiction's)
@@ -204,10 +250,11 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say, use=
         bkey = (c.terms.friction, c.terms.armature)
         if bkey not in bases:
             bases[bkey] = structural_base(rb, data.fit, c.terms)
-        r = cross_validate(rb, P, replace(c, solver="ols"), bases[bkey], folds, guard, decimate, use)
-        score = float(rms(r))
-        rows.append({"choice": replace(c, solver="ols").label(), "holdout_rms": score,
-                     "holdout_rms_joint": rms(r, axis=0).tolist()})
+        r, adj = cross_validate(rb, P, replace(c, solver="ols"), bases[bkey], folds, guard, decimate, use,
+                                held_rows(P.use, fs), held_rows(P.use, fs, trim=False))
+        score = float(rms(adj))
+        rows.append({"choice": replace(c, solver="ols").label(), "holdout_rms": float(rms(r)),
+                     "holdout_rms_choice": score, "holdout_rms_joint": rms(r, axis=0).tolist()})
         say(f"{replace(c, solver='ols').label()}: held-out {score:.4f}")
         if best is None or score < best[0]:
             best = (score, replace(c, solver="ols"), r)
@@ -220,12 +267,14 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say, use=
             continue
         c = replace(choice, solver=s)
         try:
-            r = cross_validate(rb, P, c, base, folds, guard, decimate, use)
+            r, adj = cross_validate(rb, P, c, base, folds, guard, decimate, use, held_rows(P.use, fs),
+                                    held_rows(P.use, fs, trim=False))
         except ArithmeticError as e:
             rows.append({"choice": c.label(), "error": str(e)})
             continue
-        score = float(rms(r))
-        rows.append({"choice": c.label(), "holdout_rms": score, "holdout_rms_joint": rms(r, axis=0).tolist()})
+        score = float(rms(adj))
+        rows.append({"choice": c.label(), "holdout_rms": float(rms(r)), "holdout_rms_choice": score,
+                     "holdout_rms_joint": rms(r, axis=0).tolist()})
         say(f"{c.label()}: held-out {score:.4f}")
         if score < best[0]:
             best = (score, c, r)

@@ -52,13 +52,18 @@ def table(rb: RigidBody, data: I.Data, fit: I.Fit) -> dict:
     dtau = np.gradient(tau_fit, t, axis=0, edge_order=2)
     dq, dv, M = _rnea_derivatives(rb, qf, v, a, mask, _physical_rigid(rb, fit))
     prismatic = np.array([rb.model.joints[int(b)].shortname().startswith("JointModelP") for b in rb.body_of])[mask]
+    joints = [j for j, m in zip(rb.joints, mask) if m]
+    moving = P.use
+    held = I.held_rows(moving, signals.sample_rate(t))
+    level = {n: abs(float(x)) for n, x in zip(fit.names, fit.theta)}
     return {"time_s": t - t[0], "q": qf[:, mask], "v": v[:, mask], "a": a[:, mask], "tau": P.raw,
             "tau_fit": tau_fit, "tau_rigid": tau_rigid, "dtau": dtau,
             "dtau_dq": dq, "dtau_dv": dv,
             "mass_matrix": M,
             "coulomb_width": fit.choice.terms.coulomb_width if "coulomb" in fit.choice.terms.friction else 0.01,
-            "joints": [j for j, m in zip(rb.joints, mask) if m], "prismatic": prismatic,
-            "fitted": I.fitted_rows(v[:, mask], fit.choice.terms),
+            "joints": joints, "prismatic": prismatic,
+            "fitted": moving | held, "held": held,
+            "coulomb_level": np.array([level.get(f"{j}.fc", 0.0) for j in joints]),
             "X": P.Xp[:, :, fit.base.independent], "base_names": [fit.names[i] for i in fit.base.independent]}
 
 

@@ -91,11 +91,11 @@ def asymmetric_coulomb(table, f: int) -> Effect:
     def basis(_arm, _x, t):
         return on_joint(t, f, np.abs(sign(t, f))[:, None])
 
+    band = float(np.asarray(table.get("coulomb_level", np.zeros(len(table["joints"]))), float)[f])
     return Effect("asymmetric_coulomb", name, ("f_a",), (tu,), torque_scale(table, f), "torque", basis, 11,
-                  f"v_{name}", f"{name}'s offset carries it (while {name} moves, a Coulomb level higher one way by 2·f_a is an "
-                  f"offset f_a): read {name}'s identified offset as that asymmetry plus any effort offset; only "
-                  "rests separate them, where a held joint's torque is stiction's, which the model does not describe",
-                  data={"joint": f})
+                  f"v_{name}", f"{name}'s offset carries it while {name} moves (a Coulomb level higher one way by 2·f_a is "
+                  f"an offset f_a); held at rest {name} does not carry it: hold {name} still for a second or more, "
+                  "several times, to separate them", tolerance=band, data={"joint": f})
 
 
 def load_friction(table, f: int) -> Effect:

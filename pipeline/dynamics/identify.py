@@ -149,11 +149,21 @@ def held_rows(use: np.ndarray, fs: float, trim: bool = True) -> np.ndarray:
     return out
 
 
-def rest_levels(res: np.ndarray, held: np.ndarray) -> np.ndarray:
-    """Each joint's rest level (F,), N·m: the mean of residuals `res` (n, F) (measured − model) over its held rows
-    `held` (n, F) (0 where it has none)."""
+def rest_levels(res: np.ndarray, held: np.ndarray, band: np.ndarray | None = None) -> np.ndarray:
+    """Each joint's rest level (F,), N·m: the mean of residuals `res` (n, F) over its held rows `held` (n, F) (0
+    where it has none); with `band` (F,), only what of it lies beyond ± band (a joint at rest holds anywhere
+    within ± its Coulomb level: that part is stiction's)."""
     n = held.sum(axis=0)
-    return np.where(n > 0, np.sum(np.where(held, res, 0.0), axis=0) / np.maximum(n, 1), 0.0)
+    level = np.where(n > 0, np.sum(np.where(held, res, 0.0), axis=0) / np.maximum(n, 1), 0.0)
+    return level if band is None else np.sign(level) * np.maximum(np.abs(level) - np.abs(band), 0.0)
+
+
+def coulomb_columns(rb: RigidBody, fit: np.ndarray, terms: design.Terms) -> np.ndarray | None:
+    """The θ index (F,) of each fitted joint's Coulomb level f_c, None without Coulomb friction."""
+    if "coulomb" not in terms.friction:
+        return None
+    per = [k for k, _ in terms.per_joint()]
+    return 10 * rb.n_joints + np.arange(int(np.sum(fit))) * len(per) + per.index("fc")
 
 
 def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: B.BaseSet,
@@ -176,23 +186,26 @@ def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet,
                    rests: np.ndarray | None = None):
     """Held-out residuals (len(rows), F) on the raw torques, contiguous blocks of `rows` (default: every
     sample).  With `held` (T, F), the samples a joint is held at rest (`held_rows`, trimmed) and `rests` (T, F)
-    (untrimmed): (residuals, the same with each block's rests taken about the rest level of the training blocks'
-    held samples, `rest_levels`)."""
+    (untrimmed): (residuals, the same with each block's rests taken about what of the training blocks' rest level
+    lies beyond ± the joint's Coulomb level, `rest_levels`: a level no candidate models — the choice's score)."""
     rows = np.arange(P.X.shape[0]) if rows is None else rows
     levels = {}
+    fc = coulomb_columns(rb, P.fit, choice.terms)
 
     def fit_predict(train, test):
         s = _solve(rb, P, rows[train], choice, base, decimate)
-        if held is not None:
+        if held is not None and fc is not None:
             tr = rows[train]
             h = held[tr]
             at = np.flatnonzero(h.any(axis=1))
-            levels[int(test[0])] = rest_levels(P.Xp[tr[at]] @ s.theta - P.raw[tr[at]], h[at])
+            levels[int(test[0])] = rest_levels(P.Xp[tr[at]] @ s.theta - P.raw[tr[at]], h[at], s.theta[fc])
         return P.Xp[rows[test]] @ s.theta - P.raw[rows[test]]
 
     r = held_out(fit_predict, rows.size, folds, guard)
     if held is None:
         return r
+    if not levels:
+        return r, r
     adj = r.copy()
     h = (held if rests is None else rests)[rows]
     for b in blocks(rows.size, folds):

@@ -288,8 +288,8 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
         rejected, kept, final_cv = list(range(len(findings))), [], before
     why = ("the model with the selected terms is worse out of sample than the identified model alone" if worse
            else f"modelling it does not lower the held-out torque error by more than {MIN_GAIN_Z:g} standard errors")
-    sign_note = ("its sign is not that physics (a negative compliance, friction falling with load): a proxy for "
-                 "something the library does not name")
+    sign_note = ("its sign is not that physics (a negative compliance, friction falling with load, a breakaway bump "
+                 "below the Coulomb level): a proxy for something the library does not name")
     rejected_docs = [{**findings[j], "confidence": "rejected",
                       "note": sign_note if j in wrong_sign and not worse else why} for j in rejected]
     acc_k = [acc[j] for j in kept]

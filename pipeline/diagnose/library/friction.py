@@ -9,7 +9,8 @@ fitted joints' filtered velocity ``v`` (T, F), the model's rigid-body torque ``t
 (inertia, Coriolis and gravity: the load), the Coulomb smoothing width ``coulomb_width`` and the
 joint names ``joints`` (F,).  s(v) = tanh(v / width) is the model's own Coulomb sign.
 
-- ``stribeck@J``: the breakaway bump f_s·exp(−(v/v_s)²)·s(v) above Coulomb at low speed; forms
+- ``stribeck@J``: the breakaway bump f_s·exp(−(v/v_s)²)·s(v) above Coulomb at low speed (f_s > 0: static
+  friction above the sliding one; found below, it is not that physics); forms
   v_s = 3 %, 10 % and 30 % of the joint's largest speed (the held-out error picks one);
 - ``asymmetric_coulomb@J``: a Coulomb level that differs with the direction of motion, beyond what
   the offset takes: f_a·|s(v)| acts only while the joint moves (the offset acts at rest too), so
@@ -81,7 +82,7 @@ def stribeck(table, f: int, share: float) -> Effect:
 
     return Effect("stribeck", f"{name} (v_s {vs:.3g} {vu})", ("f_s",), (tu,), torque_scale(table, f), "torque",
                   basis, 10, f"v_{name}", f"move {name} slowly in both directions, at several constant low speeds",
-                  data={"joint": f, "form": f"v_s {vs:.3g} {vu}", "v_s": vs})
+                  data={"joint": f, "form": f"v_s {vs:.3g} {vu}", "v_s": vs, "sign": 1})
 
 
 def asymmetric_coulomb(table, f: int) -> Effect:

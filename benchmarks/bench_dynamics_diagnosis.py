@@ -92,10 +92,12 @@ def stated(doc: dict, fit, clean_fit, name: str, joint: str, size: float) -> tup
     if n is not None and n["absorbed_by"] in fit.names:
         k = fit.names.index(n["absorbed_by"])
         shift = f"; {n['absorbed_by']} moved {fit.theta[k] - clean_fit.theta[k]:+.3g} for {size:.3g} injected"
-    note = (f"absorbed by {n['absorbed_by'] if n else '?'}{shift}; held-out RMS at {joint} near rest "
-            f"{loc.get('near rest / reversal', float('nan')):.3g}, fast {loc.get('fast', float('nan')):.3g} N·m; "
-            f"model {fit.choice.label()}")
-    named = any(f["effect"] == name and _at(f) == joint for f in doc["findings"])
+    hit = next((f for f in doc["findings"] if f["effect"] == name and _at(f) == joint), None)
+    seen = (f"found {hit['parameters'][0]['value']:.3g} ± {hit['parameters'][0]['std']:.2g} for {size:.3g} injected"
+            if hit else f"absorbed by {n['absorbed_by']}{shift}" if n else "identifiable, not found")
+    note = (f"{seen}; held-out RMS at {joint} near rest {loc.get('near rest / reversal', float('nan')):.3g}, fast "
+            f"{loc.get('fast', float('nan')):.3g} N·m before the findings; model {fit.choice.label()}")
+    named = hit is not None
     fds = [f["effect"] + "@" + f["location"] for f in doc["findings"] if not (f["effect"] == name and _at(f) == joint)]
     how = "named" if named else "stated" if n is not None and at_rest else "not stated"
     return how, len(fds), note + (f"; beside it {fds}" if fds else "")

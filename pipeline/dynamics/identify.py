@@ -184,10 +184,11 @@ def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: 
 def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet, folds: int, guard: int,
                    decimate: int, rows: np.ndarray | None = None, held: np.ndarray | None = None,
                    rests: np.ndarray | None = None):
-    """Held-out residuals (len(rows), F) on the raw torques, contiguous blocks of `rows` (default: every
-    sample).  With `held` (T, F), the samples a joint is held at rest (`held_rows`, trimmed) and `rests` (T, F)
-    (untrimmed): (residuals, the same with each block's rests taken about what of the training blocks' rest level
-    lies beyond ± the joint's Coulomb level, `rest_levels`: a level no candidate models — the choice's score)."""
+    """(held-out residuals (len(rows), F) on the raw torques, contiguous blocks of `rows` (default: every sample);
+    the residuals the choice scores).  With `held` (T, F), the samples a joint is held at rest (`held_rows`,
+    trimmed) and `rests` (T, F) (untrimmed), the second are the first with each block's rests taken about what of
+    the training blocks' rest level lies beyond ± the joint's Coulomb level (`rest_levels`: a level no candidate
+    models); without, the same residuals."""
     rows = np.arange(P.X.shape[0]) if rows is None else rows
     levels = {}
     fc = coulomb_columns(rb, P.fit, choice.terms)
@@ -202,9 +203,7 @@ def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet,
         return P.Xp[rows[test]] @ s.theta - P.raw[rows[test]]
 
     r = held_out(fit_predict, rows.size, folds, guard)
-    if held is None:
-        return r
-    if not levels:
+    if held is None or not levels:
         return r, r
     adj = r.copy()
     h = (held if rests is None else rests)[rows]
@@ -238,7 +237,8 @@ def candidates_for(data: Data, motors: tuple = (),
 def identify(rb: RigidBody, data: Data, candidates: tuple[Choice, ...] = DEFAULT_CANDIDATES,
              solvers: tuple[str, ...] = ("ols", "wls", "consistent"), folds: int = 5, guard_s: float = 0.5,
              decimate: int = 1, progress=None, rows: np.ndarray | None = None) -> Fit:
-    """Choose the model by held-out torque RMS (pooled over the fitted joints), then refit it on every sample.
+    """Choose the model by held-out torque RMS (pooled over the fitted joints; a joint held at rest scored about
+    what of its rest level lies beyond its Coulomb band, `cross_validate`), then refit it on every sample.
     Structure candidates are compared with OLS; the solvers then on the chosen structure.  `rows` (sample
     indices, default all) are the only samples the choice and the fit may use: the others are filtered
     with the trajectory but never seen, so that an outer test can score them (nested cross-validation);
@@ -248,6 +248,14 @@ def identify(rb: RigidBody, data: Data, candidates: tuple[Choice, ...] = DEFAULT
     with one_thread():
         return _identify(rb, data, candidates, solvers, folds, guard_s, decimate, progress or (lambda s: None),
                          rows)
+
+
+def _rests(P: _Prepared, c: Choice, fs: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """(held, rests) of `cross_validate` for candidate `c`: (None, None) without Coulomb friction or held joints."""
+    if "coulomb" not in c.terms.friction or np.all(P.use):
+        return None, None
+    held = held_rows(P.use, fs)
+    return (held, held_rows(P.use, fs, trim=False)) if held.any() else (None, None)
 
 
 def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say, use=None) -> Fit:
@@ -264,7 +272,7 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say, use=
         if bkey not in bases:
             bases[bkey] = structural_base(rb, data.fit, c.terms)
         r, adj = cross_validate(rb, P, replace(c, solver="ols"), bases[bkey], folds, guard, decimate, use,
-                                held_rows(P.use, fs), held_rows(P.use, fs, trim=False))
+                                *_rests(P, c, fs))
         score = float(rms(adj))
         rows.append({"choice": replace(c, solver="ols").label(), "holdout_rms": float(rms(r)),
                      "holdout_rms_choice": score, "holdout_rms_joint": rms(r, axis=0).tolist()})
@@ -280,8 +288,7 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say, use=
             continue
         c = replace(choice, solver=s)
         try:
-            r, adj = cross_validate(rb, P, c, base, folds, guard, decimate, use, held_rows(P.use, fs),
-                                    held_rows(P.use, fs, trim=False))
+            r, adj = cross_validate(rb, P, c, base, folds, guard, decimate, use, *_rests(P, c, fs))
         except ArithmeticError as e:
             rows.append({"choice": c.label(), "error": str(e)})
             continue

@@ -149,15 +149,6 @@ def held_rows(use: np.ndarray, fs: float, trim: bool = True) -> np.ndarray:
     return out
 
 
-def rest_levels(res: np.ndarray, held: np.ndarray, band: np.ndarray | None = None) -> np.ndarray:
-    """Each joint's rest level (F,), N·m: the mean of residuals `res` (n, F) over its held rows `held` (n, F) (0
-    where it has none); with `band` (F,), only what of it lies beyond ± band (a joint at rest holds anywhere
-    within ± its Coulomb level: that part is stiction's)."""
-    n = held.sum(axis=0)
-    level = np.where(n > 0, np.sum(np.where(held, res, 0.0), axis=0) / np.maximum(n, 1), 0.0)
-    return level if band is None else np.sign(level) * np.maximum(np.abs(level) - np.abs(band), 0.0)
-
-
 def coulomb_columns(rb: RigidBody, fit: np.ndarray, terms: design.Terms) -> np.ndarray | None:
     """The θ index (F,) of each fitted joint's Coulomb level f_c, None without Coulomb friction."""
     if "coulomb" not in terms.friction:
@@ -187,8 +178,8 @@ def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet,
     """(held-out residuals (len(rows), F) on the raw torques, contiguous blocks of `rows` (default: every sample);
     the residuals the choice scores).  With `held` (T, F), the samples a joint is held at rest (`held_rows`,
     trimmed) and `rests` (T, F) (untrimmed), the second are the first with each block's rests taken about what of
-    the training blocks' rest level lies beyond ± the joint's Coulomb level (`rest_levels`: a level no candidate
-    models); without, the same residuals."""
+    the training blocks' rest level (the mean residual over the joint's held samples) lies beyond ± the joint's
+    Coulomb level (a level no candidate models); without, the same residuals."""
     rows = np.arange(P.X.shape[0]) if rows is None else rows
     levels = {}
     fc = coulomb_columns(rb, P.fit, choice.terms)
@@ -197,9 +188,12 @@ def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet,
         s = _solve(rb, P, rows[train], choice, base, decimate)
         if held is not None and fc is not None:
             tr = rows[train]
-            h = held[tr]
-            at = np.flatnonzero(h.any(axis=1))
-            levels[int(test[0])] = rest_levels(P.Xp[tr[at]] @ s.theta - P.raw[tr[at]], h[at], s.theta[fc])
+            level = np.zeros(held.shape[1])
+            for f in range(held.shape[1]):  # each joint's held rows only (a joint at rest all along: most rows)
+                at = tr[held[tr, f]]
+                if at.size:
+                    level[f] = float(np.mean(P.Xp[at, f, :] @ s.theta - P.raw[at, f]))
+            levels[int(test[0])] = np.sign(level) * np.maximum(np.abs(level) - np.abs(s.theta[fc]), 0.0)
         return P.Xp[rows[test]] @ s.theta - P.raw[rows[test]]
 
     r = held_out(fit_predict, rows.size, folds, guard)

@@ -20,7 +20,9 @@ since a dead band's shape changes with its play).  Per case and seed:
   its σ, Holm's family), and robocal's *effective* MDE for the true effect — (z_{1−α/2m} + z₀.₈)·σ̂ over the part of
   the true signature ⊥ robocal's geometry that robocal's candidate captures — split into its factors:
   multiplicity, σ̂/σ, geometry, signature capture; and in the ideal's own convention (50 % power) robocal's
-  `detection_threshold` (its critical value × σ̂ over its signature ⊥) against the ideal's t = 3 figure.
+  `detection_threshold` (its critical value × σ̂ over its signature ⊥) against the ideal's t = 3 figure; for the
+  eccentricity (two parameters, its phase unknown to robocal) the same like for like at one phase at a time
+  (`phase_budget`: the injected phase and robocal's weakest).
 """
 
 from __future__ import annotations

@@ -115,3 +115,13 @@ def test_a_name_the_fit_cannot_reject_at_the_diagnosis_level_is_listed_beside_th
                   if (a["effect"], a["location"]) == ("joint_coupling", "J2->J3")]
         assert listed and listed[0]["delta_chi2"] < 6.63 and listed[0]["cv_rms_m"] > 0, r["findings"]
         assert r["alike"]["swap_chi2"] < r["alike"]["chi2_crit"], r["alike"]
+
+
+def test_the_eccentricitys_detectable_amplitude_is_within_1_5x_of_the_ideal_at_each_phase(world):
+    """Like for like at one phase at a time (`power_random.phase_budget`): the gate's figure for a two-parameter term is
+    along its weakest direction, the ideal's at the injected phase — two phases.  At the injected phase robocal's
+    grouped F over both phases (the honest detectable amplitude of an effect whose phase it does not know) and at its
+    weakest phase its gate's figure, each against the ideal's known-phase figure at that phase."""
+    ph = pr.budget(world, "eccentricity_J2")["phases"]
+    assert ph["injected"]["ratio_chi2_2dof"] < 1.5 and ph["weakest"]["ratio_gate"] < 1.5, ph
+    assert ph["weakest"]["robocal_chi2_2dof"] > ph["weakest"]["robocal_gate"], ph  # 2 dof cost more than the gate's z

@@ -33,7 +33,6 @@ class FitOptions:
     prior_sigma: np.ndarray | None = None  # (P,) SI: each parameter's prior 1σ (default: accuracy.prior's defaults)
     physical: bool = True  # refuse (hold at 0) terms the model says cannot be negative, estimated negative
     retest: bool = True  # re-test the rank at each solution (False: one solve over the columns free at the start)
-    tol: float = 1e-12  # the solver's xtol, ftol and gtol
 
 
 @dataclass
@@ -320,7 +319,7 @@ def _solve(model: MeasurementModel, data: Table, x_start: np.ndarray, free: np.n
     m = n_rows(data) * model.residual_dim
     method = "lm" if options.loss == "linear" and m >= free.sum() else "trf"
     return least_squares(fun, x_start[free], jac=jac, method=method, x_scale="jac", loss=options.loss,
-                         f_scale=options.f_scale, max_nfev=options.max_nfev, xtol=options.tol, ftol=options.tol, gtol=options.tol)
+                         f_scale=options.f_scale, max_nfev=options.max_nfev, xtol=1e-12, ftol=1e-12, gtol=1e-12)
 
 
 def covariance(J: np.ndarray, sigma: float) -> np.ndarray:

@@ -29,7 +29,7 @@ import numpy as np
 GROSS_FACTOR = 30.0
 EXPLAINED_FACTOR = 5.0  # a mistake undone explains the misfit when the RMS falls within this × σ
 DEFAULT_SIGMA_M = 1e-3
-SCREEN_NFEV = 160  # function evaluations of the short fit (one solve)
+SCREEN_NFEV = 40  # function evaluations per solve of the short fit
 SCREEN_ROWS = 40  # measurements the short fits use at least (whole groups, evenly spaced)
 SCREEN_GROUPS = 5  # and at least this many whole groups (a camera's start needs several views)
 DEFAULT_SIGMA_PX = 1.0
@@ -47,16 +47,16 @@ def declared_sigma(campaign: dict, unit: str = "m") -> float | None:
 
 
 def quick_rms(model, table: dict, options=None) -> float:
-    """Robust RMS residual (m) after a short fit — one solve of at most SCREEN_NFEV evaluations over the parameters
-    identifiable at the start (no rank re-tests, no refusal rounds: an RMS, not parameter values) —: the median absolute
-    residual / 0.6745 (the RMS of Gaussian residuals), so that a few gross records — which the outlier
-    checks name — do not make good data look like a unit mistake; rows the model cannot evaluate at
-    the start (an unreachable configuration) are left to those checks.  NaN if the fit itself cannot be
-    evaluated (a singular configuration among the rows): the screen then does not judge."""
+    """Robust RMS residual (m) after a short fit (SCREEN_NFEV evaluations per solve, the rank re-tested as identify
+    does, negative compliances not refused: an RMS, not parameter values, and each refusal round is another
+    solve): the median absolute residual / 0.6745 (the RMS of Gaussian residuals), so that a few gross records
+    — which the outlier checks name — do not make good data look like a unit mistake; rows the model cannot
+    evaluate at the start (an unreachable configuration) are left to those checks.  NaN if the fit itself
+    cannot be evaluated (a singular configuration among the rows): the screen then does not judge."""
     from pipeline.identify.least_squares import FitOptions, fit
     from pipeline.identify.model import n_rows, take
 
-    opts = replace(options or FitOptions(), max_nfev=SCREEN_NFEV, before=False, retest=False, physical=False)
+    opts = replace(options or FitOptions(), max_nfev=SCREEN_NFEV, before=False, physical=False)
     try:
         with np.errstate(all="ignore"):
             r0 = np.asarray(model.residuals(model.initial_guess(table) if hasattr(model, "initial_guess")

@@ -126,8 +126,7 @@ def _constant_run(chain: Chain, x: np.ndarray, s: int, e: int):
         return hit[1]
     M = _step_matrices(chain, x, s, e)
     P = np.eye(4)
-    ax_local = np.empty((e - s, 3))
-    org_local = np.empty((e - s, 3))
+    ax_local, org_local = np.empty((e - s, 3)), np.empty((e - s, 3))
     for k in range(e - s):
         ax_local[k], org_local[k] = P[:3, :3] @ chain.axis[s + k], P[:3, 3]
         P = P @ M[k]
@@ -155,7 +154,8 @@ def _plan(chain: Chain) -> list[tuple[int, int, int, tuple[int, int] | None]]:
         if ji >= 0 and chain.kind[s] == ROT and np.count_nonzero(a) == 1 and np.count_nonzero(a == 1.0) == 1:
             principal = ((1, 2), (2, 0), (0, 1))[int(np.flatnonzero(a == 1.0)[0])]
         out.append((s, e, ji, principal))
-    _PLANS.clear() if len(_PLANS) > 256 else None
+    if len(_PLANS) > 256:
+        _PLANS.clear()
     _PLANS[id(chain)] = (chain, out)
     return out
 

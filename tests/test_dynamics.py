@@ -266,6 +266,37 @@ def test_ros2_bag_with_efforts_imports_positions_velocities_and_efforts_by_name(
     assert r.returncode == 2 and "record 37" in r.stderr and "effort is NaN" in r.stderr and "Traceback" not in r.stderr
 
 
+def test_a_bag_of_motor_side_angles_is_refused_at_its_record_and_converts_with_the_position_options(logs, arm):
+    """A driver publishing motor-side angles (reduction 32:1 on j2, j3 coupled to j2's motor): without the
+    declaration the bag is one line naming the record; with --position-scale / --position-mix the recording's
+    stream holds the joint angles, its campaign the declaration, and the velocities convert with it."""
+    from pipeline.ingest.streams import joint_stream
+    from pipeline.recording.reader import read_recording
+
+    d, t, q = logs
+    t, q = t[:200], q[:200]
+    v = np.gradient(q, t, axis=0)
+    e = RB.torques(arm, q, v, np.gradient(v, t, axis=0))
+    M = np.array([[1.0, 0, 0], [0, 32.0, 0], [0, 16.0, 16.0]])  # raw = M q: j3's motor also turns with j2
+    bag = _effort_bag(d / "motor_bag", t, q @ M.T, v @ M.T, e)
+    base = ["import", "ros2", str(bag), "--urdf", str(d / "arm.urdf"), "--root", "base", "--tip", "l3",
+            "--measure", "effort", "--effort-units", "Nm"]
+    r = run_cli(*base, "--out", str(d / "motor_raw.mcap"))
+    assert r.returncode == 2 and "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert "topic /joint_states: record" in r.stderr and "far outside the URDF's limits" in r.stderr
+    assert "--position-scale" in r.stderr and not (d / "motor_raw.mcap").exists()
+    r = run_cli(*base, "--position-scale", "j2=1/32,j3=1/16", "--position-mix", "j3=j3-1/2*j2",
+                "--out", str(d / "motor.mcap"))
+    assert r.returncode == 0, r.stderr
+    rec = read_recording(d / "motor.mcap")
+    s = joint_stream(rec)
+    np.testing.assert_allclose(s.q, q, atol=1e-12)
+    np.testing.assert_allclose(s.velocity, v, atol=1e-12)
+    assert rec.metadata["robocal.campaign"]["positions"]["scale"] == {"j2": 1 / 32, "j3": 1 / 16}
+    r = run_cli(*base, "--position-scale", "j2=1/64", "--out", str(d / "motor_half.mcap"))  # still j3 motor-side
+    assert r.returncode == 2 and "after the --position-scale" in r.stderr
+
+
 def test_base_parameter_sigma_counts_only_the_rows_the_fit_uses():
     """Rows left out of the fit (a crawling joint's) come zeroed: they must not count as residuals of zero, which
     would make every σ too small by √(share of rows fitted)."""

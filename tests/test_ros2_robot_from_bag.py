@@ -134,7 +134,8 @@ def test_an_effort_bag_goes_through_the_one_import_entry(tmp_path, monkeypatch):
     J = len(desc.joint_names)
     rng = np.random.default_rng(7)
     t = np.arange(40) * 0.02
-    q, e = rng.uniform(-1, 1, (40, J)), rng.normal(0, 5, (40, J))
+    q = 0.5 * np.sin(0.5 * t[:, None] + rng.uniform(-np.pi, np.pi, J))  # a motion the joints' speed limits allow
+    e = rng.normal(0, 5, (40, J))
     layout = BagLayout(description=R6T, name_order=tuple(reversed(range(J))), extra_joints={"gripper": 0.01})
     write_bag(tmp_path / "eff", desc.joint_names, t, q, np.array([0.1]), np.zeros((1, 3)), None, layout, effort=e)
     opens, decodes = count_bag_reads(monkeypatch)

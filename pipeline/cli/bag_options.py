@@ -56,14 +56,23 @@ def effort_options(panel: str | None = None) -> dict[str, typer.models.OptionInf
                                       "(default: all).", **kw),
         "effort_units": typer.Option(None, "--effort-units", help="Nm (efforts are torques) or raw.",
                                      show_default="raw with a scale, else unknown", **kw),
+        "position_scale": typer.Option([], "--position-scale", help="Positions that are not joint angles: rad (m) "
+                                       "per raw unit, JOINT=K,… (as `import csv --measure effort`).", **kw),
+        "position_offset": typer.Option([], "--position-offset", help="rad (m) added after scaling, JOINT=C,….",
+                                        **kw),
+        "position_mix": typer.Option([], "--position-mix", help="Raw positions a joint's angle combines, JOINT=EXPR "
+                                     "(repeatable).", **kw),
     }
 
 
-def effort_spec(scale, offset, mix, joints, units):
-    """The `pipeline.importers.effort_recording.EffortSpec` of the effort options' values."""
+def effort_spec(scale, offset, mix, joints, units, positions=((), (), ())):
+    """The `pipeline.importers.effort_recording.EffortSpec` of the effort options' values; `positions`: the
+    values of --position-scale, --position-offset, --position-mix."""
     from pipeline.importers.effort_recording import EffortSpec
+    from pipeline.importers.joint_readings import PositionSpec
 
-    return EffortSpec(tuple(scale or ()), tuple(offset or ()), tuple(mix or ()), joints or "", units)
+    return EffortSpec(tuple(scale or ()), tuple(offset or ()), tuple(mix or ()), joints or "", units,
+                      PositionSpec(*(tuple(x or ()) for x in positions)))
 
 
 def measure_topics(measure_topic: list[str] | None, tip: str | None, bag: bool = True

@@ -61,6 +61,8 @@ def import_ros2(
     effort_scale: list[str] = EFF["effort_scale"], effort_offset: list[str] = EFF["effort_offset"],
     effort_mix: list[str] = EFF["effort_mix"], effort_joints: str = EFF["effort_joints"],
     effort_units: Optional[Literal["Nm", "raw"]] = EFF["effort_units"],
+    position_scale: list[str] = EFF["position_scale"], position_offset: list[str] = EFF["position_offset"],
+    position_mix: list[str] = EFF["position_mix"],
 ) -> None:
     """Pair each measurement with the joint state where the robot stood still around it and write a
     recording `robocal run` calibrates; measurements taken while moving are listed and left out."""
@@ -85,6 +87,7 @@ def import_ros2(
     spec = BagSpec(joint_topic=joint_topic, measure_topic=mt, measure=measure, window_s=window_s,
                    max_speed=max_speed, time=time, tips=tips)
     robot = Robot(urdf, root, tip, tuple(coupled or ()), coupling_wins)
-    effort = bag_options.effort_spec(effort_scale, effort_offset, effort_mix, effort_joints, effort_units)
+    effort = bag_options.effort_spec(effort_scale, effort_offset, effort_mix, effort_joints, effort_units,
+                                     (position_scale, position_offset, position_mix))
     import_bag(bag, robot, out, spec, cam, sigma_m, sigma_rad, robot_id, force=force, say=bag_options.say,
                effort=effort)

@@ -233,6 +233,8 @@ def run_cmd(
     effort_scale: list[str] = EFF["effort_scale"], effort_offset: list[str] = EFF["effort_offset"],
     effort_mix: list[str] = EFF["effort_mix"], effort_joints: str = EFF["effort_joints"],
     effort_units: Optional[Literal["Nm", "raw"]] = EFF["effort_units"],
+    position_scale: list[str] = EFF["position_scale"], position_offset: list[str] = EFF["position_offset"],
+    position_mix: list[str] = EFF["position_mix"],
     physics: Optional[str] = PHYSICS, payload: Optional[list[str]] = PAYLOAD,
     target: Optional[str] = typer.Option(None, "--target", rich_help_panel=bag_options.RUN_PANEL,
                                          help="ROS 2 camera bag: the board its images show (as `robocal import "
@@ -270,7 +272,8 @@ def run_cmd(
     robot = None
     if urdf or root or tip or coupled or coupling_wins:
         robot = Robot(urdf, root or "", tip, tuple(coupled or ()), coupling_wins)
-    effort = bag_options.effort_spec(effort_scale, effort_offset, effort_mix, effort_joints, effort_units)
+    effort = bag_options.effort_spec(effort_scale, effort_offset, effort_mix, effort_joints, effort_units,
+                                     (position_scale, position_offset, position_mix))
     recording = run_input(recording, out, robot, spec, cam, sigma_m, sigma_rad, say=bag_options.say,
                           effort=None if effort == bag_options.effort_spec((), (), (), "", None) else effort)
     ok = False

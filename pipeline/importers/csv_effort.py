@@ -11,7 +11,7 @@ declaration `positions` (`joint_readings`) before the limits are checked.
 
 Refused with one line naming file, row and column: a missing joint or effort column, a time column
 that is not strictly increasing (or differs between the tables), empty / NaN / inf values (a burst is
-named with its first and last row), positions far outside the URDF's limits (`bounds.LIMIT_SLACK`, the bound every importer applies).
+named with its first and last row), positions or speeds beyond the URDF's limits (`joint_logs`).
 Vectorised: one pass per column, no Python loop over rows.
 """
 
@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import RobocalError
-from pipeline.importers.bounds import LIMIT_SLACK
 from pipeline.importers.bounds import check_bound
 from pipeline.importers.csv_text import numbers, read_columns
 from pipeline.models.urdf import RobotDescription
@@ -100,7 +99,7 @@ def read_logs(position: Path, desc: RobotDescription, velocity: Path | None = No
     """{t_s (T,), q (T, J) rad / m, v (T, J) rad/s / m/s or absent, effort (T, J) raw} in the chain's
     joint order, rows [a, b) of the tables.  `rate` (Hz): tables without a time column, row i at i / rate
     s; `positions`: the raw position readings' conversion (`joint_readings.declaration`)."""
-    from pipeline.importers import joint_readings
+    from pipeline.importers import joint_logs, joint_readings
 
     if rate is not None and not (np.isfinite(rate) and rate > 0):
         raise RobocalError(f"--rate {rate!r}: expected the sample rate in Hz, > 0")
@@ -144,62 +143,7 @@ def read_logs(position: Path, desc: RobotDescription, velocity: Path | None = No
     out["q"], v = joint_readings.convert(positions, names, out["q"], out.get("v"))
     if v is not None:
         out["v"] = v
-    check_limits(pos, out["q"], desc, a, converted=bool(positions))
-    check_speeds(pos, out["t_s"], out["q"], desc, a)
+    row = lambda i: f"{pos}: row {i + a + 2}"  # noqa: E731
+    joint_logs.check_limits(row, out["q"], desc, converted=bool(positions))
+    joint_logs.check_speeds(row, out["t_s"], out["q"], desc)
     return out
-
-
-SPEED_SLACK = 3.0  # a joint moving faster than this many times its URDF velocity limit: a clock or scale mistake
-
-
-def check_speeds(path: Path, t: np.ndarray, q: np.ndarray, desc: RobotDescription, offset: int = 0) -> None:
-    """One line when a joint moves far faster than its URDF's ``<limit velocity>`` (beyond `SPEED_SLACK` ×):
-    a wrong --rate or time column, or a position scale too large.  Speeds over 10 ms steps (encoder noise
-    averaged). A clock or scale mistake is systematic, so it is the 99th percentile of a joint's speed that is
-    judged: one encoder glitch does not refuse a log.  Joints without a velocity limit, and continuous joints
-    (whose logged angle may wrap at ±π), are not checked."""
-    import xml.etree.ElementTree as ET
-
-    if len(t) < 3:
-        return
-    limit = {}
-    for j in ET.fromstring(desc.urdf).iter("joint"):
-        lim = j.find("limit")
-        try:
-            limit[j.get("name")] = (float(lim.get("velocity")) if lim is not None and j.get("type") != "continuous"
-                                    else 0.0)
-        except (TypeError, ValueError):
-            limit[j.get("name")] = 0.0
-    vmax = np.array([limit.get(j.name, 0.0) for j in desc.movable])
-    dt = float(np.median(np.diff(t)))
-    k = max(1, int(round(0.01 / dt))) if dt > 0 else 1
-    k = min(k, len(t) - 1)
-    speed = np.abs(q[k:] - q[:-k]) / (t[k:] - t[:-k])[:, None]
-    over = (vmax > 0) & (np.percentile(speed, 99, axis=0) > SPEED_SLACK * vmax)
-    if over.any():
-        c = int(np.argmax(over))
-        i = int(np.argmax(speed[:, c]))
-        raise RobocalError(f"{path}: row {i + offset + 2}: joint {desc.movable[c].name!r} moves at "
-                           f"{speed[i, c]:.4g} /s, {speed[i, c] / vmax[c]:.0f}× its URDF velocity limit "
-                           f"{vmax[c]:.4g} (a wrong --rate or time column, or --position-scale?)")
-
-
-def check_limits(path: Path, q: np.ndarray, desc: RobotDescription, offset: int = 0,
-                 converted: bool = False) -> list[str]:
-    """One line for a position far outside its joint's URDF limits (beyond `LIMIT_SLACK` of the range:
-    a unit mistake, motor-side angles, or a trajectory the robot cannot have run; `converted`: the
-    readings went through a --position-* conversion); the warnings for slight excursions."""
-    joints = desc.movable
-    lo, hi = np.array([j.lower for j in joints]), np.array([j.upper for j in joints])
-    finite = np.isfinite(hi - lo)
-    slack = np.where(finite, LIMIT_SLACK * np.where(finite, hi - lo, 0.0), np.inf)
-    out_of = (q < lo - slack) | (q > hi + slack)
-    if out_of.any():
-        i, k = np.argwhere(out_of)[0]
-        hint = ("after the --position-scale / --position-mix / --position-offset conversion" if converted else
-                "(motor-side angles? --position-scale JOINT=1/RATIO; degrees? --position-scale JOINT=pi/180)")
-        raise RobocalError(f"{path}: row {i + offset + 2}: joint {joints[k].name!r}: position {q[i, k]:.6g} is far "
-                           f"outside the URDF's limits [{lo[k]:.6g}, {hi[k]:.6g}] {hint}")
-    beyond = (q < lo) | (q > hi)
-    return [f"{path}: joint {joints[k].name!r}: {int(beyond[:, k].sum())} row(s) slightly beyond the URDF limits"
-            for k in np.flatnonzero(beyond.any(0))]

@@ -12,19 +12,23 @@ from typing import Callable
 
 import numpy as np
 
+from pipeline.importers.joint_readings import PositionSpec
+
 
 @dataclass(frozen=True)
 class EffortSpec:
     """The effort declaration in the command line's words: `scale` ``JOINT=K`` (N·m or N per raw unit),
     `offset` ``JOINT=C`` (N·m or N, or ``weight``: g × the mass the joint carries), `mix` ``JOINT=EXPR`` (the
     raw efforts a joint's torque combines), `joints` the comma-separated joints whose torque is fitted (''
-    all), `units` ``Nm`` | ``raw`` | None (raw with a scale, else unknown)."""
+    all), `units` ``Nm`` | ``raw`` | None (raw with a scale, else unknown); `positions`: how the position
+    readings become joint angles, when they are not (motor-side encoders, a coupled wrist: `joint_readings`)."""
 
     scale: tuple[str, ...] = ()
     offset: tuple[str, ...] = ()
     mix: tuple[str, ...] = ()
     joints: str = ""
     units: str | None = None
+    positions: PositionSpec = PositionSpec()
 
 
 def write_effort_recording(out: Path, desc, logs: dict, urdf_source: str, effort: EffortSpec, extra: dict,

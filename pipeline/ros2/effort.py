@@ -1,8 +1,10 @@
 """ROS 2 bags → the encoder stream of a dynamics recording: every ``sensor_msgs/msg/JointState`` of the joint
 topic with its positions, velocities and efforts (rosbags reads and decodes; the chain's joints matched by
 name, any order, other joints ignored).  Times are the messages' ``header.stamp`` (or the receive times with
-``time="log"``).  Refused with one line naming the file, topic and record: a message without an effort per
-name, NaN or inf, times that do not increase."""
+``time="log"``).  Positions that are not joint angles (a driver publishing motor-side angles) are converted
+by the declaration `positions` (`pipeline.importers.joint_readings`).  Refused with one line naming the file,
+topic and record: a message without an effort per name, NaN or inf, times that do not increase, positions or
+speeds beyond the URDF's limits (`pipeline.importers.joint_logs`)."""
 
 from __future__ import annotations
 
@@ -17,9 +19,12 @@ from pipeline.ros2.points import JOINT_STATE, _decoder, _Rows, _stamp, at, choos
 
 
 def read_efforts(bag: Bag, desc: RobotDescription, joint_topic: str = "/joint_states",
-                 time: str = "header") -> dict[str, np.ndarray]:
-    """{t_ns (T,), q (T, J), v (T, J) or absent, effort (T, J)} of the open `bag`'s joint topic in the chain
-    `desc`'s joint order, each message decoded once."""
+                 time: str = "header", positions: dict | None = None) -> dict[str, np.ndarray]:
+    """{t_ns (T,), q (T, J) rad / m, v (T, J) or absent, effort (T, J) raw} of the open `bag`'s joint topic in the
+    chain `desc`'s joint order, each message decoded once; `positions`: the readings' conversion to joint
+    angles (`joint_readings.declaration`; None: they are joint angles)."""
+    from pipeline.importers import joint_logs, joint_readings
+
     path = Path(bag.path)
     joints = desc.joint_names
     jt = choose_joint_topic(path, bag.topics, joint_topic)
@@ -61,4 +66,10 @@ def read_efforts(bag: Bag, desc: RobotDescription, joint_topic: str = "/joint_st
     if back.size:
         raise RobocalError(f"{at(path, jt, rec[back[0] + 1])}: time does not increase after the previous record "
                            "(a dynamics recording needs strictly increasing times)")
+    out["q"], v = joint_readings.convert(positions, joints, out["q"], out.get("v"))
+    if v is not None:
+        out["v"] = v
+    where = lambda i: at(path, jt, rec[i])  # noqa: E731
+    joint_logs.check_limits(where, out["q"], desc, converted=bool(positions))
+    joint_logs.check_speeds(where, out["t_ns"] * 1e-9, out["q"], desc)
     return out

@@ -120,7 +120,7 @@ def import_bag(path: Path, robot: Robot, out: Path, spec: BagSpec = BagSpec(), c
     if out.exists() and out.resolve() == path.resolve():
         raise RobocalError(f"{out}: --out is the bag itself")
     if spec.measure != "effort" and effort is not None and effort != EffortSpec():
-        raise RobocalError("--effort-scale/--effort-offset/--effort-mix/--effort-joints/--effort-units apply to "
+        raise RobocalError("--effort-* and --position-* options apply to "
                            "--measure effort only")
     check_output(out, force=force)  # before the bag is read
     if spec.measure == "effort":
@@ -146,6 +146,7 @@ def import_bag(path: Path, robot: Robot, out: Path, spec: BagSpec = BagSpec(), c
 def _import_effort(path, robot, out, spec, camera, effort, robot_id, force, say) -> BagImport:
     """A dynamics recording of every joint state of the bag with its positions, velocities and efforts."""
     from pipeline.importers.effort_recording import write_effort_recording
+    from pipeline.importers.joint_readings import declaration
     from pipeline.models import urdf as urdf_mod
     from pipeline.recording.output import claim_output
     from pipeline.ros2.effort import read_efforts
@@ -155,9 +156,11 @@ def _import_effort(path, robot, out, spec, camera, effort, robot_id, force, say)
     with Bag(path) as bag:
         text, source = urdf_text(bag, robot.urdf)
         desc = urdf_mod.parse(text, robot.root, robot.tip, source=source)
-        logs = read_efforts(bag, desc, spec.joint_topic, spec.time)
+        pos_doc = declaration(effort.positions, desc.joint_names)
+        logs = read_efforts(bag, desc, spec.joint_topic, spec.time, pos_doc)
     claim_output(out, force=force)  # with --force the old recording kept as NAME.bak
-    write_effort_recording(out, desc, logs, source, effort, {"source_files": [str(path)]}, robot_id, say)
+    write_effort_recording(out, desc, logs, source, effort,
+                           {"source_files": [str(path)], **({"positions": pos_doc} if pos_doc else {})}, robot_id, say)
     return BagImport(out, len(logs["t_ns"]), "effort", len(desc.joint_names), desc.root, desc.tip,
                      robot_from=source)
 
@@ -203,7 +206,7 @@ def run_input(recording: Path, out: Path, robot: Robot | None, spec: BagSpec = B
         if given or spec.measure_topic or camera is not None or effort is not None or (
                 robot is not None and (robot.coupled or robot.coupling_wins)):
             raise RobocalError(f"{recording}: is not a ROS 2 bag; --urdf/--root/--tip/--measure-topic/--target/"
-                               "--coupled/--effort-* apply to ROS 2 bags only")
+                               "--coupled/--effort-*/--position-* apply to ROS 2 bags only")
         return recording
     if robot is None or not robot.root or not (robot.tip or spec.tips):
         raise RobocalError(f"{recording}: is a ROS 2 bag: give the robot's chain as --root LINK --tip LINK (and "

@@ -9,16 +9,20 @@ since a dead band's shape changes with its play).  Per case and seed:
 
 - `named` / `named_high` / `misnamed_high` (in library), `located` (out of library: a finding or an
   `unexplained_where` entry at the right joint or face);
-- `named_or_collinear_alike`: named, or listed beside a finding of lower than high confidence whose name the
-  generator's own forms show spans ≥ 90 % of the true signature off the geometry on that campaign (`collinear_alike`:
-  near-collinear, the data cannot separate them, both names with lowered confidence is the right answer);
-  `named_or_alike` counts any such listing, unchecked;
+- `named_or_near_collinear`: named, or listed beside a finding of lower than high confidence whose name the
+  generator's own forms show spans ≥ 90 % of the true signature off the geometry on that campaign;
+  `named_or_collinear_alike`: that, or listed beside such a finding whose swap for the true name the data cannot
+  reject at the diagnosis's level at the injected size (`collinear_alike`: robocal's two look-alike measures,
+  computed from the truth; both names with lowered confidence is the right answer there); `named_or_alike`
+  counts any such listing, unchecked;
 - the power budget on the clean campaign of the same plan (`budget`): the ideal MDE at 80 % power
   ((3 + z₀.₈)σ/‖P⊥S‖, like for like with robocal's figure), robocal's own `min_detectable` (its gate: its signature,
   its σ, Holm's family), and robocal's *effective* MDE for the true effect — (z_{1−α/2m} + z₀.₈)·σ̂ over the part of
   the true signature ⊥ robocal's geometry that robocal's candidate captures — split into its factors:
   multiplicity, σ̂/σ, geometry, signature capture; and in the ideal's own convention (50 % power) robocal's
-  `detection_threshold` (its critical value × σ̂ over its signature ⊥) against the ideal's t = 3 figure.
+  `detection_threshold` (its critical value × σ̂ over its signature ⊥) against the ideal's t = 3 figure; for the
+  eccentricity (two parameters, its phase unknown to robocal) the same like for like at one phase at a time
+  (`phase_budget`: the injected phase and robocal's weakest).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import scipy.optimize
 import scipy.stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -179,6 +184,7 @@ def _forms_of(effect: str, location: str) -> list | None:
 
 
 ALIKE_SHARE = 0.9  # robocal's near-collinear bound (`stepwise.LOOK_ALIKE_SHARE`): a rival explaining 90 % of the effect
+ALPHA = 0.01  # the diagnosis's level (`Settings.alpha`): a swap the fit cannot reject at it is a look-alike
 
 
 def collinear_share(w: World, S_true: np.ndarray, payload_kg, effect: str, location: str) -> float | None:
@@ -195,19 +201,28 @@ def collinear_share(w: World, S_true: np.ndarray, payload_kg, effect: str, locat
     return float(np.sum((U.T @ St) ** 2) / (St @ St))
 
 
-def collinear_alike(d: dict, key, w: World, S_true: np.ndarray, payload_kg) -> dict:
+def collinear_alike(d: dict, key, w: World, S_true: np.ndarray, payload_kg, size: float) -> dict:
     """Where the right name is not a finding but reported beside a lower-than-high-confidence finding
     (`named_beside`): the generator's share of the true signature ⊥ geometry that the finding's name spans
-    (`share`), and whether it is near-collinear (≥ `ALIKE_SHARE`: the data cannot separate the two at this size,
-    so both names with lowered confidence is the right answer)."""
+    (`share`), the swap's noncentrality at the injected `size` (`swap_chi2`: (1 − share)·‖P⊥S‖²·size²/σ², the
+    expected Δχ² by which the true name fits better, noise-free) and whether the two are look-alikes by robocal's
+    own two measures, computed from the truth (`collinear`): near-collinear (share ≥ `ALIKE_SHARE`,
+    `stepwise.LOOK_ALIKE_SHARE`), or a swap the data cannot reject at the diagnosis's level at this size
+    (`swap_chi2` below χ²_k(1 − α), k the finding's parameters: `method._alike_evidence`'s and
+    `method._choose_names`' bound).  Either way both names with lowered confidence is the right answer; a
+    listed name beyond both is a miss."""
     for f in d["findings"]:
         if f["confidence"] == "high" or right(f, key):
             continue
         if any(right(a, key) for a in f.get("look_alikes", []) + f.get("untested_look_alikes", [])):
             sh = collinear_share(w, S_true, payload_kg, f["effect"], f["location"])
-            return {"finding": f"{f['effect']}@{f['location']}", "share": sh,
-                    "collinear": sh is not None and sh >= ALIKE_SHARE}
-    return {"finding": None, "share": None, "collinear": False}
+            _, J = w.clean(payload_kg)
+            lam = None if sh is None else (1 - sh) * float(np.sum(_perp(S_true, J) ** 2)) * size**2 / SIGMA**2
+            crit = float(scipy.stats.chi2.ppf(1 - ALPHA, len(f["parameters"])))
+            return {"finding": f"{f['effect']}@{f['location']}", "share": sh, "swap_chi2": lam, "chi2_crit": crit,
+                    "near_collinear": sh is not None and sh >= ALIKE_SHARE,
+                    "collinear": sh is not None and (sh >= ALIKE_SHARE or lam < crit)}
+    return {"finding": None, "share": None, "swap_chi2": None, "near_collinear": False, "collinear": False}
 
 
 def named_beside(d: dict, key) -> bool:
@@ -248,12 +263,13 @@ def run_one(w: World, name: str, mult: float, n_boot: int) -> dict:
                  settings=Settings(n_boot=n_boot, repeatability_3sigma_m=REPEATABILITY))
     ool = (effects[0][0], effs[0].where) if key is None else None
     r = {"seed": w.seed, "mds_ideal": mdes, "size": [e.size for e in effs], **score(d, key, SECOND.get(name), ool)}
-    r["named_or_collinear_alike"] = None if key is None else r["named"]
+    r["named_or_collinear_alike"] = r["named_or_near_collinear"] = None if key is None else r["named"]
     if key is not None and len(effects) == 1 and not r["named"] and r["named_or_alike"]:
         kind, where = effects[0]
         _, S = ideal_mds(w, kind, placed(w, kind, where), payload, unit if kind != "backlash" else None, mult)
-        r["alike"] = collinear_alike(d, key, w, S, payload)
+        r["alike"] = collinear_alike(d, key, w, S, payload, effs[0].size)
         r["named_or_collinear_alike"] = r["alike"]["collinear"]
+        r["named_or_near_collinear"] = r["alike"]["near_collinear"]
     return {**r, "_doc": d}
 
 
@@ -304,7 +320,9 @@ def budget(w: World, name: str, clean_doc: dict | None = None) -> dict | None:
     eff80 = (z + Z80) * p.sigma / max(capture * rob_norm, 1e-300)
     gate_mds = gs[best].min_detectable if best is not None else None
     gate_thr = gs[best].threshold if best is not None else None
-    return {"mds_ideal_t3": m_ideal, "mds_ideal_80": ideal80, "mds_robocal_gate": gate_mds,
+    phases = (phase_budget(w, where, payload, unit, gs[best], p.sigma, capture * rob_norm, len(p.lib), m)
+              if best is not None and kind == "eccentricity" else None)
+    return {"phases": phases, "mds_ideal_t3": m_ideal, "mds_ideal_80": ideal80, "mds_robocal_gate": gate_mds,
             "mds_robocal_effective": eff80, "ratio_gate": (gate_mds or np.inf) / ideal80,
             "ratio_effective": eff80 / ideal80,
             # the same in the ideal's convention (50 % power): robocal's critical value vs t = 3
@@ -312,6 +330,44 @@ def budget(w: World, name: str, clean_doc: dict | None = None) -> dict | None:
             "best_form": str(p.lib[best].location) if best is not None else None,
             "factors": {"multiplicity": (z + Z80) / (3 + Z80), "m": m, "sigma": p.sigma / SIGMA,
                         "geometry": gen_norm / rob_norm, "capture": capture}}
+
+
+def chi2_power_scale(k: int, level: float, power: float = 0.8) -> float:
+    """√λ of the noncentral χ²_k whose test at `level` has `power`: the detectable size of a k-parameter effect, in
+    σ over its projected signature's norm along its direction (k = 1: ≈ z_{1−level/2} + z_power)."""
+    crit = scipy.stats.chi2.ppf(1 - level, k)
+    return float(np.sqrt(scipy.optimize.brentq(lambda lam: scipy.stats.ncx2.sf(crit, k, lam) - power, 1e-6, 1e4)))
+
+
+def phase_budget(w: World, where: dict, payload, unit: float, g, sigma_hat: float, captured_norm: float,
+                 m_library: int, m_tested: int) -> dict:
+    """A two-parameter (phase-unknown) term's budget like for like, at one phase at a time: at the injected phase
+    and at robocal's weakest one (its gate's figure is along that direction), the ideal (the phase known, 1 dof,
+    80 %: (3 + z₀.₈)σ/‖P⊥S_φ‖, the generator's signature at φ) beside robocal's 80 % figures at that phase — its
+    gate's own (1-dof z over the library, the figure `min_detectable` states) and its χ² test over both phases
+    (the grouped F it runs, 2 dof, at Holm's first threshold α/m over the candidates it tests: the honest
+    detectable amplitude of an effect whose phase it does not know).  The generator's eccentricity
+    A·sin(q + φ) is robocal's a·cos q + b·sin q with (a, b) = A·(sin φ, cos φ)."""
+    _, J = w.clean(payload)
+    _, sv, Vt = np.linalg.svd(g.projected, full_matrices=False)
+    a, b = Vt[-1]
+    weak = float(np.arctan2(a, b))
+
+    def ideal80(phase):
+        S = true_signature(w, "eccentricity", {**where, "phase": phase}, unit, payload, False)
+        return (3 + Z80) * SIGMA / np.linalg.norm(_perp(S, J))
+
+    z_lib = float(scipy.stats.norm.ppf(1 - ALPHA / (2 * m_library))) + Z80
+    k2 = chi2_power_scale(2, ALPHA / m_tested)
+    inj, wk = ideal80(where["phase"]), ideal80(weak)
+    return {"injected": {"phase": where["phase"], "ideal_80": inj,
+                         "robocal_chi2_2dof": k2 * sigma_hat / captured_norm,
+                         "ratio_chi2_2dof": k2 * sigma_hat / captured_norm / inj},
+            "weakest": {"phase": weak, "ideal_80": wk, "robocal_gate": g.min_detectable,
+                        "ratio_gate": g.min_detectable / wk,
+                        "robocal_chi2_2dof": k2 * sigma_hat / sv[-1] + g.effect.tolerance,
+                        "ratio_chi2_2dof": (k2 * sigma_hat / sv[-1] + g.effect.tolerance) / wk},
+            "z_library": z_lib, "chi2_scale_tested": k2}
 
 
 def _rate(rows, k):
@@ -360,16 +416,23 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
             med["seeds"] = len(rr)
             med["factors"] = {k: float(np.median([r["factors"][k] for r in rr])) for k in rr[0]["factors"]}
             med["forms"] = sorted({r["best_form"] for r in rr if r["best_form"]})
+            ph = [r["phases"] for r in rr if r.get("phases")]
+            if ph:  # a two-parameter term at one phase at a time (`phase_budget`): medians and worst seeds
+                med["phases"] = {f"{at} {k}": (float(np.median([x[at][k] for x in ph])),
+                                               float(np.max([x[at][k] for x in ph])))
+                                 for at in ("injected", "weakest") for k in ph[0][at] if k != "phase"}
             summary[f"{name} budget"] = med
         else:
             summary[f"{name} {mult:g}x"] = {
-                "runs": len(rr), **{k: _rate(rr, k) for k in ("named", "named_or_collinear_alike", "named_or_alike", "named_second",
+                "runs": len(rr), **{k: _rate(rr, k) for k in ("named", "named_or_near_collinear", "named_or_collinear_alike", "named_or_alike", "named_second",
                                                              "named_or_alike_second",
                                                              "named_high", "misnamed_high", "located", "worse")},
                 "false_findings": int(sum(r["false"] for r in rr)) if name == "clean" else None,
                 "statuses": {k: sum(r["status"] == k for r in rr) for k in sorted({r["status"] for r in rr})},
                 "alike_shares": [round(r["alike"]["share"], 4) if r["alike"]["share"] is not None else None
                                  for r in rr if r.get("alike")],
+                "alike_swap_chi2": [round(r["alike"]["swap_chi2"], 2) if r["alike"].get("swap_chi2") is not None
+                                    else None for r in rr if r.get("alike")],
                 "misses": [(r["seed"], r["findings"], r["where"]) for r in rr
                            if name != "clean"
                            and not (r["located"] if r.get("located") is not None else r.get("named_or_collinear_alike"))][:6]}
@@ -382,7 +445,8 @@ def report(seeds, mults=(4.0, 2.0), names=None, n_boot: int = 20, clean: bool = 
 
 def markdown(summary: dict) -> str:
     """The summary as the tables the guide shows: per in-library case and multiple the share of seeds naming it
-    (strictly; or as a look-alike beside a lower-confidence finding of a near-collinear name, `named_or_collinear_alike`),
+    (strictly; or as a look-alike beside a lower-confidence finding of a near-collinear name, `named_or_near_collinear`,
+    or of a name the data cannot tell from it at that size, `named_or_collinear_alike`),
     named `high`, misnamed `high`, worse than geometry; per out-of-library case located; clean campaigns' false
     findings."""
     n = 0
@@ -390,14 +454,25 @@ def markdown(summary: dict) -> str:
     def pct(v):
         return "–" if v is None else f"{round(v * n)}/{n}"
 
-    rows = ["| case | × ideal MDE | seeds | named | named or near-collinear look-alike | named `high` | misnamed `high` "
-            "| second effect named | worse than geometry | statuses |", "|---|---|---|---|---|---|---|---|---|---|"]
+    rows = ["| case | × ideal MDE | seeds | named | named or near-collinear look-alike | named or look-alike the data "
+            "cannot separate | named `high` | misnamed `high` | second effect named | worse than geometry | statuses |",
+            "|---|---|---|---|---|---|---|---|---|---|---|"]
     out_rows = ["| case | × ideal MDE | seeds | located | misnamed `high` | worse than geometry | statuses |",
                 "|---|---|---|---|---|---|---|"]
     clean = []
     budget = ["| term (SI units) | seeds | ideal, t = 3 | ideal, 80 % | robocal gate, 80 % | robocal / ideal (80 %): median, max "
               "| threshold / ideal t = 3: median, max |", "|---|---|---|---|---|---|---|"]
+    phases = ["| term | at the phase | ideal, 80 % (phase known) | robocal gate, 80 % | gate / ideal: median, max "
+              "| robocal's χ² over both phases, 80 % | χ² / ideal: median, max |", "|---|---|---|---|---|---|---|"]
     for k, v in summary.items():
+        if k.endswith("budget") and v.get("phases"):
+            ph = v["phases"]
+            for at in ("injected", "weakest"):
+                gate = (f"{ph['weakest robocal_gate'][0]:.3g} | {ph['weakest ratio_gate'][0]:.2f}, "
+                        f"{ph['weakest ratio_gate'][1]:.2f}" if at == "weakest" else "– | –")
+                phases.append(f"| {k[:-7]} | {at} | {ph[f'{at} ideal_80'][0]:.3g} | {gate} "
+                              f"| {ph[f'{at} robocal_chi2_2dof'][0]:.3g} | {ph[f'{at} ratio_chi2_2dof'][0]:.2f}, "
+                              f"{ph[f'{at} ratio_chi2_2dof'][1]:.2f} |")
         if k.endswith("budget"):
             budget.append(f"| {k[:-7]} | {v.get('seeds', '')} | {v['mds_ideal_t3']:.3g} | {v['mds_ideal_80']:.3g} "
                           f"| {v['mds_robocal_gate']:.3g} | {v['ratio_gate']:.2f}, {v.get('ratio_gate_max', np.nan):.2f} "
@@ -412,9 +487,10 @@ def markdown(summary: dict) -> str:
             out_rows.append(f"| {name} | {mult} | {v['runs']} | {pct(v['located'])} | {pct(v['misnamed_high'])} "
                             f"| {pct(v['worse'])} | {st} |")
         else:
-            rows.append(f"| {name} | {mult} | {v['runs']} | {pct(v['named'])} | {pct(v.get('named_or_collinear_alike'))} "
+            rows.append(f"| {name} | {mult} | {v['runs']} | {pct(v['named'])} | {pct(v.get('named_or_near_collinear'))} "
+                        f"| {pct(v.get('named_or_collinear_alike'))} "
                         f"| {pct(v['named_high'])} | {pct(v['misnamed_high'])} | {pct(v.get('named_second'))} "
                         f"| {pct(v['worse'])} | {st} |")
     parts = [rows if len(rows) > 2 else [], out_rows if len(out_rows) > 2 else [], budget if len(budget) > 2 else [],
-             clean]
+             phases if len(phases) > 2 else [], clean]
     return "\n\n".join("\n".join(p) for p in parts if p)

@@ -103,9 +103,10 @@ def _diagnose(model, table, *, jig_tolerance_m: float, x0: np.ndarray | None, se
         folds, far = resampling.without_extrapolated(folds, selected, p.n, p.k)
         alone = sorted(set(alone) | set(far))
     form_cv = _choose_forms(p, nz, sel, folds)
-    # names the campaign cannot tell from each finding's (a swap that fits nearly as well)
-    alikes = (look_alikes(sel.r_w, sel.Sp, p.dof, [sel.testable.index(i) for i in sel.accepted], sel.tols)
-              if sel.accepted else {})
+    # names the campaign cannot tell from each finding's: a swap the fit cannot reject at the diagnosis's level, or
+    # one explaining nearly all the finding explains
+    alikes = (look_alikes(sel.r_w, sel.Sp, p.dof, [sel.testable.index(i) for i in sel.accepted], sel.tols,
+                          level=1 - s.alpha) if sel.accepted else {})
     # 4. joint refit, 5. evidence per finding (ablation CV, ΔBIC, bootstrap)
     before_cv = resampling.holdout(p.Jf, p.r, folds)
     step(f"joint refit of {len(sel.accepted)} finding(s)")

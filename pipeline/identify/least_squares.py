@@ -32,6 +32,7 @@ class FitOptions:
     before: bool = True  # compute the "before" residuals at the model's uncalibrated parameters
     prior_sigma: np.ndarray | None = None  # (P,) SI: each parameter's prior 1σ (default: accuracy.prior's defaults)
     physical: bool = True  # refuse (hold at 0) terms the model says cannot be negative, estimated negative
+    retest: bool = True  # re-test the rank at each solution (False: one solve over the columns free at the start)
 
 
 @dataclass
@@ -218,6 +219,8 @@ def _fit(model: MeasurementModel, data: Table, options: FitOptions, whole=None):
         nfev += int(sol.nfev)
         x = x.copy()
         x[ident.free] = sol.x
+        if not options.retest:
+            break
         J = _flat_jac(model, x, data)
         (again, again_w), weak = rank(J, x, fixed), np.zeros(x.size, bool)
         for _ in range(x.size):  # fixing a weak one may free its dependent partner: test that too

@@ -90,19 +90,27 @@ def _rodrigues(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * K + (1 - c) * (K @ K)
 
 
-def _step_matrix(chain: Chain, s: int, value: float) -> np.ndarray:
-    if chain.kind[s] == CONST:
-        return chain.const[s]
-    T = np.eye(4)
-    if chain.kind[s] == ROT:
-        T[:3, :3] = _rodrigues(chain.axis[s], np.array([value]))[0]
-    else:
-        T[:3, 3] = chain.axis[s] * value
-    return T
-
-
 def _value(chain: Chain, x: np.ndarray, s: int) -> float:
     return float(x[chain.param[s]]) if chain.param[s] >= 0 else 0.0
+
+
+def _step_matrices(chain: Chain, x: np.ndarray, s: int, e: int) -> np.ndarray:
+    """The 4×4 transforms (e−s,4,4) of steps s..e−1 at parameters x, all at once: a constant step's
+    own matrix, a rotation by Rodrigues' formula about its unit axis, a translation along its axis."""
+    kind, axis, p = chain.kind[s:e], chain.axis[s:e], chain.param[s:e]
+    v, has = np.zeros(e - s), p >= 0
+    v[has] = x[p[has]]
+    M = chain.const[s:e].copy()  # the identity where the step is not a constant one
+    rot = np.flatnonzero(kind == ROT)
+    if rot.size:
+        a = axis[rot]
+        K = np.zeros((rot.size, 3, 3))
+        K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -a[:, 2], a[:, 1], -a[:, 0]
+        K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = a[:, 2], -a[:, 1], a[:, 0]
+        sn, c = np.sin(v[rot])[:, None, None], np.cos(v[rot])[:, None, None]
+        M[rot, :3, :3] = np.eye(3) + sn * K + (1 - c) * (K @ K)
+    M[kind == TRANS, :3, 3] = axis[kind == TRANS] * v[kind == TRANS, None]
+    return M
 
 
 _RUNS: dict = {}  # (chain id, the run's parameter values, s, e) -> folded run: planners call `forward` thousands of times per x
@@ -116,18 +124,39 @@ def _constant_run(chain: Chain, x: np.ndarray, s: int, e: int):
     hit = _RUNS.get(key)  # them fixed (most joints, most rounds of a model selection) folds the run once
     if hit is not None and hit[0] is chain:
         return hit[1]
+    M = _step_matrices(chain, x, s, e)
     P = np.eye(4)
-    ax_local = np.empty((e - s, 3))
-    org_local = np.empty((e - s, 3))
-    for k in range(s, e):
-        ax_local[k - s], org_local[k - s] = P[:3, :3] @ chain.axis[k], P[:3, 3]
-        P = P @ _step_matrix(chain, k, _value(chain, x, k))
+    ax_local, org_local = np.empty((e - s, 3)), np.empty((e - s, 3))
+    for k in range(e - s):
+        ax_local[k], org_local[k] = P[:3, :3] @ chain.axis[s + k], P[:3, 3]
+        P = P @ M[k]
     if len(_RUNS) > 4096:
         _RUNS.clear()
     out = (P, ax_local, org_local)
     for a in out:
         a.setflags(write=False)
     _RUNS[key] = (chain, out)
+    return out
+
+
+_PLANS: dict = {}  # chain id -> (chain, `_plan`)
+
+
+def _plan(chain: Chain) -> list[tuple[int, int, int, tuple[int, int] | None]]:
+    """`Chain.runs` with what `_walk` asks of each run, worked out once per chain: (s, e, its joint
+    or −1, and for a rotation about a frame axis the two columns it mixes, else None)."""
+    hit = _PLANS.get(id(chain))
+    if hit is not None and hit[0] is chain:
+        return hit[1]
+    out = []
+    for s, e in chain.runs():
+        a, ji, principal = chain.axis[s], int(chain.joint[s]), None
+        if ji >= 0 and chain.kind[s] == ROT and np.count_nonzero(a) == 1 and np.count_nonzero(a == 1.0) == 1:
+            principal = ((1, 2), (2, 0), (0, 1))[int(np.flatnonzero(a == 1.0)[0])]
+        out.append((s, e, ji, principal))
+    if len(_PLANS) > 256:
+        _PLANS.clear()
+    _PLANS[id(chain)] = (chain, out)
     return out
 
 
@@ -161,10 +190,9 @@ def _walk(chain: Chain, x: np.ndarray, q: np.ndarray, want_jacobian: bool):
     starts = [] if want_jacobian else None
     steps_local = []  # each run's own transform: (R (3,3) or (N,3,3), t (3,) or (N,3))
     T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
-    for s, e in chain.runs():
+    for s, e, ji, principal in _plan(chain):
         if want_jacobian:
             starts.append((s, e, T[:, :3, :3].copy(), T[:, :3, 3].copy()))
-        ji = chain.joint[s]
         if ji < 0:
             P = _constant_run(chain, x, s, e)[0]
             T = T @ P
@@ -178,10 +206,9 @@ def _walk(chain: Chain, x: np.ndarray, q: np.ndarray, want_jacobian: bool):
             continue
         if want_jacobian:
             steps_local.append((_rodrigues(a, v), np.zeros(3)))
-        principal = np.flatnonzero(a == 1.0)
-        if principal.size == 1 and np.count_nonzero(a) == 1:
+        if principal is not None:
             # rotation about a frame axis: two column operations instead of a 3×3 product
-            i, j = ((1, 2), (2, 0), (0, 1))[principal[0]]
+            i, j = principal
             c, sn = np.cos(v)[:, None], np.sin(v)[:, None]
             ci, cj = T[:, :3, i].copy(), T[:, :3, j]
             T[:, :3, i] = c * ci + sn * cj

@@ -27,7 +27,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("ingest", "pipeline.stages.ingest", (), {"context_window_s": 0.02},
           help="MCAP → Parquet: encoder stream, channel tables, measurements with motion context."),
     Stage("validate", "pipeline.stages.validate", ("ingest",),
-          {"gap_factor": 5.0, "outlier_threshold": 6.0, "outlier_f_scale_m": 1e-4, "outlier_fit_max_nfev": 200},
+          {"gap_factor": 5.0, "outlier_threshold": 6.0, "outlier_f_scale_m": 1e-4, "outlier_fit_max_nfev": 400},
           help="Named pass/warn/fail checks; a fail stops the run."),
     Stage("identify", "pipeline.stages.identify", ("ingest", "validate"),
           {"loss": "linear", "f_scale_m": 1e-4, "outlier_threshold": 5.0, "folds": 5, "seed": 0},

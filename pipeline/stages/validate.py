@@ -170,7 +170,6 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
 
         return out + dynamics_checks(run_dir, table, mchan, out)
     if table is not None and not any(c.status == C.FAIL for c in out):
-        from pipeline.identify.least_squares import FitOptions, fit
         from pipeline.ingest.tables import model_columns
         from pipeline.stages.ingest import load_system
 
@@ -183,28 +182,18 @@ def run_checks(run_dir: Path, params: dict) -> list[C.Check]:
         if gross["status"] == "fail":
             out.append(C.Check("plausibility", C.FAIL, f"{mchan}: {gross['message']}", mchan, []))
             return out
-        cap = int(params.get("outlier_fit_max_nfev", 200))
-        # a first robust fit, bounded: the extended Delta's residuals reach round-off within ~50 evaluations, but
-        # the Newton inside its forward kinematics keeps trf short of its 1e-12 tolerances for ~4 800 (≈ 4 min)
+        from pipeline.validate.outlier_fit import DEFAULT_CAP, first_fit, still_falling
+
+        cap = int(params.get("outlier_fit_max_nfev", DEFAULT_CAP))
         # a model whose residuals are not metres (a camera's px) states its own robust scale
         scale = getattr(model, "robust_scale", None) or float(params.get("outlier_f_scale_m", 1e-4))
-        f = fit(model, model_columns(table), FitOptions(loss="soft_l1", f_scale=scale, max_nfev=cap))
+        f = first_fit(model, model_columns(table), scale, cap)
         out.append(C.check_outliers(mchan, f.residuals_after, table["record"], float(params.get("outlier_threshold", 6.0))))
         if not f.converged and still_falling(f.history):  # the screen stands on an iterate short of the minimum
             out.append(C.Check("outlier_fit", C.WARN, f"{mchan}: the first robust fit stopped at its {cap}-"
                                "evaluation cap before converging; outliers were screened on its last iterate",
                                mchan, []))
     return out
-
-
-def still_falling(history: list[float], window: int = 20, rel: float = 1e-6) -> bool:
-    """The fit's cost (RMS per evaluation) fell by more than `rel` over its last `window` evaluations
-    (or it made fewer than 2·`window`): stopped by a cap before reaching its minimum, not only short of
-    the solver's 1e-12 tolerances at round-off (the extended Delta's forward Newton)."""
-    if len(history) < 2 * window:
-        return True
-    before, recent = min(history[:-window]), min(history[-window:])
-    return before - recent > rel * max(recent, 1e-300)
 
 
 def name_the_file(checks: list[C.Check], path: str) -> list[C.Check]:

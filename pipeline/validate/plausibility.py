@@ -47,15 +47,16 @@ def declared_sigma(campaign: dict, unit: str = "m") -> float | None:
 
 
 def quick_rms(model, table: dict, options=None) -> float:
-    """Robust RMS residual (m) after a fit with SCREEN_NFEV evaluations per solve: the median absolute
-    residual / 0.6745 (the RMS of Gaussian residuals), so that a few gross records — which the outlier
-    checks name — do not make good data look like a unit mistake; rows the model cannot evaluate at
-    the start (an unreachable configuration) are left to those checks.  NaN if the fit itself cannot be
-    evaluated (a singular configuration among the rows): the screen then does not judge."""
+    """Robust RMS residual (m) after a short fit (SCREEN_NFEV evaluations per solve, the rank re-tested as identify
+    does, negative compliances not refused: an RMS, not parameter values, and each refusal round is another
+    solve): the median absolute residual / 0.6745 (the RMS of Gaussian residuals), so that a few gross records
+    — which the outlier checks name — do not make good data look like a unit mistake; rows the model cannot
+    evaluate at the start (an unreachable configuration) are left to those checks.  NaN if the fit itself
+    cannot be evaluated (a singular configuration among the rows): the screen then does not judge."""
     from pipeline.identify.least_squares import FitOptions, fit
     from pipeline.identify.model import n_rows, take
 
-    opts = replace(options or FitOptions(), max_nfev=SCREEN_NFEV, before=False)
+    opts = replace(options or FitOptions(), max_nfev=SCREEN_NFEV, before=False, physical=False)
     try:
         with np.errstate(all="ignore"):
             r0 = np.asarray(model.residuals(model.initial_guess(table) if hasattr(model, "initial_guess")

@@ -7,8 +7,8 @@
 - `misspecification`: findings whose own variable still shows structure (`checks.misspecified`)
   are `low` confidence; `twins`: findings the gate found indistinguishable from another
   library candidate are `medium` and list it; `look_alike_cap`: a finding the data can hardly tell
-  from another candidate (its `look_alikes`: the swap fits worse by less than χ²_k(95 %)) is never
-  `high` — the label agrees with the text that says so.
+  from another candidate (its `look_alikes`: a swap the fit cannot reject at the diagnosis's level, or one
+  explaining nearly all the finding explains) is never `high` — the label agrees with the text that says so.
 """
 
 from __future__ import annotations

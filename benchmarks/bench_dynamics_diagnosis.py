@@ -6,12 +6,13 @@ detectable size the clean campaign's gate states for it (is it named, at its joi
 base parameters against the truth's (|β̂ − β| / σ).  Prints the rates and the CPU time.
 
 A form the clean campaign's gate declares not identifiable at its joint (its minimum detectable size above the
-plausible one: an asymmetric Coulomb level, which on the rows the model fits is the joint's offset) is also
-injected at its plausible size, and counted as *stated* when the diagnosis lists it among what it could not see
-and locates the held-out misfit at its joint near rest (the only place it differs from the offset); the absorbing
-parameter's shift and the findings beside it are printed.
+plausible one), and every form named in `--plausible`, is also injected at its plausible size (the gate's
+`plausible_max`: for a friction level, the joint's largest torque), and counted as *named*, or as *stated* when
+the diagnosis lists it among what it could not see and locates the held-out misfit at its joint near rest; the
+absorbing parameter's shift and the findings beside it are printed.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics_diagnosis.py --seeds 20  # 40 resamples, ≈ 660 s CPU
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics_diagnosis.py --seeds 20 --forms asymmetric_coulomb --plausible asymmetric_coulomb
     PYTHONPATH=. .venv/bin/python benchmarks/bench_dynamics_diagnosis.py --seeds 1 --boot 0 --forms stribeck  # bounded
 """
 
@@ -72,6 +73,12 @@ def unseen(doc: dict, name: str, joint: str | None) -> dict | None:
                  and (joint is None or n["location"].split(" (")[0] == joint)), None)
 
 
+def plausible(doc: dict, name: str, joint: str | None) -> dict | None:
+    """The clean gate's candidate row of `name` at `joint` (its `plausible_max`)."""
+    return next((c for c in doc["candidates"] if c["effect"] == name
+                 and (joint is None or c["location"].split(" (")[0] == joint)), None)
+
+
 def stated(doc: dict, fit, clean_fit, name: str, joint: str, size: float) -> tuple[str, int, str]:
     """(outcome, findings beside it, note) of a form the clean gate declared not identifiable, injected at its
     plausible size: 'named' when the injected campaign's own model lets the diagnosis name it at its joint; else
@@ -85,10 +92,12 @@ def stated(doc: dict, fit, clean_fit, name: str, joint: str, size: float) -> tup
     if n is not None and n["absorbed_by"] in fit.names:
         k = fit.names.index(n["absorbed_by"])
         shift = f"; {n['absorbed_by']} moved {fit.theta[k] - clean_fit.theta[k]:+.3g} for {size:.3g} injected"
-    note = (f"absorbed by {n['absorbed_by'] if n else '?'}{shift}; held-out RMS at {joint} near rest "
-            f"{loc.get('near rest / reversal', float('nan')):.3g}, fast {loc.get('fast', float('nan')):.3g} N·m; "
-            f"model {fit.choice.label()}")
-    named = any(f["effect"] == name and _at(f) == joint for f in doc["findings"])
+    hit = next((f for f in doc["findings"] if f["effect"] == name and _at(f) == joint), None)
+    seen = (f"found {hit['parameters'][0]['value']:.3g} ± {hit['parameters'][0]['std']:.2g} for {size:.3g} injected"
+            if hit else f"absorbed by {n['absorbed_by']}{shift}" if n else "identifiable, not found")
+    note = (f"{seen}; held-out RMS at {joint} near rest {loc.get('near rest / reversal', float('nan')):.3g}, fast "
+            f"{loc.get('fast', float('nan')):.3g} N·m before the findings; model {fit.choice.label()}")
+    named = hit is not None
     fds = [f["effect"] + "@" + f["location"] for f in doc["findings"] if not (f["effect"] == name and _at(f) == joint)]
     how = "named" if named else "stated" if n is not None and at_rest else "not stated"
     return how, len(fds), note + (f"; beside it {fds}" if fds else "")
@@ -115,6 +124,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--first", type=int, default=0)
+    ap.add_argument("--plausible", default="", help="forms also injected at their plausible size (comma-separated; "
+                    "a form the clean gate sets aside always is)")
     ap.add_argument("--boot", type=int, default=Settings().n_boot,
                     help="bootstrap resamples of each diagnosis (default: the product's)")
     ap.add_argument("--forms", default=",".join(f[0] for f in FORMS),
@@ -147,14 +158,16 @@ def main() -> None:
         for name, k, opt in forms:
             joint = None if k is None else G.JOINTS[k]
             hidden = unseen(doc, name, joint)
-            if hidden is not None:  # the gate says this campaign cannot see it: also inject at its plausible size
-                size = hidden["plausible_max"]
+            asked = plausible(doc, name, joint) if name in args.plausible.split(",") else None
+            if hidden is not None or asked is not None:  # the gate cannot see it here, or asked: its plausible size
+                size = (hidden or asked)["plausible_max"]
                 ei, _ = G.efforts(seed, t, q, v, a, effects={name: (k, size, opt)})
                 fi, d = run(rb, t, q, ei, settings)
                 how, beside, note = stated(d, fi, fit, name, joint, size)
                 tally[name]["plausible named" if how == "named" else how] += 1
                 tally[name]["beside"] += beside
-                line.append(f"{name} {size:.3g} (not identifiable here; plausible size): {how} ({note})")
+                kind = "not identifiable here" if hidden is not None else "identifiable here"
+                line.append(f"{name} {size:.3g} ({kind}; plausible size): {how} ({note})")
             m = mds(doc, name, joint, opt)
             if m is None:
                 line.append(f"{name}: not identifiable here")
@@ -176,9 +189,9 @@ def main() -> None:
         c = tally[name]
         hid = c["plausible named"] + c["stated"] + c["not stated"]
         if hid:
-            print(f"  {name:20s} not identifiable on the clean design in {hid} seed(s); injected at its plausible size: "
-                  f"named {c['plausible named']}, stated as absorbed (listed, the misfit located at its joint near "
-                  f"rest) {c['stated']}, neither {c['not stated']}; other findings beside it {c['beside']}")
+            print(f"  {name:20s} injected at its plausible size in {hid} seed(s): named {c['plausible named']}, "
+                  f"stated as absorbed (listed, the misfit located at its joint near rest) {c['stated']}, neither "
+                  f"{c['not stated']}; other findings beside it {c['beside']}")
         n = sum(c[k] for k in ("named", "located", "wrong", "missed"))
         print(f"  {name:20s} named in {c['named']}/{n} ({100 * c['named'] / max(n, 1):.0f} %); located {c['located']}, "
               f"wrong {c['wrong']}, missed {c['missed']}; other findings {c['extra']}")

@@ -138,3 +138,33 @@ def test_the_held_out_gain_is_judged_against_the_noise_not_against_where_the_eff
     assert gain_z(e + s, e, fs) > 5  # the scatter of the blocks' gains alone put it at 1.3
     overfit = rng.normal(0, 0.01, (T, F))  # a term's held-out prediction where it is only noise
     assert gain_z(e, e - overfit, fs) < 0
+
+
+def test_an_asymmetric_coulomb_level_is_named_from_the_rests_and_does_not_pull_the_model_choice(clean):
+    """A Coulomb level higher one way (+f_a while the joint moves, the generator's rests without it) is, on the
+    moving rows, the joint's offset; only the rests — where a held joint's friction lies within ± its Coulomb
+    level — separate them.  Injected at 4× the size the clean gate states for it (beyond that band): named at its
+    joint with its size, nothing else beside it, and the model chosen as on the clean campaign (the rests' misfit
+    no longer pulls the choice to a low cut-off or to no Coulomb term, and the Stribeck terms that model's misfit
+    drew are gone)."""
+    from pipeline.diagnose.adapters.dynamics_diagnosis import diagnose
+    from pipeline.diagnose.method import Settings
+    from pipeline.dynamics import identify as I
+    from pipeline.dynamics import rigid_body as RB
+
+    _, fit, diag, _ = clean
+    gate = next(c for c in diag["candidates"] if c["effect"] == "asymmetric_coulomb" and c["location"] == "a3")
+    assert gate["identifiable"], gate  # the rests show it: its band (a3's Coulomb level, 0.7 N·m) and a little more
+    size = 4 * gate["min_detectable"]
+    t, q, v, a = G.trajectory(SEED, DURATION_S)
+    e, _ = G.efforts(SEED, t, q, v, a, effects={"asymmetric_coulomb": (2, size, None)})
+    rb = RB.build(G.ARM, G.JOINTS)
+    data = I.Data(t, q, e, np.ones(4, bool))
+    f = I.identify(rb, data)
+    structure = f.choice.label().rsplit(", ", 1)[0]  # cut-off, terms, Coulomb width (the solvers tie here)
+    assert structure == fit["model_choice"]["label"].rsplit(", ", 1)[0], (f.choice.label(), fit["model_choice"])
+    doc = diagnose(rb, data, f, Settings(n_boot=0))
+    assert [(x["effect"], x["location"]) for x in doc["findings"]] == [("asymmetric_coulomb", "a3")], doc["findings"]
+    p = doc["findings"][0]["parameters"][0]
+    assert abs(p["value"] - size) < 0.05 * size, (p, size)
+    assert doc["holdout_rms_after_m"] < 0.5 * doc["holdout_rms_before_m"]

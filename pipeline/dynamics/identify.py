@@ -15,7 +15,7 @@ import numpy as np
 
 from pipeline.dynamics import base as B
 from pipeline.dynamics import design, signals, solve
-from pipeline.dynamics.crossval import held_out, rms
+from pipeline.dynamics.crossval import blocks, held_out, rms
 from pipeline.dynamics.rigid_body import RigidBody, regressor, standard_parameters
 
 
@@ -91,6 +91,7 @@ class _Prepared:
     raw: np.ndarray  # (T, F) raw torques (the score)
     Xp: np.ndarray  # (T, F, P) the model's regressor at every sample (predicts the raw torques)
     fit: np.ndarray  # (J,) bool: the fitted joints
+    use: np.ndarray  # (T, F) bool: the samples the model fits (`fitted_rows`)
 
 
 def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = None) -> _Prepared:
@@ -111,8 +112,9 @@ def prepare(rb: RigidBody, data: Data, choice: Choice, Y_cache: dict | None = No
             Y_cache[key] = (Y, v, a)
     X = design.matrix(Y, v, a, data.fit, choice.terms)
     raw = np.asarray(data.tau, float)[:, data.fit]
-    use = fitted_rows(v[:, data.fit], choice.terms).astype(float)
-    return _Prepared(X * use[:, :, None], raw * use, raw, X, np.asarray(data.fit, bool))
+    use = fitted_rows(v[:, data.fit], choice.terms)
+    w = use.astype(float)
+    return _Prepared(X * w[:, :, None], raw * w, raw, X, np.asarray(data.fit, bool), use)
 
 
 def fitted_rows(v: np.ndarray, terms: design.Terms) -> np.ndarray:
@@ -124,6 +126,35 @@ def fitted_rows(v: np.ndarray, terms: design.Terms) -> np.ndarray:
     if "coulomb" in terms.friction and terms.coulomb_width > 0:
         use[np.abs(v) < SLOW_WIDTHS * terms.coulomb_width] = False
     return use
+
+
+REST_S = 1.0  # a joint below its crawl speed for this long is held at rest (a reversal passes in a few samples)
+REST_EDGE_S = 0.25  # the held run's ends left out: the joint starting or stopping, stiction's presliding
+
+
+def held_rows(use: np.ndarray, fs: float, trim: bool = True) -> np.ndarray:
+    """Which samples (T, F) of the fitted joints a joint is *held at rest*: within runs of samples the model does
+    not fit (`fitted_rows` False: below the crawl speed) lasting at least `REST_S`, less `REST_EDGE_S` at either
+    end (`trim`; the rows a rest level is measured on — untrimmed, the rows it predicts).  What a held joint's
+    torque carries beyond the rigid body is its *rest level*: stiction's hold, anywhere within ± its Coulomb level,
+    not the moving offset — a level no candidate models."""
+    slow = ~np.asarray(use, bool)
+    out = np.zeros_like(slow)
+    n, edge = int(round(REST_S * fs)), int(round(REST_EDGE_S * fs)) if trim else 0
+    for f in range(slow.shape[1]):
+        ends = np.flatnonzero(np.diff(np.r_[0, slow[:, f].astype(np.int8), 0]))
+        for lo, hi in zip(ends[::2], ends[1::2]):
+            if hi - lo >= n:
+                out[lo + edge:hi - edge, f] = True
+    return out
+
+
+def coulomb_columns(rb: RigidBody, fit: np.ndarray, terms: design.Terms) -> np.ndarray | None:
+    """The θ index (F,) of each fitted joint's Coulomb level f_c, None without Coulomb friction."""
+    if "coulomb" not in terms.friction:
+        return None
+    per = [k for k, _ in terms.per_joint()]
+    return 10 * rb.n_joints + np.arange(int(np.sum(fit))) * len(per) + per.index("fc")
 
 
 def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: B.BaseSet,
@@ -142,16 +173,37 @@ def _solve(rb: RigidBody, P: _Prepared, rows: np.ndarray, choice: Choice, base: 
 
 
 def cross_validate(rb: RigidBody, P: _Prepared, choice: Choice, base: B.BaseSet, folds: int, guard: int,
-                   decimate: int, rows: np.ndarray | None = None) -> np.ndarray:
-    """Held-out residuals (len(rows), F) on the raw torques, contiguous blocks of `rows` (default: every
-    sample)."""
+                   decimate: int, rows: np.ndarray | None = None, held: np.ndarray | None = None,
+                   rests: np.ndarray | None = None):
+    """(held-out residuals (len(rows), F) on the raw torques, contiguous blocks of `rows` (default: every sample);
+    the residuals the choice scores).  With `held` (T, F), the samples a joint is held at rest (`held_rows`,
+    trimmed) and `rests` (T, F) (untrimmed), the second are the first with each block's rests taken about what of
+    the training blocks' rest level (the mean residual over the joint's held samples) lies beyond ± the joint's
+    Coulomb level (a level no candidate models); without, the same residuals."""
     rows = np.arange(P.X.shape[0]) if rows is None else rows
+    levels = {}
+    fc = coulomb_columns(rb, P.fit, choice.terms)
 
     def fit_predict(train, test):
         s = _solve(rb, P, rows[train], choice, base, decimate)
+        if held is not None and fc is not None:
+            tr = rows[train]
+            level = np.zeros(held.shape[1])
+            for f in range(held.shape[1]):  # each joint's held rows only (a joint at rest all along: most rows)
+                at = tr[held[tr, f]]
+                if at.size:
+                    level[f] = float(np.mean(P.Xp[at, f, :] @ s.theta - P.raw[at, f]))
+            levels[int(test[0])] = np.sign(level) * np.maximum(np.abs(level) - np.abs(s.theta[fc]), 0.0)
         return P.Xp[rows[test]] @ s.theta - P.raw[rows[test]]
 
-    return held_out(fit_predict, rows.size, folds, guard)
+    r = held_out(fit_predict, rows.size, folds, guard)
+    if held is None or not levels:
+        return r, r
+    adj = r.copy()
+    h = (held if rests is None else rests)[rows]
+    for b in blocks(rows.size, folds):
+        adj[b] -= np.where(h[b], levels[int(b[0])][None, :], 0.0)
+    return r, adj
 
 
 SLOW_WIDTHS = 3.0  # below this many Coulomb widths of speed a joint's sample is not fitted (its friction is stiction's)
@@ -179,7 +231,8 @@ def candidates_for(data: Data, motors: tuple = (),
 def identify(rb: RigidBody, data: Data, candidates: tuple[Choice, ...] = DEFAULT_CANDIDATES,
              solvers: tuple[str, ...] = ("ols", "wls", "consistent"), folds: int = 5, guard_s: float = 0.5,
              decimate: int = 1, progress=None, rows: np.ndarray | None = None) -> Fit:
-    """Choose the model by held-out torque RMS (pooled over the fitted joints), then refit it on every sample.
+    """Choose the model by held-out torque RMS (pooled over the fitted joints; a joint held at rest scored about
+    what of its rest level lies beyond its Coulomb band, `cross_validate`), then refit it on every sample.
     Structure candidates are compared with OLS; the solvers then on the chosen structure.  `rows` (sample
     indices, default all) are the only samples the choice and the fit may use: the others are filtered
     with the trajectory but never seen, so that an outer test can score them (nested cross-validation);
@@ -189,6 +242,14 @@ def identify(rb: RigidBody, data: Data, candidates: tuple[Choice, ...] = DEFAULT
     with one_thread():
         return _identify(rb, data, candidates, solvers, folds, guard_s, decimate, progress or (lambda s: None),
                          rows)
+
+
+def _rests(P: _Prepared, c: Choice, fs: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """(held, rests) of `cross_validate` for candidate `c`: (None, None) without Coulomb friction or held joints."""
+    if "coulomb" not in c.terms.friction or np.all(P.use):
+        return None, None
+    held = held_rows(P.use, fs)
+    return (held, held_rows(P.use, fs, trim=False)) if held.any() else (None, None)
 
 
 def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say, use=None) -> Fit:
@@ -204,10 +265,11 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say, use=
         bkey = (c.terms.friction, c.terms.armature)
         if bkey not in bases:
             bases[bkey] = structural_base(rb, data.fit, c.terms)
-        r = cross_validate(rb, P, replace(c, solver="ols"), bases[bkey], folds, guard, decimate, use)
-        score = float(rms(r))
-        rows.append({"choice": replace(c, solver="ols").label(), "holdout_rms": score,
-                     "holdout_rms_joint": rms(r, axis=0).tolist()})
+        r, adj = cross_validate(rb, P, replace(c, solver="ols"), bases[bkey], folds, guard, decimate, use,
+                                *_rests(P, c, fs))
+        score = float(rms(adj))
+        rows.append({"choice": replace(c, solver="ols").label(), "holdout_rms": float(rms(r)),
+                     "holdout_rms_choice": score, "holdout_rms_joint": rms(r, axis=0).tolist()})
         say(f"{replace(c, solver='ols').label()}: held-out {score:.4f}")
         if best is None or score < best[0]:
             best = (score, replace(c, solver="ols"), r)
@@ -220,12 +282,13 @@ def _identify(rb, data, candidates, solvers, folds, guard_s, decimate, say, use=
             continue
         c = replace(choice, solver=s)
         try:
-            r = cross_validate(rb, P, c, base, folds, guard, decimate, use)
+            r, adj = cross_validate(rb, P, c, base, folds, guard, decimate, use, *_rests(P, c, fs))
         except ArithmeticError as e:
             rows.append({"choice": c.label(), "error": str(e)})
             continue
-        score = float(rms(r))
-        rows.append({"choice": c.label(), "holdout_rms": score, "holdout_rms_joint": rms(r, axis=0).tolist()})
+        score = float(rms(adj))
+        rows.append({"choice": c.label(), "holdout_rms": float(rms(r)), "holdout_rms_choice": score,
+                     "holdout_rms_joint": rms(r, axis=0).tolist()})
         say(f"{c.label()}: held-out {score:.4f}")
         if score < best[0]:
             best = (score, c, r)

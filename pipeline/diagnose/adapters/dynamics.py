@@ -52,13 +52,18 @@ def table(rb: RigidBody, data: I.Data, fit: I.Fit) -> dict:
     dtau = np.gradient(tau_fit, t, axis=0, edge_order=2)
     dq, dv, M = _rnea_derivatives(rb, qf, v, a, mask, _physical_rigid(rb, fit))
     prismatic = np.array([rb.model.joints[int(b)].shortname().startswith("JointModelP") for b in rb.body_of])[mask]
+    joints = [j for j, m in zip(rb.joints, mask) if m]
+    moving = P.use
+    held = I.held_rows(moving, signals.sample_rate(t))
+    level = {n: abs(float(x)) for n, x in zip(fit.names, fit.theta)}
     return {"time_s": t - t[0], "q": qf[:, mask], "v": v[:, mask], "a": a[:, mask], "tau": P.raw,
             "tau_fit": tau_fit, "tau_rigid": tau_rigid, "dtau": dtau,
             "dtau_dq": dq, "dtau_dv": dv,
             "mass_matrix": M,
             "coulomb_width": fit.choice.terms.coulomb_width if "coulomb" in fit.choice.terms.friction else 0.01,
-            "joints": [j for j, m in zip(rb.joints, mask) if m], "prismatic": prismatic,
-            "fitted": I.fitted_rows(v[:, mask], fit.choice.terms),
+            "joints": joints, "prismatic": prismatic,
+            "fitted": moving | held, "moving": moving, "held": held,
+            "coulomb_level": np.array([level.get(f"{j}.fc", 0.0) for j in joints]),
             "X": P.Xp[:, :, fit.base.independent], "base_names": [fit.names[i] for i in fit.base.independent]}
 
 
@@ -174,17 +179,18 @@ def build(rb: RigidBody, data: I.Data, fit: I.Fit) -> Built:
     # per-joint weights and AR whitening from the maximal model's residual (the base regressor and every
     # candidate): the noise, not the base model's misfit, which holds whatever the candidates would take
     Smat = np.hstack([s.reshape(T * F, -1) for s in S]) if S else np.zeros((T * F, 0))
-    # the rows the identification fits (a crawling joint's are not: its friction there is stiction's, which the
-    # model does not describe and no candidate is tested against)
-    use = np.asarray(tab["fitted"], bool)
-    u = use.reshape(T * F)
+    # on the rows the identification fits (a crawling joint's are not: its friction there is stiction's, which the
+    # model does not describe and no candidate is tested against); the rows of a joint held at rest are tested too
+    # (`fitted`: only they separate its moving offset from its rest level) but carry stiction's hold, not the noise
+    use, mov = np.asarray(tab["fitted"], bool), np.asarray(tab.get("moving", tab["fitted"]), bool)
+    u = mov.reshape(T * F)
     Dmax = np.hstack([X, Smat])[u]
     emax = np.zeros((T, F))
-    emax[use] = residual_of(Dmax, y[u])
+    emax[mov] = residual_of(Dmax, y[u])
     n = max(int(u.sum()), 1)
-    sig = np.sqrt(np.sum(emax**2, axis=0) / np.maximum(use.sum(axis=0), 1) * n / max(n - Dmax.shape[1], 1))
+    sig = np.sqrt(np.sum(emax**2, axis=0) / np.maximum(mov.sum(axis=0), 1) * n / max(n - Dmax.shape[1], 1))
     w = 1.0 / np.maximum(sig, 1e-12)
-    W = Whitener(T, w, [ar_fit(emax[use[:, f], f] * w[f]) if use[:, f].sum() > 10 * AR_MAX else np.zeros(0)
+    W = Whitener(T, w, [ar_fit(emax[mov[:, f], f] * w[f]) if mov[:, f].sum() > 10 * AR_MAX else np.zeros(0)
                         for f in range(F)], use)  # a joint that hardly moves: its few rows unfiltered
     Jf = W(X)
     Q = orthonormal(Jf)

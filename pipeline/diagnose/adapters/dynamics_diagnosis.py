@@ -288,8 +288,8 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
         rejected, kept, final_cv = list(range(len(findings))), [], before
     why = ("the model with the selected terms is worse out of sample than the identified model alone" if worse
            else f"modelling it does not lower the held-out torque error by more than {MIN_GAIN_Z:g} standard errors")
-    sign_note = ("its sign is not that physics (a negative compliance, friction falling with load): a proxy for "
-                 "something the library does not name")
+    sign_note = ("its sign is not that physics (a negative compliance, friction falling with load, a breakaway bump "
+                 "below the Coulomb level): a proxy for something the library does not name")
     rejected_docs = [{**findings[j], "confidence": "rejected",
                       "note": sign_note if j in wrong_sign and not worse else why} for j in rejected]
     acc_k = [acc[j] for j in kept]
@@ -299,7 +299,10 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
     # 5. where the rest is, grading, status
     cols = list(range(p.n_free)) + [c for i in acc_k for c in col_of[i]]
     D = _design(b, acc_k)  # N·m per unit: the whitener weighs every row once (1/σ_j, its AR filter)
-    th_k, *_ = np.linalg.lstsq(b.W(D), yw, rcond=None)
+    # what is left where the joints move, the model refitted there: a held joint's rows carry stiction's hold,
+    # which changes from rest to rest — no structure along a joint's motion, load or time that a term could take
+    Wm = A.Whitener(T, b.W.w, b.W.phi, tab["moving"])
+    th_k, *_ = np.linalg.lstsq(Wm(D), Wm(b.y), rcond=None)
     r_final = b.y - D @ th_k
     col_list, pos2 = [], p.n_free
     for i in acc_k:
@@ -307,18 +310,18 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
         pos2 += p.lib[i].k
     del cols
     variables = A.variables(tab)
-    Wv = [lack_of_fit.Variable(v.name, v.unit, v.values, b.W(v.columns), v.centres, v.width, v.gain) for v in variables]
-    n_eff = b.W.n_effective - D.shape[1]
-    lof = lack_of_fit.test(b.W(r_final), b.W(D), Wv, n_eff, settings.alpha, whiten=b.W,
+    Wv = [lack_of_fit.Variable(v.name, v.unit, v.values, Wm(v.columns), v.centres, v.width, v.gain) for v in variables]
+    n_eff = Wm.n_effective - D.shape[1]
+    lof = lack_of_fit.test(Wm(r_final), Wm(D), Wv, n_eff, settings.alpha, whiten=Wm,
                            original=(r_final, D, variables))
     where = [{"variable": t.variable, "p_value": t.p_holm, "statistic": t.statistic,
               "region": list(t.region) if isinstance(t.region, tuple) else t.region, "peak_m": t.peak_m,
               "advice": A.advice(t.variable) or checks.advice_for(t.variable)}
              for t in sorted(lof, key=lambda t: t.p_holm) if t.significant]
     effects = [p.lib[i] for i in acc_k]
-    grading.grade(findings, effects, contributions, col_list, D, r_final, variables, where, sel.gates, b.W,
+    grading.grade(findings, effects, contributions, col_list, D, r_final, variables, where, sel.gates, Wm,
                   settings.alpha)
-    misfit = arbiter.misspecification(findings, effects, b.W(r_final), b.W(D), Wv, settings.alpha)
+    misfit = arbiter.misspecification(findings, effects, Wm(r_final), Wm(D), Wv, settings.alpha)
     status, reason = checks.status(len(findings), bool(where), None, worse, misfit, None)
     say(f"status {status} ({time.perf_counter() - t0:.1f} s)")
     return {

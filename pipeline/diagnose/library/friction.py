@@ -9,7 +9,8 @@ fitted joints' filtered velocity ``v`` (T, F), the model's rigid-body torque ``t
 (inertia, Coriolis and gravity: the load), the Coulomb smoothing width ``coulomb_width`` and the
 joint names ``joints`` (F,).  s(v) = tanh(v / width) is the model's own Coulomb sign.
 
-- ``stribeck@J``: the breakaway bump f_s·exp(−(v/v_s)²)·s(v) above Coulomb at low speed; forms
+- ``stribeck@J``: the breakaway bump f_s·exp(−(v/v_s)²)·s(v) above Coulomb at low speed (f_s > 0: static
+  friction above the sliding one; found below, it is not that physics); forms
   v_s = 3 %, 10 % and 30 % of the joint's largest speed (the held-out error picks one);
 - ``asymmetric_coulomb@J``: a Coulomb level that differs with the direction of motion, beyond what
   the offset takes: f_a·|s(v)| acts only while the joint moves (the offset acts at rest too), so
@@ -81,7 +82,7 @@ def stribeck(table, f: int, share: float) -> Effect:
 
     return Effect("stribeck", f"{name} (v_s {vs:.3g} {vu})", ("f_s",), (tu,), torque_scale(table, f), "torque",
                   basis, 10, f"v_{name}", f"move {name} slowly in both directions, at several constant low speeds",
-                  data={"joint": f, "form": f"v_s {vs:.3g} {vu}", "v_s": vs})
+                  data={"joint": f, "form": f"v_s {vs:.3g} {vu}", "v_s": vs, "sign": 1})
 
 
 def asymmetric_coulomb(table, f: int) -> Effect:
@@ -91,11 +92,11 @@ def asymmetric_coulomb(table, f: int) -> Effect:
     def basis(_arm, _x, t):
         return on_joint(t, f, np.abs(sign(t, f))[:, None])
 
+    band = float(np.asarray(table.get("coulomb_level", np.zeros(len(table["joints"]))), float)[f])
     return Effect("asymmetric_coulomb", name, ("f_a",), (tu,), torque_scale(table, f), "torque", basis, 11,
-                  f"v_{name}", f"{name}'s offset carries it (while {name} moves, a Coulomb level higher one way by 2·f_a is an "
-                  f"offset f_a): read {name}'s identified offset as that asymmetry plus any effort offset; only "
-                  "rests separate them, where a held joint's torque is stiction's, which the model does not describe",
-                  data={"joint": f})
+                  f"v_{name}", f"{name}'s offset carries it while {name} moves (a Coulomb level higher one way by 2·f_a is "
+                  f"an offset f_a); held at rest {name} does not carry it: hold {name} still for a second or more, "
+                  "several times, to separate them", tolerance=band, data={"joint": f})
 
 
 def load_friction(table, f: int) -> Effect:

@@ -118,7 +118,8 @@ def test_flags_are_shown_without_a_value_and_runs_import_options_have_their_pane
     bag = panels["Import (when REC is a ROS 2 bag or needs --urdf)"]
     assert bag == ["--urdf", "--root", "--tip", "--joint-topic", "--measure-topic", "--measure", "--still-window-s",
                    "--still-speed-rad-s", "--time", "--sigma-m", "--sigma-rad", "--effort-scale", "--effort-offset",
-                   "--effort-mix", "--effort-joints", "--effort-units", "--target", "--camera-on",
+                   "--effort-mix", "--effort-joints", "--effort-units", "--position-scale", "--position-offset",
+                   "--position-mix", "--target", "--camera-on",
                    "--clock-offset-bound-s"]
     assert not set(bag) & set(panels["Options"])
     assert "--force" in panels["Options"] and "--strict" in panels["Options"]

@@ -139,3 +139,30 @@ def test_holdout_floor_check_is_calibrated_on_noise_at_the_floor():
     e = rng.normal(0, 1.4 * np.sqrt(v))  # 1.4× the floor
     r = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
     assert checks.holdout_floor_check(A, resampling.holdout(A, r, folds), folds, v, 0.01)["holdout_p_value"] < 0.05
+
+
+@settings(max_examples=40, deadline=None)
+@given(size=st.floats(0.0, 0.05), sd=st.floats(1e-5, 0.01), phase=st.floats(0.0, 2 * np.pi))
+def test_a_finding_fitted_beyond_its_plausible_size_is_a_proxy_not_the_physics(size, sd, phase):
+    """A named term fitted more than 2σ beyond the size its library entry holds physically plausible (an elastic
+    lag of 24 mrad/(N·m) where 10 is the most a joint gives) is reported as a likely proxy and graded `low`;
+    within 2σ of it the name stands.  A two-phase term's size is its amplitude, whatever the phase."""
+    from pipeline.diagnose.library.term import Effect
+    from pipeline.diagnose.verdict.grading import beyond_plausible
+
+    def effect(params, units):
+        return Effect(name="joint_elasticity", location="arm_4", parameters=params, units=units, plausible=0.01,
+                      where="joint", basis=lambda *a: None, priority=0, variable="torque", advice="")
+
+    one = effect(("c",), ("rad/(N·m)",))
+    fd = {"parameters": [{"name": "c", "value": -size, "std": sd, "unit": "rad/(N·m)"}]}
+    note = beyond_plausible(fd, one)
+    assert (note is not None) == (size - 2 * sd > 0.01)
+    if note:
+        assert "beyond the 0.01 rad/(N·m)" in note and "proxy" in note
+    two = effect(("a_cos", "a_sin", "v"), ("rad", "rad", "rad/s"))  # a third parameter in another unit: not the size
+    fd2 = {"parameters": [{"name": "a_cos", "value": size * np.cos(phase), "std": sd, "unit": "rad"},
+                          {"name": "a_sin", "value": size * np.sin(phase), "std": sd / 2, "unit": "rad"},
+                          {"name": "v", "value": 100.0, "std": 0.0, "unit": "rad/s"}]}
+    if abs(size - 2 * sd - 0.01) > 1e-12:  # the amplitude is the size up to round-off
+        assert (beyond_plausible(fd2, two) is not None) == (size - 2 * sd > 0.01)

@@ -93,6 +93,11 @@ def test_the_diagnosis_states_its_held_out_effect_and_what_it_cannot_see(guide):
         assert d["not_identifiable"], "TIAGo's arm_1 drive scale is absorbed: the diagnosis must say so"
         scale = {s["joint"]: s for s in d["drive_scale"]["per_joint"]}
         assert not scale["arm_1_joint"]["identifiable"]
+        plausible = {(c["effect"], c["location"]): c["plausible_max"] for c in d["candidates"]}
+        for f in d["findings"]:  # a size beyond what a joint has is stated as a proxy, never a confident name
+            p = f["parameters"][0]
+            if abs(p["value"]) - 2 * p["std"] > plausible[(f["effect"], f["location"])] and len(f["parameters"]) == 1:
+                assert f["confidence"] == "low" and "proxy" in f["note"], f
 
 
 def test_the_planned_excitation_beats_a_random_one_and_the_simulated_effects_are_named(guide):

@@ -25,6 +25,7 @@ TASK_IMPORTS = ("pipeline.stages.reprocess", "pipeline.stages.results", "pipelin
                 "pipeline.models.jig", "pipeline.models.dh_export", "pipeline.ros2.kind",
                 "pyarrow.dataset", "dateutil.relativedelta", "pipeline.physics.compliance",
                 "pipeline.physics.gravity", "pipeline.physics.summary", "pipeline.validate.plausibility",
+                "pipeline.validate.outlier_fit",
                 "threadpoolctl", "pipeline.identify.folds", "pipeline.identify.physics_choice",
                 "pipeline.physics.encoder", "pipeline.identify.route", "pipeline.dynamics.stage")
 _started = False  # this module started the forkserver running now

@@ -231,7 +231,8 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
         if chosen != sel.accepted:
             sel.restrict(p, chosen)
     pos = [sel.testable.index(i) for i in sel.accepted]
-    alikes = look_alikes(sel.r_w, sel.Sp, p.dof, pos, sel.tols) if sel.accepted else {}
+    # names the recording cannot tell from each finding's: a swap the fit cannot reject at the diagnosis's level
+    alikes = look_alikes(sel.r_w, sel.Sp, p.dof, pos, sel.tols, level=1 - settings.alpha) if sel.accepted else {}
     boot = np.zeros(len(sel.testable))
     if sel.accepted and settings.n_boot:
         groups = np.repeat((tab["time_s"] // BOOT_BLOCK_S).astype(int), F)
@@ -322,6 +323,9 @@ def _diagnose(rb, data, fit, settings: Settings, say) -> dict:
     grading.grade(findings, effects, contributions, col_list, D, r_final, variables, where, sel.gates, Wm,
                   settings.alpha)
     misfit = arbiter.misspecification(findings, effects, Wm(r_final), Wm(D), Wv, settings.alpha)
+    for fd, e in zip(findings, effects):  # a size no joint has: the name is a proxy for something else
+        if (beyond := grading.beyond_plausible(fd, e)) is not None:
+            fd["confidence"], fd["note"] = "low", beyond
     status, reason = checks.status(len(findings), bool(where), None, worse, misfit, None)
     say(f"status {status} ({time.perf_counter() - t0:.1f} s)")
     return {

@@ -101,6 +101,24 @@ def grade(findings: list[dict], effects: list, contributions: list, col_of_list:
     return misfit
 
 
+def beyond_plausible(fd: dict, e) -> str | None:
+    """The note of a finding whose fitted size lies beyond the physically plausible size its library term
+    declares (`Effect.plausible`) by more than 2σ, else None: the name then stands for something else the
+    library does not hold (a proxy).  For a library whose parameters are physical sizes (the dynamics'
+    friction and drive terms); a geometric library's plausible bound is the gate's, and some of its forms
+    (a warm-up's amplitude) are not sizes of that kind.  Its size is the norm of the parameters in the term's first unit
+    (an eccentricity's two phases together; a Stribeck term's level, not its speed), σ their largest."""
+    ps = [p for p in fd.get("parameters", []) if p["unit"] == e.units[0]]
+    if not ps or not np.isfinite(e.plausible):
+        return None
+    size = float(np.linalg.norm([p["value"] for p in ps]))
+    sd = max(p["std"] for p in ps)
+    if not size - 2 * sd > e.plausible:
+        return None
+    return (f"its fitted size {size:.3g} ± {sd:.2g} {e.units[0]} is beyond the {e.plausible:.3g} {e.units[0]} the "
+            f"library holds plausible for {e.name}: likely a proxy for something outside the library")
+
+
 def _local_alternative(fd: dict, e, variables: list, r_wo: np.ndarray, A_rest: np.ndarray, S: np.ndarray, W,
                        alpha: float) -> None:
     """A `high` finding acting over a whole place (a face's flatness) is kept `high` only if the data favour it

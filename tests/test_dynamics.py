@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from conftest import run_cli
 from pipeline.dynamics import base as B
@@ -314,3 +316,24 @@ def test_base_parameter_sigma_counts_only_the_rows_the_fit_uses():
     assert np.allclose(full.beta, alone.beta) and np.allclose(full.beta_std, alone.beta_std, rtol=1e-9)
     s = wls(Xz, yz, base).sigma  # each joint's residual σ, which weighs its rows
     assert np.allclose(s, [0.05, 0.2], rtol=0.05), s
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.lists(st.booleans(), min_size=3, max_size=3), min_size=1, max_size=120),
+       st.sampled_from([5.0, 10.0, 20.0]), st.booleans())
+def test_a_joint_is_held_at_rest_inside_its_long_slow_runs_less_their_edges(rows, fs, trim):
+    """`held_rows` against its definition, sample by sample: a sample is held when it lies in a run of samples the
+    model does not fit (too slow) at least REST_S long, and (trimmed) at least REST_EDGE_S from the run's ends."""
+    use = np.array(rows, bool)
+    got = I.held_rows(use, fs, trim)
+    n, edge = int(round(I.REST_S * fs)), int(round(I.REST_EDGE_S * fs)) if trim else 0
+    T = len(use)
+    for f in range(use.shape[1]):
+        for i in range(T):
+            lo = hi = i
+            while not use[i, f] and lo > 0 and not use[lo - 1, f]:
+                lo -= 1
+            while not use[i, f] and hi < T - 1 and not use[hi + 1, f]:
+                hi += 1
+            want = not use[i, f] and hi - lo + 1 >= n and lo + edge <= i < hi + 1 - edge
+            assert got[i, f] == want, (i, f, lo, hi)

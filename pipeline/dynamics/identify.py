@@ -139,14 +139,19 @@ def held_rows(use: np.ndarray, fs: float, trim: bool = True) -> np.ndarray:
     torque carries beyond the rigid body is its *rest level*: stiction's hold, anywhere within ± its Coulomb level,
     not the moving offset — a level no candidate models."""
     slow = ~np.asarray(use, bool)
-    out = np.zeros_like(slow)
+    T, F = slow.shape
     n, edge = int(round(REST_S * fs)), int(round(REST_EDGE_S * fs)) if trim else 0
-    for f in range(slow.shape[1]):
-        ends = np.flatnonzero(np.diff(np.r_[0, slow[:, f].astype(np.int8), 0]))
-        for lo, hi in zip(ends[::2], ends[1::2]):
-            if hi - lo >= n:
-                out[lo + edge:hi - edge, f] = True
-    return out
+    # every joint's slow runs at once: their starts and ends in the joint-major flattening, padded by one sample
+    pad = np.zeros((F, T + 2), np.int8)
+    pad[:, 1:-1] = slow.T
+    d = np.diff(pad, axis=1).ravel()  # +1 where a run starts, −1 one past its end; row f at f·(T + 1)
+    lo, hi = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    keep = hi - lo >= n
+    lo, hi = lo[keep] + edge, hi[keep] - edge
+    mark = np.zeros(F * (T + 1) + 1, np.int32)
+    np.add.at(mark, lo[hi > lo], 1)
+    np.add.at(mark, hi[hi > lo], -1)
+    return (np.cumsum(mark)[:-1].reshape(F, T + 1)[:, :T] > 0).T
 
 
 def coulomb_columns(rb: RigidBody, fit: np.ndarray, terms: design.Terms) -> np.ndarray | None:

@@ -8,6 +8,11 @@ is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at
   weakest direction, (z₁₋α/(2m) + z₀.₈)·σ/s_min(S⊥) (+ its immaterial tolerance: what could hide), and
   confounding with other candidates; a candidate whose detectable size is beyond what is
   physically plausible is `not_identifiable`; a twin that no plausible size tells from an earlier candidate too.
+  Which candidates are tested is decided with m the library's size (before any is known testable); the sizes
+  stated for the tested ones are those of the test the selection runs: its first Holm threshold α/m over the
+  m tested, and for a k-parameter term the grouped test's k degrees of freedom (`power_scale`: √λ of the
+  noncentral χ²_k reaching 80 % power; 50 % for the detection threshold) — a phase the test does not know
+  costs power, and the stated size says so.
 - `sigma_given`: the residual σ after the effects accepted so far — the gate's σ once something
   is accepted (the geometry-only σ carries the unmodelled effects and inflates every MDS).
 """
@@ -126,6 +131,16 @@ def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free
     return {"proj": proj, "basis": basis, "per": per, "unit": [_unit(p) for p in proj]}
 
 
+def power_scale(k: int, level: float, power: float) -> float:
+    """√λ (σ per unit of the projected signature's norm along its weakest direction) at which a test of k
+    parameters at `level` reaches `power`: k = 1, the two-sided z test z₁₋level/2 + z_power (normal
+    approximation, the other tail ignored); k ≥ 2, the noncentral χ²_k (the grouped F with σ known)."""
+    if k <= 1:
+        return float(scipy.stats.norm.ppf(1 - level / 2) + scipy.stats.norm.ppf(power))
+    crit = scipy.stats.chi2.ppf(1 - level, k)
+    return float(np.sqrt(scipy.optimize.brentq(lambda lam: scipy.stats.ncx2.sf(crit, k, lam) - power, 0.0, 1e5)))
+
+
 def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names: list[str], sigma: float,
          alpha: float = 0.01, cache: dict | None = None) -> list[Gate]:
     """Detectability of every candidate (module docstring); `S[i]` is effect i's signature (n, k).
@@ -181,6 +196,17 @@ def gate(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free_names:
                       f"{e.units[0]} ({absorbed * 100:.1f} % absorbed by the geometry)")
         thr = np.inf if smin == 0 else (z - POWER_Z) * sigma / smin + e.tolerance
         gates[i] = Gate(e, absorbed, float(mds), ok, absorbed_by, reason, sp, float(best), float(thr))
+    # the sizes of the tested candidates, stated for the test the selection runs (module docstring)
+    m_t = sum(g.identifiable for g in gates)
+    for g in gates:
+        if not g.identifiable:
+            continue
+        k, tol = g.effect.k, g.effect.tolerance
+        s80 = power_scale(k, alpha / m_t, 0.8)
+        s50 = power_scale(k, alpha / m_t, 0.5)  # k = 1: z₁₋α/(2m), the critical value itself
+        g.min_detectable = (g.min_detectable - tol) * s80 / z + tol
+        g.best_detectable = (g.best_detectable - tol) * s80 / z + tol
+        g.threshold = (g.threshold - tol) * s50 / (z - POWER_Z) + tol
     return gates  # type: ignore[return-value]
 
 

@@ -344,9 +344,9 @@ def phase_budget(w: World, where: dict, payload, unit: float, g, sigma_hat: floa
     """A two-parameter (phase-unknown) term's budget like for like, at one phase at a time: at the injected phase
     and at robocal's weakest one (its gate's figure is along that direction), the ideal (the phase known, 1 dof,
     80 %: (3 + z₀.₈)σ/‖P⊥S_φ‖, the generator's signature at φ) beside robocal's 80 % figures at that phase — its
-    gate's own (1-dof z over the library, the figure `min_detectable` states) and its χ² test over both phases
-    (the grouped F it runs, 2 dof, at Holm's first threshold α/m over the candidates it tests: the honest
-    detectable amplitude of an effect whose phase it does not know).  The generator's eccentricity
+    gate's own (the figure `min_detectable` states) and, computed here, its χ² test over both phases (the grouped F
+    it runs, 2 dof, at Holm's first threshold α/m over the candidates it tests: the honest detectable amplitude of
+    an effect whose phase it does not know).  The gate states that same test, so the two agree.  The generator's eccentricity
     A·sin(q + φ) is robocal's a·cos q + b·sin q with (a, b) = A·(sin φ, cos φ)."""
     _, J = w.clean(payload)
     _, sv, Vt = np.linalg.svd(g.projected, full_matrices=False)

@@ -20,6 +20,7 @@ is what of it the geometry cannot absorb, and the residual r is already ⊥ Q at
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.linalg
@@ -131,6 +132,7 @@ def _gate_parts(effects: list[Effect], S: list[np.ndarray], Jf: np.ndarray, free
     return {"proj": proj, "basis": basis, "per": per, "unit": [_unit(p) for p in proj]}
 
 
+@lru_cache(maxsize=512)  # a few (k, family size) per diagnosis; the noncentral χ² root costs ~5 ms
 def power_scale(k: int, level: float, power: float) -> float:
     """√λ (σ per unit of the projected signature's norm along its weakest direction) at which a test of k
     parameters at `level` reaches `power`: k = 1, the two-sided z test z₁₋level/2 + z_power (normal

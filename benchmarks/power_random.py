@@ -264,7 +264,7 @@ def run_one(w: World, name: str, mult: float, n_boot: int) -> dict:
     ool = (effects[0][0], effs[0].where) if key is None else None
     r = {"seed": w.seed, "mds_ideal": mdes, "size": [e.size for e in effs], **score(d, key, SECOND.get(name), ool)}
     r["named_or_collinear_alike"] = r["named_or_near_collinear"] = None if key is None else r["named"]
-    if key is not None and len(effects) == 1 and not r["named"] and r["named_or_alike"]:
+    if key is not None and not r["named"] and r["named_or_alike"]:  # a pair: its first effect, the one `key` names
         kind, where = effects[0]
         _, S = ideal_mds(w, kind, placed(w, kind, where), payload, unit if kind != "backlash" else None, mult)
         r["alike"] = collinear_alike(d, key, w, S, payload, effs[0].size)
